@@ -1,0 +1,64 @@
+-- seamcook.lua - the graph language, as a graph file sees it.
+--
+-- This file documents the API; the engine (runtime/sc_lua.c) provides it
+-- natively, so nothing here is loaded. A graph file is Lua 5.4 run in a
+-- sandbox. Running it only BUILDS the graph: nothing cooks until the whole
+-- file has run and the graph has been checked.
+--
+-- Nodes -------------------------------------------------------------------
+--
+-- Every node type (`seamcook nodes` lists them) is a global constructor that
+-- takes one table of named fields:
+--
+--   local atlas = load_atlas{ path = param("asset") }
+--   local clean = erase_seams{ atlas = atlas, name = "clean" }
+--   local lods  = decimate{ atlas = clean, ratios = { 0.5, 0.25, 0.125 } }
+--
+-- (the parameter names above are for illustration: `seamcook nodes` shows
+-- each type's real ports and parameters, with their ranges and defaults).
+--
+--   * input ports take a node handle. A node with several outputs is passed
+--     as handle.port (e.g. `two.image`); passing the handle itself uses its
+--     only output, or the only one whose kind fits the input.
+--   * parameters take a number (NUMBER, INTEGER: 1 and 1.0 are the same), a
+--     boolean, a string (STRING, a choice, or a PATH: relative paths are taken
+--     from the working directory), or a list of numbers (a single number is a
+--     list of one). Each is checked against the node's range and choices.
+--   * `name` names the node (letters, digits, _ - .); by default it is
+--     "<type>_<n>", n counting that type's nodes from 1. Names are unique.
+--   * an unknown field is an error naming the fields the node knows.
+--
+-- A node handle is read-only; tostring(handle) is the node's name.
+--
+-- Settings ----------------------------------------------------------------
+--
+--   param(name [, default])
+--     The value of `--set name=value`, converted to the type of `default`:
+--     a number (an error if the text is not one), a boolean (true/false,
+--     yes/no, 1/0) or a string. Without --set it returns `default`; with no
+--     default either, the graph fails: "pass --set name=...". Every --set
+--     must be read by some param() call, so a misspelt setting is an error.
+--
+-- Tests -------------------------------------------------------------------
+--
+--   expect(node, metric, op, value [, tolerance])
+--     A graph test states a metric the node must report: op is one of
+--     "<", "<=", "==", ">=", ">" or "~" (|metric - value| <= tolerance,
+--     where tolerance is required). `seamcook test` checks them after a run.
+--
+-- The sandbox -------------------------------------------------------------
+--
+--   * available: the base functions, string, table, math, utf8; load() of
+--     source text (never bytecode).
+--   * absent: io, os, package, require, debug, dofile, loadfile,
+--     collectgarbage, coroutine, string.dump.
+--   * reading a global nobody defined is an error ("did you mean ...?");
+--     use rawget(_G, name) to test for one.
+--   * pairs() visits keys in a fixed order (numbers ascending, then strings,
+--     then booleans), so a loop builds the same graph on every run;
+--     math.random starts from a fixed seed, and math.randomseed needs one.
+--   * print() writes to standard error.
+--   * a build is bounded: 100 million instructions and 256 MiB by default.
+--
+-- Every error names the graph file and line: "lod_chain.lua:12: decimate:
+-- ratio: 1.5 is outside [0, 1]".

@@ -1,0 +1,2003 @@
+/* decimate.c - the node `decimate`: seam-aware edge-collapse decimation
+ * (Liu, Ferguson, Jacobson, Gingold 2017, §5) producing a chain of levels of
+ * detail that all keep the input's parameterisation, so one seam-free texture
+ * set serves every level.
+ *
+ * Design note.
+ *
+ * Z-vertices. The surface mesh (V, FV) and the parameter mesh (U, FU) have
+ * different connectivity. Every face corner names a Z-vertex: a (surface
+ * vertex, uv index, material) triple, numbered through a hash table in order
+ * of first appearance (§5.2). The uv mesh is then the faces over Z, the
+ * surface mesh the faces over V; a seam edge is a surface edge whose two
+ * faces use different Z at an endpoint. Splitting by material makes a
+ * material border behave like a seam (it must keep its shape in uv on both
+ * sides). Each Z carries its uv, its 5-D quadric over (x, y, z, s u, s v)
+ * (Garland & Heckbert 1998: each face adds the squared distance to its plane
+ * in R^5, weighted by its 3D area, to its three corners) and, for the
+ * area-distortion weights (Coll & Paradinas 2010 §4), its 3D plane quadric
+ * and summed normal. s (uv_scale) = uv_weight * sqrt(surface area / uv area)
+ * makes one unit of uv worth one unit of surface length on average, so
+ * neither part of the metric dominates by an accident of units. Surface
+ * border edges add a plane through the edge, perpendicular to its face
+ * (Garland & Heckbert 1997), so open borders keep their place in 3D.
+ *
+ * Collapses. An edge (a, b) is classified by its faces:
+ *   interior  both faces use the same uv edge (za, zb). If both are uv
+ *             silhouette vertices the parameter mesh's link condition fails
+ *             (blocked); with one silhouette endpoint the new vertex keeps its
+ *             uv; else the uv is free.
+ *   seam      two uv half-edges e1 = (za1, zb1), e2 = (za2, zb2). At each end
+ *             we look for the neighbouring seam edge d continuing both halves
+ *             and test unifiability: both (d_i, e_i) collinear in uv and equal
+ *             length ratios |e1|/|d1| = |e2|/|d2|. With both ends unifiable
+ *             the new uv points w1, w2 slide on the lines d(0)..f(1) with the
+ *             same parameter t in [0, 1] (§5.1's equality and inequality
+ *             constraints); with one, the collapse goes onto the other end
+ *             (w_i = that end's uv); with none it is not collapsible.
+ *   boundary  a surface border edge: a non-seam silhouette, collinearity
+ *             only.
+ * The placement minimises the quadric under these constraints exactly: a
+ * 5-D problem, or for a seam the 10-D block metric of the two half-vertex
+ * quadrics with x1 = x2, y1 = y2, z1 = z2. Lines and bounds go to sc_qp
+ * (Goldfarb-Idnani); where the equalities only fix variables (kept uv) they
+ * are eliminated, which is exact and much cheaper. A small rho |x - mid|^2
+ * (rho = 1e-9 trace/n) makes every problem strictly convex and picks, among
+ * the minimisers of a singular quadric (flat, linearly parameterised
+ * regions), the one nearest the edge's midpoint. A slid uv is snapped exactly
+ * onto its line and a kept uv copied, so silhouettes stay exact to rounding.
+ * seam_mode "fixed" never collapses a silhouette edge (the Maya baseline);
+ * "free" drops every uv constraint but keeps the link conditions and flip
+ * tests (the MeshLab baseline).
+ *
+ * Tolerances. Collinearity and equal ratios are tested with the relative
+ * tolerances (1e-9) plus what the storage precision of the input's uv
+ * explains: OBJ files store uv as decimal text (blub: 6 significant digits),
+ * so seams straightened before export are straight only to half a unit in
+ * the last digit. uv_precision (detected: decimal digits, float32 or double)
+ * bounds that rounding; a point within 2 steps of the chord of its
+ * neighbours, or lengths within the matching slack, are taken as straight or
+ * equal. On exact data (the procedural asset, double precision) this adds
+ * ~1e-16: silhouettes stay exact.
+ *
+ * Validity, tested when an edge comes off the queue: the link condition on
+ * the surface (with one virtual vertex joined to all borders, §5.2) and on
+ * every uv half-edge; opposite vertices keep a valid valence; no surviving
+ * face flips or degenerates in uv (orientation compared with the face's
+ * current one) or in 3D, where a face's normal may also turn by at most
+ * normal_turn degrees (30) per collapse; when nothing else can collapse
+ * before a target, that limit is relaxed to flips only. An edge that fails is
+ * dropped and its endpoints are marked; any later collapse next to a marked
+ * vertex queues its edges again.
+ *
+ * Queue. A 4-ary heap of (cost bits, a << 32 | b, version a, version b):
+ * ties broken by vertex ids, so the order never depends on memory addresses
+ * or thread count. Collapsing bumps the version of the kept vertex (and, after
+ * a silhouette collapse, of its silhouette neighbours, whose seam constraints
+ * refer to it) and re-queues their edges; stale entries are skipped when
+ * popped, and dropped in bulk whenever the heap outgrows the live edges.
+ *
+ * Levels. One continuous decimation; a snapshot is taken each time the face
+ * count reaches the next target, so level k is the previous level decimated
+ * further with the quadrics it accumulated. When the queue runs dry before a
+ * target, every remaining edge is classified once and the counts are
+ * reported as lod<k>.blocked_<reason>.
+ *
+ * Output: each level is an ATLAS without textures (share_textures adds them).
+ * Faces keep the input order (survivors only) and their material; surface
+ * vertices and uv entries are renumbered in order of their ids; normals are
+ * dropped (they no longer match the moved vertices).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_hausdorff.h"
+#include "sc_nodes.h"
+#include "sc_quadric.h"
+
+#define QDIM 5
+#define QSIZE SC_QUADRIC_SIZE(QDIM)
+#define BOUNDARY_PLANE_WEIGHT 1.0
+
+enum { MODE_AWARE = 0, MODE_FIXED = 1, MODE_FREE = 2 };
+enum { WEIGHTS_QEM = 0, WEIGHTS_AREA_DISTORTION = 1 };
+
+/* Why an edge cannot collapse (metric names after "blocked_"). */
+typedef enum block_reason {
+    BLOCK_NONE = 0,
+    BLOCK_NONMANIFOLD,          /* an endpoint with a non-manifold fan */
+    BLOCK_SILHOUETTE_ENDPOINTS, /* interior uv edge joining two silhouette vertices */
+    BLOCK_SEAM_CORNER,          /* no neighbouring edge continues the seam on either side */
+    BLOCK_SEAM_NOT_COLLINEAR,
+    BLOCK_SEAM_LENGTH_RATIO,
+    BLOCK_BOUNDARY_CORNER,      /* surface border: no collinear neighbour */
+    BLOCK_BOUNDARY_NOT_COLLINEAR,
+    BLOCK_FIXED_SILHOUETTE,     /* seam_mode fixed */
+    BLOCK_PLACEMENT,            /* the constrained QP has no solution */
+    BLOCK_LINK_SURFACE,
+    BLOCK_LINK_UV,
+    BLOCK_VALENCE,
+    BLOCK_SURFACE_FLIP,
+    BLOCK_UV_FLIP,
+    BLOCK_COUNT
+} block_reason;
+
+static const char *const block_names[BLOCK_COUNT] = {
+    "none", "nonmanifold_vertex", "silhouette_endpoints", "seam_corner", "seam_not_collinear",
+    "seam_length_ratio", "boundary_corner", "boundary_not_collinear", "fixed_silhouette", "placement",
+    "link_surface", "link_uv", "valence", "surface_flip", "uv_flip",
+};
+
+enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8 };
+enum { Z_SILHOUETTE = 1, Z_PINNED = 2 };
+enum { EDGE_INTERIOR = 0, EDGE_SEAM = 1, EDGE_BOUNDARY = 2 };
+enum { UV_FREE = 0, UV_FIXED = 1, UV_SLIDE = 2 };
+
+/* A queued edge. `key` is the bit pattern of its (non-negative) cost, which
+ * orders like the cost itself; `pair` = a << 32 | b breaks ties, so the
+ * order never depends on anything but the mesh. */
+typedef struct heap_entry {
+    uint64_t key, pair;
+    uint32_t va, vb;
+} heap_entry;
+
+/* One uv half-edge of a collapse: Z `gone` merges into Z `keep`. */
+typedef struct half_plan {
+    int32_t keep, gone;
+    int uv_mode;
+    double line0[2], line1[2];   /* UV_SLIDE: the segment w must stay on (uv units) */
+    double fixed[2];             /* UV_FIXED */
+    double w[2];                 /* the placement */
+} half_plan;
+
+typedef struct collapse_plan {
+    int32_t keep, gone;          /* surface vertices */
+    int kind, nhalf;
+    half_plan h[2];
+    int32_t faces[2];            /* the faces on the edge (removed) */
+    int nfaces;
+    double xyz[3];
+    double cost;
+    block_reason reason;
+} collapse_plan;
+
+typedef struct state {
+    /* parameters */
+    int mode, weights;
+    double uv_scale, collinear_tol, ratio_tol;
+    double uv_precision;         /* how finely the input's uv are stored */
+    double normal_cos;           /* a face's normal may turn by less than this angle's cosine */
+    bool normal_relaxed;         /* normal_cos dropped to 0 (a flip only) after a stall */
+    /* surface vertices */
+    int32_t nv;
+    double *pos;                 /* centred on the input's bounding box */
+    double center[3];
+    uint8_t *vflags;
+    uint32_t *version;
+    uint32_t *vmark;
+    uint32_t vstamp;
+    /* vertex -> live faces, lists in one pool */
+    int64_t *vf_off;
+    int32_t *vf_len, *vf_cap;
+    int32_t *pool;
+    int64_t pool_len, pool_cap;
+    /* faces */
+    int32_t nf, nf_alive;
+    int32_t *fv, *fz, *fmat;
+    uint8_t *falive;
+    double *input_uv_area;
+    /* Z-vertices */
+    int32_t nz;
+    int32_t *zv, *zuv_index;
+    double *zuv;
+    uint8_t *zflags;
+    double *zq, *zgeo, *znormal, *zweight;
+    uint32_t *zmark;
+    uint32_t zstamp;
+    /* queue */
+    heap_entry *heap;
+    int64_t heap_len, heap_cap;
+    int64_t heap_compacted;      /* entries left by the last compaction */
+    int64_t border_edges;        /* surface border edges of the input */
+    /* scratch */
+    int32_t *scratch;
+    int32_t scratch_cap;
+    int32_t *touched, *neighbours;
+    int32_t touched_cap, neighbours_cap;
+    bool out_of_memory;
+    /* statistics */
+    int64_t seam_collapses, collapses;
+    int64_t rejected[BLOCK_COUNT];
+} state;
+
+/* ---------------------------------------------------------------- small helpers */
+
+static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void cross3(const double *a, const double *b, double *out) {
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static void triangle_normal(const double *p, const double *q, const double *r, double *n) {
+    double e1[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, e2[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+    cross3(e1, e2, n);
+}
+
+/* Twice the signed area of a uv triangle. */
+static double uv_area2(const double *p, const double *q, const double *r) {
+    return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+}
+
+static double dist2d(const double *p, const double *q) {
+    double x = q[0] - p[0], y = q[1] - p[1];
+    return sqrt(x * x + y * y);
+}
+
+static int32_t *vfaces(const state *st, int32_t v, int32_t *count) {
+    *count = st->vf_len[v];
+    return st->pool + st->vf_off[v];
+}
+
+static bool grow_scratch(state *st, int32_t need) {
+    if (need <= st->scratch_cap) return true;
+    int32_t cap = st->scratch_cap ? st->scratch_cap : 64;
+    while (cap < need) cap *= 2;
+    int32_t *p = sc_realloc_array(st->scratch, (size_t)cap, sizeof *p);
+    if (!p) {
+        st->out_of_memory = true;
+        return false;
+    }
+    st->scratch = p;
+    st->scratch_cap = cap;
+    return true;
+}
+
+/* A growable int buffer owned by the state: NULL (and out_of_memory set)
+ * when it cannot hold `need` entries. */
+static int32_t *reserve(state *st, int32_t **buf, int32_t *cap, int32_t need) {
+    if (need <= *cap) return *buf;
+    int32_t c = *cap ? *cap : 64;
+    while (c < need) c *= 2;
+    int32_t *p = sc_realloc_array(*buf, (size_t)c, sizeof *p);
+    if (!p) {
+        st->out_of_memory = true;
+        return NULL;
+    }
+    *buf = p;
+    *cap = c;
+    return p;
+}
+
+static int corner_of(const state *st, int32_t f, int32_t v) {
+    for (int k = 0; k < 3; k++)
+        if (st->fv[3 * f + k] == v) return k;
+    return -1;
+}
+
+
+static void scaled_point(const state *st, int32_t z, double out[QDIM]) {
+    const double *p = st->pos + 3 * st->zv[z];
+    out[0] = p[0], out[1] = p[1], out[2] = p[2];
+    out[3] = st->uv_scale * st->zuv[2 * z];
+    out[4] = st->uv_scale * st->zuv[2 * z + 1];
+}
+
+/* ---------------------------------------------------------------- fans */
+
+/* Distinct uv boundary neighbours of Z z (uv edges at z used by one face),
+ * written to out (up to max); returns their count, or -1 when some uv edge
+ * at z has more than two faces. */
+static int z_boundary_neighbours(state *st, int32_t z, int32_t *out, int max) {
+    int32_t n;
+    const int32_t *list = vfaces(st, st->zv[z], &n);
+    if (!grow_scratch(st, 2 * n + 2)) return -1;
+    int32_t *spokes = st->scratch;
+    int ns = 0;
+    for (int32_t i = 0; i < n; i++) {
+        int32_t f = list[i];
+        for (int k = 0; k < 3; k++)
+            if (st->fz[3 * f + k] == z) {
+                spokes[ns++] = st->fz[3 * f + (k + 1) % 3];
+                spokes[ns++] = st->fz[3 * f + (k + 2) % 3];
+            }
+    }
+    int count = 0;
+    for (int i = 0; i < ns; i++) {
+        int same = 0, first = 1;
+        for (int j = 0; j < ns; j++)
+            if (spokes[j] == spokes[i]) {
+                same++;
+                if (j < i) first = 0;
+            }
+        if (same > 2) return -1;
+        if (same == 1 && first) {
+            if (count < max) out[count] = spokes[i];
+            count++;
+        }
+    }
+    return count;
+}
+
+/* Number of distinct Z-vertices the faces around surface vertex v use at v. */
+static int vertex_wedges(const state *st, int32_t v, int32_t first_two[2]) {
+    int32_t n;
+    const int32_t *list = vfaces(st, v, &n);
+    int count = 0;
+    int32_t seen[8];
+    for (int32_t i = 0; i < n; i++) {
+        int k = corner_of(st, list[i], v);
+        int32_t z = st->fz[3 * list[i] + k];
+        bool known = false;
+        for (int j = 0; j < count && j < 8; j++)
+            if (seen[j] == z) known = true;
+        if (!known) {
+            if (count < 8) seen[count] = z;
+            count++;
+            if (count > 8) return count;
+        }
+    }
+    if (first_two) {
+        first_two[0] = count > 0 ? seen[0] : -1;
+        first_two[1] = count > 1 ? seen[1] : -1;
+    }
+    return count;
+}
+
+/* Faces on the surface edge (a, b); returns their count (up to 3 recorded). */
+static int edge_faces(const state *st, int32_t a, int32_t b, int32_t out[3]) {
+    int32_t n;
+    const int32_t *list = vfaces(st, a, &n);
+    int count = 0;
+    for (int32_t i = 0; i < n; i++) {
+        const int32_t *c = st->fv + 3 * list[i];
+        if (c[0] == b || c[1] == b || c[2] == b) {
+            if (count < 3) out[count] = list[i];
+            count++;
+        }
+    }
+    return count;
+}
+
+/* ---------------------------------------------------------------- unifiability */
+
+/* Collinear with `mid` strictly between p and q: mid's distance from the
+ * chord p-q is at most collinear_tol |q - p| plus what the storage precision
+ * of the three points explains (each coordinate rounded by up to half a
+ * step moves a point by up to 0.71 steps; 2 steps bound the chord's
+ * distance from a straight line through the unrounded points). */
+static bool collinear_through(const state *st, const double *p, const double *mid, const double *q) {
+    double chord[2] = {q[0] - p[0], q[1] - p[1]}, d[2] = {mid[0] - p[0], mid[1] - p[1]};
+    double len2 = chord[0] * chord[0] + chord[1] * chord[1];
+    if (!(len2 > 0)) return false;
+    double len = sqrt(len2);
+    double along = d[0] * chord[0] + d[1] * chord[1];
+    if (!(along > 0) || !(along < len2)) return false;
+    double distance = fabs(d[0] * chord[1] - d[1] * chord[0]) / len;
+    return distance <= st->collinear_tol * len + 2.0 * st->uv_precision;
+}
+
+/* |e0| / |d0| = |e1| / |d1| (as e0 d1 = e1 d0), to ratio_tol relative plus
+ * the effect of the storage precision on the four lengths (each off by up
+ * to 1.42 steps). */
+static bool ratios_equal(const state *st, double e0, double d0, double e1, double d1) {
+    double lhs = e0 * d1, rhs = e1 * d0, q = st->uv_precision;
+    double slack = st->ratio_tol * (lhs > rhs ? lhs : rhs) + 2.0 * q * (e0 + d0 + e1 + d1) + 8.0 * q * q;
+    return fabs(lhs - rhs) <= slack;
+}
+
+/* At surface vertex `at`, end of a silhouette edge whose uv half-edges are
+ * z_at[i] -> z_other[i] (i < nhalf): find the neighbouring edge continuing
+ * every half and test whether it unifies with ours. On success far[i] is the
+ * far end of the neighbour's half i. */
+static block_reason unify_at(state *st, int nhalf, int32_t at, const int32_t *z_at, const int32_t *z_other,
+                             int32_t *far) {
+    bool seam = nhalf == 2;
+    block_reason corner = seam ? BLOCK_SEAM_CORNER : BLOCK_BOUNDARY_CORNER;
+    if (seam && z_at[0] == z_at[1]) return corner;   /* the tip of a slit */
+    int32_t wedges[2];
+    if (vertex_wedges(st, at, wedges) != nhalf) return corner;   /* another chart meets here */
+    for (int i = 0; i < nhalf; i++) {
+        if (st->zflags[z_at[i]] & Z_PINNED) return corner;
+        int32_t nb[3];
+        if (z_boundary_neighbours(st, z_at[i], nb, 3) != 2) return corner;
+        if (nb[0] == z_other[i]) far[i] = nb[1];
+        else if (nb[1] == z_other[i]) far[i] = nb[0];
+        else return corner;
+    }
+    int32_t c = st->zv[far[0]];
+    if (seam && st->zv[far[1]] != c) return corner;   /* the halves turn into different seams */
+    int32_t fl[3];
+    int nfl = edge_faces(st, at, c, fl);
+    if (nfl != (seam ? 2 : 1)) return corner;
+    block_reason not_collinear = seam ? BLOCK_SEAM_NOT_COLLINEAR : BLOCK_BOUNDARY_NOT_COLLINEAR;
+    for (int i = 0; i < nhalf; i++)
+        if (!collinear_through(st, st->zuv + 2 * far[i], st->zuv + 2 * z_at[i], st->zuv + 2 * z_other[i]))
+            return not_collinear;
+    if (seam) {
+        double d0 = dist2d(st->zuv + 2 * far[0], st->zuv + 2 * z_at[0]);
+        double e0 = dist2d(st->zuv + 2 * z_at[0], st->zuv + 2 * z_other[0]);
+        double d1 = dist2d(st->zuv + 2 * far[1], st->zuv + 2 * z_at[1]);
+        double e1 = dist2d(st->zuv + 2 * z_at[1], st->zuv + 2 * z_other[1]);
+        if (!ratios_equal(st, e0, d0, e1, d1)) return BLOCK_SEAM_LENGTH_RATIO;
+    }
+    return BLOCK_NONE;
+}
+
+/* The more informative of two reasons (length ratio > not collinear > corner). */
+static block_reason better_reason(block_reason x, block_reason y) {
+    static const int rank[BLOCK_COUNT] = {[BLOCK_SEAM_LENGTH_RATIO] = 3, [BLOCK_SEAM_NOT_COLLINEAR] = 2,
+                                          [BLOCK_BOUNDARY_NOT_COLLINEAR] = 2, [BLOCK_SEAM_CORNER] = 1,
+                                          [BLOCK_BOUNDARY_CORNER] = 1};
+    return rank[x] >= rank[y] ? x : y;
+}
+
+/* ---------------------------------------------------------------- planning */
+
+static void set_fixed(half_plan *h, const double *uv) {
+    h->uv_mode = UV_FIXED;
+    h->fixed[0] = uv[0];
+    h->fixed[1] = uv[1];
+}
+
+/* Decide how edge (a, b) collapses: which vertex stays, which Z merge, and
+ * the uv constraints. Fills p->reason when the edge cannot collapse. */
+static void plan_edge(state *st, int32_t a, int32_t b, collapse_plan *p) {
+    p->reason = BLOCK_NONE;
+    p->nfaces = p->nhalf = 0;
+    p->cost = INFINITY;
+    if ((st->vflags[a] | st->vflags[b]) & V_LOCKED) {
+        p->reason = BLOCK_NONMANIFOLD;
+        return;
+    }
+    int32_t fl[3];
+    int nf = edge_faces(st, a, b, fl);
+    if (nf < 1 || nf > 2) {
+        p->reason = BLOCK_NONMANIFOLD;
+        return;
+    }
+    p->nfaces = nf;
+    p->faces[0] = fl[0];
+    p->faces[1] = nf > 1 ? fl[1] : -1;
+    int32_t za[2], zb[2];
+    for (int i = 0; i < nf; i++) {
+        za[i] = st->fz[3 * fl[i] + corner_of(st, fl[i], a)];
+        zb[i] = st->fz[3 * fl[i] + corner_of(st, fl[i], b)];
+    }
+    int32_t lo = a < b ? a : b;
+    if (nf == 2 && za[0] == za[1] && zb[0] == zb[1]) {
+        /* interior uv edge */
+        p->kind = EDGE_INTERIOR;
+        p->nhalf = 1;
+        bool sa = st->zflags[za[0]] & (Z_SILHOUETTE | Z_PINNED);
+        bool sb = st->zflags[zb[0]] & (Z_SILHOUETTE | Z_PINNED);
+        if (sa && sb) {
+            p->reason = BLOCK_SILHOUETTE_ENDPOINTS;
+            return;
+        }
+        bool keep_a = sa || (!sb && a == lo);
+        p->keep = keep_a ? a : b;
+        p->gone = keep_a ? b : a;
+        p->h[0].keep = keep_a ? za[0] : zb[0];
+        p->h[0].gone = keep_a ? zb[0] : za[0];
+        if ((sa || sb) && st->mode != MODE_FREE) set_fixed(&p->h[0], st->zuv + 2 * p->h[0].keep);
+        else p->h[0].uv_mode = UV_FREE;
+        return;
+    }
+    p->kind = nf == 1 ? EDGE_BOUNDARY : EDGE_SEAM;
+    p->nhalf = nf;
+    if (st->mode == MODE_FIXED) {
+        p->reason = BLOCK_FIXED_SILHOUETTE;
+        return;
+    }
+    if (st->mode == MODE_FREE) {
+        /* keep the slit's tip, if any, so that no Z has to go two ways */
+        bool keep_a = nf == 2 ? (za[0] == za[1] || (zb[0] != zb[1] && a == lo)) : a == lo;
+        p->keep = keep_a ? a : b;
+        p->gone = keep_a ? b : a;
+        for (int i = 0; i < nf; i++) {
+            p->h[i].keep = keep_a ? za[i] : zb[i];
+            p->h[i].gone = keep_a ? zb[i] : za[i];
+            p->h[i].uv_mode = UV_FREE;
+        }
+        if (nf == 2 && p->h[0].keep == p->h[1].keep)
+            for (int i = 0; i < 2; i++) set_fixed(&p->h[i], st->zuv + 2 * p->h[0].keep);
+        return;
+    }
+    /* aware: unifiability at each end */
+    int32_t far_a[2] = {-1, -1}, far_b[2] = {-1, -1};
+    block_reason ra = unify_at(st, nf, a, za, zb, far_a);
+    block_reason rb = unify_at(st, nf, b, zb, za, far_b);
+    if (ra != BLOCK_NONE && rb != BLOCK_NONE) {
+        p->reason = better_reason(ra, rb);
+        return;
+    }
+    if (ra == BLOCK_NONE && rb == BLOCK_NONE) {
+        /* both ends free to slide: w_i on the line far_a[i] .. far_b[i] */
+        bool keep_a = a == lo;
+        p->keep = keep_a ? a : b;
+        p->gone = keep_a ? b : a;
+        for (int i = 0; i < nf; i++) {
+            half_plan *h = &p->h[i];
+            h->keep = keep_a ? za[i] : zb[i];
+            h->gone = keep_a ? zb[i] : za[i];
+            h->uv_mode = UV_SLIDE;
+            memcpy(h->line0, st->zuv + 2 * far_a[i], sizeof h->line0);
+            memcpy(h->line1, st->zuv + 2 * far_b[i], sizeof h->line1);
+        }
+        return;
+    }
+    /* one end unifiable: that end moves onto the other, which stays put */
+    bool keep_a = rb == BLOCK_NONE;
+    p->keep = keep_a ? a : b;
+    p->gone = keep_a ? b : a;
+    for (int i = 0; i < nf; i++) {
+        half_plan *h = &p->h[i];
+        h->keep = keep_a ? za[i] : zb[i];
+        h->gone = keep_a ? zb[i] : za[i];
+        set_fixed(h, st->zuv + 2 * h->keep);
+    }
+}
+
+/* ---------------------------------------------------------------- placement */
+
+static double z_weight(const state *st, int32_t z) { return st->zweight[z]; }
+
+static inline void q5_set_sum(double *dst, const double *a, double wa, const double *b, double wb) {
+    for (int i = 0; i < QSIZE; i++) dst[i] = wa * a[i] + wb * b[i];
+}
+
+/* The quadric of the half-vertex h: Q(keep) + Q(gone), or for the area
+ * distortion weights w_k Q(keep) + w_g Q(gone). skip_keep leaves Q(keep)
+ * out (it was counted in the other half already). */
+static void half_quadric(const state *st, const half_plan *h, bool skip_keep, double *q) {
+    double wk = 1, wg = 1;
+    if (st->weights == WEIGHTS_AREA_DISTORTION) wk = z_weight(st, h->keep), wg = z_weight(st, h->gone);
+    if (skip_keep) wk = 0;
+    q5_set_sum(q, st->zq + (size_t)h->keep * QSIZE, wk, st->zq + (size_t)h->gone * QSIZE, wg);
+}
+
+/* The general case (a uv on a line, or free uv on both sides of a seam):
+ * Q + rho |x - ref|^2 under the constraints, by Goldfarb-Idnani. */
+static bool solve_constrained(const state *st, const collapse_plan *p, const double *quad, const double *ref,
+                              double rho, double *x) {
+    const double s = st->uv_scale;
+    int nh = p->nhalf, n = QDIM * nh;
+    sc_qp qp;
+    sc_qp_init(&qp, n);
+    double row[SC_QUADRIC_MAX_DIM];
+    double D0[2] = {0, 0}, t0 = 0, len2_0 = 1;   /* half 0's line (scaled) */
+    for (int i = 0; i < nh; i++) {
+        const half_plan *h = &p->h[i];
+        int o = QDIM * i;
+        if (h->uv_mode == UV_FIXED) {
+            for (int k = 0; k < 2; k++) {
+                memset(row, 0, sizeof(double) * (size_t)n);
+                row[o + 3 + k] = 1;
+                sc_qp_add_eq(&qp, row, s * h->fixed[k]);
+            }
+        } else if (h->uv_mode == UV_SLIDE) {
+            double P0[2] = {s * h->line0[0], s * h->line0[1]};
+            double D[2] = {s * (h->line1[0] - h->line0[0]), s * (h->line1[1] - h->line0[1])};
+            double len2 = D[0] * D[0] + D[1] * D[1];
+            if (!(len2 > 0)) return false;
+            double len = sqrt(len2);
+            /* on the line: normal . (x_uv - P0) = 0 */
+            memset(row, 0, sizeof(double) * (size_t)n);
+            row[o + 3] = -D[1] / len;
+            row[o + 4] = D[0] / len;
+            sc_qp_add_eq(&qp, row, (-D[1] * P0[0] + D[0] * P0[1]) / len);
+            /* its parameter t = D . (x_uv - P0) / |D|^2 */
+            double t_off = (D[0] * P0[0] + D[1] * P0[1]) / len2;
+            if (i == 0) {   /* 0 <= t <= 1 */
+                D0[0] = D[0], D0[1] = D[1], t0 = t_off, len2_0 = len2;
+                memset(row, 0, sizeof(double) * (size_t)n);
+                row[3] = D[0] / len2;
+                row[4] = D[1] / len2;
+                sc_qp_add_ge(&qp, row, t_off);
+                row[3] = -row[3];
+                row[4] = -row[4];
+                sc_qp_add_ge(&qp, row, -(1.0 + t_off));
+            } else {        /* the same parameter on both sides: t_1 = t_0 */
+                memset(row, 0, sizeof(double) * (size_t)n);
+                row[3] = D0[0] / len2_0;
+                row[4] = D0[1] / len2_0;
+                row[o + 3] = -D[0] / len2;
+                row[o + 4] = -D[1] / len2;
+                sc_qp_add_eq(&qp, row, t0 - t_off);
+            }
+        }
+    }
+    if (nh == 2)
+        for (int k = 0; k < 3; k++) {   /* one surface point: x1 = x2 */
+            memset(row, 0, sizeof(double) * (size_t)n);
+            row[k] = 1;
+            row[QDIM + k] = -1;
+            sc_qp_add_eq(&qp, row, 0);
+        }
+    sc_qp_result res;
+    if (sc_qp_minimize_quadric(&qp, quad, ref, rho, &res, NULL) != SC_QP_OK) return false;
+    memcpy(x, res.x, sizeof(double) * (size_t)n);
+    return true;
+}
+
+/* Solve for the placement of a planned collapse; sets cost, xyz, w.
+ *
+ * The placement is the exact minimiser of Q + rho |x - ref|^2 under the
+ * plan's constraints (rho from sc_quadric_default_rho of the whole problem,
+ * ref the midpoint of the edge in every dimension, or the fixed uv). When
+ * every uv is fixed, or nothing is constrained, the equality constraints
+ * only fix variables: eliminating them is exact and leaves a small positive
+ * definite system. Lines and bounds go to the Goldfarb-Idnani solver. */
+static void solve_plan(state *st, collapse_plan *p) {
+    if (p->reason != BLOCK_NONE) return;
+    const double s = st->uv_scale;
+    int nh = p->nhalf == 2 ? 2 : 1;
+    bool shared_keep = nh == 2 && p->h[0].keep == p->h[1].keep;
+    double qh[2][QSIZE];
+    half_quadric(st, &p->h[0], false, qh[0]);
+    if (nh == 2) half_quadric(st, &p->h[1], shared_keep, qh[1]);
+    double rho = sc_quadric_default_rho(qh[0], QDIM);
+    if (nh == 2) rho = 0.5 * (rho + sc_quadric_default_rho(qh[1], QDIM));   /* trace / 10 of the block */
+
+    double ref[SC_QUADRIC_MAX_DIM];
+    const double *pk = st->pos + 3 * p->keep, *pg = st->pos + 3 * p->gone;
+    bool all_fixed = true;
+    for (int i = 0; i < nh; i++) {
+        const half_plan *h = &p->h[i];
+        int o = QDIM * i;
+        for (int k = 0; k < 3; k++) ref[o + k] = 0.5 * (pk[k] + pg[k]);
+        if (h->uv_mode == UV_FIXED) {
+            ref[o + 3] = s * h->fixed[0];
+            ref[o + 4] = s * h->fixed[1];
+        } else {
+            const double *uk = st->zuv + 2 * h->keep, *ug = st->zuv + 2 * h->gone;
+            ref[o + 3] = 0.5 * s * (uk[0] + ug[0]);
+            ref[o + 4] = 0.5 * s * (uk[1] + ug[1]);
+            all_fixed = false;
+        }
+    }
+    double x[SC_QUADRIC_MAX_DIM];
+    bool ok;
+    if (nh == 1 && p->h[0].uv_mode == UV_FREE) {
+        ok = sc_quadric_minimize(qh[0], QDIM, ref, rho, x);
+    } else if (all_fixed) {
+        double reduced[SC_QUADRIC_SIZE(3)], part[SC_QUADRIC_SIZE(3)];
+        for (int i = 0; i < nh; i++) {
+            double tail[2] = {s * p->h[i].fixed[0], s * p->h[i].fixed[1]};
+            sc_quadric_restrict(qh[i], QDIM, 3, tail, i == 0 ? reduced : part);
+            if (i > 0) sc_quadric_add(reduced, part, 3, 1.0);
+        }
+        ok = sc_quadric_minimize(reduced, 3, ref, nh * rho, x);
+    } else {
+        double quad[SC_QUADRIC_MAX_SIZE];
+        if (nh == 2) sc_quadric_block(quad, qh[0], qh[1], QDIM);
+        else memcpy(quad, qh[0], sizeof qh[0]);
+        ok = solve_constrained(st, p, quad, ref, rho, x);
+    }
+    if (!ok) {
+        p->reason = BLOCK_PLACEMENT;
+        return;
+    }
+    for (int k = 0; k < 3; k++) p->xyz[k] = x[k];
+    /* Snap uv exactly: kept points copied, slid points put on their line at
+     * one common parameter. */
+    double t = 0;
+    if (p->h[0].uv_mode == UV_SLIDE) {
+        const half_plan *h0 = &p->h[0];
+        double D0[2] = {h0->line1[0] - h0->line0[0], h0->line1[1] - h0->line0[1]};
+        double w0[2] = {x[3] / s, x[4] / s};
+        t = ((w0[0] - h0->line0[0]) * D0[0] + (w0[1] - h0->line0[1]) * D0[1]) / (D0[0] * D0[0] + D0[1] * D0[1]);
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+    }
+    double cost = 0;
+    for (int i = 0; i < nh; i++) {
+        half_plan *h = &p->h[i];
+        if (h->uv_mode == UV_FIXED) {
+            h->w[0] = h->fixed[0];
+            h->w[1] = h->fixed[1];
+        } else if (h->uv_mode == UV_SLIDE) {
+            for (int k = 0; k < 2; k++) h->w[k] = h->line0[k] + t * (h->line1[k] - h->line0[k]);
+        } else {
+            h->w[0] = x[QDIM * i + 3] / s;
+            h->w[1] = x[QDIM * i + 4] / s;
+        }
+        double xi[QDIM] = {p->xyz[0], p->xyz[1], p->xyz[2], s * h->w[0], s * h->w[1]};
+        cost += sc_quadric_eval(qh[i], QDIM, xi);
+    }
+    p->cost = cost > 0 ? cost : 0;
+}
+
+/* ---------------------------------------------------------------- validity */
+
+/* Surface link condition (with one virtual vertex joined to all borders). */
+static bool link_surface_ok(state *st, const collapse_plan *p) {
+    int32_t a = p->keep, b = p->gone;
+    if (p->nfaces == 2 && (st->vflags[a] & V_BOUNDARY) && (st->vflags[b] & V_BOUNDARY)) return false;
+    uint32_t mark = st->vstamp += 3;
+    int32_t n;
+    const int32_t *list = vfaces(st, a, &n);
+    for (int32_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) st->vmark[st->fv[3 * list[i] + k]] = mark;
+    /* the opposite vertices of the edge's faces are the expected common ones */
+    int expected = 0;
+    for (int i = 0; i < p->nfaces; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * p->faces[i] + k];
+            if (x != a && x != b && st->vmark[x] == mark) {
+                st->vmark[x] = mark + 1;
+                expected++;
+            }
+        }
+    list = vfaces(st, b, &n);
+    for (int32_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * list[i] + k];
+            if (x == a || x == b) continue;
+            if (st->vmark[x] == mark) return false;   /* common neighbour, not opposite */
+            if (st->vmark[x] == mark + 1) st->vmark[x] = mark + 2;
+        }
+    return true;
+}
+
+/* Mark the uv neighbours of Z z with `value` (only where the mark is `from`,
+ * unless from == 0, which marks all). */
+static void mark_z_neighbours(state *st, int32_t z, uint32_t value) {
+    int32_t n;
+    const int32_t *list = vfaces(st, st->zv[z], &n);
+    for (int32_t i = 0; i < n; i++) {
+        const int32_t *c = st->fz + 3 * list[i];
+        if (c[0] != z && c[1] != z && c[2] != z) continue;
+        for (int k = 0; k < 3; k++)
+            if (c[k] != z) st->zmark[c[k]] = value;
+    }
+}
+
+/* uv link condition for one half-edge keep -> gone. */
+static bool link_uv_ok(state *st, const collapse_plan *p, const half_plan *h) {
+    /* the uv faces on this half-edge and their opposite Z */
+    int32_t opposite[2];
+    int nopp = 0;
+    for (int i = 0; i < p->nfaces; i++) {
+        const int32_t *c = st->fz + 3 * p->faces[i];
+        bool has_k = c[0] == h->keep || c[1] == h->keep || c[2] == h->keep;
+        bool has_g = c[0] == h->gone || c[1] == h->gone || c[2] == h->gone;
+        if (!has_k || !has_g) continue;
+        for (int k = 0; k < 3; k++)
+            if (c[k] != h->keep && c[k] != h->gone) opposite[nopp++] = c[k];
+    }
+    bool boundary_edge = nopp == 1;
+    bool sil_k = st->zflags[h->keep] & (Z_SILHOUETTE | Z_PINNED), sil_g = st->zflags[h->gone] & (Z_SILHOUETTE | Z_PINNED);
+    if (!boundary_edge && sil_k && sil_g) return false;
+    uint32_t mark = st->zstamp += 2;
+    mark_z_neighbours(st, h->keep, mark);
+    for (int i = 0; i < nopp; i++) st->zmark[opposite[i]] = mark + 1;
+    int32_t n;
+    const int32_t *list = vfaces(st, st->zv[h->gone], &n);
+    for (int32_t i = 0; i < n; i++) {
+        const int32_t *c = st->fz + 3 * list[i];
+        if (c[0] != h->gone && c[1] != h->gone && c[2] != h->gone) continue;
+        for (int k = 0; k < 3; k++)
+            if (c[k] != h->gone && c[k] != h->keep && st->zmark[c[k]] == mark) return false;
+    }
+    return true;
+}
+
+/* When two gone Z merge into one kept Z (the tip of a slit), their uv
+ * neighbourhoods must not overlap. */
+static bool tip_merge_ok(state *st, const collapse_plan *p) {
+    if (p->nhalf != 2 || p->h[0].keep != p->h[1].keep) return true;
+    uint32_t mark = st->zstamp += 2;
+    mark_z_neighbours(st, p->h[0].gone, mark);
+    st->zmark[p->h[0].keep] = 0;
+    int32_t n;
+    const int32_t *list = vfaces(st, st->zv[p->h[1].gone], &n);
+    for (int32_t i = 0; i < n; i++) {
+        const int32_t *c = st->fz + 3 * list[i];
+        if (c[0] != p->h[1].gone && c[1] != p->h[1].gone && c[2] != p->h[1].gone) continue;
+        for (int k = 0; k < 3; k++)
+            if (c[k] != p->h[1].gone && st->zmark[c[k]] == mark) return false;
+    }
+    return true;
+}
+
+static bool is_removed(const collapse_plan *p, int32_t f) {
+    return f == p->faces[0] || (p->nfaces > 1 && f == p->faces[1]);
+}
+
+/* The opposite vertices keep a valid fan, and so does the new vertex. */
+static bool valence_ok(state *st, const collapse_plan *p) {
+    for (int i = 0; i < p->nfaces; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * p->faces[i] + k];
+            if (x == p->keep || x == p->gone) continue;
+            int32_t n = st->vf_len[x] - 1;
+            if (n < ((st->vflags[x] & V_BOUNDARY) ? 1 : 3)) return false;
+        }
+    int32_t n = st->vf_len[p->keep] + st->vf_len[p->gone] - 2 * p->nfaces;
+    bool boundary = (st->vflags[p->keep] | st->vflags[p->gone]) & V_BOUNDARY;
+    return n >= (boundary ? 1 : 3);
+}
+
+/* New uv of Z z after the collapse, or NULL when it does not move. */
+static const double *moved_uv(const collapse_plan *p, int32_t z) {
+    for (int i = 0; i < p->nhalf; i++)
+        if (z == p->h[i].keep || z == p->h[i].gone) return p->h[i].w;
+    return NULL;
+}
+
+static block_reason flips_ok(state *st, const collapse_plan *p) {
+    for (int side = 0; side < 2; side++) {
+        int32_t v = side == 0 ? p->keep : p->gone;
+        int32_t n;
+        const int32_t *list = vfaces(st, v, &n);
+        for (int32_t i = 0; i < n; i++) {
+            int32_t f = list[i];
+            if (is_removed(p, f)) continue;
+            const double *P[3], *W[3];
+            const double *oldP[3], *oldW[3];
+            bool uv_moves = false;
+            for (int k = 0; k < 3; k++) {
+                int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
+                oldP[k] = st->pos + 3 * x;
+                oldW[k] = st->zuv + 2 * z;
+                P[k] = (x == p->keep || x == p->gone) ? p->xyz : oldP[k];
+                const double *w = moved_uv(p, z);
+                W[k] = w ? w : oldW[k];
+                if (w && (w[0] != oldW[k][0] || w[1] != oldW[k][1])) uv_moves = true;
+            }
+            /* surface */
+            double n0[3], n1[3];
+            triangle_normal(oldP[0], oldP[1], oldP[2], n0);
+            triangle_normal(P[0], P[1], P[2], n1);
+            double l0 = sqrt(dot3(n0, n0)), l1 = sqrt(dot3(n1, n1));
+            double emax = 0;
+            for (int k = 0; k < 3; k++) {
+                const double *q = P[k], *r = P[(k + 1) % 3];
+                double e = (q[0] - r[0]) * (q[0] - r[0]) + (q[1] - r[1]) * (q[1] - r[1]) + (q[2] - r[2]) * (q[2] - r[2]);
+                if (e > emax) emax = e;
+            }
+            if (!(l1 > 1e-12 * emax)) return BLOCK_SURFACE_FLIP;
+            if (l0 > 0 && dot3(n0, n1) <= st->normal_cos * l0 * l1) return BLOCK_SURFACE_FLIP;
+            /* uv */
+            if (!uv_moves) continue;
+            double a0 = uv_area2(oldW[0], oldW[1], oldW[2]), a1 = uv_area2(W[0], W[1], W[2]);
+            double umax = 0;
+            for (int k = 0; k < 3; k++) {
+                double e = dist2d(W[k], W[(k + 1) % 3]);
+                if (e > umax) umax = e;
+            }
+            if (!(fabs(a1) > 1e-10 * umax * umax)) return BLOCK_UV_FLIP;
+            if (!(a0 * a1 > 0)) return BLOCK_UV_FLIP;
+        }
+    }
+    return BLOCK_NONE;
+}
+
+static block_reason check_plan(state *st, const collapse_plan *p) {
+    if (!link_surface_ok(st, p)) return BLOCK_LINK_SURFACE;
+    for (int i = 0; i < p->nhalf; i++)
+        if (!link_uv_ok(st, p, &p->h[i])) return BLOCK_LINK_UV;
+    if (!tip_merge_ok(st, p)) return BLOCK_LINK_UV;
+    if (!valence_ok(st, p)) return BLOCK_VALENCE;
+    return flips_ok(st, p);
+}
+
+/* ---------------------------------------------------------------- applying */
+
+static void update_weight(state *st, int32_t z) {
+    if (st->weights == WEIGHTS_AREA_DISTORTION)
+        st->zweight[z] = sc_quadric_area_distortion(st->zgeo + 6 * (size_t)z, st->znormal + 3 * (size_t)z);
+}
+
+/* Z `gone` merges into Z `keep` (whose quadric already holds what it had). */
+static void merge_z_attributes(state *st, int32_t keep, const int32_t *gone, int ngone) {
+    double *qk = st->zq + (size_t)keep * QSIZE, *gk = st->zgeo + 6 * (size_t)keep;
+    if (st->weights == WEIGHTS_AREA_DISTORTION) {
+        /* Coll & Paradinas: (w_k Q_k + w_g Q_g) / (w_k + w_g) */
+        double wk = st->zweight[keep], wsum = wk;
+        for (int i = 0; i < ngone; i++) wsum += st->zweight[gone[i]];
+        bool equal = !(wsum > 0);
+        double sk = equal ? 1.0 / (ngone + 1) : wk / wsum;
+        sc_quadric_scale(qk, QDIM, sk);
+        for (int k = 0; k < 6; k++) gk[k] *= sk;
+        for (int i = 0; i < ngone; i++) {
+            double sg = equal ? 1.0 / (ngone + 1) : st->zweight[gone[i]] / wsum;
+            sc_quadric_add(qk, st->zq + (size_t)gone[i] * QSIZE, QDIM, sg);
+            for (int k = 0; k < 6; k++) gk[k] += sg * st->zgeo[6 * (size_t)gone[i] + k];
+        }
+    } else {
+        for (int i = 0; i < ngone; i++) sc_quadric_add(qk, st->zq + (size_t)gone[i] * QSIZE, QDIM, 1.0);
+    }
+    for (int i = 0; i < ngone; i++) {
+        for (int k = 0; k < 3; k++) st->znormal[3 * (size_t)keep + k] += st->znormal[3 * (size_t)gone[i] + k];
+        st->zflags[keep] |= st->zflags[gone[i]];
+        st->zv[gone[i]] = -1;
+    }
+    update_weight(st, keep);
+}
+
+static void remove_from_list(state *st, int32_t v, int32_t f) {
+    int32_t n;
+    int32_t *list = vfaces(st, v, &n);
+    for (int32_t i = 0; i < n; i++)
+        if (list[i] == f) {
+            memmove(list + i, list + i + 1, sizeof(int32_t) * (size_t)(n - i - 1));
+            st->vf_len[v]--;
+            return;
+        }
+}
+
+static bool merge_lists(state *st, int32_t keep, int32_t gone) {
+    int32_t need = st->vf_len[keep] + st->vf_len[gone];
+    if (need > st->vf_cap[keep]) {
+        int32_t cap = need * 2 > 8 ? need * 2 : 8;
+        if (st->pool_len + cap > st->pool_cap) {
+            int64_t ncap = st->pool_cap * 2;
+            while (ncap < st->pool_len + cap) ncap *= 2;
+            int32_t *np = sc_realloc_array(st->pool, (size_t)ncap, sizeof *np);
+            if (!np) return false;
+            st->pool = np;
+            st->pool_cap = ncap;
+        }
+        memcpy(st->pool + st->pool_len, st->pool + st->vf_off[keep], sizeof(int32_t) * (size_t)st->vf_len[keep]);
+        st->vf_off[keep] = st->pool_len;
+        st->vf_cap[keep] = cap;
+        st->pool_len += cap;
+    }
+    int32_t *dst = st->pool + st->vf_off[keep];
+    int32_t n = 0;
+    for (int32_t i = 0; i < st->vf_len[keep]; i++)
+        if (st->falive[dst[i]]) dst[n++] = dst[i];
+    const int32_t *src = st->pool + st->vf_off[gone];
+    for (int32_t i = 0; i < st->vf_len[gone]; i++)
+        if (st->falive[src[i]]) dst[n++] = src[i];
+    st->vf_len[keep] = n;
+    st->vf_len[gone] = 0;
+    return true;
+}
+
+static bool apply_plan(state *st, const collapse_plan *p) {
+    int32_t keep = p->keep, gone = p->gone;
+    for (int i = 0; i < p->nfaces; i++) {
+        int32_t f = p->faces[i];
+        st->falive[f] = 0;
+        st->nf_alive--;
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * f + k];
+            if (x != keep && x != gone) remove_from_list(st, x, f);
+        }
+    }
+    memcpy(st->pos + 3 * keep, p->xyz, sizeof p->xyz);
+    /* Z merges */
+    if (p->nhalf == 2 && p->h[0].keep == p->h[1].keep) {
+        int32_t gone_z[2] = {p->h[0].gone, p->h[1].gone};
+        memcpy(st->zuv + 2 * p->h[0].keep, p->h[0].w, sizeof p->h[0].w);
+        merge_z_attributes(st, p->h[0].keep, gone_z, 2);
+    } else {
+        for (int i = 0; i < p->nhalf; i++) {
+            memcpy(st->zuv + 2 * p->h[i].keep, p->h[i].w, sizeof p->h[i].w);
+            merge_z_attributes(st, p->h[i].keep, &p->h[i].gone, 1);
+        }
+    }
+    /* faces of the gone vertex now use the kept one */
+    int32_t n;
+    const int32_t *list = vfaces(st, gone, &n);
+    for (int32_t i = 0; i < n; i++) {
+        int32_t f = list[i];
+        if (!st->falive[f]) continue;
+        int k = corner_of(st, f, gone);
+        st->fv[3 * f + k] = keep;
+        int32_t z = st->fz[3 * f + k];
+        for (int h = 0; h < p->nhalf; h++)
+            if (z == p->h[h].gone) z = p->h[h].keep;
+        if (st->zv[z] == gone) st->zv[z] = keep;   /* other wedges of the gone vertex */
+        st->fz[3 * f + k] = z;
+    }
+    if (!merge_lists(st, keep, gone)) return false;
+    st->vflags[keep] |= st->vflags[gone] & V_BOUNDARY;
+    st->vflags[gone] = 0;
+    st->collapses++;
+    if (p->kind == EDGE_SEAM) st->seam_collapses++;
+    return true;
+}
+
+/* ---------------------------------------------------------------- queue */
+
+static inline bool entry_less(const heap_entry *x, const heap_entry *y) {
+    return x->key < y->key || (x->key == y->key && x->pair < y->pair);
+}
+
+static heap_entry make_entry(const state *st, double cost, int32_t a, int32_t b) {
+    heap_entry e;
+    cost = cost > 0 ? cost : 0;   /* +0: its bits order like the value */
+    memcpy(&e.key, &cost, sizeof e.key);
+    e.pair = (uint64_t)(uint32_t)a << 32 | (uint32_t)b;
+    e.va = st->version[a];
+    e.vb = st->version[b];
+    return e;
+}
+
+static double entry_cost(const heap_entry *e) {
+    double cost;
+    memcpy(&cost, &e->key, sizeof cost);
+    return cost;
+}
+
+static int32_t entry_a(const heap_entry *e) { return (int32_t)(e->pair >> 32); }
+static int32_t entry_b(const heap_entry *e) { return (int32_t)(e->pair & 0xffffffffu); }
+
+/* A 4-ary min-heap: half the levels of a binary one, and the four children
+ * of a node share a cache line or two. */
+#define HEAP_ARITY 4
+
+static bool heap_push(state *st, heap_entry e) {
+    if (st->heap_len == st->heap_cap) {
+        int64_t cap = st->heap_cap ? st->heap_cap * 2 : 1024;
+        heap_entry *h = sc_realloc_array(st->heap, (size_t)cap, sizeof *h);
+        if (!h) {
+            st->out_of_memory = true;
+            return false;
+        }
+        st->heap = h;
+        st->heap_cap = cap;
+    }
+    int64_t i = st->heap_len++;
+    while (i > 0) {
+        int64_t parent = (i - 1) / HEAP_ARITY;
+        if (!entry_less(&e, &st->heap[parent])) break;
+        st->heap[i] = st->heap[parent];
+        i = parent;
+    }
+    st->heap[i] = e;
+    return true;
+}
+
+static bool heap_pop(state *st, heap_entry *out) {
+    if (st->heap_len == 0) return false;
+    *out = st->heap[0];
+    heap_entry last = st->heap[--st->heap_len];
+    int64_t i = 0, n = st->heap_len;
+    for (;;) {
+        int64_t first = HEAP_ARITY * i + 1;
+        if (first >= n) break;
+        int64_t best = first, end = first + HEAP_ARITY < n ? first + HEAP_ARITY : n;
+        for (int64_t c = first + 1; c < end; c++)
+            if (entry_less(&st->heap[c], &st->heap[best])) best = c;
+        if (!entry_less(&st->heap[best], &last)) break;
+        st->heap[i] = st->heap[best];
+        i = best;
+    }
+    if (n > 0) st->heap[i] = last;
+    return true;
+}
+
+/* Drop stale entries (a dead endpoint or an older version) and restore the
+ * heap order bottom-up. Stale entries keep their old, low costs and would
+ * otherwise be popped one by one; compacting whenever the heap has doubled
+ * since the last compaction costs O(1) per push. The order of valid entries
+ * is a total order, so compacting never changes which edge comes next. */
+static void heap_compact(state *st) {
+    int64_t n = 0;
+    for (int64_t i = 0; i < st->heap_len; i++) {
+        const heap_entry *e = &st->heap[i];
+        int32_t a = entry_a(e), b = entry_b(e);
+        if ((st->vflags[a] & st->vflags[b] & V_ALIVE) && st->version[a] == e->va && st->version[b] == e->vb)
+            st->heap[n++] = *e;
+    }
+    st->heap_len = st->heap_compacted = n;
+    for (int64_t start = (n - 2) / HEAP_ARITY; start >= 0 && n > 1; start--) {
+        heap_entry moving = st->heap[start];
+        int64_t i = start;
+        for (;;) {
+            int64_t first = HEAP_ARITY * i + 1;
+            if (first >= n) break;
+            int64_t best = first, end = first + HEAP_ARITY < n ? first + HEAP_ARITY : n;
+            for (int64_t c = first + 1; c < end; c++)
+                if (entry_less(&st->heap[c], &st->heap[best])) best = c;
+            if (!entry_less(&st->heap[best], &moving)) break;
+            st->heap[i] = st->heap[best];
+            i = best;
+        }
+        st->heap[i] = moving;
+    }
+}
+
+/* Evaluate edge (a, b) and queue it when it can collapse. */
+static void queue_edge(state *st, int32_t a, int32_t b) {
+    if (a > b) {
+        int32_t t = a;
+        a = b;
+        b = t;
+    }
+    collapse_plan p;
+    plan_edge(st, a, b, &p);
+    solve_plan(st, &p);
+    if (p.reason != BLOCK_NONE || !isfinite(p.cost)) return;
+    heap_push(st, make_entry(st, p.cost, a, b));
+}
+
+/* Distinct neighbours of v into the scratch buffer (from index `at`). */
+static int32_t vertex_neighbours(state *st, int32_t v, int32_t at) {
+    int32_t n;
+    vfaces(st, v, &n);
+    if (!grow_scratch(st, at + 2 * n + 2)) return 0;
+    const int32_t *list = vfaces(st, v, &n);
+    uint32_t mark = ++st->vstamp;
+    int32_t count = 0;
+    for (int32_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * list[i] + k];
+            if (x == v || st->vmark[x] == mark) continue;
+            st->vmark[x] = mark;
+            st->scratch[at + count++] = x;
+        }
+    return count;
+}
+
+/* The distinct neighbours of v, in a buffer that survives evaluations
+ * (which reuse the scratch buffer). Returns the count, -1 out of memory. */
+static int32_t copy_neighbours(state *st, int32_t v) {
+    int32_t n = vertex_neighbours(st, v, 0);
+    if (st->out_of_memory || !reserve(st, &st->neighbours, &st->neighbours_cap, n + 1)) return -1;
+    memcpy(st->neighbours, st->scratch, sizeof(int32_t) * (size_t)n);
+    return n;
+}
+
+/* After a collapse onto `keep`: bump versions and re-queue the edges of keep,
+ * of its silhouette neighbours when a silhouette edge collapsed (their seam
+ * constraints refer to keep's uv and to the silhouette's connectivity, which
+ * an interior collapse leaves as they were), and of neighbours marked after
+ * a rejected collapse. */
+static void requeue_around(state *st, int32_t keep, bool silhouette_changed) {
+    int32_t n;
+    const int32_t *list = vfaces(st, keep, &n);
+    /* spokes of keep: (neighbour, keep's Z, neighbour's Z), two per face */
+    if (!reserve(st, &st->touched, &st->touched_cap, 8 * n + 2)) return;
+    int32_t *spoke = st->touched + 2 * n + 1, ns = 0;
+    for (int32_t i = 0; i < n; i++) {
+        const int32_t *fv = st->fv + 3 * list[i], *fz = st->fz + 3 * list[i];
+        int k = fv[0] == keep ? 0 : fv[1] == keep ? 1 : 2;
+        for (int e = 1; e <= 2; e++) {
+            int j = (k + e) % 3;
+            spoke[3 * ns] = fv[j];
+            spoke[3 * ns + 1] = fz[k];
+            spoke[3 * ns + 2] = fz[j];
+            ns++;
+        }
+    }
+    int32_t *set = st->touched, nt = 0;
+    set[nt++] = keep;
+    uint32_t mark = ++st->vstamp;
+    for (int32_t i = 0; i < ns; i++) {
+        int32_t x = spoke[3 * i];
+        if (st->vmark[x] == mark) continue;
+        st->vmark[x] = mark;
+        bool qualifies = (st->vflags[x] & V_RETRY) != 0;
+        int count = 0;
+        for (int32_t j = 0; j < ns; j++)
+            if (spoke[3 * j] == x) {
+                count++;
+                if (spoke[3 * j + 1] != spoke[3 * i + 1] || spoke[3 * j + 2] != spoke[3 * i + 2]) qualifies = true;
+            }
+        if (count == 1) qualifies = true;   /* a surface border */
+        if (qualifies && (silhouette_changed || (st->vflags[x] & V_RETRY))) set[nt++] = x;
+    }
+    for (int32_t i = 0; i < nt; i++) {
+        st->version[set[i]]++;
+        st->vflags[set[i]] &= (uint8_t)~V_RETRY;
+    }
+    /* set lives in st->touched, which nothing below reuses */
+    for (int32_t i = 0; i < nt; i++) {
+        int32_t v = set[i];
+        int32_t m = copy_neighbours(st, v);
+        for (int32_t j = 0; j < m; j++) {
+            int32_t x = st->neighbours[j];
+            bool x_touched = false;
+            for (int32_t t = 0; t < nt; t++)
+                if (set[t] == x) x_touched = true;
+            if (x_touched && x < v) continue;   /* queued from x's side */
+            queue_edge(st, v, x);
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- setup */
+
+typedef struct zkey_table {
+    int64_t cap;
+    int32_t *slot;   /* Z id or -1 */
+} zkey_table;
+
+static uint64_t mix3(uint64_t a, uint64_t b, uint64_t c) {
+    uint64_t h = a * 0x9E3779B97F4A7C15ull ^ (b + 0x632BE59BD9B4E019ull) * 0xC2B2AE3D27D4EB4Full ^
+                 (c + 0x165667B19E3779F9ull) * 0x27D4EB2F165667C5ull;
+    h ^= h >> 29;
+    h *= 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 32;
+    return h;
+}
+
+static void state_free(state *st) {
+    free(st->pos), free(st->vflags), free(st->version), free(st->vmark);
+    free(st->vf_off), free(st->vf_len), free(st->vf_cap), free(st->pool);
+    free(st->fv), free(st->fz), free(st->fmat), free(st->falive), free(st->input_uv_area);
+    free(st->zv), free(st->zuv_index), free(st->zuv), free(st->zflags);
+    free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark);
+    free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
+}
+
+static int32_t find_root(int32_t *parent, int32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+}
+
+/* Classify the fan of n faces around a centre; face i's two spokes (the ids
+ * of its other corners) are spokes[2i], spokes[2i + 1]. Returns the number
+ * of boundary spokes (0 or 2), or -1 when the fan is not a single disk or
+ * half-disk (a spoke of three faces, several pieces, more borders). count
+ * (zeros) and first (-1) are indexed by spoke id and are left as found;
+ * parent holds n entries. */
+static int classify_fan(const int32_t *spokes, int32_t n, int32_t *count, int32_t *first, int32_t *parent) {
+    for (int32_t i = 0; i < n; i++) parent[i] = i;
+    for (int32_t j = 0; j < 2 * n; j++) {
+        int32_t x = spokes[j];
+        count[x]++;
+        if (first[x] < 0) first[x] = j / 2;
+        else {
+            int32_t r1 = find_root(parent, j / 2), r2 = find_root(parent, first[x]);
+            if (r1 != r2) parent[r1 > r2 ? r1 : r2] = r1 < r2 ? r1 : r2;
+        }
+    }
+    int boundary = 0;
+    bool bad = false;
+    for (int32_t j = 0; j < 2 * n; j++) {
+        int32_t c = count[spokes[j]];
+        if (c > 2) bad = true;
+        if (c == 1) boundary++;
+    }
+    for (int32_t j = 0; j < 2 * n; j++) count[spokes[j]] = 0, first[spokes[j]] = -1;
+    int pieces = 0;
+    for (int32_t i = 0; i < n; i++) pieces += parent[i] == i;
+    if (bad || pieces != 1 || (boundary != 0 && boundary != 2)) return -1;
+    return boundary;
+}
+
+/* The step the input's uv coordinates are stored with, at the magnitude of
+ * the largest one: 10^(e - k + 1) when every coordinate is written with at
+ * most k <= 15 significant digits (OBJ text, whether %g or fixed decimals),
+ * the float32 spacing when every one is a float (glTF), else the double
+ * spacing. (All uv entries are looked at, used or not.) */
+
+/* Whether x is written with at most k significant decimal digits. */
+static bool fits_digits(double x, int k) {
+    static const double pow10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+                                   1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+    x = fabs(x);
+    if (x == 0) return true;
+    int shift = k - 1 - (int)floor(log10(x));
+    if (shift > 22 || shift < -22) return false;
+    double scaled = shift >= 0 ? x * pow10[shift] : x / pow10[-shift];
+    return fabs(scaled - nearbyint(scaled)) <= 1e-6;
+}
+
+/* Significant decimal digits (1..15) x is written with, 16 when more. */
+static int significant_digits(double x) {
+    for (int k = 1; k <= 15; k++)
+        if (fits_digits(x, k)) return k;
+    return 16;
+}
+
+static double detect_uv_precision(const sc_mesh *m) {
+    double largest = 0;
+    int64_t corners = (int64_t)m->nf * 3;
+    for (int64_t i = 0; i < corners; i++)
+        for (int c = 0; c < 2; c++) largest = fmax(largest, fabs(m->U[2 * m->FU[i] + c]));
+    if (!(largest > 0)) return 0;
+    int digits = 1;
+    for (int32_t i = 0; i < m->nu && digits <= 15; i++)
+        for (int c = 0; c < 2; c++) {
+            if (fits_digits(m->U[2 * i + c], digits)) continue;
+            int d = significant_digits(m->U[2 * i + c]);
+            if (d > digits) digits = d;
+        }
+    if (digits <= 15) return pow(10.0, floor(log10(largest)) - digits + 1);
+    bool floats = true;
+    for (int32_t i = 0; i < m->nu && floats; i++)
+        for (int c = 0; c < 2; c++) {
+            double x = m->U[2 * i + c];
+            if ((double)(float)x != x) floats = false;
+        }
+    return ldexp(1.0, ilogb(largest) - (floats ? 23 : 52));
+}
+
+static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
+    int32_t nv = m->nv, nf = m->nf;
+    st->nv = nv;
+    st->nf = st->nf_alive = nf;
+    st->pos = sc_alloc_array((size_t)nv * 3, sizeof(double));
+    st->vflags = sc_calloc_array((size_t)nv, 1);
+    st->version = sc_calloc_array((size_t)nv, sizeof(uint32_t));
+    st->vmark = sc_calloc_array((size_t)nv, sizeof(uint32_t));
+    st->vf_off = sc_calloc_array((size_t)nv, sizeof(int64_t));
+    st->vf_len = sc_calloc_array((size_t)nv, sizeof(int32_t));
+    st->vf_cap = sc_calloc_array((size_t)nv, sizeof(int32_t));
+    st->fv = sc_alloc_array((size_t)nf * 3, sizeof(int32_t));
+    st->fz = sc_alloc_array((size_t)nf * 3, sizeof(int32_t));
+    st->fmat = sc_alloc_array((size_t)nf, sizeof(int32_t));
+    st->falive = sc_alloc_array((size_t)nf, 1);
+    st->input_uv_area = sc_alloc_array((size_t)nf, sizeof(double));
+    st->pool_cap = (int64_t)nf * 3 + (int64_t)nv * 4 + 16;
+    st->pool = sc_alloc_array((size_t)st->pool_cap, sizeof(int32_t));
+    if (!st->pos || !st->vflags || !st->version || !st->vmark || !st->vf_off || !st->vf_len || !st->vf_cap ||
+        !st->fv || !st->fz || !st->fmat || !st->falive || !st->input_uv_area || !st->pool)
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+
+    /* centre the positions (costs do not change; rounding does) */
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int32_t v = 0; v < nv; v++)
+        for (int k = 0; k < 3; k++) {
+            double x = m->V[3 * v + k];
+            if (x < lo[k]) lo[k] = x;
+            if (x > hi[k]) hi[k] = x;
+        }
+    for (int32_t v = 0; v < nv; v++)
+        for (int k = 0; k < 3; k++) st->pos[3 * v + k] = m->V[3 * v + k] - 0.5 * (lo[k] + hi[k]);
+    for (int k = 0; k < 3; k++) st->center[k] = nv > 0 ? 0.5 * (lo[k] + hi[k]) : 0;
+
+    /* Z-vertices through a hash table on (vertex, uv index, material) */
+    zkey_table table;
+    table.cap = 16;
+    while (table.cap < (int64_t)nf * 6) table.cap *= 2;
+    table.slot = sc_alloc_array((size_t)table.cap, sizeof(int32_t));
+    int32_t zcap = nf * 3;
+    st->zv = sc_alloc_array((size_t)zcap, sizeof(int32_t));
+    st->zuv_index = sc_alloc_array((size_t)zcap, sizeof(int32_t));
+    int32_t *zmat = sc_alloc_array((size_t)zcap, sizeof(int32_t));
+    if (!table.slot || !st->zv || !st->zuv_index || !zmat) {
+        free(table.slot);
+        free(zmat);
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    }
+    for (int64_t i = 0; i < table.cap; i++) table.slot[i] = -1;
+    int32_t nz = 0;
+    for (int32_t f = 0; f < nf; f++) {
+        st->fmat[f] = m->FM ? m->FM[f] : 0;
+        st->falive[f] = 1;
+        for (int k = 0; k < 3; k++) {
+            int32_t v = m->FV[3 * f + k], u = m->FU[3 * f + k], mat = st->fmat[f];
+            st->fv[3 * f + k] = v;
+            uint64_t h = mix3((uint64_t)v, (uint64_t)u, (uint64_t)mat) & (uint64_t)(table.cap - 1);
+            for (;;) {
+                int32_t z = table.slot[h];
+                if (z < 0) {
+                    z = nz++;
+                    table.slot[h] = z;
+                    st->zv[z] = v;
+                    st->zuv_index[z] = u;
+                    zmat[z] = mat;
+                    st->fz[3 * f + k] = z;
+                    break;
+                }
+                if (st->zv[z] == v && st->zuv_index[z] == u && zmat[z] == mat) {
+                    st->fz[3 * f + k] = z;
+                    break;
+                }
+                h = (h + 1) & (uint64_t)(table.cap - 1);
+            }
+        }
+    }
+    free(table.slot);
+    free(zmat);
+    st->nz = nz;
+    st->zuv = sc_alloc_array((size_t)nz * 2, sizeof(double));
+    st->zflags = sc_calloc_array((size_t)nz, 1);
+    st->zq = sc_calloc_array((size_t)nz * QSIZE, sizeof(double));
+    st->zgeo = sc_calloc_array((size_t)nz * 6, sizeof(double));
+    st->znormal = sc_calloc_array((size_t)nz * 3, sizeof(double));
+    st->zweight = sc_calloc_array((size_t)nz, sizeof(double));
+    st->zmark = sc_calloc_array((size_t)nz, sizeof(uint32_t));
+    if (!st->zuv || !st->zflags || !st->zq || !st->zgeo || !st->znormal || !st->zweight || !st->zmark)
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    for (int32_t z = 0; z < nz; z++) {
+        st->zuv[2 * z] = m->U[2 * st->zuv_index[z]];
+        st->zuv[2 * z + 1] = m->U[2 * st->zuv_index[z] + 1];
+    }
+
+    /* vertex -> face lists */
+    for (int32_t i = 0; i < nf * 3; i++) st->vf_cap[st->fv[i]]++;
+    int64_t off = 0;
+    for (int32_t v = 0; v < nv; v++) {
+        st->vf_off[v] = off;
+        st->vf_cap[v] += 2;
+        off += st->vf_cap[v];
+    }
+    st->pool_len = off;
+    for (int32_t f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int32_t v = st->fv[3 * f + k];
+            st->pool[st->vf_off[v] + st->vf_len[v]++] = f;
+        }
+    for (int32_t v = 0; v < nv; v++)
+        if (st->vf_len[v] > 0) st->vflags[v] |= V_ALIVE;
+
+    /* uv scale: one unit of uv ~ one unit of surface length */
+    double area3 = 0, area_uv = 0;
+    for (int32_t f = 0; f < nf; f++) {
+        double n[3];
+        const int32_t *c = st->fv + 3 * f;
+        triangle_normal(st->pos + 3 * c[0], st->pos + 3 * c[1], st->pos + 3 * c[2], n);
+        area3 += 0.5 * sqrt(dot3(n, n));
+        const int32_t *z = st->fz + 3 * f;
+        st->input_uv_area[f] = 0.5 * uv_area2(st->zuv + 2 * z[0], st->zuv + 2 * z[1], st->zuv + 2 * z[2]);
+        area_uv += fabs(st->input_uv_area[f]);
+    }
+    st->uv_scale = uv_weight * (area_uv > 0 && area3 > 0 ? sqrt(area3 / area_uv) : 1.0);
+
+    /* fans: lock non-manifold vertices, flag silhouettes and pinned Z */
+    int32_t maxn = 0;
+    for (int32_t v = 0; v < nv; v++) maxn = st->vf_len[v] > maxn ? st->vf_len[v] : maxn;
+    int32_t ids = nv > nz ? nv : nz;
+    int32_t *count = sc_calloc_array((size_t)ids, sizeof(int32_t));
+    int32_t *first = sc_alloc_array((size_t)ids, sizeof(int32_t));
+    int32_t *fan = sc_alloc_array((size_t)maxn * 6 + 6, sizeof(int32_t));
+    if (!count || !first || !fan) {
+        free(count), free(first), free(fan);
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    }
+    for (int32_t i = 0; i < ids; i++) first[i] = -1;
+    int32_t *spokes = fan, *parent = fan + 2 * maxn + 2, *order = fan + 4 * maxn + 4;
+    for (int32_t v = 0; v < nv; v++) {
+        int32_t n = st->vf_len[v];
+        if (n == 0) continue;
+        const int32_t *list = st->pool + st->vf_off[v];
+        for (int32_t i = 0; i < n; i++) {
+            const int32_t *c = st->fv + 3 * list[i];
+            int k = c[0] == v ? 0 : c[1] == v ? 1 : 2;
+            spokes[2 * i] = c[(k + 1) % 3];
+            spokes[2 * i + 1] = c[(k + 2) % 3];
+        }
+        int cls = classify_fan(spokes, n, count, first, parent);
+        st->border_edges += cls > 0 ? cls : 0;   /* two border spokes per border vertex, one per edge end */
+        if (cls < 0) st->vflags[v] |= V_LOCKED;
+        if (cls != 0) st->vflags[v] |= V_BOUNDARY;
+        /* the Z fans at v: faces grouped by their Z at v (insertion sort) */
+        for (int32_t i = 0; i < n; i++) {
+            const int32_t *c = st->fv + 3 * list[i];
+            int k = c[0] == v ? 0 : c[1] == v ? 1 : 2;
+            int32_t key = 3 * list[i] + k, j = i;
+            while (j > 0 && st->fz[order[j - 1]] > st->fz[key]) {
+                order[j] = order[j - 1];
+                j--;
+            }
+            order[j] = key;
+        }
+        for (int32_t g = 0; g < n;) {
+            int32_t z = st->fz[order[g]], cnt = 0;
+            for (; g < n && st->fz[order[g]] == z; g++, cnt++) {
+                int32_t f = order[g] / 3, k = order[g] % 3;
+                spokes[2 * cnt] = st->fz[3 * f + (k + 1) % 3];
+                spokes[2 * cnt + 1] = st->fz[3 * f + (k + 2) % 3];
+            }
+            int zcls = classify_fan(spokes, cnt, count, first, parent);
+            if (zcls < 0) st->zflags[z] |= Z_PINNED | Z_SILHOUETTE;
+            else if (zcls > 0) st->zflags[z] |= Z_SILHOUETTE;
+        }
+    }
+    free(count), free(first), free(fan);
+
+    /* quadrics */
+    for (int32_t f = 0; f < nf; f++) {
+        double P[3][QDIM];
+        for (int k = 0; k < 3; k++) scaled_point(st, st->fz[3 * f + k], P[k]);
+        double n[3];
+        triangle_normal(P[0], P[1], P[2], n);
+        double len = sqrt(dot3(n, n)), area = 0.5 * len;
+        if (!(area > 0)) continue;
+        double q[QSIZE];
+        sc_quadric_zero(q, QDIM);
+        sc_quadric_add_triangle(q, QDIM, P[0], P[1], P[2], area);
+        double unit[3] = {n[0] / len, n[1] / len, n[2] / len};
+        double geo[6] = {unit[0] * unit[0], unit[0] * unit[1], unit[0] * unit[2],
+                         unit[1] * unit[1], unit[1] * unit[2], unit[2] * unit[2]};
+        for (int k = 0; k < 3; k++) {
+            int32_t z = st->fz[3 * f + k];
+            double *restrict zq = st->zq + (size_t)z * QSIZE, *restrict zg = st->zgeo + 6 * (size_t)z,
+                             *restrict zn = st->znormal + 3 * (size_t)z;
+            for (int j = 0; j < QSIZE; j++) zq[j] += q[j];
+            for (int j = 0; j < 6; j++) zg[j] += area * geo[j];
+            for (int j = 0; j < 3; j++) zn[j] += 0.5 * n[j];
+        }
+        /* surface border edges: a plane through the edge, perpendicular to the face */
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * f + k], y = st->fv[3 * f + (k + 1) % 3];
+            int32_t fl[3];
+            if (!(st->vflags[x] & st->vflags[y] & V_BOUNDARY) || edge_faces(st, x, y, fl) != 1) continue;
+            const double *px = st->pos + 3 * x, *py = st->pos + 3 * y;
+            double e[3] = {py[0] - px[0], py[1] - px[1], py[2] - px[2]}, m3[3];
+            cross3(unit, e, m3);
+            double ml = sqrt(dot3(m3, m3));
+            if (!(ml > 0)) continue;
+            for (int j = 0; j < 3; j++) m3[j] /= ml;
+            double d = -dot3(m3, px);
+            double w = BOUNDARY_PLANE_WEIGHT * dot3(e, e);
+            sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + k] * QSIZE, QDIM, m3, d, w);
+            sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + (k + 1) % 3] * QSIZE, QDIM, m3, d, w);
+        }
+    }
+    for (int32_t z = 0; z < nz; z++) update_weight(st, z);
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- output */
+
+/* Whether live faces f (corner ka, kb) and g (corner la, lb) use different uv
+ * at the edge: another uv index, or the same index moved apart. */
+static bool z_differs(const state *st, int32_t z1, int32_t z2) {
+    return z1 != z2 && (st->zuv_index[z1] != st->zuv_index[z2] || st->zuv[2 * z1] != st->zuv[2 * z2] ||
+                        st->zuv[2 * z1 + 1] != st->zuv[2 * z2 + 1]);
+}
+
+typedef struct seam_census {
+    int64_t seam_edges;
+    int64_t uncollapsible, corner, not_collinear, length_ratio;
+} seam_census;
+
+/* Table 2 of Liu et al.: seam edges and those with no unifiable neighbour. */
+static void census_seams(state *st, seam_census *c) {
+    memset(c, 0, sizeof *c);
+    for (int32_t a = 0; a < st->nv && !st->out_of_memory; a++) {
+        if (!(st->vflags[a] & V_ALIVE)) continue;
+        int32_t nn = copy_neighbours(st, a);
+        const int32_t *nb = st->neighbours;
+        for (int32_t i = 0; i < nn; i++) {
+            int32_t b = nb[i];
+            if (b < a) continue;
+            int32_t fl[3];
+            if (edge_faces(st, a, b, fl) != 2) continue;
+            int32_t za[2], zb[2];
+            for (int j = 0; j < 2; j++) {
+                za[j] = st->fz[3 * fl[j] + corner_of(st, fl[j], a)];
+                zb[j] = st->fz[3 * fl[j] + corner_of(st, fl[j], b)];
+            }
+            if (!z_differs(st, za[0], za[1]) && !z_differs(st, zb[0], zb[1])) continue;
+            c->seam_edges++;
+            int32_t far[2];
+            block_reason ra = unify_at(st, 2, a, za, zb, far);
+            block_reason rb = unify_at(st, 2, b, zb, za, far);
+            if (ra == BLOCK_NONE || rb == BLOCK_NONE) continue;
+            c->uncollapsible++;
+            block_reason r = better_reason(ra, rb);
+            if (r == BLOCK_SEAM_LENGTH_RATIO) c->length_ratio++;
+            else if (r == BLOCK_SEAM_NOT_COLLINEAR) c->not_collinear++;
+            else c->corner++;
+        }
+    }
+}
+
+/* Classify every live edge that cannot collapse now. */
+static int64_t census_blocked(state *st, int64_t counts[BLOCK_COUNT]) {
+    memset(counts, 0, sizeof(int64_t) * BLOCK_COUNT);
+    int64_t blocked = 0;
+    for (int32_t a = 0; a < st->nv && !st->out_of_memory; a++) {
+        if (!(st->vflags[a] & V_ALIVE)) continue;
+        int32_t nn = copy_neighbours(st, a);
+        const int32_t *nb = st->neighbours;
+        for (int32_t i = 0; i < nn; i++) {
+            if (nb[i] < a) continue;
+            collapse_plan p;
+            plan_edge(st, a, nb[i], &p);
+            solve_plan(st, &p);
+            block_reason r = p.reason != BLOCK_NONE ? p.reason : check_plan(st, &p);
+            if (r != BLOCK_NONE) {
+                counts[r]++;
+                blocked++;
+            }
+        }
+    }
+    return blocked;
+}
+
+/* The current mesh as an sc_mesh: live faces in input order, vertices and uv
+ * entries renumbered in id order (Z of one vertex that share a uv index and
+ * its coordinates become one entry again). */
+static int build_level_mesh(state *st, const sc_mesh *in, sc_mesh **out, sc_error *err) {
+    int32_t *vmap = sc_alloc_array((size_t)st->nv + 1, sizeof(int32_t));
+    int32_t *zmap = sc_alloc_array((size_t)st->nz + 1, sizeof(int32_t));
+    int64_t cap = 16;
+    while (cap < 2 * (int64_t)st->nz) cap *= 2;
+    int32_t *slot = sc_alloc_array((size_t)cap, sizeof(int32_t));
+    if (!vmap || !zmap || !slot) {
+        free(vmap), free(zmap), free(slot);
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    }
+    for (int32_t v = 0; v < st->nv; v++) vmap[v] = -1;
+    for (int32_t z = 0; z < st->nz; z++) zmap[z] = -1;
+    for (int64_t i = 0; i < cap; i++) slot[i] = -1;
+    for (int32_t f = 0; f < st->nf; f++)
+        if (st->falive[f])
+            for (int k = 0; k < 3; k++) {
+                vmap[st->fv[3 * f + k]] = 0;
+                zmap[st->fz[3 * f + k]] = 0;
+            }
+    int32_t nv = 0, nu = 0;
+    for (int32_t v = 0; v < st->nv; v++)
+        if (vmap[v] == 0) vmap[v] = nv++;
+    int32_t *ufirst = sc_alloc_array((size_t)st->nz + 1, sizeof(int32_t));   /* output uv -> a Z */
+    if (!ufirst) {
+        free(vmap), free(zmap), free(slot);
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    }
+    for (int32_t z = 0; z < st->nz; z++) {
+        if (zmap[z] != 0) continue;
+        uint64_t bu, bv;
+        memcpy(&bu, st->zuv + 2 * z, 8);
+        memcpy(&bv, st->zuv + 2 * z + 1, 8);
+        uint64_t h = mix3((uint64_t)st->zv[z] ^ (bu * 31), (uint64_t)st->zuv_index[z], bv) & (uint64_t)(cap - 1);
+        for (;;) {
+            int32_t o = slot[h];
+            if (o < 0) {
+                slot[h] = nu;
+                ufirst[nu] = z;
+                zmap[z] = nu++;
+                break;
+            }
+            int32_t y = ufirst[o];
+            if (st->zv[y] == st->zv[z] && st->zuv_index[y] == st->zuv_index[z] && st->zuv[2 * y] == st->zuv[2 * z] &&
+                st->zuv[2 * y + 1] == st->zuv[2 * z + 1]) {
+                zmap[z] = o;
+                break;
+            }
+            h = (h + 1) & (uint64_t)(cap - 1);
+        }
+    }
+    free(slot);
+    sc_mesh *m = sc_mesh_alloc(nv, nu, 0, st->nf_alive, in->nmat);
+    int rc = m ? SC_OK : SC_ENOMEM;
+    for (int32_t i = 0; rc == SC_OK && i < in->nmat; i++)
+        if (!(m->materials[i] = sc_strdup(in->materials[i]))) rc = SC_ENOMEM;
+    if (rc == SC_OK) {
+        for (int32_t v = 0; v < st->nv; v++)
+            if (vmap[v] >= 0)
+                for (int k = 0; k < 3; k++) m->V[3 * vmap[v] + k] = st->pos[3 * v + k] + st->center[k];
+        for (int32_t u = 0; u < nu; u++) {
+            m->U[2 * u] = st->zuv[2 * ufirst[u]];
+            m->U[2 * u + 1] = st->zuv[2 * ufirst[u] + 1];
+        }
+        int32_t g = 0;
+        for (int32_t f = 0; f < st->nf; f++) {
+            if (!st->falive[f]) continue;
+            for (int k = 0; k < 3; k++) {
+                m->FV[3 * g + k] = vmap[st->fv[3 * f + k]];
+                m->FU[3 * g + k] = zmap[st->fz[3 * f + k]];
+            }
+            m->FM[g] = st->fmat[f];
+            g++;
+        }
+    }
+    free(vmap), free(zmap), free(ufirst);
+    if (rc != SC_OK) {
+        sc_mesh_free(m);
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    }
+    *out = m;
+    return SC_OK;
+}
+
+static double total_quadric_cost(const state *st) {
+    double total = 0;
+    for (int32_t z = 0; z < st->nz; z++) {
+        if (st->zv[z] < 0) continue;
+        double x[QDIM];
+        scaled_point(st, z, x);
+        double c = sc_quadric_eval(st->zq + (size_t)z * QSIZE, QDIM, x);
+        total += c > 0 ? c : 0;
+    }
+    return total;
+}
+
+static int64_t count_flipped_uv(const state *st) {
+    int64_t flipped = 0;
+    for (int32_t f = 0; f < st->nf; f++) {
+        if (!st->falive[f] || st->input_uv_area[f] == 0) continue;
+        const int32_t *z = st->fz + 3 * f;
+        double a = uv_area2(st->zuv + 2 * z[0], st->zuv + 2 * z[1], st->zuv + 2 * z[2]);
+        if (!(a * st->input_uv_area[f] > 0)) flipped++;
+    }
+    return flipped;
+}
+
+/* ---------------------------------------------------------------- the node */
+
+static void metric(sc_ctx *ctx, int level, const char *name, double value) {
+    char key[96];
+    snprintf(key, sizeof key, "lod%d.%s", level, name);
+    sc_ctx_metric(ctx, key, value);
+}
+
+static int read_targets(sc_ctx *ctx, int32_t nf, int64_t **out, int *count, sc_error *err) {
+    int nfaces = 0, nratio = 0;
+    const double *faces = sc_ctx_numbers(ctx, "faces", &nfaces);
+    const double *ratio = sc_ctx_numbers(ctx, "ratio", &nratio);
+    int n = nfaces > 0 ? nfaces : nratio;
+    const char *param = nfaces > 0 ? "faces" : "ratio";
+    if (n == 0) return sc_fail(err, SC_EINPUT, "decimate:ratio: no targets (give ratio or faces)");
+    int64_t *t = sc_alloc_array((size_t)n, sizeof *t);
+    if (!t) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    for (int i = 0; i < n; i++) {
+        double x = nfaces > 0 ? faces[i] : ratio[i];
+        if (nfaces > 0) {
+            if (!(x >= 1) || x != floor(x) || x > 2e9) {
+                free(t);
+                return sc_fail(err, SC_EINPUT, "decimate:faces: target %d is %g; face counts are whole numbers >= 1", i, x);
+            }
+            t[i] = (int64_t)x;
+        } else {
+            if (!(x > 0 && x <= 1)) {
+                free(t);
+                return sc_fail(err, SC_EINPUT, "decimate:ratio: target %d is %g; ratios lie in (0, 1]", i, x);
+            }
+            t[i] = (int64_t)llround(x * nf);
+            if (t[i] < 1) t[i] = 1;
+        }
+        if (i > 0 && t[i] > t[i - 1]) {
+            free(t);
+            return sc_fail(err, SC_EINPUT,
+                           "decimate:%s: targets must not increase (each level is decimated from the one before): "
+                           "target %d asks for %lld faces after %lld",
+                           param, i, (long long)t[i], (long long)t[i - 1]);
+        }
+    }
+    *out = t;
+    *count = n;
+    return SC_OK;
+}
+
+static void queue_all_edges(state *st) {
+    for (int32_t a = 0; a < st->nv && !st->out_of_memory; a++) {
+        if (!(st->vflags[a] & V_ALIVE)) continue;
+        st->vflags[a] &= (uint8_t)~V_RETRY;
+        int32_t nn = copy_neighbours(st, a);
+        for (int32_t i = 0; i < nn; i++)
+            if (st->neighbours[i] > a) queue_edge(st, a, st->neighbours[i]);
+    }
+}
+
+/* Collapse until the face count is at most target or nothing can collapse.
+ * Returns false when stalled. */
+static bool decimate_to(state *st, int64_t target) {
+    bool requeued_since_collapse = false;
+    while (st->nf_alive > target && !st->out_of_memory) {
+        /* live edges are at most 3/2 of the faces plus half the border
+         * edges (edge_bound); every valid entry is a live edge, so past
+         * 11 / 10 of that bound at least a fraction of the heap is stale, and
+         * compacting then costs O(1) per push */
+        int64_t edge_bound = (3 * (int64_t)st->nf_alive + st->border_edges) / 2;
+        if (st->heap_len > edge_bound * 5 / 4 + 1024) heap_compact(st);
+        heap_entry e;
+        if (!heap_pop(st, &e)) {
+            if (requeued_since_collapse) {
+                if (st->normal_cos <= 0) return false;
+                /* stalled with the normal-turn limit: only forbid flips now */
+                st->normal_cos = 0;
+                st->normal_relaxed = true;
+            }
+            /* a full pass catches edges a local update missed */
+            queue_all_edges(st);
+            requeued_since_collapse = true;
+            continue;
+        }
+        int32_t a = entry_a(&e), b = entry_b(&e);
+        if (!(st->vflags[a] & V_ALIVE) || !(st->vflags[b] & V_ALIVE) || st->version[a] != e.va ||
+            st->version[b] != e.vb) {
+            continue;
+        }
+        collapse_plan p;
+        plan_edge(st, a, b, &p);
+        solve_plan(st, &p);
+        if (p.reason != BLOCK_NONE || !isfinite(p.cost)) {
+            st->vflags[a] |= V_RETRY;
+            st->vflags[b] |= V_RETRY;
+            continue;
+        }
+        double popped = entry_cost(&e);
+        if (p.cost > popped * (1 + 1e-12) + 1e-300) {   /* stale cost: queue it again */
+            heap_push(st, make_entry(st, p.cost, a, b));
+            continue;
+        }
+        block_reason r = check_plan(st, &p);
+        if (r != BLOCK_NONE) {
+            st->rejected[r]++;
+            st->vflags[a] |= V_RETRY;
+            st->vflags[b] |= V_RETRY;
+            continue;
+        }
+        if (!apply_plan(st, &p)) {
+            st->out_of_memory = true;
+            break;
+        }
+        requeued_since_collapse = false;
+        requeue_around(st, p.keep, p.kind != EDGE_INTERIOR);
+    }
+    return st->nf_alive <= target;
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    const sc_mesh *in = sc_ctx_mesh(ctx, "mesh");
+    if (!in) return sc_fail(err, SC_EINPUT, "decimate:mesh: the input is not a mesh (or an atlas)");
+    int rc = sc_mesh_check(in, err);
+    if (rc != SC_OK) return sc_error_prefix(err, "decimate:mesh");
+    if (in->nf < 1) return sc_fail(err, SC_EINPUT, "decimate:mesh: no faces");
+    int64_t *targets = NULL;
+    int ntargets = 0;
+    rc = read_targets(ctx, in->nf, &targets, &ntargets, err);
+    if (rc != SC_OK) return rc;
+
+    state st;
+    memset(&st, 0, sizeof st);
+    const char *mode = sc_ctx_string(ctx, "seam_mode");
+    st.mode = !strcmp(mode, "fixed") ? MODE_FIXED : !strcmp(mode, "free") ? MODE_FREE : MODE_AWARE;
+    st.weights = !strcmp(sc_ctx_string(ctx, "weights"), "area_distortion") ? WEIGHTS_AREA_DISTORTION : WEIGHTS_QEM;
+    st.collinear_tol = sc_ctx_number(ctx, "collinear_tolerance");
+    st.ratio_tol = sc_ctx_number(ctx, "ratio_tolerance");
+    st.normal_cos = cos(sc_ctx_number(ctx, "normal_turn") * M_PI / 180.0);
+    double uv_precision = sc_ctx_number(ctx, "uv_precision");
+    st.uv_precision = uv_precision >= 0 ? uv_precision : detect_uv_precision(in);
+    int64_t samples = sc_ctx_integer(ctx, "hausdorff_samples");
+    double uv_weight = sc_ctx_number(ctx, "uv_weight");
+    int threads = sc_ctx_threads(ctx);
+
+    double started = sc_now();
+    sc_lods *lods = NULL;
+    rc = setup(&st, in, uv_weight, err);
+    if (rc == SC_OK) {
+        seam_census before;
+        census_seams(&st, &before);
+        int64_t locked = 0;
+        for (int32_t v = 0; v < st.nv; v++) locked += (st.vflags[v] & V_LOCKED) != 0;
+        sc_ctx_metric(ctx, "input.faces", in->nf);
+        sc_ctx_metric(ctx, "input.seam_edges", (double)before.seam_edges);
+        sc_ctx_metric(ctx, "input.uncollapsible_seam_edges", (double)before.uncollapsible);
+        sc_ctx_metric(ctx, "input.uncollapsible_seam_edges_corner", (double)before.corner);
+        sc_ctx_metric(ctx, "input.uncollapsible_seam_edges_not_collinear", (double)before.not_collinear);
+        sc_ctx_metric(ctx, "input.uncollapsible_seam_edges_length_ratio", (double)before.length_ratio);
+        sc_ctx_metric(ctx, "uv_scale", st.uv_scale);
+        sc_ctx_metric(ctx, "uv_precision", st.uv_precision);
+        sc_ctx_metric(ctx, "locked_vertices", (double)locked);
+        queue_all_edges(&st);
+        lods = sc_lods_new();
+        if (!lods) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    }
+    sc_hausdorff_mesh input_mesh = {in->V, in->nv, in->FV, in->nf};
+    double diagonal = sc_hausdorff_bbox_diagonal(&input_mesh);
+    double level_start = started, total_seconds = 0;
+    bool stalled = false;
+    int64_t blocked[BLOCK_COUNT] = {0}, nblocked = 0;
+    for (int level = 0; rc == SC_OK && level < ntargets; level++) {
+        if (!stalled && !decimate_to(&st, targets[level])) {
+            stalled = true;
+            nblocked = census_blocked(&st, blocked);
+        }
+        if (st.out_of_memory) {
+            rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+            break;
+        }
+        double seconds = sc_now() - level_start;
+        total_seconds += seconds;
+        sc_mesh *mesh = NULL;
+        rc = build_level_mesh(&st, in, &mesh, err);
+        if (rc != SC_OK) break;
+        seam_census census;
+        census_seams(&st, &census);
+        metric(ctx, level, "faces", mesh->nf);
+        metric(ctx, level, "target_faces", (double)targets[level]);
+        metric(ctx, level, "seam_edges", (double)census.seam_edges);
+        metric(ctx, level, "seam_edges_collapsed", (double)st.seam_collapses);
+        metric(ctx, level, "uncollapsible_seam_edges", (double)census.uncollapsible);
+        metric(ctx, level, "uncollapsible_seam_edges_corner", (double)census.corner);
+        metric(ctx, level, "uncollapsible_seam_edges_not_collinear", (double)census.not_collinear);
+        metric(ctx, level, "uncollapsible_seam_edges_length_ratio", (double)census.length_ratio);
+        metric(ctx, level, "quadric_cost", total_quadric_cost(&st));
+        metric(ctx, level, "flipped_uv_faces", (double)count_flipped_uv(&st));
+        metric(ctx, level, "seconds", seconds);
+        if (stalled && mesh->nf > targets[level]) {
+            metric(ctx, level, "blocked_edges", (double)nblocked);
+            for (int r = 1; r < BLOCK_COUNT; r++)
+                if (blocked[r] > 0) {
+                    char name[64];
+                    snprintf(name, sizeof name, "blocked_%s", block_names[r]);
+                    metric(ctx, level, name, (double)blocked[r]);
+                }
+        }
+        if (samples > 0) {
+            sc_hausdorff_mesh level_mesh = {mesh->V, mesh->nv, mesh->FV, mesh->nf};
+            sc_hausdorff_result hd;
+            rc = sc_hausdorff(&input_mesh, &level_mesh, samples, threads, &hd, err);
+            if (rc != SC_OK) {
+                sc_mesh_free(mesh);
+                break;
+            }
+            metric(ctx, level, "hausdorff", diagonal > 0 ? hd.distance / diagonal : 0);
+            metric(ctx, level, "hausdorff_mean", diagonal > 0 ? 0.5 * (hd.mean_a_to_b + hd.mean_b_to_a) / diagonal : 0);
+        }
+        sc_value *mv = sc_value_new_mesh(mesh);
+        sc_atlas *atlas = mv ? sc_atlas_new(mv) : NULL;
+        sc_value *av = atlas ? sc_value_new_atlas(atlas) : NULL;
+        if (!av || sc_lods_add(lods, av) != SC_OK) {
+            if (!atlas) sc_value_release(mv);
+            rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+            break;
+        }
+        level_start = sc_now();
+    }
+    if (rc == SC_OK) {
+        sc_ctx_metric(ctx, "seconds", total_seconds);
+        sc_ctx_metric(ctx, "normal_turn_relaxed", st.normal_relaxed);
+        sc_ctx_metric(ctx, "levels", ntargets);
+        sc_value *out = sc_value_new_lods(lods);
+        lods = NULL;
+        if (!out) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+        else sc_ctx_set_output(ctx, "lods", out);
+    }
+    sc_lods_free(lods);
+    state_free(&st);
+    free(targets);
+    return rc;
+}
+
+static const char *const seam_modes[] = {"aware", "fixed", "free", NULL};
+static const char *const weight_modes[] = {"qem", "area_distortion", NULL};
+
+static const sc_param_desc params[] = {
+    {.name = "ratio", .type = SC_PARAM_NUMBERS, .def_string = "0.5,0.1,0.01", .min = 0, .max = 1,
+     .doc = "target face counts as fractions of the input, one level each, not increasing"},
+    {.name = "faces", .type = SC_PARAM_NUMBERS, .def_string = "", .min = 1, .max = 2e9,
+     .doc = "absolute target face counts (when given, they replace ratio)"},
+    {.name = "seam_mode", .type = SC_PARAM_ENUM, .def_string = "aware", .choices = seam_modes,
+     .doc = "aware: Liu et al. 2017 seam-aware collapses; fixed: silhouette edges never collapse; "
+            "free: uv constraints ignored (breaks seams; a baseline)"},
+    {.name = "weights", .type = SC_PARAM_ENUM, .def_string = "qem", .choices = weight_modes,
+     .doc = "qem: summed quadrics; area_distortion: Coll & Paradinas 2010 weighted quadrics"},
+    {.name = "uv_weight", .type = SC_PARAM_NUMBER, .def = 1.0, .min = 1e-6, .max = 1e6,
+     .doc = "scale of the uv dimensions in the 5-D quadric, relative to sqrt(surface area / uv area) "
+            "(1: a unit of uv error counts like a unit of surface distance)"},
+    {.name = "collinear_tolerance", .type = SC_PARAM_NUMBER, .def = 1e-9, .min = 0, .max = 0.1,
+     .doc = "distance of a uv silhouette vertex from the chord of its neighbours still taken as collinear, "
+            "relative to the chord's length (on top of uv_precision)"},
+    {.name = "ratio_tolerance", .type = SC_PARAM_NUMBER, .def = 1e-9, .min = 0, .max = 0.1,
+     .doc = "relative difference of the two sides' uv length ratios of a seam still taken as equal "
+            "(on top of uv_precision)"},
+    {.name = "uv_precision", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 0.1,
+     .doc = "the step the input's uv coordinates are stored with; rounding by up to half a step is not "
+            "taken as a bend or a length difference; -1: detect it (decimals of OBJ text, float32, double)"},
+    {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
+     .doc = "largest angle (degrees) a face's normal may turn in one collapse; when nothing else can "
+            "collapse before a target, only flips (90) are refused"},
+    {.name = "hausdorff_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 0, .max = 1e8,
+     .doc = "surface samples per mesh for the Hausdorff metric (0: skip the metric)"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "mesh", .kind = SC_KIND_MESH, .doc = "the mesh to decimate (an atlas's mesh: its textures do not matter)"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "lods", .kind = SC_KIND_LODS,
+     .doc = "one textureless atlas per target, each decimated from the one before, all in the input's uv layout"},
+};
+
+const sc_node_desc sc_node_decimate = {
+    .type = "decimate",
+    .version = 1,
+    .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+};

@@ -1,0 +1,1045 @@
+/* erase_seams.c - the node `erase_seams`: Liu et al. 2017, §3-4.
+ *
+ * Design note.
+ *
+ * What is solved. For each texture, the texels p minimise
+ *     w_change E_change + w_grad_in E_grad_in + w_c1 E_C1 + w_grad_out E_grad_out
+ *   + [w_lerp E_lerp] + [w_outside E_outside] + w_seam p^T M p
+ * where M is the exact seam operator normalised as in eq. 9 (sc_seam.c builds
+ * M, E_C1, E_lerp and E_outside in closed form over the texel-grid pieces of
+ * every edge). The unknowns are the texels of the bilinear cells that uv
+ * silhouette edges (both sides of every seam, surface boundaries, uv
+ * foldovers) pass through; every other texel is fixed and enters through the
+ * right-hand side. Texels whose centre lies inside a uv triangle of the
+ * material are "inside" (T_in, rasterised with a top-left rule), the others
+ * "outside":
+ *   E_change   = 1/|T_in| sum_{i in T_in} |p_i - p0_i|^2   (|T_in|: all inside
+ *                texels of the texture, as the paper writes it)
+ *   E_grad_in  = sum over grid edges with both texels inside of
+ *                |(p_a - p_b) - (p0_a - p0_b)|^2
+ *   E_grad_out = sum over grid edges with an outside unknown texel whose
+ *                other texel is inside or unknown, of |p_a - p_b|^2 (outside
+ *                texels beyond the unknowns are unreliable and left out)
+ * Grid neighbours follow the wrap mode (repeat wraps; clamp and mirror stop
+ * at the border). A Tikhonov floor of 1e-8 |p - p0|^2 on every unknown keeps
+ * components with no inside texel (zero-area charts) well posed; it moves
+ * nothing measurable. Derivatives in E_C1 and the grid are per texel, so the
+ * paper's weights mean the same at every resolution.
+ *
+ * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
+ * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
+ * local 1e4, global 1e2; an explicit w_change >= 0 overrides the preset.
+ * E_lerp and E_outside are optional (`lerp`, `outside`): E_outside trusts the
+ * original texels outside the charts; E_lerp pulls each silhouette edge
+ * towards the linear interpolation of per-vertex values, taken as the mean of
+ * the texture's samples at all wedges of each vertex.
+ *
+ * Sharing. Textures of one material with the same size and wrap modes have
+ * the same system matrix: they are solved together, every channel of every
+ * one of them a right-hand side of one CHOLMOD factorisation. Two texture
+ * slots holding the same image value are erased once.
+ *
+ * Signals. Solving is in double from the stored values (colour is erased as
+ * stored, i.e. in its sRGB encoding, the way a renderer filtering the stored
+ * values sees it). Output `atlas` holds f32 images (same channels, colour
+ * space and format tag). Output `atlas_native` holds the same textures in the
+ * input's own pixel type: 8/16-bit inputs are quantised once, with
+ * `quantize` = naive (round to nearest) or optimal (8-bit: the rounding
+ * direction of every seam texel is chosen by coordinate descent on the
+ * quantised seam energy q^T M q, each texel staying within one step of its
+ * float value). Tangent-space normal maps cannot be made seam-free in
+ * general (the paper's footnote 3): with `tangent_space_normals` the normal
+ * slot is left as it is and the metrics say so.
+ *
+ * Passing through. A texture whose material has no seam edge is passed on as
+ * the same value (so it stays byte for byte identical); when nothing changes
+ * the input atlas itself is the output.
+ *
+ * Determinism. Assembly emits triplets in a fixed order for any thread count;
+ * the channels of the rounding are independent; CHOLMOD is deterministic.
+ */
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_nodes.h"
+#include "sc_seam.h"
+#include "sc_sparse.h"
+
+#define TIKHONOV 1e-8
+#ifndef SC_ERASE_PHASE
+#define SC_ERASE_PHASE(name) ((void)0)
+#endif
+#define NULLITY_MAX_TEXELS 200000
+#define ROUND_MAX_SWEEPS 64
+
+typedef enum quantize_mode { QUANT_NONE = 0, QUANT_NAIVE = 1, QUANT_OPTIMAL = 2 } quantize_mode;
+
+typedef struct options {
+    double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
+    bool lerp, outside, tangent_space;
+    double gap_tolerance;
+    quantize_mode quantize;
+    int threads;
+} options;
+
+/* What happens to one texture of the atlas. */
+typedef enum tex_fate {
+    FATE_KEEP = 0,        /* not selected, or no seams: passed through */
+    FATE_ERASE = 1,       /* erased (possibly as a duplicate of another slot) */
+    FATE_TANGENT = 2,     /* tangent-space normal map: left, and reported */
+    FATE_CLEAN = 3,       /* seams already within the tolerance: passed through */
+} tex_fate;
+
+typedef struct tex_state {
+    tex_fate fate;
+    int32_t same_as;      /* an earlier texture with the same image value, or -1 */
+    sc_value *f32, *native;
+    double energy_before, gap_before;
+    char prefix[160];
+} tex_state;
+
+/* Sums over the whole atlas. */
+typedef struct totals {
+    double seam_edges, silhouette_edges, unknowns, shared_texels;
+    double energy_before, energy_after, gap_before, gap_after;
+    double energy_u8_naive, energy_u8_optimal, gap_u8;
+    bool any_u8, any_optimal;
+    double max_change_in;
+    double nullity;
+    bool nullity_all;
+    double seconds_build, seconds_factor, seconds_solve, seconds_quantize, seconds_nullity;
+    double solver_peak_mb, factor_nnz, factor_flops;
+    int factorizations, erased, unchanged, tangent;
+} totals;
+
+static void metric(sc_ctx *ctx, const char *prefix, const char *name, double v) {
+    char full[256];
+    snprintf(full, sizeof full, "%s%s", prefix, name);
+    sc_ctx_metric(ctx, full, v);
+}
+
+/* ---------------------------------------------------------------- grid terms */
+
+/* The per-texel terms: E_change, the Tikhonov floor, E_grad_in and
+ * E_grad_out. With trip, Q's entries are added; with p0 and rhs (n x C, one
+ * column per channel), the residual -1/2 grad E at p0: only E_grad_out is
+ * not minimal there. */
+static void grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
+                       const sc_seam_texset *covered, const options *o, double w_change_texel,
+                       sc_triplets *trip, const sc_image_data *p0, double *rhs) {
+    const int32_t W = g->width, H = g->height, n = unk->count;
+    const int32_t C = p0 ? p0->channels : 0;
+    static const int di[4] = {1, 0, -1, 0}, dj[4] = {0, 1, 0, -1};
+    for (int32_t r = 0; r < n; r++) {
+        int32_t t = ids[r], i = t % W, j = t / W;
+        bool inside = sc_seam_texset_has(covered, t);
+        if (trip) sc_triplets_add(trip, r, r, TIKHONOV + (inside ? w_change_texel : 0));
+        for (int d = 0; d < 4; d++) {
+            int64_t ii = (int64_t)i + di[d], jj = (int64_t)j + dj[d];
+            if (ii < 0 || ii >= W) {
+                if (g->wrap_u != SC_WRAP_REPEAT) continue;
+                ii = sc_seam_wrap(ii, W, SC_WRAP_REPEAT);
+            }
+            if (jj < 0 || jj >= H) {
+                if (g->wrap_v != SC_WRAP_REPEAT) continue;
+                jj = sc_seam_wrap(jj, H, SC_WRAP_REPEAT);
+            }
+            int32_t nb = (int32_t)jj * W + (int32_t)ii;
+            if (nb == t) continue;
+            int32_t r2 = sc_seam_texset_index(unk, nb);
+            if (d >= 2 && r2 >= 0) continue; /* an edge between unknowns: seen from the other end */
+            bool nb_inside = sc_seam_texset_has(covered, nb);
+            double w;
+            bool keep_gradient; /* E_grad_in (the original gradient) or E_grad_out (zero) */
+            if (inside && nb_inside) {
+                w = o->w_grad_in, keep_gradient = true;
+            } else if ((!inside && (nb_inside || r2 >= 0)) || (inside && r2 >= 0)) {
+                w = o->w_grad_out, keep_gradient = false;
+            } else {
+                continue; /* an unreliable outside texel beyond the unknowns */
+            }
+            if (w == 0) continue;
+            if (trip) {
+                sc_triplets_add(trip, r, r, w);
+                if (r2 >= 0) {
+                    sc_triplets_add(trip, r2, r2, w);
+                    sc_triplets_add(trip, r, r2, -w);
+                }
+            }
+            if (rhs && !keep_gradient)
+                for (int32_t c = 0; c < C; c++) {
+                    double gr = w * (sc_seam_texel(p0, t, c) - sc_seam_texel(p0, nb, c));
+                    rhs[(size_t)c * n + r] -= gr;
+                    if (r2 >= 0) rhs[(size_t)c * n + r2] += gr;
+                }
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- E_lerp targets */
+
+/* Per-vertex values: the mean of the texture's samples at every wedge of the
+ * vertex in this material. */
+static double *vertex_values(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
+                             const sc_image_data *img) {
+    int32_t C = img->channels;
+    double *vv = sc_calloc_array((size_t)m->nv * (size_t)C, sizeof *vv);
+    int32_t *cnt = sc_calloc_array((size_t)m->nv, sizeof *cnt);
+    if (!vv || !cnt) {
+        free(vv), free(cnt);
+        return NULL;
+    }
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != material) continue;
+        for (int k = 0; k < 3; k++) {
+            int32_t v = m->FV[3 * f + k];
+            const double *uv = &m->U[2 * m->FU[3 * f + k]];
+            int32_t id[4];
+            double w[4];
+            sc_seam_taps(g, uv[0], uv[1], id, w);
+            for (int32_t c = 0; c < C; c++) {
+                double s = 0;
+                for (int q = 0; q < 4; q++) s += w[q] * sc_seam_texel(img, id[q], c);
+                vv[(size_t)v * C + c] += s;
+            }
+            cnt[v]++;
+        }
+    }
+    for (int32_t v = 0; v < m->nv; v++)
+        if (cnt[v] > 1)
+            for (int32_t c = 0; c < C; c++) vv[(size_t)v * C + c] /= cnt[v];
+    free(cnt);
+    return vv;
+}
+
+/* ---------------------------------------------------------------- 8-bit rounding */
+
+/* The full symmetric pattern of an upper-triangular matrix (column access). */
+static int sparse_full(const sc_sparse *u, sc_sparse *f) {
+    memset(f, 0, sizeof *f);
+    int32_t n = u->n;
+    f->n = n;
+    f->colptr = sc_calloc_array((size_t)n + 1, sizeof *f->colptr);
+    int64_t nnz = 0;
+    for (int32_t j = 0; j < n; j++)
+        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) nnz += u->rowind[p] == j ? 1 : 2;
+    f->rowind = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->rowind);
+    f->val = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->val);
+    int32_t *next = sc_alloc_array((size_t)n + 1, sizeof *next);
+    if (!f->colptr || !f->rowind || !f->val || !next) {
+        free(next);
+        sc_sparse_free(f);
+        return SC_ENOMEM;
+    }
+    for (int32_t j = 0; j < n; j++)
+        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) {
+            int32_t i = u->rowind[p];
+            f->colptr[j + 1]++;
+            if (i != j) f->colptr[i + 1]++;
+        }
+    for (int32_t j = 0; j < n; j++) f->colptr[j + 1] += f->colptr[j];
+    memcpy(next, f->colptr, (size_t)n * sizeof *next);
+    for (int32_t j = 0; j < n; j++)
+        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) {
+            int32_t i = u->rowind[p];
+            double v = u->val[p];
+            f->rowind[next[j]] = i, f->val[next[j]++] = v;
+            if (i != j) f->rowind[next[i]] = j, f->val[next[i]++] = v;
+        }
+    f->nnz = nnz;
+    free(next);
+    return SC_OK;
+}
+
+typedef struct round_job {
+    const sc_sparse *mf;     /* full symmetric M over the seam texels */
+    const int32_t *ids;      /* texel id of each seam texel */
+    const float *x;          /* float solution image */
+    uint8_t *bytes;          /* quantised image, changed in place */
+    int32_t channels;
+} round_job;
+
+/* Greedy coordinate descent on q^T M q over q_k in {floor(255 x_k), +1}. */
+static int round_channel(void *ud, int32_t c) {
+    round_job *job = ud;
+    const sc_sparse *mf = job->mf;
+    int32_t n = mf->n, C = job->channels;
+    int32_t *q = sc_alloc_array((size_t)n, sizeof *q), *lo = sc_alloc_array((size_t)n, sizeof *lo);
+    int32_t *hi = sc_alloc_array((size_t)n, sizeof *hi);
+    double *g = sc_calloc_array((size_t)n, sizeof *g), *dg = sc_alloc_array((size_t)n, sizeof *dg);
+    if (!q || !lo || !hi || !g || !dg) {
+        free(q), free(lo), free(hi), free(g), free(dg);
+        return SC_ENOMEM;
+    }
+    for (int32_t k = 0; k < n; k++) {
+        size_t at = (size_t)job->ids[k] * (size_t)C + (size_t)c;
+        double x = job->x[at] * 255.0;
+        if (!(x > 0)) x = 0;
+        if (x > 255) x = 255;
+        int32_t f = (int32_t)floor(x);
+        lo[k] = f, hi[k] = f < 255 ? f + 1 : 255;
+        if ((double)f == x) hi[k] = f; /* exact: nothing to choose */
+        q[k] = job->bytes[at];
+        if (q[k] < lo[k] || q[k] > hi[k]) q[k] = (int32_t)lrint(x);
+    }
+    for (int32_t j = 0; j < n; j++) {
+        dg[j] = 0;
+        for (int32_t p = mf->colptr[j]; p < mf->colptr[j + 1]; p++) {
+            int32_t i = mf->rowind[p];
+            g[i] += mf->val[p] * q[j];
+            if (i == j) dg[j] = mf->val[p];
+        }
+    }
+    for (int sweep = 0; sweep < ROUND_MAX_SWEEPS; sweep++) {
+        int64_t moved = 0;
+        for (int32_t k = 0; k < n; k++) {
+            if (lo[k] == hi[k]) continue;
+            int32_t alt = q[k] == lo[k] ? hi[k] : lo[k], d = alt - q[k];
+            double de = 2.0 * d * g[k] + (double)d * d * dg[k];
+            if (!(de < -1e-13 * dg[k])) continue;
+            q[k] = alt;
+            for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) g[mf->rowind[p]] += d * mf->val[p];
+            moved++;
+        }
+        if (!moved) break;
+    }
+    for (int32_t k = 0; k < n; k++)
+        job->bytes[(size_t)job->ids[k] * (size_t)C + (size_t)c] = (uint8_t)q[k];
+    free(q), free(lo), free(hi), free(g), free(dg);
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- one group */
+
+/* Textures of one material sharing size and wrap modes: one system. */
+typedef struct group {
+    int32_t material;
+    sc_seam_grid grid;
+    int32_t ntex;
+    int32_t *tex;
+} group;
+
+typedef struct group_work {
+    sc_seam_coverage cov;
+    sc_seam_texset unk, seamset;
+    int32_t *ids, *seam_ids;
+    int32_t nseam_texels;
+    sc_triplets trip;
+    sc_sparse q, msub, mfull;
+    sc_sparse_chol *chol;
+    double *rhs;
+    double **vv;
+} group_work;
+
+static void group_work_free(group_work *w, int32_t ntex) {
+    sc_seam_coverage_free(&w->cov);
+    sc_seam_texset_free(&w->unk);
+    sc_seam_texset_free(&w->seamset);
+    free(w->ids), free(w->seam_ids);
+    sc_triplets_free(&w->trip);
+    sc_sparse_free(&w->q);
+    sc_sparse_free(&w->msub);
+    sc_sparse_free(&w->mfull);
+    sc_sparse_chol_free(w->chol);
+    free(w->rhs);
+    if (w->vv)
+        for (int32_t k = 0; k < ntex; k++) free(w->vv[k]);
+    free(w->vv);
+}
+
+static bool is_normal_slot(const char *name) { return strcmp(name, "normal") == 0; }
+
+/* A cheap look at a normal map: tangent-space maps sit near (0.5, 0.5, 1). */
+static bool looks_tangent_space(const sc_image_data *img) {
+    if (img->channels < 3) return false;
+    int64_t n = (int64_t)img->width * img->height;
+    int64_t step = n > 262144 ? n / 262144 : 1;
+    double s[3] = {0, 0, 0};
+    int64_t cnt = 0;
+    for (int64_t t = 0; t < n; t += step, cnt++)
+        for (int c = 0; c < 3; c++) s[c] += sc_seam_texel(img, (int32_t)t, c);
+    for (int c = 0; c < 3; c++) s[c] /= (double)(cnt ? cnt : 1);
+    return s[2] > 0.7 && fabs(s[0] - 0.5) < 0.15 && fabs(s[1] - 0.5) < 0.15;
+}
+
+static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
+                       const sc_atlas *atlas, const group *gr, const options *o,
+                       tex_state *st, bool several, totals *tot, sc_error *err) {
+    const sc_seam_grid *g = &gr->grid;
+    group_work w;
+    memset(&w, 0, sizeof w);
+    int rc = SC_OK;
+    double t0 = sc_now();
+
+    /* which texels are inside, which are unknown */
+    if ((rc = sc_seam_coverage_build(m, gr->material, g, &w.cov, err))) goto done;
+    SC_ERASE_PHASE("coverage");
+    if (sc_seam_texset_init(&w.unk, g->width, g->height)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    if ((rc = sc_seam_mark_texels(m, seams, g, &w.unk, err))) goto done;
+    if (sc_seam_texset_finish(&w.unk) || sc_seam_texset_members(&w.unk, &w.ids)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    const int32_t n = w.unk.count;
+    SC_ERASE_PHASE("unknowns");
+    int64_t n_inside = 0, n_shared_unk = 0;
+    for (int32_t r = 0; r < n; r++) {
+        n_inside += sc_seam_texset_has(&w.cov.covered, w.ids[r]);
+        n_shared_unk += sc_seam_texset_has(&w.cov.shared, w.ids[r]);
+    }
+    double w_change_texel = w.cov.ncovered > 0 ? o->w_change / (double)w.cov.ncovered : 0;
+
+    /* the seam texels (cells seam edges pass through) and the scale of M there */
+    if (sc_seam_texset_init(&w.seamset, g->width, g->height)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    sc_seam_set seams_only = *seams;
+    seams_only.nsil = 0;
+    if ((rc = sc_seam_mark_texels(m, &seams_only, g, &w.seamset, err))) goto done;
+    if (sc_seam_texset_finish(&w.seamset)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    double trace = 0;
+    if ((rc = sc_seam_trace(m, seams, g, o->threads, &trace, err))) goto done;
+    SC_ERASE_PHASE("seamset+trace");
+    double w_pen = o->w_seam * (trace > 0 ? (double)w.seamset.count / trace : 1.0);
+
+    /* the system matrix, shared by every channel of every texture here */
+    sc_seam_terms qterms = {.w_seam = w_pen,
+                            .w_c1 = o->w_c1,
+                            .w_outside = o->outside ? o->w_outside : 0,
+                            .w_lerp = o->lerp ? o->w_lerp : 0};
+    sc_triplets_init(&w.trip, n);
+    if ((rc = sc_seam_assemble(m, seams, g, &w.unk, &qterms, o->threads, &w.trip, err))) goto done;
+    SC_ERASE_PHASE("assemble");
+    grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.trip, NULL, NULL);
+    SC_ERASE_PHASE("grid");
+    if ((rc = sc_sparse_from_triplets(&w.trip, &w.q, err))) goto done;
+    sc_triplets_free(&w.trip);
+    SC_ERASE_PHASE("csc");
+#ifdef SC_ERASE_DEBUG_HOOK
+    SC_ERASE_DEBUG_HOOK(&w.q);
+#endif
+    double tm0 = sc_now();
+    bool want_round = false;
+    for (int32_t k = 0; k < gr->ntex; k++)
+        want_round |= atlas->textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
+                      o->quantize == QUANT_OPTIMAL;
+    bool want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS;
+    if (want_round && !want_nullity) {
+        /* for rounding, M on the seam texels is Q / w_pen there: the other terms
+         * are ~1e-10 of it and only nudge the greedy choices */
+        int32_t *keep = sc_alloc_array((size_t)n, sizeof *keep);
+        if (!keep) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        for (int32_t r = 0; r < n; r++) keep[r] = sc_seam_texset_index(&w.seamset, w.ids[r]);
+        rc = sc_sparse_submatrix(&w.q, keep, w.seamset.count, &w.msub, err);
+        free(keep);
+        if (rc) goto done;
+        for (int64_t k = 0; k < w.msub.nnz; k++) w.msub.val[k] /= w_pen;
+    }
+    double tm1 = sc_now();
+    SC_ERASE_PHASE("msub");
+
+    /* right-hand sides: one column per channel of every texture */
+    int32_t ncols = 0;
+    for (int32_t k = 0; k < gr->ntex; k++) ncols += atlas->textures[gr->tex[k]].image->as.image->channels;
+    w.rhs = sc_calloc_array((size_t)n * (size_t)ncols, sizeof *w.rhs);
+    w.vv = sc_calloc_array((size_t)gr->ntex, sizeof *w.vv);
+    if (!w.rhs || !w.vv) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory for %d x %d right-hand sides", (int)n, (int)ncols);
+        goto done;
+    }
+    for (int32_t k = 0, col = 0; k < gr->ntex; k++) {
+        const sc_texture *tx = &atlas->textures[gr->tex[k]];
+        const sc_image_data *img = tx->image->as.image;
+        double *rhs = w.rhs + (size_t)col * n;
+        for (int32_t r = 0; r < n; r++)
+            for (int32_t c = 0; c < img->channels; c++)
+                if (!isfinite(sc_seam_texel(img, w.ids[r], c))) {
+                    rc = sc_fail(err, SC_EINPUT, "texture %s (%s): non-finite value at texel (%d, %d)",
+                                 tx->name, tx->source, (int)(w.ids[r] % g->width),
+                                 (int)(w.ids[r] / g->width));
+                    goto done;
+                }
+        if (o->lerp && o->w_lerp > 0 && !(w.vv[k] = vertex_values(m, gr->material, g, img))) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        /* the residual r = -1/2 grad E at p0; the solve gives d = x - p0, so
+         * texels that need no change keep their exact value */
+        sc_seam_terms rterms = qterms;
+        rterms.p0 = img;
+        rterms.vertex_values = w.vv[k];
+        rterms.rhs = rhs;
+        if ((rc = sc_seam_assemble(m, seams, g, &w.unk, &rterms, o->threads, NULL, err))) goto done;
+        grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, NULL, img, rhs);
+        col += img->channels;
+    }
+    double t1 = sc_now() - (tm1 - tm0);
+    SC_ERASE_PHASE("rhs");
+
+    if ((rc = sc_sparse_chol_factor(&w.q, NULL, &w.chol, err))) {
+        sc_error_prefix(err, "material %s", m->materials[gr->material]);
+        goto done;
+    }
+    sc_sparse_free(&w.q);
+    double t2 = sc_now();
+    SC_ERASE_PHASE("factor");
+    if ((rc = sc_sparse_chol_solve(w.chol, ncols, w.rhs, err))) goto done;
+    double t3 = sc_now();
+    SC_ERASE_PHASE("solve");
+    sc_sparse_stats stats;
+    sc_sparse_chol_stats(w.chol, &stats);
+    sc_sparse_chol_free(w.chol);
+    w.chol = NULL;
+
+    /* M on the seam texels (the texels of cells seam edges pass through) */
+    double nullity = NAN;
+    double tn0 = sc_now();
+    w.nseam_texels = w.seamset.count;
+    if (sc_seam_texset_members(&w.seamset, &w.seam_ids)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    if (want_nullity) {
+        /* M (eq. 9) alone, exactly, over the seam texels */
+        sc_triplets t;
+        sc_triplets_init(&t, w.seamset.count);
+        sc_seam_terms mterms = {.w_seam = 1.0};
+        rc = sc_seam_assemble(m, &seams_only, g, &w.seamset, &mterms, o->threads, &t, err);
+        if (rc == SC_OK) rc = sc_sparse_from_triplets(&t, &w.msub, err);
+        sc_triplets_free(&t);
+        if (rc) goto done;
+    }
+    if (want_nullity && w.msub.n > 0) {
+        double tol = sc_sparse_norm_bound(&w.msub) * (double)w.msub.n * DBL_EPSILON;
+        int64_t below = 0;
+        if (sc_sparse_count_eigs_below(&w.msub, tol, &below, NULL) == SC_OK) nullity = (double)below;
+    }
+    if (want_round && (rc = sparse_full(&w.msub, &w.mfull))) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    sc_sparse_free(&w.msub);
+    double tn1 = sc_now();
+    SC_ERASE_PHASE("nullity/full");
+
+    /* write the solution, measure, quantise */
+    double tq = want_round ? (tn1 - tn0) + (tm1 - tm0) : 0;
+    tot->seconds_nullity += want_round ? 0 : tn1 - tn0;
+    tot->seam_edges += seams->nseams;
+    tot->silhouette_edges += seams->nsil;
+    tot->unknowns += n;
+    tot->shared_texels += (double)w.cov.nshared;
+    tot->seconds_build += t1 - t0;
+    tot->seconds_factor += t2 - t1;
+    tot->seconds_solve += t3 - t2;
+    tot->factorizations++;
+    tot->factor_nnz += stats.factor_nnz;
+    tot->factor_flops += stats.flops;
+    if (stats.peak_bytes / 1048576.0 > tot->solver_peak_mb) tot->solver_peak_mb = stats.peak_bytes / 1048576.0;
+    if (isnan(nullity)) tot->nullity_all = false;
+    else tot->nullity += nullity;
+
+    for (int32_t k = 0, col = 0; k < gr->ntex; k++) {
+        int32_t ti = gr->tex[k];
+        const sc_texture *tx = &atlas->textures[ti];
+        const sc_image_data *img = tx->image->as.image;
+        const int32_t C = img->channels;
+        const char *pre = st[ti].prefix;
+        sc_image_data *out = sc_image_to_f32(img);
+        if (!out) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        float *px = out->pixels;
+        double max_in = 0, sum_in = 0, max_out = 0;
+        bool finite = true;
+        for (int32_t r = 0; r < n; r++) {
+            int32_t t = w.ids[r];
+            bool inside = sc_seam_texset_has(&w.cov.covered, t);
+            for (int32_t c = 0; c < C; c++) {
+                double d = w.rhs[(size_t)(col + c) * n + r];
+                finite &= isfinite(d);
+                float *p = &px[(size_t)t * C + c];
+                float x = (float)((double)*p + d);
+                double ch = fabs((double)x - (double)*p);
+                *p = x;
+                if (inside) {
+                    if (ch > max_in) max_in = ch;
+                    sum_in += ch;
+                } else if (ch > max_out) {
+                    max_out = ch;
+                }
+            }
+        }
+        col += C;
+        if (!finite) {
+            sc_image_free(out);
+            rc = sc_fail(err, SC_EINPUT, "texture %s: the solve gave non-finite texels", tx->name);
+            goto done;
+        }
+        double e0 = 0, e1 = 0, g0 = 0, g1 = 0;
+        sc_value *fv = sc_value_new_image(out);
+        if (!fv) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        st[ti].f32 = fv;
+        SC_ERASE_PHASE("write");
+        e0 = st[ti].energy_before, g0 = st[ti].gap_before;
+        if ((rc = sc_seam_energy(m, seams, g, fv->as.image, o->threads, &e1, &g1, err))) goto done;
+
+        SC_ERASE_PHASE("energy after");
+        /* the input's own pixel type */
+        double eq_naive = NAN, eq_opt = NAN, gq = NAN;
+        if (img->pixel != SC_PIXEL_F32 && o->quantize != QUANT_NONE) {
+            double tq0 = sc_now();
+            sc_image_data *nat = sc_image_alloc(img->width, img->height, C, img->pixel);
+            if (!nat) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                goto done;
+            }
+            nat->colorspace = img->colorspace;
+            memcpy(nat->format, img->format, sizeof nat->format);
+            size_t bytes = (size_t)img->width * img->height * C * (size_t)img->pixel;
+            memcpy(nat->pixels, img->pixels, bytes);
+            double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
+            for (int32_t r = 0; r < n; r++)
+                for (int32_t c = 0; c < C; c++) {
+                    size_t at = (size_t)w.ids[r] * C + c;
+                    double x = px[at];
+                    x = x < 0 ? 0 : x > 1 ? 1 : x;
+                    long v = lrint(x * maxv);
+                    if (img->pixel == SC_PIXEL_U8) ((uint8_t *)nat->pixels)[at] = (uint8_t)v;
+                    else ((uint16_t *)nat->pixels)[at] = (uint16_t)v;
+                }
+            SC_ERASE_PHASE("naive");
+            if ((rc = sc_seam_energy(m, seams, g, nat, o->threads, &eq_naive, &gq, err))) {
+                sc_image_free(nat);
+                goto done;
+            }
+            if (img->pixel == SC_PIXEL_U8 && o->quantize == QUANT_OPTIMAL && w.mfull.n > 0) {
+                SC_ERASE_PHASE("naive energy");
+                round_job rj = {&w.mfull, w.seam_ids, px, nat->pixels, C};
+                if ((rc = sc_seam_parallel(o->threads, C, round_channel, &rj))) {
+                    sc_image_free(nat);
+                    rc = sc_fail(err, rc, "out of memory rounding to 8 bits");
+                    goto done;
+                }
+                SC_ERASE_PHASE("greedy");
+                if ((rc = sc_seam_energy(m, seams, g, nat, o->threads, &eq_opt, &gq, err))) {
+                    sc_image_free(nat);
+                    goto done;
+                }
+            }
+            st[ti].native = sc_value_new_image(nat);
+            if (!st[ti].native) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                goto done;
+            }
+            tq += sc_now() - tq0;
+        } else {
+            st[ti].native = sc_value_retain(fv);
+        }
+
+        SC_ERASE_PHASE("quantise end");
+        /* metrics of this texture */
+        metric(ctx, pre, "seam_edges", seams->nseams);
+        metric(ctx, pre, "silhouette_edges", seams->nsil);
+        metric(ctx, pre, "boundary_edges", seams->nboundary);
+        metric(ctx, pre, "foldover_edges", seams->nfoldover);
+        metric(ctx, pre, "unknowns", n);
+        metric(ctx, pre, "unknowns_inside", (double)n_inside);
+        metric(ctx, pre, "seam_texels", w.nseam_texels);
+        metric(ctx, pre, "covered_texels", (double)w.cov.ncovered);
+        metric(ctx, pre, "shared_texels", (double)w.cov.nshared);
+        metric(ctx, pre, "shared_texel_fraction",
+               w.cov.ncovered ? (double)w.cov.nshared / (double)w.cov.ncovered : 0);
+        metric(ctx, pre, "shared_unknowns", (double)n_shared_unk);
+        metric(ctx, pre, "seam_energy_before", e0);
+        metric(ctx, pre, "seam_energy_after", e1);
+        metric(ctx, pre, "max_seam_gap_before", g0);
+        metric(ctx, pre, "max_seam_gap_after", g1);
+        if (!isnan(eq_naive)) {
+            const char *bits = img->pixel == SC_PIXEL_U8 ? "u8" : "u16";
+            char name[64];
+            snprintf(name, sizeof name, "seam_energy_after_%s_naive", bits);
+            metric(ctx, pre, name, eq_naive);
+            if (!isnan(eq_opt)) {
+                snprintf(name, sizeof name, "seam_energy_after_%s_optimal", bits);
+                metric(ctx, pre, name, eq_opt);
+            }
+            snprintf(name, sizeof name, "max_seam_gap_after_%s", bits);
+            metric(ctx, pre, name, gq);
+            if (img->pixel == SC_PIXEL_U8) {
+                tot->any_u8 = true;
+                tot->energy_u8_naive += eq_naive;
+                if (!isnan(eq_opt)) tot->any_optimal = true, tot->energy_u8_optimal += eq_opt;
+                else tot->energy_u8_optimal += eq_naive;
+                if (gq > tot->gap_u8) tot->gap_u8 = gq;
+            }
+        }
+        metric(ctx, pre, "max_change_interior", max_in);
+        metric(ctx, pre, "mean_change_interior", n_inside ? sum_in / ((double)n_inside * C) : 0);
+        metric(ctx, pre, "max_change_outside", max_out);
+        if (!isnan(nullity)) metric(ctx, pre, "nullity", nullity);
+        if (is_normal_slot(tx->name))
+            metric(ctx, pre, "tangent_space_suspect", looks_tangent_space(img) ? 1 : 0);
+        if (several) {
+            metric(ctx, pre, "seconds_build", t1 - t0);
+            metric(ctx, pre, "seconds_factor", t2 - t1);
+            metric(ctx, pre, "seconds_solve", t3 - t2);
+        }
+        tot->energy_before += e0;
+        tot->energy_after += e1;
+        if (g0 > tot->gap_before) tot->gap_before = g0;
+        if (g1 > tot->gap_after) tot->gap_after = g1;
+        if (max_in > tot->max_change_in) tot->max_change_in = max_in;
+        tot->erased++;
+    }
+    tot->seconds_quantize += tq;
+done:
+    group_work_free(&w, gr->ntex);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- the node */
+
+static bool slot_selected(const char *list, const char *name) {
+    if (strcmp(list, "all") == 0) return true;
+    size_t len = strlen(name);
+    for (const char *p = list; *p;) {
+        while (*p == ' ' || *p == ',') p++;
+        const char *e = p;
+        while (*e && *e != ',') e++;
+        const char *t = e;
+        while (t > p && t[-1] == ' ') t--;
+        if ((size_t)(t - p) == len && strncmp(p, name, len) == 0) return true;
+        p = e;
+    }
+    return false;
+}
+
+/* Every name of the `textures` list must name some slot of the atlas. */
+static int check_selection(const char *list, const sc_atlas *a, sc_error *err) {
+    if (strcmp(list, "all") == 0) return SC_OK;
+    for (const char *p = list; *p;) {
+        while (*p == ' ' || *p == ',') p++;
+        if (!*p) break;
+        const char *e = p;
+        while (*e && *e != ',') e++;
+        const char *t = e;
+        while (t > p && t[-1] == ' ') t--;
+        bool found = false;
+        for (int32_t i = 0; i < a->ntex && !found; i++)
+            found = strlen(a->textures[i].name) == (size_t)(t - p) &&
+                    strncmp(a->textures[i].name, p, (size_t)(t - p)) == 0;
+        if (!found) {
+            sc_buf have;
+            sc_buf_init(&have);
+            for (int32_t i = 0; i < a->ntex; i++)
+                sc_buf_printf(&have, "%s%s", i ? ", " : "", a->textures[i].name);
+            char *h = sc_buf_take_string(&have);
+            int rc = sc_fail(err, SC_EINPUT, "textures: '%.*s' names no texture of the atlas (it has: %s)",
+                             (int)(t - p), p, h && *h ? h : "none");
+            free(h);
+            sc_buf_free(&have);
+            return rc;
+        }
+        p = e;
+    }
+    return SC_OK;
+}
+
+static void make_prefix(const sc_mesh *m, const sc_texture *t, bool several, char *out, size_t n) {
+    if (!several) {
+        out[0] = 0;
+        return;
+    }
+    if (m->nmat > 1) snprintf(out, n, "%s.%s.", m->materials[t->material], t->name);
+    else snprintf(out, n, "%s.", t->name);
+    for (char *p = out; *p; p++)
+        if (*p == ' ' || *p == '\t' || *p == '"') *p = '_';
+}
+
+static int build_outputs(sc_ctx *ctx, const sc_value *in, const tex_state *st, bool changed,
+                         sc_error *err) {
+    const sc_atlas *a = in->as.atlas;
+    if (!changed) {
+        sc_ctx_set_output(ctx, "atlas", sc_value_retain((sc_value *)in));
+        sc_ctx_set_output(ctx, "atlas_native", sc_value_retain((sc_value *)in));
+        return SC_OK;
+    }
+    for (int which = 0; which < 2; which++) {
+        sc_atlas *o = sc_atlas_new(sc_value_retain(a->mesh));
+        if (!o) return sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t i = 0; i < a->ntex; i++) {
+            const sc_texture *t = &a->textures[i];
+            int32_t src = st[i].same_as >= 0 ? st[i].same_as : i;
+            sc_value *img = st[src].fate == FATE_ERASE ? (which ? st[src].native : st[src].f32)
+                                                       : t->image;
+            if (sc_atlas_add_texture(o, t->name, t->material, t->wrap_u, t->wrap_v, t->source,
+                                     sc_value_retain(img))) {
+                sc_atlas_free(o);
+                return sc_fail(err, SC_ENOMEM, "out of memory");
+            }
+        }
+        sc_value *v = sc_value_new_atlas(o);
+        if (!v) return sc_fail(err, SC_ENOMEM, "out of memory");
+        sc_ctx_set_output(ctx, which ? "atlas_native" : "atlas", v);
+    }
+    return SC_OK;
+}
+
+static void emit_totals(sc_ctx *ctx, const totals *t, bool several) {
+    if (several) {
+        sc_ctx_metric(ctx, "seam_edges", t->seam_edges);
+        sc_ctx_metric(ctx, "silhouette_edges", t->silhouette_edges);
+        sc_ctx_metric(ctx, "unknowns", t->unknowns);
+        sc_ctx_metric(ctx, "shared_texels", t->shared_texels);
+        sc_ctx_metric(ctx, "seam_energy_before", t->energy_before);
+        sc_ctx_metric(ctx, "seam_energy_after", t->energy_after);
+        sc_ctx_metric(ctx, "max_seam_gap_before", t->gap_before);
+        sc_ctx_metric(ctx, "max_seam_gap_after", t->gap_after);
+        if (t->any_u8) {
+            sc_ctx_metric(ctx, "seam_energy_after_u8_naive", t->energy_u8_naive);
+            if (t->any_optimal) sc_ctx_metric(ctx, "seam_energy_after_u8_optimal", t->energy_u8_optimal);
+            sc_ctx_metric(ctx, "max_seam_gap_after_u8", t->gap_u8);
+        }
+        sc_ctx_metric(ctx, "max_change_interior", t->max_change_in);
+        if (t->nullity_all && t->factorizations > 0) sc_ctx_metric(ctx, "nullity", t->nullity);
+    }
+    sc_ctx_metric(ctx, "textures_erased", t->erased);
+    sc_ctx_metric(ctx, "textures_unchanged", t->unchanged);
+    sc_ctx_metric(ctx, "tangent_space_unerasable", t->tangent);
+    sc_ctx_metric(ctx, "factorizations", t->factorizations);
+    sc_ctx_metric(ctx, "seconds_build", t->seconds_build);
+    sc_ctx_metric(ctx, "seconds_factor", t->seconds_factor);
+    sc_ctx_metric(ctx, "seconds_solve", t->seconds_solve);
+    sc_ctx_metric(ctx, "seconds_quantize", t->seconds_quantize);
+    sc_ctx_metric(ctx, "seconds_nullity", t->seconds_nullity);
+    sc_ctx_metric(ctx, "solver_peak_mb", t->solver_peak_mb);
+    sc_ctx_metric(ctx, "factor_nnz", t->factor_nnz);
+    sc_ctx_metric(ctx, "factor_flops", t->factor_flops);
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    const sc_value *in = sc_ctx_input(ctx, "atlas");
+    if (!in || in->kind != SC_KIND_ATLAS) return sc_fail(err, SC_EINPUT, "atlas: no atlas given");
+    const sc_atlas *a = in->as.atlas;
+    const sc_mesh *m = a->mesh->as.mesh;
+    options o = {
+        .w_seam = sc_ctx_number(ctx, "w_seam"),
+        .w_grad_in = sc_ctx_number(ctx, "w_grad_in"),
+        .w_c1 = sc_ctx_number(ctx, "w_c1"),
+        .w_grad_out = sc_ctx_number(ctx, "w_grad_out"),
+        .w_lerp = sc_ctx_number(ctx, "w_lerp"),
+        .w_outside = sc_ctx_number(ctx, "w_outside"),
+        .lerp = sc_ctx_bool(ctx, "lerp"),
+        .outside = sc_ctx_bool(ctx, "outside"),
+        .tangent_space = sc_ctx_bool(ctx, "tangent_space_normals"),
+        .gap_tolerance = sc_ctx_number(ctx, "gap_tolerance"),
+        .threads = sc_ctx_threads(ctx),
+    };
+    double wc = sc_ctx_number(ctx, "w_change");
+    const char *preset = sc_ctx_string(ctx, "preset");
+    o.w_change = wc >= 0 ? wc : strcmp(preset, "global") == 0 ? 1e2 : 1e4;
+    const char *qm = sc_ctx_string(ctx, "quantize");
+    o.quantize = strcmp(qm, "none") == 0 ? QUANT_NONE : strcmp(qm, "naive") == 0 ? QUANT_NAIVE : QUANT_OPTIMAL;
+    const char *list = sc_ctx_string(ctx, "textures");
+    int rc = check_selection(list, a, err);
+    if (rc) return rc;
+
+    tex_state *st = sc_calloc_array(a->ntex ? (size_t)a->ntex : 1, sizeof *st);
+    sc_seam_set *sets = sc_calloc_array((size_t)m->nmat, sizeof *sets);
+    bool *found = sc_calloc_array((size_t)m->nmat, sizeof *found);
+    group *groups = sc_calloc_array(a->ntex ? (size_t)a->ntex : 1, sizeof *groups);
+    int32_t ngroups = 0;
+    totals tot = {.nullity_all = true};
+    if (!st || !sets || !found || !groups) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    int32_t nselected = 0;
+    for (int32_t i = 0; i < a->ntex; i++) nselected += slot_selected(list, a->textures[i].name);
+    bool several = nselected > 1;
+
+    /* decide each texture's fate; group the ones to erase */
+    for (int32_t i = 0; i < a->ntex; i++) {
+        const sc_texture *t = &a->textures[i];
+        st[i].same_as = -1;
+        make_prefix(m, t, several, st[i].prefix, sizeof st[i].prefix);
+        if (!slot_selected(list, t->name)) continue;
+        if (t->material < 0 || t->material >= m->nmat) {
+            rc = sc_fail(err, SC_EINPUT, "texture %s: material %d out of range", t->name, (int)t->material);
+            goto done;
+        }
+        if (!found[t->material]) {
+            if ((rc = sc_seam_find(m, t->material, &sets[t->material], err))) goto done;
+            found[t->material] = true;
+        }
+        if (o.tangent_space && is_normal_slot(t->name)) {
+            st[i].fate = FATE_TANGENT;
+            metric(ctx, st[i].prefix, "tangent_space_unerasable", 1);
+            tot.tangent++;
+            continue;
+        }
+        if (sets[t->material].nseams == 0) {
+            metric(ctx, st[i].prefix, "seam_edges", 0);
+            metric(ctx, st[i].prefix, "seam_energy_before", 0);
+            metric(ctx, st[i].prefix, "seam_energy_after", 0);
+            metric(ctx, st[i].prefix, "max_seam_gap_after", 0);
+            tot.unchanged++;
+            continue;
+        }
+        {
+            /* already seam-free (within the tolerance, or within one step of an
+             * 8/16-bit encoding, the best such an image can hold)? */
+            const sc_image_data *img = t->image->as.image;
+            sc_seam_grid g = {img->width, img->height, t->wrap_u, t->wrap_v};
+            if ((rc = sc_seam_energy(m, &sets[t->material], &g, img, o.threads, &st[i].energy_before,
+                                     &st[i].gap_before, err)))
+                goto done;
+            double step = img->pixel == SC_PIXEL_U8 ? 1.0 / 255 : img->pixel == SC_PIXEL_U16 ? 1.0 / 65535 : 0;
+            if (o.gap_tolerance > 0 && st[i].gap_before <= fmax(o.gap_tolerance, step)) {
+                st[i].fate = FATE_CLEAN;
+                const char *pre = st[i].prefix;
+                metric(ctx, pre, "seam_edges", sets[t->material].nseams);
+                metric(ctx, pre, "already_seam_free", 1);
+                metric(ctx, pre, "seam_energy_before", st[i].energy_before);
+                metric(ctx, pre, "seam_energy_after", st[i].energy_before);
+                metric(ctx, pre, "max_seam_gap_before", st[i].gap_before);
+                metric(ctx, pre, "max_seam_gap_after", st[i].gap_before);
+                tot.unchanged++;
+                continue;
+            }
+        }
+        st[i].fate = FATE_ERASE;
+        for (int32_t k = 0; k < i; k++)
+            if (st[k].fate == FATE_ERASE && st[k].same_as < 0 && a->textures[k].image == t->image &&
+                a->textures[k].material == t->material && a->textures[k].wrap_u == t->wrap_u &&
+                a->textures[k].wrap_v == t->wrap_v) {
+                st[i].same_as = k;
+                break;
+            }
+        if (st[i].same_as >= 0) continue;
+        const sc_image_data *img = t->image->as.image;
+        sc_seam_grid g = {img->width, img->height, t->wrap_u, t->wrap_v};
+        int32_t gi = 0;
+        while (gi < ngroups &&
+               !(groups[gi].material == t->material && groups[gi].grid.width == g.width &&
+                 groups[gi].grid.height == g.height && groups[gi].grid.wrap_u == g.wrap_u &&
+                 groups[gi].grid.wrap_v == g.wrap_v))
+            gi++;
+        if (gi == ngroups) {
+            groups[gi].material = t->material;
+            groups[gi].grid = g;
+            groups[gi].tex = sc_alloc_array((size_t)a->ntex, sizeof *groups[gi].tex);
+            if (!groups[gi].tex) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                goto done;
+            }
+            ngroups++;
+        }
+        groups[gi].tex[groups[gi].ntex++] = i;
+    }
+
+    for (int32_t gi = 0; gi < ngroups && rc == SC_OK; gi++)
+        rc = erase_group(ctx, m, &sets[groups[gi].material], a, &groups[gi], &o, st, several, &tot, err);
+    if (rc) goto done;
+    for (int32_t i = 0; i < a->ntex; i++)
+        if (st[i].fate == FATE_ERASE && st[i].same_as >= 0) {
+            /* a second slot of an image already erased */
+            tot.erased++;
+            metric(ctx, st[i].prefix, "same_image_as_slot", st[i].same_as);
+        }
+    emit_totals(ctx, &tot, several);
+    rc = build_outputs(ctx, in, st, tot.erased > 0, err);
+
+done:
+    if (st)
+        for (int32_t i = 0; i < a->ntex; i++) {
+            sc_value_release(st[i].f32);
+            sc_value_release(st[i].native);
+        }
+    if (sets)
+        for (int32_t k = 0; k < m->nmat; k++) sc_seam_set_free(&sets[k]);
+    if (groups)
+        for (int32_t gi = 0; gi < ngroups; gi++) free(groups[gi].tex);
+    free(st), free(sets), free(found), free(groups);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- descriptor */
+
+static const char *const preset_choices[] = {"local", "global", NULL};
+static const char *const quantize_choices[] = {"none", "naive", "optimal", NULL};
+
+static const sc_param_desc params[] = {
+    {.name = "preset", .type = SC_PARAM_ENUM, .def_string = "local", .choices = preset_choices,
+     .doc = "sets w_change: local 1e4 (keep interior texels), global 1e2 (favour gradients)"},
+    {.name = "w_change", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e30,
+     .doc = "weight of E_change; negative: the preset's value"},
+    {.name = "w_seam", .type = SC_PARAM_NUMBER, .def = 1e10, .min = 0, .max = 1e30,
+     .doc = "penalty weight of the seam energy p^T M p (eq. 9)"},
+    {.name = "w_grad_in", .type = SC_PARAM_NUMBER, .def = 1, .min = 0, .max = 1e30,
+     .doc = "weight of E_grad_in (keep the gradients of inside texels)"},
+    {.name = "w_c1", .type = SC_PARAM_NUMBER, .def = 1e2, .min = 0, .max = 1e30,
+     .doc = "weight of E_C1 (matching derivatives across seams)"},
+    {.name = "w_grad_out", .type = SC_PARAM_NUMBER, .def = 1, .min = 0, .max = 1e30,
+     .doc = "weight of E_grad_out (smooth outside texels of silhouette cells)"},
+    {.name = "lerp", .type = SC_PARAM_BOOL, .def = 0,
+     .doc = "add E_lerp: silhouettes follow the linear interpolation of per-vertex values"},
+    {.name = "w_lerp", .type = SC_PARAM_NUMBER, .def = 1e2, .min = 0, .max = 1e30,
+     .doc = "weight of E_lerp when lerp is on"},
+    {.name = "outside", .type = SC_PARAM_BOOL, .def = 0,
+     .doc = "add E_outside: trust the original texels outside the charts"},
+    {.name = "w_outside", .type = SC_PARAM_NUMBER, .def = 1e2, .min = 0, .max = 1e30,
+     .doc = "weight of E_outside when outside is on"},
+    {.name = "gap_tolerance", .type = SC_PARAM_NUMBER, .def = 1e-4, .min = 0, .max = 1,
+     .doc = "a texture whose largest seam gap is at most this (or one step of its 8/16-bit "
+            "encoding) is already seam-free and passes through unchanged; 0: always erase"},
+    {.name = "textures", .type = SC_PARAM_STRING, .def_string = "all",
+     .doc = "texture slots to erase, comma-separated (color, normal, ...), or all"},
+    {.name = "tangent_space_normals", .type = SC_PARAM_BOOL, .def = 0,
+     .doc = "the normal slot holds a tangent-space map: leave it and report it unerasable"},
+    {.name = "quantize", .type = SC_PARAM_ENUM, .def_string = "optimal", .choices = quantize_choices,
+     .doc = "8/16-bit inputs in atlas_native: none (keep f32), naive (round), optimal (8-bit "
+            "rounding that minimises the quantised seam energy)"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the textured mesh"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS,
+     .doc = "the same mesh with every selected texture erased, as f32 images"},
+    {.name = "atlas_native", .kind = SC_KIND_ATLAS,
+     .doc = "the erased textures in the input's pixel type (8/16-bit quantised once)"},
+};
+
+const sc_node_desc sc_node_erase_seams = {
+    .type = "erase_seams",
+    .version = 1,
+    .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+};

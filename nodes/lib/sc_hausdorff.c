@@ -1,0 +1,410 @@
+/* sc_hausdorff.c - sampled symmetric Hausdorff distance through a BVH.
+ *
+ * Design note. The BVH is a binary tree over triangle indices, built by
+ * splitting at the median centroid along the longest axis of the centroid
+ * bounds (nth_element-style partition, so building is O(n log n) and the
+ * tree is deterministic). Leaves hold up to four triangles. A query walks the
+ * tree depth first, nearer child first, and prunes boxes that are farther
+ * than the best distance so far.
+ *
+ * Sampling is split into fixed chunks of triangles (independent of the
+ * thread count); each chunk records its maximum and its sum, and the chunks
+ * are combined in order, so the mean too is the same bytes for any number of
+ * threads. The sample spacing is derived from the mesh area and the
+ * requested count: each triangle gets the barycentric grid of resolution
+ * r = ceil(sqrt(area / area_per_sample)) (its vertices, points along its
+ * edges and inside), and every vertex is sampled once more on its own.
+ */
+#include "sc_hausdorff.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define LEAF_SIZE 4
+#define CHUNK_FACES 512
+#define MAX_GRID 2048
+
+typedef struct bvh_node {
+    double lo[3], hi[3];
+    int32_t first, count;   /* leaf: triangle range in order[]; inner: count = 0 */
+    int32_t left, right;    /* inner: children */
+} bvh_node;
+
+struct sc_hausdorff_bvh {
+    const sc_hausdorff_mesh *mesh;
+    bvh_node *nodes;
+    int32_t nnodes;
+    int32_t *order;
+    double *centroid;
+};
+
+static const double *corner(const sc_hausdorff_mesh *m, int32_t f, int k) { return m->V + 3 * m->F[3 * f + k]; }
+
+static void bounds_of(const sc_hausdorff_bvh *b, int32_t first, int32_t count, double lo[3], double hi[3]) {
+    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int32_t i = first; i < first + count; i++)
+        for (int c = 0; c < 3; c++) {
+            const double *p = corner(b->mesh, b->order[i], c);
+            for (int k = 0; k < 3; k++) {
+                if (p[k] < lo[k]) lo[k] = p[k];
+                if (p[k] > hi[k]) hi[k] = p[k];
+            }
+        }
+}
+
+/* Partition order[first, first+count) so the median (by centroid along axis,
+ * ties by triangle index) sits at `mid`: quickselect with a deterministic
+ * middle pivot. */
+static bool centroid_less(const sc_hausdorff_bvh *b, int axis, int32_t x, int32_t y) {
+    double cx = b->centroid[3 * x + axis], cy = b->centroid[3 * y + axis];
+    return cx < cy || (cx == cy && x < y);
+}
+
+static void select_median(sc_hausdorff_bvh *b, int axis, int32_t lo, int32_t hi, int32_t mid) {
+    int32_t *o = b->order;
+    while (hi - lo > 1) {
+        int32_t pivot = o[lo + (hi - lo) / 2];
+        int32_t i = lo, j = hi - 1;
+        while (i <= j) {
+            while (centroid_less(b, axis, o[i], pivot)) i++;
+            while (centroid_less(b, axis, pivot, o[j])) j--;
+            if (i <= j) {
+                int32_t t = o[i];
+                o[i] = o[j];
+                o[j] = t;
+                i++, j--;
+            }
+        }
+        if (mid <= j) hi = j + 1;
+        else if (mid >= i) lo = i;
+        else return;
+    }
+}
+
+static int32_t build_node(sc_hausdorff_bvh *b, int32_t first, int32_t count) {
+    int32_t id = b->nnodes++;
+    bvh_node *n = &b->nodes[id];
+    bounds_of(b, first, count, n->lo, n->hi);
+    n->first = first;
+    n->count = count;
+    n->left = n->right = -1;
+    if (count <= LEAF_SIZE) return id;
+    double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int32_t i = first; i < first + count; i++)
+        for (int k = 0; k < 3; k++) {
+            double c = b->centroid[3 * b->order[i] + k];
+            if (c < clo[k]) clo[k] = c;
+            if (c > chi[k]) chi[k] = c;
+        }
+    int axis = 0;
+    for (int k = 1; k < 3; k++)
+        if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+    int32_t half = count / 2;
+    select_median(b, axis, first, first + count, first + half);
+    int32_t left = build_node(b, first, half);
+    int32_t right = build_node(b, first + half, count - half);
+    n = &b->nodes[id];   /* not moved: nodes are preallocated */
+    n->count = 0;
+    n->left = left;
+    n->right = right;
+    return id;
+}
+
+sc_hausdorff_bvh *sc_hausdorff_bvh_build(const sc_hausdorff_mesh *m) {
+    if (!m || m->nf <= 0) return NULL;
+    sc_hausdorff_bvh *b = calloc(1, sizeof *b);
+    if (!b) return NULL;
+    b->mesh = m;
+    b->order = sc_alloc_array((size_t)m->nf, sizeof *b->order);
+    b->centroid = sc_alloc_array((size_t)m->nf * 3, sizeof *b->centroid);
+    b->nodes = sc_alloc_array((size_t)m->nf * 2 + 1, sizeof *b->nodes);
+    if (!b->order || !b->centroid || !b->nodes) {
+        sc_hausdorff_bvh_free(b);
+        return NULL;
+    }
+    for (int32_t f = 0; f < m->nf; f++) {
+        b->order[f] = f;
+        for (int k = 0; k < 3; k++)
+            b->centroid[3 * f + k] = (corner(m, f, 0)[k] + corner(m, f, 1)[k] + corner(m, f, 2)[k]) / 3.0;
+    }
+    build_node(b, 0, m->nf);
+    free(b->centroid);
+    b->centroid = NULL;
+    return b;
+}
+
+void sc_hausdorff_bvh_free(sc_hausdorff_bvh *b) {
+    if (!b) return;
+    free(b->order);
+    free(b->centroid);
+    free(b->nodes);
+    free(b);
+}
+
+static double sub_dot(const double a[3], const double b[3], const double c[3]) {
+    return (a[0] - b[0]) * c[0] + (a[1] - b[1]) * c[1] + (a[2] - b[2]) * c[2];
+}
+
+static void closest_on_segment(const double p[3], const double a[3], const double b[3], double out[3]) {
+    double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double len2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+    double t = len2 > 0 ? sub_dot(p, a, ab) / len2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    for (int k = 0; k < 3; k++) out[k] = a[k] + t * ab[k];
+}
+
+void sc_hausdorff_closest_on_triangle(const double p[3], const double a[3], const double b[3],
+                                      const double c[3], double out[3]) {
+    double ab[3], ac[3], ap[3];
+    for (int k = 0; k < 3; k++) ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
+    double d1 = ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2];
+    double d2 = ac[0] * ap[0] + ac[1] * ap[1] + ac[2] * ap[2];
+    if (d1 <= 0 && d2 <= 0) {
+        memcpy(out, a, sizeof(double) * 3);
+        return;
+    }
+    double d3 = sub_dot(p, b, ab), d4 = sub_dot(p, b, ac);   /* ab.bp, ac.bp */
+    if (d3 >= 0 && d4 <= d3) {
+        memcpy(out, b, sizeof(double) * 3);
+        return;
+    }
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+        double v = d1 / (d1 - d3);
+        for (int k = 0; k < 3; k++) out[k] = a[k] + v * ab[k];
+        return;
+    }
+    double d5 = sub_dot(p, c, ab), d6 = sub_dot(p, c, ac);
+    if (d6 >= 0 && d5 <= d6) {
+        memcpy(out, c, sizeof(double) * 3);
+        return;
+    }
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+        double w = d2 / (d2 - d6);
+        for (int k = 0; k < 3; k++) out[k] = a[k] + w * ac[k];
+        return;
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int k = 0; k < 3; k++) out[k] = b[k] + w * (c[k] - b[k]);
+        return;
+    }
+    double total = va + vb + vc;
+    if (!(total > 0)) {   /* degenerate triangle: the nearest of its edges */
+        const double *ends[3][2] = {{a, b}, {b, c}, {c, a}};
+        double best = INFINITY;
+        for (int e = 0; e < 3; e++) {
+            double q[3];
+            closest_on_segment(p, ends[e][0], ends[e][1], q);
+            double d = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]);
+            if (d < best) best = d, memcpy(out, q, sizeof q);
+        }
+        return;
+    }
+    double v = vb / total, w = vc / total;
+    for (int k = 0; k < 3; k++) out[k] = a[k] + ab[k] * v + ac[k] * w;
+}
+
+static double box_distance2(const bvh_node *n, const double p[3]) {
+    double d = 0;
+    for (int k = 0; k < 3; k++) {
+        double e = p[k] < n->lo[k] ? n->lo[k] - p[k] : p[k] > n->hi[k] ? p[k] - n->hi[k] : 0;
+        d += e * e;
+    }
+    return d;
+}
+
+double sc_hausdorff_bvh_closest(const sc_hausdorff_bvh *b, const double p[3], double closest[3],
+                                int32_t *face) {
+    double best = INFINITY, best_point[3] = {0, 0, 0};
+    int32_t best_face = -1;
+    int32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const bvh_node *n = &b->nodes[stack[--top]];
+        if (box_distance2(n, p) >= best) continue;
+        if (n->count > 0) {
+            for (int32_t i = n->first; i < n->first + n->count; i++) {
+                int32_t f = b->order[i];
+                double q[3];
+                sc_hausdorff_closest_on_triangle(p, corner(b->mesh, f, 0), corner(b->mesh, f, 1),
+                                                 corner(b->mesh, f, 2), q);
+                double d = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+                           (q[2] - p[2]) * (q[2] - p[2]);
+                if (d < best || (d == best && f < best_face)) {
+                    best = d;
+                    best_face = f;
+                    memcpy(best_point, q, sizeof q);
+                }
+            }
+            continue;
+        }
+        double dl = box_distance2(&b->nodes[n->left], p), dr = box_distance2(&b->nodes[n->right], p);
+        if (top + 2 > (int)(sizeof stack / sizeof stack[0])) continue;   /* depth ~ log2(n): never */
+        if (dl < dr) {
+            stack[top++] = n->right;
+            stack[top++] = n->left;
+        } else {
+            stack[top++] = n->left;
+            stack[top++] = n->right;
+        }
+    }
+    if (closest) memcpy(closest, best_point, sizeof best_point);
+    if (face) *face = best_face;
+    return best;
+}
+
+static double triangle_area(const sc_hausdorff_mesh *m, int32_t f) {
+    const double *a = corner(m, f, 0), *b = corner(m, f, 1), *c = corner(m, f, 2);
+    double u[3], v[3];
+    for (int k = 0; k < 3; k++) u[k] = b[k] - a[k], v[k] = c[k] - a[k];
+    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2], z = u[0] * v[1] - u[1] * v[0];
+    return 0.5 * sqrt(x * x + y * y + z * z);
+}
+
+double sc_hausdorff_bbox_diagonal(const sc_hausdorff_mesh *m) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int c = 0; c < 3; c++) {
+            const double *p = corner(m, f, c);
+            for (int k = 0; k < 3; k++) {
+                if (p[k] < lo[k]) lo[k] = p[k];
+                if (p[k] > hi[k]) hi[k] = p[k];
+            }
+        }
+    if (m->nf == 0) return 0;
+    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+}
+
+/* ---------------------------------------------------------------- one direction */
+
+typedef struct side_job {
+    const sc_hausdorff_mesh *from;
+    const sc_hausdorff_bvh *to;
+    double area_per_sample;
+    const unsigned char *used;   /* vertices faces use */
+    int32_t nchunks;
+    double *chunk_max, *chunk_sum;
+    int64_t *chunk_count;
+    int32_t next;                /* next chunk to take (under lock) */
+    pthread_mutex_t lock;
+} side_job;
+
+static void sample_point(const side_job *j, const double p[3], double *mx, double *sum, int64_t *count) {
+    double d = sqrt(sc_hausdorff_bvh_closest(j->to, p, NULL, NULL));
+    if (d > *mx) *mx = d;
+    *sum += d;
+    (*count)++;
+}
+
+/* Chunk c < nchunks - 1 covers faces [c * CHUNK_FACES, ...); the last chunk
+ * samples the vertices the faces use. */
+static void run_chunk(side_job *j, int32_t c) {
+    const sc_hausdorff_mesh *m = j->from;
+    double mx = 0, sum = 0;
+    int64_t count = 0;
+    if (c == j->nchunks - 1) {   /* every vertex a face uses, once, in index order */
+        for (int32_t v = 0; v < m->nv; v++)
+            if (j->used[v]) sample_point(j, m->V + 3 * v, &mx, &sum, &count);
+    } else {
+        int32_t f0 = c * CHUNK_FACES, f1 = f0 + CHUNK_FACES < m->nf ? f0 + CHUNK_FACES : m->nf;
+        for (int32_t f = f0; f < f1; f++) {
+            double area = triangle_area(m, f);
+            double rr = j->area_per_sample > 0 ? ceil(sqrt(area / j->area_per_sample)) : 1;
+            int r = rr < 1 ? 1 : rr > MAX_GRID ? MAX_GRID : (int)rr;
+            const double *a = corner(m, f, 0), *b = corner(m, f, 1), *cc = corner(m, f, 2);
+            for (int i = 0; i <= r; i++)
+                for (int k = 0; k + i <= r; k++) {
+                    if ((i == 0 && k == 0) || (i == r) || (k == r)) continue;   /* the corners come with the vertices */
+                    double s = (double)i / r, t = (double)k / r;
+                    double p[3];
+                    for (int d = 0; d < 3; d++) p[d] = a[d] + s * (b[d] - a[d]) + t * (cc[d] - a[d]);
+                    sample_point(j, p, &mx, &sum, &count);
+                }
+        }
+    }
+    j->chunk_max[c] = mx;
+    j->chunk_sum[c] = sum;
+    j->chunk_count[c] = count;
+}
+
+static void *worker(void *ud) {
+    side_job *j = ud;
+    for (;;) {
+        pthread_mutex_lock(&j->lock);
+        int32_t c = j->next < j->nchunks ? j->next++ : -1;
+        pthread_mutex_unlock(&j->lock);
+        if (c < 0) return NULL;
+        run_chunk(j, c);
+    }
+}
+
+static int one_side(const sc_hausdorff_mesh *from, const sc_hausdorff_bvh *to, int64_t samples, int threads,
+                    double *max_out, double *mean_out, int64_t *count_out, sc_error *err) {
+    side_job j;
+    memset(&j, 0, sizeof j);
+    j.from = from;
+    j.to = to;
+    double area = 0;
+    for (int32_t f = 0; f < from->nf; f++) area += triangle_area(from, f);
+    /* a grid of resolution r has about r^2/2 samples: aim for `samples` */
+    j.area_per_sample = samples > 0 ? 2.0 * area / (double)samples : 0;
+    j.nchunks = (from->nf + CHUNK_FACES - 1) / CHUNK_FACES + 1;
+    j.chunk_max = calloc((size_t)j.nchunks, sizeof(double));
+    j.chunk_sum = calloc((size_t)j.nchunks, sizeof(double));
+    j.chunk_count = calloc((size_t)j.nchunks, sizeof(int64_t));
+    unsigned char *used = calloc((size_t)from->nv + 1, 1);
+    if (!j.chunk_max || !j.chunk_sum || !j.chunk_count || !used) {
+        free(j.chunk_max), free(j.chunk_sum), free(j.chunk_count), free(used);
+        return sc_fail(err, SC_ENOMEM, "hausdorff: out of memory");
+    }
+    for (int64_t i = 0; i < (int64_t)from->nf * 3; i++) used[from->F[i]] = 1;
+    j.used = used;
+    pthread_mutex_init(&j.lock, NULL);
+    if (threads < 1) threads = 1;
+    if (threads > 64) threads = 64;
+    if (threads > j.nchunks) threads = j.nchunks;
+    pthread_t tid[64];
+    int started = 0;
+    for (int t = 1; t < threads; t++)
+        if (pthread_create(&tid[started], NULL, worker, &j) == 0) started++;
+    worker(&j);
+    for (int t = 0; t < started; t++) pthread_join(tid[t], NULL);
+    pthread_mutex_destroy(&j.lock);
+    double mx = 0, sum = 0;
+    int64_t count = 0;
+    for (int32_t c = 0; c < j.nchunks; c++) {
+        if (j.chunk_max[c] > mx) mx = j.chunk_max[c];
+        sum += j.chunk_sum[c];
+        count += j.chunk_count[c];
+    }
+    free(j.chunk_max), free(j.chunk_sum), free(j.chunk_count), free(used);
+    *max_out = mx;
+    *mean_out = count ? sum / (double)count : 0;
+    *count_out = count;
+    return SC_OK;
+}
+
+int sc_hausdorff(const sc_hausdorff_mesh *a, const sc_hausdorff_mesh *b, int64_t samples, int threads,
+                 sc_hausdorff_result *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    if (a->nf <= 0 || b->nf <= 0) return sc_fail(err, SC_EINPUT, "hausdorff: a mesh has no faces");
+    sc_hausdorff_bvh *ba = sc_hausdorff_bvh_build(a), *bb = sc_hausdorff_bvh_build(b);
+    if (!ba || !bb) {
+        sc_hausdorff_bvh_free(ba);
+        sc_hausdorff_bvh_free(bb);
+        return sc_fail(err, SC_ENOMEM, "hausdorff: out of memory");
+    }
+    int rc = one_side(a, bb, samples, threads, &out->a_to_b, &out->mean_a_to_b, &out->samples_a, err);
+    if (rc == SC_OK) rc = one_side(b, ba, samples, threads, &out->b_to_a, &out->mean_b_to_a, &out->samples_b, err);
+    out->distance = out->a_to_b > out->b_to_a ? out->a_to_b : out->b_to_a;
+    sc_hausdorff_bvh_free(ba);
+    sc_hausdorff_bvh_free(bb);
+    return rc;
+}

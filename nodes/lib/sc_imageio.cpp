@@ -1,0 +1,311 @@
+/* sc_imageio.cpp - the extern "C" shim over OpenImageIO (see sc_imageio.h).
+ *
+ * Design note: OpenImageIO reads and writes through IOProxy objects, so no
+ * temporary files are needed: IOMemReader serves the caller's bytes and
+ * IOVecOutput collects the encoded file. The reader is chosen from the first
+ * bytes of the data (never from a file name, which may lie). Header limits
+ * are checked on the ImageSpec that open() returns, before the pixel array is
+ * allocated. Reads land directly in bottom-up order by passing OpenImageIO a
+ * negative row stride that starts at the last row. Writes convert to the
+ * target type in a top-down scratch array first, with our own rounding and
+ * transfer curves, so the output bytes do not depend on OpenImageIO's
+ * conversions. Each entry point catches every exception, and OpenImageIO's
+ * per-thread error text is drained after each failure so it cannot leak into
+ * a later message.
+ */
+#include "sc_imageio.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <string>
+#include <vector>
+
+using OIIO::ImageInput;
+using OIIO::ImageOutput;
+using OIIO::ImageSpec;
+using OIIO::TypeDesc;
+
+namespace {
+
+/* An error message from OIIO, first line only and trimmed. */
+std::string tidy(std::string s) {
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+    size_t nl = s.find('\n');
+    if (nl != std::string::npos) s = s.substr(0, nl);
+    if (s.empty()) s = "unknown error";
+    return s;
+}
+
+std::string global_error() { return tidy(OIIO::geterror()); }
+
+float srgb_to_linear(float c) {
+    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+
+float linear_to_srgb(float c) {
+    return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+}
+
+/* Round a value in [0, 1] (clamped; NaN -> 0) to an integer in [0, max]. */
+uint32_t quantize(float x, uint32_t max) {
+    if (!(x > 0.0f)) return 0;
+    if (x >= 1.0f) return max;
+    return (uint32_t)std::floor((double)x * max + 0.5);
+}
+
+size_t sample_count(const sc_image_data *im) {
+    return (size_t)im->width * (size_t)im->height * (size_t)im->channels;
+}
+
+bool check_image(const sc_image_data *im, const char *what, sc_error *err) {
+    if (!im || !im->pixels || im->width < 1 || im->height < 1 || im->channels < 1 ||
+        im->channels > 4 ||
+        (im->pixel != SC_PIXEL_U8 && im->pixel != SC_PIXEL_U16 && im->pixel != SC_PIXEL_F32)) {
+        sc_fail(err, SC_EINPUT, "%s: not a valid image", what);
+        return false;
+    }
+    return true;
+}
+
+/* Copy the image into a top-down array of `bits` integers per sample,
+ * keeping channels [0, out_channels). */
+template <typename T>
+std::vector<T> to_integers(const sc_image_data *im, int out_channels, uint32_t max) {
+    const size_t w = (size_t)im->width, h = (size_t)im->height, c = (size_t)im->channels;
+    std::vector<T> out(w * h * (size_t)out_channels);
+    const bool encode_srgb = im->pixel == SC_PIXEL_F32 && im->colorspace == SC_COLOR_LINEAR;
+    for (size_t y = 0; y < h; y++) {
+        const size_t src_row = (h - 1 - y) * w * c;   /* bottom-up -> top-down */
+        T *dst = out.data() + y * w * (size_t)out_channels;
+        for (size_t x = 0; x < w; x++)
+            for (size_t k = 0; k < (size_t)out_channels; k++) {
+                const size_t s = src_row + x * c + k;
+                uint32_t v;
+                if (im->pixel == SC_PIXEL_U8) {
+                    uint32_t u = ((const uint8_t *)im->pixels)[s];
+                    v = max == 255 ? u : u * 257;
+                } else if (im->pixel == SC_PIXEL_U16) {
+                    uint32_t u = ((const uint16_t *)im->pixels)[s];
+                    v = max == 65535 ? u : (u * 255 + 32767) / 65535;
+                } else {
+                    float f = ((const float *)im->pixels)[s];
+                    bool alpha = (im->channels == 2 && k == 1) || (im->channels == 4 && k == 3);
+                    if (encode_srgb && !alpha) f = linear_to_srgb(f);
+                    v = quantize(f, max);
+                }
+                dst[x * (size_t)out_channels + k] = (T)v;
+            }
+    }
+    return out;
+}
+
+/* Encode `pixels` (top-down, `type`, `channels`) with the OIIO writer for
+ * `format` into out. */
+int write_with_oiio(const char *format, const ImageSpec &spec, const void *pixels, sc_buf *out,
+                    sc_error *err) {
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput proxy(bytes);
+    std::string name = std::string("memory.") + format;
+    auto writer = ImageOutput::create(name, &proxy);
+    if (!writer) return sc_fail(err, SC_EIO, "%s writer: %s", format, global_error().c_str());
+    if (!writer->open(name, spec) || !writer->write_image(spec.format, pixels) || !writer->close()) {
+        std::string e = tidy(writer->geterror());
+        global_error();
+        return sc_fail(err, SC_EIO, "cannot encode %s: %s", format, e.c_str());
+    }
+    writer.reset();
+    sc_buf_append(out, bytes.data(), bytes.size());
+    if (out->failed) return sc_fail(err, SC_ENOMEM, "out of memory for the encoded %s", format);
+    return SC_OK;
+}
+
+/* Walk a PNG's chunks: each must fit in the data, and IEND must come. A
+ * truncated PNG is refused here, because OpenImageIO 2.4's reader leaks its
+ * error text when libpng runs out of data (it longjmps over a std::string). */
+bool png_chunks_complete(const unsigned char *p, size_t size) {
+    size_t at = 8;
+    while (size - at >= 12) {
+        uint32_t len = (uint32_t)p[at] << 24 | (uint32_t)p[at + 1] << 16 | (uint32_t)p[at + 2] << 8 | p[at + 3];
+        if (len > 0x7fffffffu || len > size - at - 12) return false;
+        bool end = std::memcmp(p + at + 4, "IEND", 4) == 0;
+        at += 12 + (size_t)len;
+        if (end) return true;
+    }
+    return false;
+}
+
+int decode(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err) {
+    const char *format = sc_image_sniff(bytes, size);
+    if (!format)
+        return sc_fail(err, SC_EINPUT, "%s: not an image seamcook reads (PNG, JPEG, TIFF, OpenEXR, HDR, BMP)",
+                       name);
+    if (std::strcmp(format, "png") == 0 && !png_chunks_complete((const unsigned char *)bytes, size))
+        return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated png: a chunk runs past the end of the data", name);
+    OIIO::Filesystem::IOMemReader proxy(bytes, size);
+    auto in = ImageInput::create(format, false, nullptr, &proxy);
+    if (!in) return sc_fail(err, SC_EIO, "%s: no %s reader: %s", name, format, global_error().c_str());
+    ImageSpec config, spec;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    void *proxy_ptr = &proxy;
+    config.attribute("oiio:ioproxy", TypeDesc::PTR, &proxy_ptr);
+    std::string fake = std::string("memory.") + format;
+    if (!in->open(fake, spec, config)) {
+        std::string e = tidy(in->geterror());
+        global_error();
+        return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated %s: %s", name, format, e.c_str());
+    }
+    const int64_t w = spec.width, h = spec.height, c = spec.nchannels;
+    if (w < 1 || h < 1 || w > SC_IMAGE_MAX_SIDE || h > SC_IMAGE_MAX_SIDE ||
+        (uint64_t)w * (uint64_t)h > SC_IMAGE_MAX_PIXELS)
+        return sc_fail(err, SC_ENOMEM, "%s: %lldx%lld pixels is beyond the limits (%d per side, %u in all)",
+                       name, (long long)w, (long long)h, SC_IMAGE_MAX_SIDE, SC_IMAGE_MAX_PIXELS);
+    if (c < 1 || c > 4)
+        return sc_fail(err, SC_EINPUT, "%s: %lld channels; 1 to 4 are supported", name, (long long)c);
+    if (spec.depth > 1 || spec.deep)
+        return sc_fail(err, SC_EINPUT, "%s: volume and deep images are not supported", name);
+    sc_pixel pixel = SC_PIXEL_F32;
+    TypeDesc type = TypeDesc::FLOAT;
+    if (spec.format == TypeDesc::UINT8) pixel = SC_PIXEL_U8, type = TypeDesc::UINT8;
+    else if (spec.format == TypeDesc::UINT16) pixel = SC_PIXEL_U16, type = TypeDesc::UINT16;
+    sc_image_data *im = sc_image_alloc((int32_t)w, (int32_t)h, (int32_t)c, pixel);
+    if (!im) return sc_fail(err, SC_ENOMEM, "%s: out of memory for %lldx%lld pixels", name, (long long)w, (long long)h);
+    const OIIO::stride_t row = (OIIO::stride_t)(w * c * (int64_t)pixel);
+    char *last_row = (char *)im->pixels + (size_t)(h - 1) * (size_t)row;
+    if (!in->read_image(0, 0, 0, (int)c, type, last_row, OIIO::AutoStride, -row)) {
+        std::string e = tidy(in->geterror());
+        global_error();
+        sc_image_free(im);
+        return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated %s: %s", name, format, e.c_str());
+    }
+    if (in->has_error()) {   /* warnings such as a premature end of data */
+        std::string e = tidy(in->geterror());
+        sc_image_free(im);
+        return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated %s: %s", name, format, e.c_str());
+    }
+    in->close();
+    im->colorspace = pixel == SC_PIXEL_F32 ? SC_COLOR_LINEAR : SC_COLOR_SRGB;
+    snprintf(im->format, sizeof im->format, "%s", format);
+    *out = im;
+    return SC_OK;
+}
+
+int encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
+    if (!check_image(im, "PNG", err)) return err ? err->code : SC_EINPUT;
+    if (bits == 0) bits = im->pixel == SC_PIXEL_U8 ? 8 : 16;
+    if (bits != 8 && bits != 16) return sc_fail(err, SC_EINPUT, "PNG: %d bits per channel; 8 or 16", bits);
+    ImageSpec spec(im->width, im->height, im->channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    spec.attribute("png:compressionLevel", 6);
+    if (bits == 8) {
+        std::vector<uint8_t> px = to_integers<uint8_t>(im, im->channels, 255);
+        return write_with_oiio("png", spec, px.data(), out, err);
+    }
+    std::vector<uint16_t> px = to_integers<uint16_t>(im, im->channels, 65535);
+    return write_with_oiio("png", spec, px.data(), out, err);
+}
+
+int encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
+    if (!check_image(im, "JPEG", err)) return err ? err->code : SC_EINPUT;
+    if (quality < 1 || quality > 100) return sc_fail(err, SC_EINPUT, "JPEG: quality %d is not in 1..100", quality);
+    int channels = im->channels >= 3 ? 3 : 1;
+    ImageSpec spec(im->width, im->height, channels, TypeDesc::UINT8);
+    spec.attribute("Compression", "jpeg:" + std::to_string(quality));
+    std::vector<uint8_t> px = to_integers<uint8_t>(im, channels, 255);
+    return write_with_oiio("jpg", spec, px.data(), out, err);
+}
+
+int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
+    if (!check_image(im, "EXR", err)) return err ? err->code : SC_EINPUT;
+    const size_t w = (size_t)im->width, h = (size_t)im->height, c = (size_t)im->channels;
+    std::vector<float> px(sample_count(im));
+    const bool linearise = im->colorspace == SC_COLOR_SRGB;
+    for (size_t y = 0; y < h; y++) {
+        const size_t src_row = (h - 1 - y) * w * c;
+        for (size_t k = 0; k < w * c; k++) {
+            float f;
+            if (im->pixel == SC_PIXEL_U8) f = ((const uint8_t *)im->pixels)[src_row + k] * (1.0f / 255.0f);
+            else if (im->pixel == SC_PIXEL_U16) f = ((const uint16_t *)im->pixels)[src_row + k] * (1.0f / 65535.0f);
+            else f = ((const float *)im->pixels)[src_row + k];
+            size_t ch = k % c;
+            bool alpha = (c == 2 && ch == 1) || (c == 4 && ch == 3);
+            if (linearise && !alpha) f = srgb_to_linear(f);
+            px[y * w * c + k] = f;
+        }
+    }
+    ImageSpec spec(im->width, im->height, im->channels, TypeDesc::FLOAT);
+    static const char *const names[4][4] = {
+        {"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
+    spec.channelnames.clear();
+    for (size_t k = 0; k < c; k++) spec.channelnames.push_back(names[c - 1][k]);
+    spec.alpha_channel = (c == 2 || c == 4) ? (int)c - 1 : -1;
+    spec.attribute("compression", "zip");
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    spec.attribute("DateTime", "");   /* else the writer stamps the time (capDate) */
+    return write_with_oiio("exr", spec, px.data(), out, err);
+}
+
+}  // namespace
+
+extern "C" const char *sc_image_sniff(const void *bytes, size_t size) {
+    const unsigned char *p = (const unsigned char *)bytes;
+    if (!p) return NULL;
+    if (size >= 8 && std::memcmp(p, "\x89PNG\r\n\x1a\n", 8) == 0) return "png";
+    if (size >= 3 && p[0] == 0xFF && p[1] == 0xD8 && p[2] == 0xFF) return "jpg";
+    if (size >= 4 && (std::memcmp(p, "II*\0", 4) == 0 || std::memcmp(p, "MM\0*", 4) == 0)) return "tif";
+    if (size >= 4 && std::memcmp(p, "\x76\x2f\x31\x01", 4) == 0) return "exr";
+    if (size >= 6 && (std::memcmp(p, "#?RADI", 6) == 0 || std::memcmp(p, "#?RGBE", 6) == 0)) return "hdr";
+    if (size >= 2 && p[0] == 'B' && p[1] == 'M') return "bmp";
+    return NULL;
+}
+
+extern "C" int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_data **out,
+                               sc_error *err) {
+    *out = NULL;
+    try {
+        return decode(name, bytes, size, out, err);
+    } catch (const std::exception &e) {
+        return sc_fail(err, SC_EINPUT, "%s: cannot decode: %s", name, e.what());
+    } catch (...) {
+        return sc_fail(err, SC_EINPUT, "%s: cannot decode (unknown exception)", name);
+    }
+}
+
+extern "C" int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
+    try {
+        return encode_png(im, bits, out, err);
+    } catch (const std::bad_alloc &) {
+        return sc_fail(err, SC_ENOMEM, "PNG: out of memory");
+    } catch (const std::exception &e) {
+        return sc_fail(err, SC_EIO, "PNG: %s", e.what());
+    } catch (...) {
+        return sc_fail(err, SC_EIO, "PNG: cannot encode (unknown exception)");
+    }
+}
+
+extern "C" int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
+    try {
+        return encode_jpeg(im, quality, out, err);
+    } catch (const std::bad_alloc &) {
+        return sc_fail(err, SC_ENOMEM, "JPEG: out of memory");
+    } catch (const std::exception &e) {
+        return sc_fail(err, SC_EIO, "JPEG: %s", e.what());
+    } catch (...) {
+        return sc_fail(err, SC_EIO, "JPEG: cannot encode (unknown exception)");
+    }
+}
+
+extern "C" int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
+    try {
+        return encode_exr(im, out, err);
+    } catch (const std::bad_alloc &) {
+        return sc_fail(err, SC_ENOMEM, "EXR: out of memory");
+    } catch (const std::exception &e) {
+        return sc_fail(err, SC_EIO, "EXR: %s", e.what());
+    } catch (...) {
+        return sc_fail(err, SC_EIO, "EXR: cannot encode (unknown exception)");
+    }
+}

@@ -1,0 +1,1282 @@
+/* sc_seam.c - seams, silhouettes, bilinear sampling and the exact seam
+ * operator of Liu et al. 2017 §3-4.
+ *
+ * Design note.
+ *  - Everything happens in texel space (x = uW - 1/2, y = vH - 1/2): texel
+ *    centres are the integer lattice, cells are unit squares, and wrap modes
+ *    only act on the texel ids of a cell's corners. That keeps sampling, the
+ *    operator and coverage in exact agreement with the renderer's rule.
+ *  - An edge (or an edge pair, both sides parametrised by the same gamma) is
+ *    split at every texel-grid crossing of either side (eq. 5). On a piece
+ *    every bilinear weight is a quadratic in the local parameter tau, so each
+ *    integral of §3-4 is a small Gram sum with the exact moments
+ *    int_0^1 tau^(a+b) = 1/(a+b+1): no sampling anywhere.
+ *  - Assembly runs over fixed chunks of edges on worker threads; each chunk
+ *    merges its own duplicates in a small hash, and chunks are appended in
+ *    chunk order, so the triplets (and the sums CSC assembly makes of them)
+ *    are the same for any thread count.
+ */
+#include "sc_seam.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* exact moments int_0^1 tau^k dtau */
+static const double G3[3][3] = {{1.0, 1.0 / 2, 1.0 / 3}, {1.0 / 2, 1.0 / 3, 1.0 / 4},
+                                {1.0 / 3, 1.0 / 4, 1.0 / 5}};
+static const double G2[2][2] = {{1.0, 1.0 / 2}, {1.0 / 2, 1.0 / 3}};
+
+/* ---------------------------------------------------------------- sampling */
+
+int32_t sc_seam_wrap(int64_t i, int32_t n, sc_wrap w) {
+    if (n <= 1) return 0;
+    switch (w) {
+    case SC_WRAP_CLAMP:
+        return i < 0 ? 0 : i >= n ? n - 1 : (int32_t)i;
+    case SC_WRAP_MIRROR: {
+        int64_t p = 2 * (int64_t)n, m = i % p;
+        if (m < 0) m += p;
+        return (int32_t)(m >= n ? p - 1 - m : m);
+    }
+    default: {
+        int64_t m = i % n;
+        if (m < 0) m += n;
+        return (int32_t)m;
+    }
+    }
+}
+
+/* floor as an integer, kept finite for absurd coordinates */
+static int64_t cell_of(double x) {
+    double f = floor(x);
+    if (f > 4.0e15) f = 4.0e15;
+    if (f < -4.0e15) f = -4.0e15;
+    return (int64_t)f;
+}
+
+static void cell_ids(const sc_seam_grid *g, int64_t cx, int64_t cy, int32_t id[4]) {
+    int32_t i0 = sc_seam_wrap(cx, g->width, g->wrap_u);
+    int32_t i1 = sc_seam_wrap(cx + 1, g->width, g->wrap_u);
+    int32_t j0 = sc_seam_wrap(cy, g->height, g->wrap_v);
+    int32_t j1 = sc_seam_wrap(cy + 1, g->height, g->wrap_v);
+    id[0] = j0 * g->width + i0;
+    id[1] = j0 * g->width + i1;
+    id[2] = j1 * g->width + i0;
+    id[3] = j1 * g->width + i1;
+}
+
+void sc_seam_taps(const sc_seam_grid *g, double u, double v, int32_t id[4], double w[4]) {
+    double x = u * g->width - 0.5, y = v * g->height - 0.5;
+    int64_t cx = cell_of(x), cy = cell_of(y);
+    double s = x - (double)cx, t = y - (double)cy;
+    cell_ids(g, cx, cy, id);
+    w[0] = (1 - s) * (1 - t);
+    w[1] = s * (1 - t);
+    w[2] = (1 - s) * t;
+    w[3] = s * t;
+}
+
+void sc_seam_sample(const sc_seam_grid *g, const float *pixels, int32_t channels, double u,
+                    double v, double *out) {
+    int32_t id[4];
+    double w[4];
+    sc_seam_taps(g, u, v, id, w);
+    for (int32_t c = 0; c < channels; c++) {
+        double s = 0;
+        for (int k = 0; k < 4; k++) s += w[k] * pixels[(size_t)id[k] * (size_t)channels + (size_t)c];
+        out[c] = s;
+    }
+}
+
+double sc_seam_texel(const sc_image_data *img, int32_t id, int32_t c) {
+    size_t k = (size_t)id * (size_t)img->channels + (size_t)c;
+    switch (img->pixel) {
+    case SC_PIXEL_U8: return ((const uint8_t *)img->pixels)[k] * (1.0f / 255.0f);
+    case SC_PIXEL_U16: return ((const uint16_t *)img->pixels)[k] * (1.0f / 65535.0f);
+    default: return ((const float *)img->pixels)[k];
+    }
+}
+
+/* ---------------------------------------------------------------- topology */
+
+typedef struct halfedge {
+    uint64_t key;   /* (min vertex << 32) | max vertex */
+    int32_t face;
+    int32_t corner; /* the half-edge runs from corner to corner + 1 */
+} halfedge;
+
+static int cmp_halfedge(const void *pa, const void *pb) {
+    const halfedge *a = pa, *b = pb;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    if (a->face != b->face) return a->face < b->face ? -1 : 1;
+    return a->corner - b->corner;
+}
+
+static double orient2(const double *a, const double *b, const double *c) {
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+static double dist3(const double *a, const double *b) {
+    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+    return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+/* the side of half-edge h, expressed at surface vertices v0 -> v1 */
+static sc_seam_side side_of(const sc_mesh *m, const halfedge *h, int32_t v0) {
+    int32_t f = h->face, k = h->corner, k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+    sc_seam_side s = {.face = f, .uv_opp = m->FU[3 * f + k2]};
+    if (m->FV[3 * f + k] == v0) {
+        s.uv0 = m->FU[3 * f + k];
+        s.uv1 = m->FU[3 * f + k1];
+    } else {
+        s.uv0 = m->FU[3 * f + k1];
+        s.uv1 = m->FU[3 * f + k];
+    }
+    return s;
+}
+
+static bool same_uv(const sc_mesh *m, int32_t a, int32_t b) {
+    return a == b || (m->U[2 * a] == m->U[2 * b] && m->U[2 * a + 1] == m->U[2 * b + 1]);
+}
+
+static int push_sil(sc_seam_set *s, int32_t *cap, const sc_seam_silhouette *x) {
+    if (s->nsil == *cap) {
+        int32_t nc = *cap ? *cap * 2 : 256;
+        sc_seam_silhouette *p = sc_realloc_array(s->sil, (size_t)nc, sizeof *p);
+        if (!p) return SC_ENOMEM;
+        s->sil = p;
+        *cap = nc;
+    }
+    s->sil[s->nsil++] = *x;
+    return SC_OK;
+}
+
+int sc_seam_find(const sc_mesh *m, int32_t material, sc_seam_set *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    out->material = material;
+    int64_t nh = 0;
+    for (int32_t f = 0; f < m->nf; f++)
+        if (material < 0 || m->FM[f] == material) nh += 3;
+    if (nh == 0) return SC_OK;
+    halfedge *he = sc_alloc_array((size_t)nh, sizeof *he);
+    if (!he) return sc_fail(err, SC_ENOMEM, "out of memory finding seams");
+    int64_t k = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (material >= 0 && m->FM[f] != material) continue;
+        for (int32_t c = 0; c < 3; c++) {
+            uint32_t a = (uint32_t)m->FV[3 * f + c], b = (uint32_t)m->FV[3 * f + (c + 1) % 3];
+            uint32_t lo = a < b ? a : b, hi = a < b ? b : a;
+            he[k++] = (halfedge){((uint64_t)lo << 32) | hi, f, c};
+        }
+    }
+    qsort(he, (size_t)nh, sizeof *he, cmp_halfedge);
+
+    int32_t seam_cap = 0, sil_cap = 0;
+    int rc = SC_OK;
+    for (int64_t i = 0; i < nh && rc == SC_OK;) {
+        int64_t j = i + 1;
+        while (j < nh && he[j].key == he[i].key) j++;
+        int64_t count = j - i;
+        const halfedge *h0 = &he[i];
+        int32_t v0 = m->FV[3 * h0->face + h0->corner];
+        int32_t v1 = m->FV[3 * h0->face + (h0->corner + 1) % 3];
+        double len = dist3(&m->V[3 * v0], &m->V[3 * v1]);
+        if (count == 2) {
+            sc_seam_side a = side_of(m, &he[i], v0), b = side_of(m, &he[i + 1], v0);
+            if (same_uv(m, a.uv0, b.uv0) && same_uv(m, a.uv1, b.uv1)) {
+                /* an interior uv edge: a foldover when both faces lie on one side */
+                const double *p0 = &m->U[2 * a.uv0], *p1 = &m->U[2 * a.uv1];
+                double o1 = orient2(p0, p1, &m->U[2 * a.uv_opp]);
+                double o2 = orient2(p0, p1, &m->U[2 * b.uv_opp]);
+                if (o1 * o2 > 0) {
+                    sc_seam_silhouette x = {v0, v1, len, a, SC_SEAM_FOLDOVER, -1};
+                    rc = push_sil(out, &sil_cap, &x);
+                    out->nfoldover++;
+                    out->sil_length += len;
+                }
+            } else {
+                if (out->nseams == seam_cap) {
+                    int32_t nc = seam_cap ? seam_cap * 2 : 256;
+                    sc_seam_edge *p = sc_realloc_array(out->seams, (size_t)nc, sizeof *p);
+                    if (!p) {
+                        rc = SC_ENOMEM;
+                        break;
+                    }
+                    out->seams = p;
+                    seam_cap = nc;
+                }
+                int32_t si = out->nseams++;
+                out->seams[si] = (sc_seam_edge){v0, v1, len, {a, b}};
+                out->seam_length += len;
+                for (int q = 0; q < 2 && rc == SC_OK; q++) {
+                    sc_seam_silhouette x = {v0, v1, len, q ? b : a, SC_SEAM_SIDE, si};
+                    rc = push_sil(out, &sil_cap, &x);
+                    out->sil_length += len;
+                }
+            }
+        } else {
+            /* a surface boundary (one face) or a non-manifold edge (3 or more) */
+            for (int64_t q = i; q < j && rc == SC_OK; q++) {
+                int32_t f = he[q].face, c = he[q].corner;
+                int32_t a0 = m->FV[3 * f + c], a1 = m->FV[3 * f + (c + 1) % 3];
+                sc_seam_side sd = side_of(m, &he[q], a0);
+                sc_seam_silhouette x = {a0, a1, len, sd,
+                                        count == 1 ? SC_SEAM_BOUNDARY : SC_SEAM_NONMANIFOLD, -1};
+                rc = push_sil(out, &sil_cap, &x);
+                out->sil_length += len;
+                if (count == 1) out->nboundary++;
+                else out->nnonmanifold++;
+            }
+        }
+        i = j;
+    }
+    free(he);
+    if (rc != SC_OK) {
+        sc_seam_set_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory finding seams");
+    }
+    return SC_OK;
+}
+
+void sc_seam_set_free(sc_seam_set *s) {
+    if (!s) return;
+    free(s->seams);
+    free(s->sil);
+    memset(s, 0, sizeof *s);
+}
+
+/* ---------------------------------------------------------------- texel sets */
+
+static inline int popcount64(uint64_t x) {
+    x = x - ((x >> 1) & 0x5555555555555555ull);
+    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+    x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
+    return (int)((x * 0x0101010101010101ull) >> 56);
+}
+
+int sc_seam_texset_init(sc_seam_texset *s, int32_t width, int32_t height) {
+    memset(s, 0, sizeof *s);
+    if (width <= 0 || height <= 0) return SC_EINPUT;
+    s->width = width, s->height = height;
+    s->words = ((int64_t)width * height + 63) / 64;
+    s->bits = sc_calloc_array((size_t)s->words, sizeof *s->bits);
+    return s->bits ? SC_OK : SC_ENOMEM;
+}
+
+void sc_seam_texset_free(sc_seam_texset *s) {
+    if (!s) return;
+    free(s->bits);
+    free(s->rank);
+    memset(s, 0, sizeof *s);
+}
+
+int sc_seam_texset_finish(sc_seam_texset *s) {
+    free(s->rank);
+    s->rank = sc_alloc_array((size_t)s->words + 1, sizeof *s->rank);
+    if (!s->rank) return SC_ENOMEM;
+    int64_t r = 0;
+    for (int64_t w = 0; w < s->words; w++) {
+        s->rank[w] = (int32_t)r;
+        r += popcount64(s->bits[w]);
+    }
+    s->rank[s->words] = (int32_t)r;
+    s->count = (int32_t)r;
+    return SC_OK;
+}
+
+int32_t sc_seam_texset_index(const sc_seam_texset *s, int32_t id) {
+    uint64_t word = s->bits[id >> 6], bit = (uint64_t)1 << (id & 63);
+    if (!(word & bit)) return -1;
+    return s->rank[id >> 6] + popcount64(word & (bit - 1));
+}
+
+int sc_seam_texset_members(const sc_seam_texset *s, int32_t **ids) {
+    *ids = sc_alloc_array(s->count ? (size_t)s->count : 1, sizeof **ids);
+    if (!*ids) return SC_ENOMEM;
+    int32_t k = 0;
+    for (int64_t w = 0; w < s->words; w++) {
+        uint64_t b = s->bits[w];
+        while (b) {
+            int bit = __builtin_ctzll(b);
+            (*ids)[k++] = (int32_t)(w * 64 + bit);
+            b &= b - 1;
+        }
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- coverage */
+
+/* Edge function of the directed edge a -> b at p, evaluated the same way
+ * (from the lexicographically smaller end) for both directions, so that the
+ * two triangles of a shared edge see exactly opposite values. */
+static double edge_fn(const double *a, const double *b, double px, double py) {
+    if (a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]))
+        return (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0]);
+    return -((a[0] - b[0]) * (py - b[1]) - (a[1] - b[1]) * (px - b[0]));
+}
+
+/* p inside the counter-clockwise triangle, ties broken as if p were moved by
+ * (eps, eps^2): a partition of the plane covers every point exactly once. */
+static bool edge_owns(const double *a, const double *b, double px, double py) {
+    double e = edge_fn(a, b, px, py);
+    if (e > 0) return true;
+    if (e < 0) return false;
+    double dx = b[0] - a[0], dy = b[1] - a[1];
+    return dy < 0 || (dy == 0 && dx > 0);
+}
+
+static void cover_id(sc_seam_coverage *c, int32_t id) {
+    uint64_t bit = (uint64_t)1 << (id & 63), *w = &c->covered.bits[id >> 6];
+    if (*w & bit) c->shared.bits[id >> 6] |= bit;
+    else *w |= bit;
+}
+
+/* the texel centres x0..x1 (inclusive) of row iy, through the wrap modes */
+static void cover_span(sc_seam_coverage *c, const sc_seam_grid *g, int64_t x0, int64_t x1, int64_t iy) {
+    const int32_t W = g->width;
+    if (g->wrap_v == SC_WRAP_CLAMP && (iy < 0 || iy >= g->height)) return;
+    int32_t row = sc_seam_wrap(iy, g->height, g->wrap_v) * W;
+    if (g->wrap_u == SC_WRAP_CLAMP) {
+        if (x0 < 0) x0 = 0;
+        if (x1 > W - 1) x1 = W - 1;
+        for (int64_t x = x0; x <= x1; x++) cover_id(c, row + (int32_t)x);
+    } else if (g->wrap_u == SC_WRAP_REPEAT) {
+        int32_t i = sc_seam_wrap(x0, W, SC_WRAP_REPEAT);
+        for (int64_t x = x0; x <= x1; x++) {
+            cover_id(c, row + i);
+            if (++i == W) i = 0;
+        }
+    } else {
+        for (int64_t x = x0; x <= x1; x++) cover_id(c, row + sc_seam_wrap(x, W, g->wrap_u));
+    }
+}
+
+int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
+                           sc_seam_coverage *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    if (sc_seam_texset_init(&out->covered, g->width, g->height) != SC_OK ||
+        sc_seam_texset_init(&out->shared, g->width, g->height) != SC_OK) {
+        sc_seam_coverage_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory for a %dx%d coverage mask", (int)g->width,
+                       (int)g->height);
+    }
+    const double W = g->width, H = g->height;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (material >= 0 && m->FM[f] != material) continue;
+        double P[3][2];
+        for (int k = 0; k < 3; k++) {
+            const double *uv = &m->U[2 * m->FU[3 * f + k]];
+            P[k][0] = uv[0] * W - 0.5;
+            P[k][1] = uv[1] * H - 0.5;
+        }
+        double area = orient2(P[0], P[1], P[2]);
+        if (!(area != 0)) continue; /* zero uv area (or NaN): covers nothing */
+        const double *A = P[0], *B = area > 0 ? P[1] : P[2], *C = area > 0 ? P[2] : P[1];
+        double xmin = fmin(A[0], fmin(B[0], C[0])), xmax = fmax(A[0], fmax(B[0], C[0]));
+        double ymin = fmin(A[1], fmin(B[1], C[1])), ymax = fmax(A[1], fmax(B[1], C[1]));
+        if (g->wrap_u != SC_WRAP_CLAMP && xmax - xmin > 64.0 * W)
+            return sc_seam_coverage_free(out),
+                   sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 texture widths",
+                           (int)f);
+        if (g->wrap_v != SC_WRAP_CLAMP && ymax - ymin > 64.0 * H)
+            return sc_seam_coverage_free(out),
+                   sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 texture heights",
+                           (int)f);
+        double y0 = ceil(ymin), y1 = floor(ymax);
+        if (g->wrap_v == SC_WRAP_CLAMP) y0 = fmax(y0, 0), y1 = fmin(y1, H - 1);
+        const double *E[3][2] = {{A, B}, {B, C}, {C, A}};
+        for (double y = y0; y <= y1; y++) {
+            /* the x interval where all three edge functions are >= 0, widened by one */
+            double xl = floor(xmin), xr = ceil(xmax);
+            for (int e = 0; e < 3; e++) {
+                const double *a = E[e][0], *b = E[e][1];
+                double dy = b[1] - a[1];
+                if (dy == 0) continue;
+                double xc = a[0] + (y - a[1]) * (b[0] - a[0]) / dy; /* E = 0 at xc */
+                if (dy < 0) xl = fmax(xl, floor(xc) - 1); /* E = -dy (x - xc) >= 0 for x >= xc */
+                else xr = fmin(xr, ceil(xc) + 1);
+            }
+            if (g->wrap_u == SC_WRAP_CLAMP) xl = fmax(xl, 0), xr = fmin(xr, W - 1);
+            /* the row's inside centres form one run (the triangle is convex):
+             * find its ends with the exact test, fill between */
+            double x0 = xl, x1 = xr;
+            while (x0 <= x1 && !(edge_owns(A, B, x0, y) && edge_owns(B, C, x0, y) && edge_owns(C, A, x0, y)))
+                x0++;
+            while (x1 >= x0 && !(edge_owns(A, B, x1, y) && edge_owns(B, C, x1, y) && edge_owns(C, A, x1, y)))
+                x1--;
+            if (x0 <= x1) cover_span(out, g, (int64_t)x0, (int64_t)x1, (int64_t)y);
+        }
+    }
+    if (sc_seam_texset_finish(&out->covered) != SC_OK || sc_seam_texset_finish(&out->shared) != SC_OK) {
+        sc_seam_coverage_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    out->ncovered = out->covered.count;
+    out->nshared = out->shared.count;
+    return SC_OK;
+}
+
+void sc_seam_coverage_free(sc_seam_coverage *c) {
+    if (!c) return;
+    sc_seam_texset_free(&c->covered);
+    sc_seam_texset_free(&c->shared);
+    c->ncovered = c->nshared = 0;
+}
+
+/* ---------------------------------------------------------------- pieces */
+
+static int cmp_double(const void *pa, const void *pb) {
+    double a = *(const double *)pa, b = *(const double *)pb;
+    return a < b ? -1 : a > b;
+}
+
+static bool grow_gammas(double **buf, int32_t *cap, int64_t need) {
+    if (need <= *cap) return true;
+    int64_t nc = *cap ? *cap : 64;
+    while (nc < need) nc *= 2;
+    double *p = sc_realloc_array(*buf, (size_t)nc, sizeof *p);
+    if (!p) return false;
+    *buf = p;
+    *cap = (int32_t)nc;
+    return true;
+}
+
+/* gamma of every integer crossing of x0 -> x1 (exclusive of the ends) */
+static int add_axis(double x0, double x1, double **buf, int32_t *cap, int32_t *n) {
+    if (!(x0 != x1)) return 0;
+    double lo = fmin(x0, x1), hi = fmax(x0, x1);
+    double k0 = floor(lo) + 1, k1 = ceil(hi) - 1;
+    if (k1 < k0) return 0;
+    if (k1 - k0 + 1 > SC_SEAM_MAX_CROSSINGS) return -1;
+    int32_t cnt = (int32_t)(k1 - k0 + 1);
+    if (!grow_gammas(buf, cap, (int64_t)*n + cnt + 2)) return -1;
+    double d = x1 - x0;
+    for (int32_t q = 0; q < cnt; q++) {
+        double gmm = ((k0 + q) - x0) / d;
+        if (gmm > 0 && gmm < 1) (*buf)[(*n)++] = gmm;
+    }
+    return 0;
+}
+
+int32_t sc_seam_crossings(const sc_seam_grid *g, const double a0[2], const double a1[2],
+                          const double *b0, const double *b1, double **buf, int32_t *cap) {
+    const double W = g->width, H = g->height;
+    int32_t n = 0;
+    if (!grow_gammas(buf, cap, 2)) return -1;
+    (*buf)[n++] = 0;
+    for (int side = 0; side < 2; side++) {
+        const double *p = side ? b0 : a0, *q = side ? b1 : a1;
+        if (!p || !q) continue;
+        if (add_axis(p[0] * W - 0.5, q[0] * W - 0.5, buf, cap, &n) < 0) return -1;
+        if (add_axis(p[1] * H - 0.5, q[1] * H - 0.5, buf, cap, &n) < 0) return -1;
+        if (n > SC_SEAM_MAX_CROSSINGS) return -1;
+    }
+    if (!grow_gammas(buf, cap, (int64_t)n + 1)) return -1;
+    (*buf)[n++] = 1;
+    double *gm = *buf;
+    if (n > 3) qsort(gm + 1, (size_t)(n - 2), sizeof *gm, cmp_double);
+    /* merge near-duplicates (crossings of both sides at the same gamma, corners) */
+    int32_t w = 1;
+    for (int32_t i = 1; i < n - 1; i++)
+        if (gm[i] - gm[w - 1] > 1e-13 && 1.0 - gm[i] > 1e-13) gm[w++] = gm[i];
+    gm[w++] = 1;
+    return w;
+}
+
+void sc_seam_cellpoly_make(const sc_seam_grid *g, const double a[2], const double b[2],
+                           const double n[2], sc_seam_cellpoly *out) {
+    const double W = g->width, H = g->height;
+    double xa = a[0] * W - 0.5, ya = a[1] * H - 0.5;
+    double xb = b[0] * W - 0.5, yb = b[1] * H - 0.5;
+    int64_t cx = cell_of(0.5 * (xa + xb)), cy = cell_of(0.5 * (ya + yb));
+    cell_ids(g, cx, cy, out->id);
+    double s0 = xa - (double)cx, ds = xb - xa;
+    double t0 = ya - (double)cy, dt = yb - ya;
+    /* linear factors in tau: (1-s), s, (1-t), t */
+    const double os[2] = {1 - s0, -ds}, ss[2] = {s0, ds};
+    const double ot[2] = {1 - t0, -dt}, tt[2] = {t0, dt};
+    const double *fs[4] = {os, ss, os, ss}, *ft[4] = {ot, ot, tt, tt};
+    for (int k = 0; k < 4; k++) {
+        out->q[k][0] = fs[k][0] * ft[k][0];
+        out->q[k][1] = fs[k][0] * ft[k][1] + fs[k][1] * ft[k][0];
+        out->q[k][2] = fs[k][1] * ft[k][1];
+    }
+    /* dB/dn = nx dB/ds + ny dB/dt, with
+     * dB/ds = (1-t)(p10 - p00) + t (p11 - p01), dB/dt = (1-s)(p01 - p00) + s (p11 - p10) */
+    double nx = n ? n[0] : 0, ny = n ? n[1] : 0;
+    for (int c = 0; c < 2; c++) {
+        out->d[0][c] = -nx * ot[c] - ny * os[c];
+        out->d[1][c] = nx * ot[c] - ny * ss[c];
+        out->d[2][c] = -nx * tt[c] + ny * os[c];
+        out->d[3][c] = nx * tt[c] + ny * ss[c];
+    }
+}
+
+bool sc_seam_inward_normal(const sc_mesh *m, const sc_seam_grid *g, const sc_seam_side *s,
+                           double n[2]) {
+    const double W = g->width, H = g->height;
+    const double *p0 = &m->U[2 * s->uv0], *p1 = &m->U[2 * s->uv1], *po = &m->U[2 * s->uv_opp];
+    double dx = (p1[0] - p0[0]) * W, dy = (p1[1] - p0[1]) * H;
+    double ox = (po[0] - p0[0]) * W, oy = (po[1] - p0[1]) * H;
+    double len = sqrt(dx * dx + dy * dy), cr = dx * oy - dy * ox;
+    n[0] = n[1] = 0;
+    if (!(len > 0) || !(cr != 0)) return false;
+    if (cr > 0) n[0] = -dy / len, n[1] = dx / len; /* the face is on the left */
+    else n[0] = dy / len, n[1] = -dx / len;
+    return true;
+}
+
+/* ---------------------------------------------------------------- threads */
+
+typedef struct par_state {
+    int (*fn)(void *ud, int32_t chunk);
+    void *ud;
+    int32_t nchunks;
+    atomic_int next;
+    int *rcs;
+} par_state;
+
+static void *par_worker(void *arg) {
+    par_state *st = arg;
+    for (;;) {
+        int32_t c = atomic_fetch_add(&st->next, 1);
+        if (c >= st->nchunks) break;
+        st->rcs[c] = st->fn(st->ud, c);
+    }
+    return NULL;
+}
+
+int sc_seam_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud) {
+    if (nchunks <= 0) return SC_OK;
+    int *rcs = sc_calloc_array((size_t)nchunks, sizeof *rcs);
+    if (!rcs) return SC_ENOMEM;
+    par_state st = {.fn = fn, .ud = ud, .nchunks = nchunks, .rcs = rcs};
+    atomic_init(&st.next, 0);
+    int nt = threads < 1 ? 1 : threads > 64 ? 64 : threads;
+    if (nt > nchunks) nt = nchunks;
+    pthread_t tid[64];
+    int started = 0;
+    for (int t = 1; t < nt; t++) {
+        if (pthread_create(&tid[started], NULL, par_worker, &st) != 0) break;
+        started++;
+    }
+    par_worker(&st);
+    for (int t = 0; t < started; t++) pthread_join(tid[t], NULL);
+    int rc = SC_OK;
+    for (int32_t c = 0; c < nchunks && rc == SC_OK; c++) rc = rcs[c];
+    free(rcs);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- piece walks */
+
+static const double *uvp(const sc_mesh *m, int32_t uv) { return &m->U[2 * uv]; }
+
+static void lerp2(const double *a, const double *b, double t, double out[2]) {
+    out[0] = a[0] + t * (b[0] - a[0]);
+    out[1] = a[1] + t * (b[1] - a[1]);
+}
+
+/* Weight l_e / L of one edge in a normalised sum (uniform when L is 0). */
+static double edge_weight(double len, double total, int32_t count) {
+    if (total > 0) return len / total;
+    return count > 0 ? 1.0 / count : 0;
+}
+
+/* A scratch workspace owned by one chunk. */
+typedef struct walk {
+    double *gm;
+    int32_t gcap;
+} walk;
+
+/* Linear combination of taps merged by texel id: up to 8 entries. */
+typedef struct combo {
+    int n;
+    int32_t id[8];
+    double c[8][3];
+} combo;
+
+static void combo_add(combo *cb, int32_t id, const double *poly, int deg, double sign) {
+    int k = 0;
+    while (k < cb->n && cb->id[k] != id) k++;
+    if (k == cb->n) {
+        cb->id[k] = id;
+        cb->c[k][0] = cb->c[k][1] = cb->c[k][2] = 0;
+        cb->n++;
+    }
+    for (int a = 0; a < deg; a++) cb->c[k][a] += sign * poly[a];
+}
+
+/* ---------------------------------------------------------------- marking */
+
+static void mark_pieces(const sc_seam_grid *g, const double *a0, const double *a1,
+                        const double *gm, int32_t n, sc_seam_texset *set) {
+    for (int32_t i = 0; i + 1 < n; i++) {
+        if (!(gm[i + 1] > gm[i])) continue;
+        double pa[2], pb[2];
+        lerp2(a0, a1, gm[i], pa);
+        lerp2(a0, a1, gm[i + 1], pb);
+        sc_seam_cellpoly cp;
+        sc_seam_cellpoly_make(g, pa, pb, NULL, &cp);
+        for (int k = 0; k < 4; k++) sc_seam_texset_add(set, cp.id[k]);
+    }
+}
+
+int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                        sc_seam_texset *set, sc_error *err) {
+    walk w = {0};
+    /* seams split as pairs (exactly as the operator splits them), then the
+     * other silhouettes on their own */
+    for (int32_t q = 0; q < s->nseams + s->nsil; q++) {
+        const sc_seam_side *sd[2] = {NULL, NULL};
+        if (q < s->nseams) {
+            sd[0] = &s->seams[q].side[0], sd[1] = &s->seams[q].side[1];
+        } else {
+            const sc_seam_silhouette *x = &s->sil[q - s->nseams];
+            if (x->kind == SC_SEAM_SIDE) continue;
+            sd[0] = &x->side;
+        }
+        const double *a0 = uvp(m, sd[0]->uv0), *a1 = uvp(m, sd[0]->uv1);
+        const double *b0 = sd[1] ? uvp(m, sd[1]->uv0) : NULL, *b1 = sd[1] ? uvp(m, sd[1]->uv1) : NULL;
+        int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w.gm, &w.gcap);
+        if (n < 0) {
+            free(w.gm);
+            return sc_fail(err, SC_EINPUT,
+                           "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
+                           (int)sd[0]->face, SC_SEAM_MAX_CROSSINGS);
+        }
+        mark_pieces(g, a0, a1, w.gm, n, set);
+        if (b0) mark_pieces(g, b0, b1, w.gm, n, set);
+    }
+    free(w.gm);
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- assembly */
+
+/* Per-chunk hash of (row, col) -> value, insertion ordered. */
+typedef struct acc {
+    uint32_t cap;   /* power of two */
+    uint64_t *keys; /* UINT64_MAX: empty */
+    int32_t *slot;  /* index into the entry list */
+    int32_t n, ncap;
+    uint64_t *ekey;
+    double *eval;
+    bool failed;
+} acc;
+
+static bool acc_init(acc *a) {
+    memset(a, 0, sizeof *a);
+    a->cap = 1024;
+    a->keys = sc_alloc_array(a->cap, sizeof *a->keys);
+    a->slot = sc_alloc_array(a->cap, sizeof *a->slot);
+    if (!a->keys || !a->slot) return false;
+    memset(a->keys, 0xff, a->cap * sizeof *a->keys);
+    return true;
+}
+
+static void acc_free(acc *a) {
+    free(a->keys), free(a->slot), free(a->ekey), free(a->eval);
+    memset(a, 0, sizeof *a);
+}
+
+static void acc_clear(acc *a) {
+    for (int32_t i = 0; i < a->n; i++) {
+        /* remove by re-probing: cheaper than wiping the table for short edges */
+        uint64_t k = a->ekey[i];
+        uint32_t h = (uint32_t)((k * 0x9E3779B97F4A7C15ull) >> 40) & (a->cap - 1);
+        while (a->keys[h] != k) h = (h + 1) & (a->cap - 1);
+        a->keys[h] = UINT64_MAX;
+    }
+    /* the table uses linear probing: clearing entries in place can break
+     * probe chains of other keys, but every key is removed here, so none
+     * remain to be found */
+    a->n = 0;
+}
+
+static bool acc_rehash(acc *a) {
+    uint32_t nc = a->cap * 2;
+    uint64_t *k = sc_alloc_array(nc, sizeof *k);
+    int32_t *s = sc_alloc_array(nc, sizeof *s);
+    if (!k || !s) {
+        free(k), free(s);
+        return false;
+    }
+    memset(k, 0xff, nc * sizeof *k);
+    for (int32_t i = 0; i < a->n; i++) {
+        uint64_t key = a->ekey[i];
+        uint32_t h = (uint32_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (nc - 1);
+        while (k[h] != UINT64_MAX) h = (h + 1) & (nc - 1);
+        k[h] = key;
+        s[h] = i;
+    }
+    free(a->keys), free(a->slot);
+    a->keys = k, a->slot = s, a->cap = nc;
+    return true;
+}
+
+static void acc_add(acc *a, int32_t r, int32_t c, double v) {
+    if (a->failed) return;
+    if (r > c) {
+        int32_t t = r;
+        r = c, c = t;
+    }
+    uint64_t key = ((uint64_t)(uint32_t)r << 32) | (uint32_t)c;
+    uint32_t h = (uint32_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (a->cap - 1);
+    while (a->keys[h] != UINT64_MAX) {
+        if (a->keys[h] == key) {
+            a->eval[a->slot[h]] += v;
+            return;
+        }
+        h = (h + 1) & (a->cap - 1);
+    }
+    if (a->n == a->ncap) {
+        int32_t nc = a->ncap ? a->ncap * 2 : 512;
+        uint64_t *k = sc_realloc_array(a->ekey, (size_t)nc, sizeof *k);
+        if (k) a->ekey = k;
+        double *x = k ? sc_realloc_array(a->eval, (size_t)nc, sizeof *x) : NULL;
+        if (x) a->eval = x;
+        if (!k || !x) {
+            a->failed = true;
+            return;
+        }
+        a->ncap = nc;
+    }
+    a->keys[h] = key;
+    a->slot[h] = a->n;
+    a->ekey[a->n] = key;
+    a->eval[a->n] = v;
+    a->n++;
+    if ((uint32_t)a->n * 2 > a->cap && !acc_rehash(a)) a->failed = true;
+}
+
+static void acc_emit(acc *a, sc_triplets *t) {
+    if (!sc_triplets_reserve(t, (size_t)a->n)) return;
+    for (int32_t i = 0; i < a->n; i++)
+        sc_triplets_add(t, (int32_t)(a->ekey[i] >> 32), (int32_t)(a->ekey[i] & 0xffffffffu),
+                        a->eval[i]);
+}
+
+typedef struct rhs_entry {
+    int32_t index;
+    int32_t channel;
+    double value;
+} rhs_entry;
+
+typedef struct asm_chunk {
+    sc_triplets trip;
+    rhs_entry *rhs;
+    int32_t nrhs, rhscap;
+    int32_t bad_texel; /* a texel id missing from the index, or -1 */
+    int rc;
+} asm_chunk;
+
+typedef struct asm_job {
+    const sc_mesh *m;
+    const sc_seam_set *s;
+    const sc_seam_grid *g;
+    const sc_seam_texset *index;
+    const sc_seam_terms *terms;
+    int32_t nitems;      /* seams then non-seam silhouettes */
+    int32_t *nonseam;    /* silhouette indices of the non-seam ones */
+    int32_t first_chunk; /* of the current batch */
+    asm_chunk *chunks;
+    bool matrix;         /* emit Q's triplets */
+    int32_t channels;    /* of the right-hand side */
+} asm_job;
+
+#define ITEMS_PER_CHUNK 64
+
+static bool push_rhs(asm_chunk *c, int32_t index, int32_t channel, double v) {
+    if (c->nrhs == c->rhscap) {
+        int32_t nc = c->rhscap ? c->rhscap * 2 : 256;
+        rhs_entry *p = sc_realloc_array(c->rhs, (size_t)nc, sizeof *p);
+        if (!p) return false;
+        c->rhs = p;
+        c->rhscap = nc;
+    }
+    c->rhs[c->nrhs++] = (rhs_entry){index, channel, v};
+    return true;
+}
+
+/* Map the texel ids of a combination to unknown indices; false if one is missing. */
+static bool to_index(const asm_job *job, asm_chunk *ch, combo *cb) {
+    for (int k = 0; k < cb->n; k++) {
+        int32_t r = sc_seam_texset_index(job->index, cb->id[k]);
+        if (r < 0) {
+            ch->bad_texel = cb->id[k];
+            return false;
+        }
+        cb->id[k] = r;
+    }
+    return true;
+}
+
+/* scale * h * int_0^1 (c_k . tau) (c_l . tau) for all pairs of a combination */
+static void add_gram(acc *a, const combo *cb, int deg, double scale) {
+    const double(*G)[3] = G3;
+    for (int k = 0; k < cb->n; k++)
+        for (int l = k; l < cb->n; l++) {
+            double v = 0;
+            for (int x = 0; x < deg; x++)
+                for (int y = 0; y < deg; y++)
+                    v += cb->c[k][x] * cb->c[l][y] * (deg == 3 ? G[x][y] : G2[x][y]);
+            acc_add(a, cb->id[k], cb->id[l], scale * v);
+        }
+}
+
+/* wm * int (m_k m_l) + wd * int (d_k d_l) over two combinations with the
+ * same texels in the same order (m quadratic, d linear) */
+static void add_gram2(acc *a, const combo *m, const combo *d, double wm, double wd) {
+    for (int k = 0; k < m->n; k++) {
+        const double *mk = m->c[k], *dk = d->c[k];
+        double gm[3], gd[2];
+        for (int y = 0; y < 3; y++) gm[y] = mk[0] * G3[0][y] + mk[1] * G3[1][y] + mk[2] * G3[2][y];
+        for (int y = 0; y < 2; y++) gd[y] = dk[0] * G2[0][y] + dk[1] * G2[1][y];
+        for (int l = k; l < m->n; l++) {
+            const double *ml = m->c[l], *dl = d->c[l];
+            double v = wm * (gm[0] * ml[0] + gm[1] * ml[1] + gm[2] * ml[2]);
+            if (wd != 0) v += wd * (gd[0] * dl[0] + gd[1] * dl[1]);
+            acc_add(a, m->id[k], m->id[l], v);
+        }
+    }
+}
+
+/* E_outside / E_lerp of one side on one piece */
+/* p0 along a combination: the polynomial sum_k c_k(tau) p0[texel_k] of channel c */
+static void poly_of(const sc_image_data *p0, const combo *cb, const int32_t *texel, int deg,
+                    int32_t c, double out[3]) {
+    out[0] = out[1] = out[2] = 0;
+    for (int k = 0; k < cb->n; k++) {
+        double v = sc_seam_texel(p0, texel[k], c);
+        for (int x = 0; x < deg; x++) out[x] += cb->c[k][x] * v;
+    }
+}
+
+/* E_outside / E_lerp of one side on one piece. The residual -1/2 grad E at
+ * p0: E_outside is minimal there (nothing to add); E_lerp adds
+ * int q_k (l - B(p0)). */
+static bool side_terms(const asm_job *job, asm_chunk *ch, acc *a, const sc_seam_cellpoly *cp,
+                       double h, double wout, double wlerp, const double *la, const double *lb) {
+    const sc_seam_terms *t = job->terms;
+    combo cb = {0};
+    for (int k = 0; k < 4; k++) combo_add(&cb, cp->id[k], cp->q[k], 3, 1.0);
+    int32_t texel[8];
+    for (int k = 0; k < cb.n; k++) texel[k] = cb.id[k];
+    if (!to_index(job, ch, &cb)) return false;
+    if (job->matrix) add_gram(a, &cb, 3, (wout + wlerp) * h);
+    if (!t->rhs || !(wlerp > 0 && la)) return true;
+    int32_t C = job->channels;
+    for (int32_t c = 0; c < C; c++) {
+        double b0[3], e[3];
+        poly_of(t->p0, &cb, texel, 3, c, b0);
+        /* l(tau) - B(p0)(tau), a quadratic */
+        e[0] = la[c] - b0[0], e[1] = (lb[c] - la[c]) - b0[1], e[2] = -b0[2];
+        for (int k = 0; k < cb.n; k++) {
+            double g = 0;
+            for (int x = 0; x < 3; x++)
+                for (int y = 0; y < 3; y++) g += cb.c[k][x] * e[y] * G3[x][y];
+            if (g != 0 && !push_rhs(ch, cb.id[k], c, wlerp * h * g)) return false;
+        }
+    }
+    return true;
+}
+
+/* The residual of the seam and C1 terms at p0: -(wm int m_k (m . p0) +
+ * wd int d_k (d . p0)), with m . p0 and d . p0 formed first (a difference of
+ * two reconstructions), so a seam-free p0 gives an exact zero. */
+static bool pair_residual(const asm_job *job, asm_chunk *ch, const combo *m, const combo *d,
+                          const int32_t *texel, double wm, double wd) {
+    const sc_seam_terms *t = job->terms;
+    for (int32_t c = 0; c < job->channels; c++) {
+        double pm[3], pd[3];
+        poly_of(t->p0, m, texel, 3, c, pm);
+        poly_of(t->p0, d, texel, 2, c, pd);
+        for (int k = 0; k < m->n; k++) {
+            double v = 0;
+            if (wm != 0)
+                for (int x = 0; x < 3; x++)
+                    for (int y = 0; y < 3; y++) v += wm * m->c[k][x] * pm[y] * G3[x][y];
+            if (wd != 0)
+                for (int x = 0; x < 2; x++)
+                    for (int y = 0; y < 2; y++) v += wd * d->c[k][x] * pd[y] * G2[x][y];
+            if (v != 0 && !push_rhs(ch, m->id[k], c, -v)) return false;
+        }
+    }
+    return true;
+}
+
+static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
+    asm_job *job = ud;
+    int32_t chunk = job->first_chunk + chunk_in_batch;
+    asm_chunk *ch = &job->chunks[chunk_in_batch];
+    const sc_mesh *m = job->m;
+    const sc_seam_set *s = job->s;
+    const sc_seam_grid *g = job->g;
+    const sc_seam_terms *t = job->terms;
+    sc_triplets_init(&ch->trip, job->index->count > 0 ? job->index->count : 1);
+    ch->bad_texel = -1;
+    acc a;
+    walk w = {0};
+    if (!acc_init(&a)) {
+        acc_free(&a);
+        return ch->rc = SC_ENOMEM;
+    }
+    int32_t C = job->channels;
+    double *la = NULL, *lb = NULL;
+    if (t->w_lerp > 0 && t->vertex_values && t->rhs && C > 0) {
+        la = sc_alloc_array((size_t)C, sizeof *la);
+        lb = sc_alloc_array((size_t)C, sizeof *lb);
+        if (!la || !lb) {
+            free(la), free(lb), acc_free(&a);
+            return ch->rc = SC_ENOMEM;
+        }
+    }
+    int rc = SC_OK;
+    int32_t i0 = chunk * ITEMS_PER_CHUNK, i1 = i0 + ITEMS_PER_CHUNK;
+    if (i1 > job->nitems) i1 = job->nitems;
+    for (int32_t it = i0; it < i1 && rc == SC_OK; it++) {
+        /* the item: a seam pair, or a single non-seam silhouette */
+        const sc_seam_side *sides[2];
+        int nsides;
+        int32_t v0, v1;
+        double wseam = 0, wc1 = 0, wsil = 0;
+        bool c1_ok = false;
+        double n0[2] = {0, 0}, n1[2] = {0, 0};
+        if (it < s->nseams) {
+            const sc_seam_edge *e = &s->seams[it];
+            sides[0] = &e->side[0], sides[1] = &e->side[1], nsides = 2;
+            v0 = e->v0, v1 = e->v1;
+            double we = edge_weight(e->length, s->seam_length, s->nseams);
+            wseam = t->w_seam * we;
+            wc1 = t->w_c1 * we;
+            wsil = edge_weight(e->length, s->sil_length, s->nsil);
+            c1_ok = wc1 > 0 && sc_seam_inward_normal(m, g, sides[0], n0) &&
+                    sc_seam_inward_normal(m, g, sides[1], n1);
+        } else {
+            const sc_seam_silhouette *x = &s->sil[job->nonseam[it - s->nseams]];
+            sides[0] = &x->side, sides[1] = NULL, nsides = 1;
+            v0 = x->v0, v1 = x->v1;
+            wsil = edge_weight(x->length, s->sil_length, s->nsil);
+        }
+        double wout = job->matrix ? t->w_outside * wsil : 0; /* no residual at p0 */
+        double wlerp = (job->matrix || la) ? t->w_lerp * wsil : 0;
+        if (wseam == 0 && wc1 == 0 && wout == 0 && wlerp == 0) continue;
+        const double *a0 = uvp(m, sides[0]->uv0), *a1 = uvp(m, sides[0]->uv1);
+        const double *b0 = nsides > 1 ? uvp(m, sides[1]->uv0) : NULL;
+        const double *b1 = nsides > 1 ? uvp(m, sides[1]->uv1) : NULL;
+        int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w.gm, &w.gcap);
+        if (n < 0) {
+            rc = SC_EINPUT;
+            ch->bad_texel = -2 - sides[0]->face;
+            break;
+        }
+        acc_clear(&a);
+        for (int32_t i = 0; i + 1 < n && rc == SC_OK; i++) {
+            double ga = w.gm[i], gb = w.gm[i + 1], h = gb - ga;
+            if (!(h > 0)) continue;
+            sc_seam_cellpoly cp[2];
+            for (int q = 0; q < nsides; q++) {
+                double pa[2], pb[2];
+                const double *e0 = q ? b0 : a0, *e1 = q ? b1 : a1;
+                lerp2(e0, e1, ga, pa);
+                lerp2(e0, e1, gb, pb);
+                sc_seam_cellpoly_make(g, pa, pb, q ? n1 : n0, &cp[q]);
+            }
+            if (wseam > 0 || c1_ok) {
+                /* m(tau) = B(e1) - B(e2) (eq. 4) and dB/dn1 (e1) + dB/dn2 (e2) (E_C1)
+                 * share their texels: one pass adds both Gram matrices */
+                combo m1 = {0}, d1 = {0};
+                for (int k = 0; k < 4; k++) {
+                    combo_add(&m1, cp[0].id[k], cp[0].q[k], 3, 1.0);
+                    combo_add(&d1, cp[0].id[k], cp[0].d[k], 2, 1.0);
+                }
+                for (int k = 0; k < 4; k++) {
+                    combo_add(&m1, cp[1].id[k], cp[1].q[k], 3, -1.0);
+                    combo_add(&d1, cp[1].id[k], cp[1].d[k], 2, c1_ok ? 1.0 : 0.0);
+                }
+                int32_t texel[8];
+                for (int k = 0; k < m1.n; k++) texel[k] = m1.id[k];
+                if (!to_index(job, ch, &m1)) {
+                    rc = SC_EINPUT;
+                    break;
+                }
+                if (job->matrix) add_gram2(&a, &m1, &d1, wseam * h, c1_ok ? wc1 * h : 0);
+                if (t->rhs && !pair_residual(job, ch, &m1, &d1, texel, wseam * h, c1_ok ? wc1 * h : 0)) {
+                    rc = SC_ENOMEM;
+                    break;
+                }
+            }
+            if (wout > 0 || wlerp > 0) {
+                for (int q = 0; q < nsides; q++) {
+                    double *pla = NULL, *plb = NULL;
+                    if (wlerp > 0 && la) {
+                        const double *x0 = &t->vertex_values[(size_t)v0 * (size_t)C];
+                        const double *x1 = &t->vertex_values[(size_t)v1 * (size_t)C];
+                        for (int32_t c = 0; c < C; c++) {
+                            la[c] = x0[c] + ga * (x1[c] - x0[c]);
+                            lb[c] = x0[c] + gb * (x1[c] - x0[c]);
+                        }
+                        pla = la, plb = lb;
+                    }
+                    if (!side_terms(job, ch, &a, &cp[q], h, wout, wlerp, pla, plb)) {
+                        rc = ch->bad_texel >= 0 ? SC_EINPUT : SC_ENOMEM;
+                        break;
+                    }
+                }
+            }
+        }
+        if (a.failed) rc = SC_ENOMEM;
+        if (rc == SC_OK) acc_emit(&a, &ch->trip);
+        if (ch->trip.failed) rc = SC_ENOMEM;
+    }
+    free(la), free(lb), free(w.gm);
+    acc_free(&a);
+    return ch->rc = rc;
+}
+
+int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                     const sc_seam_texset *index, const sc_seam_terms *terms, int threads,
+                     sc_triplets *out, sc_error *err) {
+    asm_job job = {m, s, g, index, terms, 0, NULL, 0, NULL, out != NULL, 0};
+    if (terms->rhs && terms->p0) job.channels = terms->p0->channels;
+    else if (terms->rhs) return sc_fail(err, SC_EINPUT, "seam operator: a right-hand side needs p0");
+    int32_t nonseam = 0;
+    for (int32_t q = 0; q < s->nsil; q++) nonseam += s->sil[q].kind != SC_SEAM_SIDE;
+    bool sil_terms = terms->w_outside > 0 || terms->w_lerp > 0;
+    job.nitems = s->nseams;
+    if (sil_terms && nonseam > 0) {
+        job.nonseam = sc_alloc_array((size_t)nonseam, sizeof *job.nonseam);
+        if (!job.nonseam) return sc_fail(err, SC_ENOMEM, "out of memory");
+        int32_t k = 0;
+        for (int32_t q = 0; q < s->nsil; q++)
+            if (s->sil[q].kind != SC_SEAM_SIDE) job.nonseam[k++] = q;
+        job.nitems += nonseam;
+    }
+    int32_t nchunks = (job.nitems + ITEMS_PER_CHUNK - 1) / ITEMS_PER_CHUNK;
+    int32_t batch = threads < 1 ? 4 : 4 * threads;
+    job.chunks = sc_calloc_array((size_t)batch, sizeof *job.chunks);
+    if (!job.chunks) {
+        free(job.nonseam);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    int rc = SC_OK;
+    for (int32_t c0 = 0; c0 < nchunks && rc == SC_OK; c0 += batch) {
+        int32_t nb = nchunks - c0 < batch ? nchunks - c0 : batch;
+        job.first_chunk = c0;
+        memset(job.chunks, 0, (size_t)nb * sizeof *job.chunks);
+        int prc = sc_seam_parallel(threads, nb, asm_chunk_run, &job);
+        for (int32_t b = 0; b < nb; b++) {
+            asm_chunk *ch = &job.chunks[b];
+            if (rc == SC_OK && ch->rc == SC_OK) {
+                if (out) sc_triplets_append(out, &ch->trip);
+                for (int32_t r = 0; r < ch->nrhs && terms->rhs; r++)
+                    terms->rhs[(size_t)ch->rhs[r].channel * (size_t)index->count +
+                               (size_t)ch->rhs[r].index] += ch->rhs[r].value;
+            } else if (rc == SC_OK) {
+                /* the first failing chunk (in chunk order) names the problem */
+                if (ch->bad_texel >= 0)
+                    rc = sc_fail(err, SC_EINPUT, "seam operator: texel %d is not among the unknowns",
+                                 (int)ch->bad_texel);
+                else if (ch->bad_texel <= -2)
+                    rc = sc_fail(err, SC_EINPUT,
+                                 "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
+                                 (int)(-2 - ch->bad_texel), SC_SEAM_MAX_CROSSINGS);
+                else
+                    rc = sc_fail(err, SC_ENOMEM, "out of memory assembling the seam operator");
+            }
+            sc_triplets_free(&ch->trip);
+            free(ch->rhs);
+        }
+        if (rc == SC_OK && prc != SC_OK) rc = sc_fail(err, prc, "out of memory assembling the seam operator");
+        if (rc == SC_OK && out && out->failed) rc = sc_fail(err, SC_ENOMEM, "out of memory assembling the seam operator");
+    }
+    free(job.chunks);
+    free(job.nonseam);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- energy */
+
+typedef struct energy_job {
+    const sc_mesh *m;
+    const sc_seam_set *s;
+    const sc_seam_grid *g;
+    const sc_image_data *img;
+    double *d;   /* per seam */
+    double *gap; /* per seam */
+    int failed_face;
+} energy_job;
+
+static double edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
+                              const sc_image_data *img, walk *w, double *gap_out, bool *ok) {
+    int32_t C = img->channels;
+    const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
+    const double *b0 = uvp(m, e->side[1].uv0), *b1 = uvp(m, e->side[1].uv1);
+    int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w->gm, &w->gcap);
+    *ok = n >= 0;
+    double d = 0, gap = 0;
+    for (int32_t i = 0; i + 1 < n; i++) {
+        double ga = w->gm[i], gb = w->gm[i + 1], h = gb - ga;
+        if (!(h > 0)) continue;
+        sc_seam_cellpoly cp[2];
+        double pa[2], pb[2];
+        lerp2(a0, a1, ga, pa), lerp2(a0, a1, gb, pb);
+        sc_seam_cellpoly_make(g, pa, pb, NULL, &cp[0]);
+        lerp2(b0, b1, ga, pa), lerp2(b0, b1, gb, pb);
+        sc_seam_cellpoly_make(g, pa, pb, NULL, &cp[1]);
+        for (int32_t c = 0; c < C; c++) {
+            double q[3] = {0, 0, 0};
+            for (int side = 0; side < 2; side++)
+                for (int k = 0; k < 4; k++) {
+                    double p = sc_seam_texel(img, cp[side].id[k], c);
+                    double sg = side ? -1.0 : 1.0;
+                    for (int x = 0; x < 3; x++) q[x] += sg * cp[side].q[k][x] * p;
+                }
+            double v = 0;
+            for (int x = 0; x < 3; x++)
+                for (int y = 0; y < 3; y++) v += q[x] * q[y] * G3[x][y];
+            d += h * v;
+            for (int k = 0; k <= 4; k++) {
+                double tau = 0.25 * k, val = fabs(q[0] + tau * (q[1] + tau * q[2]));
+                if (val > gap) gap = val;
+            }
+        }
+    }
+    if (gap_out) *gap_out = gap;
+    return d;
+}
+
+typedef struct trace_job {
+    const sc_mesh *m;
+    const sc_seam_set *s;
+    const sc_seam_grid *g;
+    double *part; /* per chunk */
+    int failed_face;
+} trace_job;
+
+static int trace_chunk(void *ud, int32_t chunk) {
+    trace_job *job = ud;
+    const sc_mesh *m = job->m;
+    walk w = {0};
+    int32_t i0 = chunk * ITEMS_PER_CHUNK, i1 = i0 + ITEMS_PER_CHUNK;
+    if (i1 > job->s->nseams) i1 = job->s->nseams;
+    double sum = 0;
+    for (int32_t i = i0; i < i1; i++) {
+        const sc_seam_edge *e = &job->s->seams[i];
+        const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
+        const double *b0 = uvp(m, e->side[1].uv0), *b1 = uvp(m, e->side[1].uv1);
+        int32_t n = sc_seam_crossings(job->g, a0, a1, b0, b1, &w.gm, &w.gcap);
+        if (n < 0) {
+            job->failed_face = e->side[0].face;
+            free(w.gm);
+            return SC_EINPUT;
+        }
+        double te = 0;
+        for (int32_t k = 0; k + 1 < n; k++) {
+            double ga = w.gm[k], gb = w.gm[k + 1], h = gb - ga;
+            if (!(h > 0)) continue;
+            sc_seam_cellpoly cp[2];
+            double pa[2], pb[2];
+            lerp2(a0, a1, ga, pa), lerp2(a0, a1, gb, pb);
+            sc_seam_cellpoly_make(job->g, pa, pb, NULL, &cp[0]);
+            lerp2(b0, b1, ga, pa), lerp2(b0, b1, gb, pb);
+            sc_seam_cellpoly_make(job->g, pa, pb, NULL, &cp[1]);
+            combo c = {0};
+            for (int q = 0; q < 4; q++) combo_add(&c, cp[0].id[q], cp[0].q[q], 3, 1.0);
+            for (int q = 0; q < 4; q++) combo_add(&c, cp[1].id[q], cp[1].q[q], 3, -1.0);
+            for (int q = 0; q < c.n; q++)
+                for (int x = 0; x < 3; x++)
+                    for (int y = 0; y < 3; y++) te += h * c.c[q][x] * c.c[q][y] * G3[x][y];
+        }
+        sum += edge_weight(e->length, job->s->seam_length, job->s->nseams) * te;
+    }
+    job->part[chunk] = sum;
+    free(w.gm);
+    return SC_OK;
+}
+
+int sc_seam_trace(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g, int threads,
+                  double *trace, sc_error *err) {
+    *trace = 0;
+    int32_t nchunks = (s->nseams + ITEMS_PER_CHUNK - 1) / ITEMS_PER_CHUNK;
+    if (nchunks == 0) return SC_OK;
+    trace_job job = {m, s, g, sc_calloc_array((size_t)nchunks, sizeof(double)), -1};
+    if (!job.part) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = sc_seam_parallel(threads, nchunks, trace_chunk, &job);
+    if (rc == SC_OK)
+        for (int32_t c = 0; c < nchunks; c++) *trace += job.part[c];
+    else if (rc == SC_EINPUT)
+        sc_fail(err, rc, "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
+                job.failed_face, SC_SEAM_MAX_CROSSINGS);
+    else
+        sc_fail(err, rc, "out of memory");
+    free(job.part);
+    return rc;
+}
+
+double sc_seam_edge_energy(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
+                           const sc_image_data *img) {
+    walk w = {0};
+    bool ok;
+    double d = edge_energy_gap(m, e, g, img, &w, NULL, &ok);
+    free(w.gm);
+    return ok ? d : NAN;
+}
+
+static int energy_chunk(void *ud, int32_t chunk) {
+    energy_job *job = ud;
+    walk w = {0};
+    int32_t i0 = chunk * ITEMS_PER_CHUNK, i1 = i0 + ITEMS_PER_CHUNK;
+    if (i1 > job->s->nseams) i1 = job->s->nseams;
+    int rc = SC_OK;
+    for (int32_t i = i0; i < i1; i++) {
+        bool ok;
+        job->d[i] = edge_energy_gap(job->m, &job->s->seams[i], job->g, job->img, &w, &job->gap[i],
+                                    &ok);
+        if (!ok) {
+            job->failed_face = job->s->seams[i].side[0].face;
+            rc = SC_EINPUT;
+            break;
+        }
+    }
+    free(w.gm);
+    return rc;
+}
+
+int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                   const sc_image_data *img, int threads, double *energy, double *max_gap,
+                   sc_error *err) {
+    if (energy) *energy = 0;
+    if (max_gap) *max_gap = 0;
+    if (s->nseams == 0) return SC_OK;
+    energy_job job = {m, s, g, img, NULL, NULL, -1};
+    job.d = sc_alloc_array((size_t)s->nseams, sizeof *job.d);
+    job.gap = sc_alloc_array((size_t)s->nseams, sizeof *job.gap);
+    if (!job.d || !job.gap) {
+        free(job.d), free(job.gap);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    int32_t nchunks = (s->nseams + ITEMS_PER_CHUNK - 1) / ITEMS_PER_CHUNK;
+    int rc = sc_seam_parallel(threads, nchunks, energy_chunk, &job);
+    if (rc == SC_OK) {
+        double e = 0, gmax = 0;
+        for (int32_t i = 0; i < s->nseams; i++) {
+            e += edge_weight(s->seams[i].length, s->seam_length, s->nseams) * job.d[i];
+            if (job.gap[i] > gmax) gmax = job.gap[i];
+        }
+        if (energy) *energy = e;
+        if (max_gap) *max_gap = gmax;
+    } else if (rc == SC_EINPUT) {
+        sc_fail(err, rc, "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
+                job.failed_face, SC_SEAM_MAX_CROSSINGS);
+    } else {
+        sc_fail(err, rc, "out of memory");
+    }
+    free(job.d), free(job.gap);
+    return rc;
+}

@@ -1,0 +1,487 @@
+/* sc_sparse.c - triplets -> CSC, and a thin layer over CHOLMOD.
+ *
+ * Design note. Assembly is a counting sort by column followed by a stable
+ * merge sort of each column by row, so duplicates are summed in insertion
+ * order: the same triplets give the same bits whatever happened before (the
+ * callers emit triplets in a fixed order, whatever their thread count). Only
+ * the upper triangle is stored, which is what CHOLMOD reads for stype = 1.
+ *
+ * CHOLMOD is driven with one cholmod_common per factorisation (so several
+ * nodes may factor at once on different threads), printing switched off, and
+ * its status turned into sc_error messages. Our CSC arrays are handed to
+ * CHOLMOD through a cholmod_sparse header that points at them: no copy.
+ */
+#include "sc_sparse.h"
+
+#include <cholmod.h>
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---------------------------------------------------------------- triplets */
+
+void sc_triplets_init(sc_triplets *t, int32_t n) {
+    memset(t, 0, sizeof *t);
+    t->n = n;
+}
+
+void sc_triplets_free(sc_triplets *t) {
+    free(t->row);
+    free(t->col);
+    free(t->val);
+    memset(t, 0, sizeof *t);
+}
+
+bool sc_triplets_reserve(sc_triplets *t, size_t extra) {
+    if (t->failed) return false;
+    if (t->count + extra <= t->cap) return true;
+    size_t cap = t->cap ? t->cap : 1024;
+    while (cap < t->count + extra) cap *= 2;
+    int32_t *r = sc_realloc_array(t->row, cap, sizeof *r);
+    if (r) t->row = r;
+    int32_t *c = r ? sc_realloc_array(t->col, cap, sizeof *c) : NULL;
+    if (c) t->col = c;
+    double *v = c ? sc_realloc_array(t->val, cap, sizeof *v) : NULL;
+    if (v) t->val = v;
+    if (!r || !c || !v) {
+        t->failed = true;
+        return false;
+    }
+    t->cap = cap;
+    return true;
+}
+
+void sc_triplets_add(sc_triplets *t, int32_t i, int32_t j, double v) {
+    if (t->count == t->cap && !sc_triplets_reserve(t, 1)) return;
+    if (i > j) {
+        int32_t k = i;
+        i = j, j = k;
+    }
+    t->row[t->count] = i;
+    t->col[t->count] = j;
+    t->val[t->count] = v;
+    t->count++;
+}
+
+void sc_triplets_append(sc_triplets *t, const sc_triplets *src) {
+    if (src->failed) t->failed = true;
+    if (!src->count || !sc_triplets_reserve(t, src->count)) return;
+    memcpy(t->row + t->count, src->row, src->count * sizeof *t->row);
+    memcpy(t->col + t->count, src->col, src->count * sizeof *t->col);
+    memcpy(t->val + t->count, src->val, src->count * sizeof *t->val);
+    t->count += src->count;
+}
+
+/* ---------------------------------------------------------------- assembly */
+
+/* Stable sort of (row, val) pairs by row: insertion sort for short runs,
+ * bottom-up merge sort (with scratch of the same length) for long ones. */
+static void sort_column(int32_t *row, double *val, int32_t len, int32_t *trow, double *tval) {
+    if (len < 2) return;
+    if (len <= 32) {
+        for (int32_t a = 1; a < len; a++) {
+            int32_t r = row[a];
+            double v = val[a];
+            int32_t b = a;
+            while (b > 0 && row[b - 1] > r) {
+                row[b] = row[b - 1];
+                val[b] = val[b - 1];
+                b--;
+            }
+            row[b] = r, val[b] = v;
+        }
+        return;
+    }
+    int32_t *sr = row, *dr = trow;
+    double *sv = val, *dv = tval;
+    for (int32_t width = 1; width < len; width *= 2) {
+        for (int32_t lo = 0; lo < len; lo += 2 * width) {
+            int32_t mid = lo + width < len ? lo + width : len;
+            int32_t hi = lo + 2 * width < len ? lo + 2 * width : len;
+            int32_t a = lo, b = mid, k = lo;
+            while (a < mid && b < hi) {
+                if (sr[b] < sr[a]) dr[k] = sr[b], dv[k++] = sv[b++];
+                else dr[k] = sr[a], dv[k++] = sv[a++];
+            }
+            while (a < mid) dr[k] = sr[a], dv[k++] = sv[a++];
+            while (b < hi) dr[k] = sr[b], dv[k++] = sv[b++];
+        }
+        int32_t *xr = sr;
+        sr = dr, dr = xr;
+        double *xv = sv;
+        sv = dv, dv = xv;
+    }
+    if (sr != row) {
+        memcpy(row, sr, (size_t)len * sizeof *row);
+        memcpy(val, sv, (size_t)len * sizeof *val);
+    }
+}
+
+int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    if (t->failed) return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
+    int32_t n = t->n;
+    if (n <= 0) return sc_fail(err, SC_EINPUT, "sparse matrix of size %d", (int)n);
+    if (t->count > (size_t)INT32_MAX)
+        return sc_fail(err, SC_ENOMEM, "sparse matrix with %zu entries is beyond the 2^31 limit",
+                       t->count);
+    int32_t *colptr = sc_calloc_array((size_t)n + 1, sizeof *colptr);
+    int32_t *rows = sc_alloc_array(t->count ? t->count : 1, sizeof *rows);
+    double *vals = sc_alloc_array(t->count ? t->count : 1, sizeof *vals);
+    int32_t *next = sc_alloc_array((size_t)n + 1, sizeof *next);
+    if (!colptr || !rows || !vals || !next) {
+        free(colptr), free(rows), free(vals), free(next);
+        return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
+    }
+    for (size_t k = 0; k < t->count; k++) {
+        int32_t i = t->row[k], j = t->col[k];
+        if (i < 0 || j >= n || i > j) {
+            free(colptr), free(rows), free(vals), free(next);
+            return sc_fail(err, SC_EINPUT, "sparse entry (%d, %d) outside a %d x %d matrix",
+                           (int)i, (int)j, (int)n, (int)n);
+        }
+        colptr[j + 1]++;
+    }
+    int32_t longest = 0;
+    for (int32_t j = 0; j < n; j++) {
+        if (colptr[j + 1] > longest) longest = colptr[j + 1];
+        colptr[j + 1] += colptr[j];
+    }
+    memcpy(next, colptr, (size_t)n * sizeof *next);
+    for (size_t k = 0; k < t->count; k++) {
+        int32_t p = next[t->col[k]]++;
+        rows[p] = t->row[k];
+        vals[p] = t->val[k];
+    }
+    free(next);
+    int32_t *trow = sc_alloc_array((size_t)longest + 1, sizeof *trow);
+    double *tval = sc_alloc_array((size_t)longest + 1, sizeof *tval);
+    if (!trow || !tval) {
+        free(trow), free(tval), free(colptr), free(rows), free(vals);
+        return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
+    }
+    /* sort each column, sum duplicates, compact in place */
+    int32_t w = 0;
+    for (int32_t j = 0; j < n; j++) {
+        int32_t p0 = colptr[j], p1 = colptr[j + 1];
+        sort_column(rows + p0, vals + p0, p1 - p0, trow, tval);
+        colptr[j] = w;
+        for (int32_t p = p0; p < p1;) {
+            int32_t r = rows[p];
+            double s = vals[p++];
+            while (p < p1 && rows[p] == r) s += vals[p++];
+            rows[w] = r;
+            vals[w] = s;
+            w++;
+        }
+    }
+    colptr[n] = w;
+    free(trow), free(tval);
+    if (w > 0) {
+        int32_t *r2 = sc_realloc_array(rows, (size_t)w, sizeof *r2);
+        if (r2) rows = r2;
+        double *v2 = sc_realloc_array(vals, (size_t)w, sizeof *v2);
+        if (v2) vals = v2;
+    }
+    out->n = n;
+    out->nnz = w;
+    out->colptr = colptr;
+    out->rowind = rows;
+    out->val = vals;
+    return SC_OK;
+}
+
+void sc_sparse_free(sc_sparse *a) {
+    if (!a) return;
+    free(a->colptr);
+    free(a->rowind);
+    free(a->val);
+    memset(a, 0, sizeof *a);
+}
+
+int sc_sparse_add(const sc_sparse *a, double alpha, const sc_sparse *b, double beta, sc_sparse *c,
+                  sc_error *err) {
+    memset(c, 0, sizeof *c);
+    if (a->n != b->n) return sc_fail(err, SC_EINPUT, "adding sparse matrices of sizes %d and %d",
+                                     (int)a->n, (int)b->n);
+    int32_t n = a->n;
+    int64_t cap = a->nnz + b->nnz;
+    if (cap > INT32_MAX) return sc_fail(err, SC_ENOMEM, "sparse sum beyond the 2^31 limit");
+    c->colptr = sc_alloc_array((size_t)n + 1, sizeof *c->colptr);
+    c->rowind = sc_alloc_array(cap ? (size_t)cap : 1, sizeof *c->rowind);
+    c->val = sc_alloc_array(cap ? (size_t)cap : 1, sizeof *c->val);
+    if (!c->colptr || !c->rowind || !c->val) {
+        sc_sparse_free(c);
+        return sc_fail(err, SC_ENOMEM, "out of memory adding sparse matrices");
+    }
+    int32_t w = 0;
+    for (int32_t j = 0; j < n; j++) {
+        c->colptr[j] = w;
+        int32_t p = a->colptr[j], pe = a->colptr[j + 1], q = b->colptr[j], qe = b->colptr[j + 1];
+        while (p < pe || q < qe) {
+            int32_t ra = p < pe ? a->rowind[p] : INT32_MAX, rb = q < qe ? b->rowind[q] : INT32_MAX;
+            if (ra == rb) {
+                c->rowind[w] = ra, c->val[w++] = alpha * a->val[p++] + beta * b->val[q++];
+            } else if (ra < rb) {
+                c->rowind[w] = ra, c->val[w++] = alpha * a->val[p++];
+            } else {
+                c->rowind[w] = rb, c->val[w++] = beta * b->val[q++];
+            }
+        }
+    }
+    c->colptr[n] = w;
+    c->n = n;
+    c->nnz = w;
+    return SC_OK;
+}
+
+int sc_sparse_submatrix(const sc_sparse *a, const int32_t *keep, int32_t count, sc_sparse *out,
+                        sc_error *err) {
+    memset(out, 0, sizeof *out);
+    int64_t nnz = 0;
+    for (int32_t j = 0; j < a->n; j++)
+        if (keep[j] >= 0)
+            for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) nnz += keep[a->rowind[p]] >= 0;
+    out->colptr = sc_calloc_array((size_t)count + 1, sizeof *out->colptr);
+    out->rowind = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *out->rowind);
+    out->val = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *out->val);
+    if (!out->colptr || !out->rowind || !out->val) {
+        sc_sparse_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    int32_t w = 0;
+    for (int32_t j = 0; j < a->n; j++) {
+        if (keep[j] < 0) continue;
+        out->colptr[keep[j]] = w;
+        for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) {
+            int32_t r = keep[a->rowind[p]];
+            if (r >= 0) out->rowind[w] = r, out->val[w++] = a->val[p];
+        }
+    }
+    out->colptr[count] = w;
+    out->n = count;
+    out->nnz = w;
+    return SC_OK;
+}
+
+void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) {
+    memset(y, 0, (size_t)a->n * sizeof *y);
+    for (int32_t j = 0; j < a->n; j++) {
+        double xj = x[j], acc = 0;
+        for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) {
+            int32_t i = a->rowind[p];
+            double v = a->val[p];
+            if (i == j) {
+                acc += v * xj;
+            } else {
+                acc += v * x[i];
+                y[i] += v * xj;
+            }
+        }
+        y[j] += acc;
+    }
+}
+
+double sc_sparse_quadform(const sc_sparse *a, const double *x) {
+    double s = 0;
+    for (int32_t j = 0; j < a->n; j++) {
+        double acc = 0;
+        for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) {
+            int32_t i = a->rowind[p];
+            acc += (i == j ? 1.0 : 2.0) * a->val[p] * x[i];
+        }
+        s += acc * x[j];
+    }
+    return s;
+}
+
+double sc_sparse_diag(const sc_sparse *a, int32_t i) {
+    int32_t p1 = a->colptr[i + 1];
+    if (p1 > a->colptr[i] && a->rowind[p1 - 1] == i) return a->val[p1 - 1];
+    return 0;
+}
+
+double sc_sparse_norm_bound(const sc_sparse *a) {
+    double *rs = sc_calloc_array((size_t)a->n, sizeof *rs);
+    if (!rs) return INFINITY;
+    for (int32_t j = 0; j < a->n; j++)
+        for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) {
+            int32_t i = a->rowind[p];
+            rs[j] += fabs(a->val[p]);
+            if (i != j) rs[i] += fabs(a->val[p]);
+        }
+    double m = 0;
+    for (int32_t j = 0; j < a->n; j++)
+        if (rs[j] > m) m = rs[j];
+    free(rs);
+    return m;
+}
+
+/* ---------------------------------------------------------------- CHOLMOD */
+
+struct sc_sparse_chol {
+    cholmod_common common;
+    cholmod_factor *L;
+    int32_t n;
+    sc_sparse_stats stats;
+};
+
+static void header(const sc_sparse *a, cholmod_sparse *A) {
+    memset(A, 0, sizeof *A);
+    A->nrow = A->ncol = (size_t)a->n;
+    A->nzmax = (size_t)a->nnz;
+    A->p = a->colptr;
+    A->i = a->rowind;
+    A->x = a->val;
+    A->stype = 1;
+    A->itype = CHOLMOD_INT;
+    A->xtype = CHOLMOD_REAL;
+    A->dtype = CHOLMOD_DOUBLE;
+    A->sorted = 1;
+    A->packed = 1;
+}
+
+static int cholmod_status_error(const cholmod_common *c, const char *what, sc_error *err) {
+    switch (c->status) {
+    case CHOLMOD_OUT_OF_MEMORY:
+        return sc_fail(err, SC_ENOMEM, "%s: out of memory", what);
+    case CHOLMOD_TOO_LARGE:
+        return sc_fail(err, SC_ENOMEM, "%s: problem too large", what);
+    case CHOLMOD_NOT_INSTALLED:
+        return sc_fail(err, SC_EINPUT, "%s: a CHOLMOD method is not installed", what);
+    case CHOLMOD_INVALID:
+        return sc_fail(err, SC_EINPUT, "%s: invalid input", what);
+    default:
+        return sc_fail(err, SC_EINPUT, "%s failed (CHOLMOD status %d)", what, c->status);
+    }
+}
+
+static void setup_common(cholmod_common *c, const sc_sparse_options *opt) {
+    cholmod_start(c);
+    c->print = 0;
+    c->error_handler = NULL;
+    sc_sparse_options o = {0};
+    if (opt) o = *opt;
+    c->supernodal = o.kind == SC_SPARSE_SIMPLICIAL ? CHOLMOD_SIMPLICIAL
+                  : o.kind == SC_SPARSE_AUTO      ? CHOLMOD_AUTO
+                                                  : CHOLMOD_SUPERNODAL;
+    switch (o.ordering) {
+    case SC_SPARSE_ORDER_AMD:
+        c->nmethods = 1, c->method[0].ordering = CHOLMOD_AMD, c->postorder = 1;
+        break;
+    case SC_SPARSE_ORDER_METIS:
+        c->nmethods = 1, c->method[0].ordering = CHOLMOD_METIS, c->postorder = 1;
+        break;
+    case SC_SPARSE_ORDER_NATURAL:
+        c->nmethods = 1, c->method[0].ordering = CHOLMOD_NATURAL, c->postorder = 0;
+        break;
+    default:
+        break;
+    }
+}
+
+int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt, sc_sparse_chol **out,
+                          sc_error *err) {
+    *out = NULL;
+    if (!a || a->n <= 0) return sc_fail(err, SC_EINPUT, "factorisation of an empty matrix");
+    sc_sparse_chol *f = calloc(1, sizeof *f);
+    if (!f) return sc_fail(err, SC_ENOMEM, "out of memory");
+    setup_common(&f->common, opt);
+    f->n = a->n;
+    cholmod_sparse A;
+    header(a, &A);
+    f->L = cholmod_analyze(&A, &f->common);
+    if (!f->L) {
+        int rc = cholmod_status_error(&f->common, "sparse analysis", err);
+        sc_sparse_chol_free(f);
+        return rc;
+    }
+    int ok = cholmod_factorize(&A, f->L, &f->common);
+    if (!ok || f->common.status < CHOLMOD_OK) {
+        int rc = cholmod_status_error(&f->common, "sparse factorisation", err);
+        sc_sparse_chol_free(f);
+        return rc;
+    }
+    if (f->common.status == CHOLMOD_NOT_POSDEF || f->L->minor < f->L->n) {
+        int rc = sc_fail(err, SC_EINPUT,
+                         "sparse factorisation: the matrix is not positive definite "
+                         "(stopped at column %zu of %d)",
+                         (size_t)f->L->minor, (int)a->n);
+        sc_sparse_chol_free(f);
+        return rc;
+    }
+    f->stats.factor_nnz = f->common.lnz;
+    f->stats.flops = f->common.fl;
+    f->stats.ordering_used = f->L->ordering;
+    f->stats.supernodal = f->L->is_super != 0;
+    f->stats.peak_bytes = (double)f->common.memory_usage;
+    *out = f;
+    return SC_OK;
+}
+
+int sc_sparse_chol_solve(sc_sparse_chol *f, int32_t nrhs, double *b, sc_error *err) {
+    if (nrhs <= 0) return SC_OK;
+    cholmod_dense B;
+    memset(&B, 0, sizeof B);
+    B.nrow = (size_t)f->n;
+    B.ncol = (size_t)nrhs;
+    B.nzmax = B.nrow * B.ncol;
+    B.d = B.nrow;
+    B.x = b;
+    B.xtype = CHOLMOD_REAL;
+    B.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense *X = cholmod_solve(CHOLMOD_A, f->L, &B, &f->common);
+    if (!X) return cholmod_status_error(&f->common, "sparse solve", err);
+    memcpy(b, X->x, B.nzmax * sizeof(double));
+    cholmod_free_dense(&X, &f->common);
+    if ((double)f->common.memory_usage > f->stats.peak_bytes)
+        f->stats.peak_bytes = (double)f->common.memory_usage;
+    return SC_OK;
+}
+
+void sc_sparse_chol_stats(const sc_sparse_chol *f, sc_sparse_stats *out) { *out = f->stats; }
+
+void sc_sparse_chol_free(sc_sparse_chol *f) {
+    if (!f) return;
+    if (f->L) cholmod_free_factor(&f->L, &f->common);
+    cholmod_finish(&f->common);
+    free(f);
+}
+
+int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count, sc_error *err) {
+    *count = 0;
+    if (!a || a->n <= 0) return SC_OK;
+    cholmod_common c;
+    sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_SIMPLICIAL};
+    setup_common(&c, &opt);
+    c.final_ll = 0;           /* keep L D L^T: D carries the inertia */
+    c.final_super = 0;
+    cholmod_sparse A;
+    header(a, &A);
+    cholmod_factor *L = cholmod_analyze(&A, &c);
+    if (!L) {
+        int rc = cholmod_status_error(&c, "inertia analysis", err);
+        cholmod_finish(&c);
+        return rc;
+    }
+    double beta[2] = {-shift, 0};
+    int ok = cholmod_factorize_p(&A, beta, NULL, 0, L, &c);
+    int rc = SC_OK;
+    if (!ok || c.status < CHOLMOD_OK) {
+        rc = cholmod_status_error(&c, "inertia factorisation", err);
+    } else if (L->minor < L->n || L->is_ll || L->is_super) {
+        rc = sc_fail(err, SC_EINPUT, "inertia factorisation broke down at column %zu",
+                     (size_t)L->minor);
+    } else {
+        const int *Lp = L->p;
+        const double *Lx = L->x;
+        int64_t neg = 0;
+        for (size_t j = 0; j < L->n; j++)
+            if (Lx[Lp[j]] < 0) neg++;
+        *count = neg;
+    }
+    cholmod_free_factor(&L, &c);
+    cholmod_finish(&c);
+    return rc;
+}

@@ -1,0 +1,121 @@
+/* sc_sparse.h - symmetric sparse matrices and their Cholesky solves (CHOLMOD).
+ *
+ *   sc_triplets   (row, col, value) entries of a symmetric matrix, any order,
+ *                 duplicates allowed (they are summed); only the upper
+ *                 triangle is kept (an entry below the diagonal is mirrored).
+ *   sc_sparse     the assembled matrix: upper triangle in compressed sparse
+ *                 columns (CSC), rows sorted within each column, duplicates
+ *                 summed in the order they were added (so the same triplets
+ *                 always give the same bits).
+ *   sc_sparse_chol  a Cholesky factorisation A = L L^T (CHOLMOD, supernodal by
+ *                 default): analyse once, factor, then solve any number of
+ *                 right-hand sides at once.
+ *
+ * Errors are sc_error values; "not positive definite" names the column where
+ * the factorisation stopped. Nothing here prints.
+ */
+#ifndef SC_SPARSE_H
+#define SC_SPARSE_H
+
+#include "sc_base.h"
+
+/* ---------------------------------------------------------------- triplets */
+
+typedef struct sc_triplets {
+    int32_t n;              /* matrix size (n x n) */
+    size_t count, cap;
+    int32_t *row, *col;
+    double *val;
+    bool failed;            /* an allocation failed; adds are then ignored */
+} sc_triplets;
+
+void sc_triplets_init(sc_triplets *t, int32_t n);
+void sc_triplets_free(sc_triplets *t);
+/* Make room for `extra` more entries (returns false when out of memory). */
+bool sc_triplets_reserve(sc_triplets *t, size_t extra);
+/* Add value at (i, j); (j, i) is the same entry of the symmetric matrix. */
+void sc_triplets_add(sc_triplets *t, int32_t i, int32_t j, double v);
+/* Append all entries of src (in order). */
+void sc_triplets_append(sc_triplets *t, const sc_triplets *src);
+
+/* ---------------------------------------------------------------- matrices */
+
+typedef struct sc_sparse {
+    int32_t n;
+    int64_t nnz;
+    int32_t *colptr;        /* n + 1 */
+    int32_t *rowind;        /* nnz, rows <= column, increasing within a column */
+    double *val;            /* nnz */
+} sc_sparse;
+
+/* Assemble triplets into an upper-triangular CSC matrix. Entries with equal
+ * (row, col) are summed in the order they were added. Fails with SC_EINPUT on
+ * an index out of range and SC_ENOMEM when out of memory. */
+int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err);
+void sc_sparse_free(sc_sparse *a);
+
+/* C = alpha A + beta B (same size; the union of both patterns). */
+int sc_sparse_add(const sc_sparse *a, double alpha, const sc_sparse *b, double beta, sc_sparse *c,
+                  sc_error *err);
+
+/* The principal submatrix on rows/columns with keep[i] >= 0, renumbered
+ * keep[i] (keep maps old index -> new index in [0, count), increasing). */
+int sc_sparse_submatrix(const sc_sparse *a, const int32_t *keep, int32_t count, sc_sparse *out,
+                        sc_error *err);
+
+/* y = A x for the symmetric A (x, y of length n; y is overwritten). */
+void sc_sparse_symv(const sc_sparse *a, const double *x, double *y);
+/* x^T A x. */
+double sc_sparse_quadform(const sc_sparse *a, const double *x);
+/* Diagonal entry A(i, i) (0 when not stored). */
+double sc_sparse_diag(const sc_sparse *a, int32_t i);
+
+/* ---------------------------------------------------------------- Cholesky */
+
+typedef enum sc_sparse_ordering {
+    SC_SPARSE_ORDER_DEFAULT = 0,   /* CHOLMOD's choice (AMD, METIS when AMD fills badly) */
+    SC_SPARSE_ORDER_AMD = 1,
+    SC_SPARSE_ORDER_METIS = 2,
+    SC_SPARSE_ORDER_NATURAL = 3,
+} sc_sparse_ordering;
+
+typedef enum sc_sparse_kind {
+    SC_SPARSE_SUPERNODAL = 0,      /* supernodal L L^T (BLAS level 3) */
+    SC_SPARSE_SIMPLICIAL = 1,      /* simplicial L L^T */
+    SC_SPARSE_AUTO = 2,            /* CHOLMOD picks from the flop count */
+} sc_sparse_kind;
+
+typedef struct sc_sparse_options {
+    sc_sparse_ordering ordering;
+    sc_sparse_kind kind;
+} sc_sparse_options;
+
+typedef struct sc_sparse_stats {
+    double factor_nnz;             /* entries of L */
+    double flops;                  /* floating point operations of the factorisation */
+    double peak_bytes;             /* CHOLMOD's peak memory */
+    int ordering_used;             /* CHOLMOD ordering code */
+    bool supernodal;
+} sc_sparse_stats;
+
+typedef struct sc_sparse_chol sc_sparse_chol;
+
+/* Analyse and factor A (n x n, symmetric positive definite). opt may be NULL
+ * for the defaults. On failure *out is NULL and err says why. */
+int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt,
+                          sc_sparse_chol **out, sc_error *err);
+/* Solve A X = B for nrhs right-hand sides at once: b holds n x nrhs values,
+ * column-major (one column per right-hand side), and is overwritten by X. */
+int sc_sparse_chol_solve(sc_sparse_chol *f, int32_t nrhs, double *b, sc_error *err);
+void sc_sparse_chol_stats(const sc_sparse_chol *f, sc_sparse_stats *out);
+void sc_sparse_chol_free(sc_sparse_chol *f);
+
+/* Inertia count: the number of eigenvalues of the symmetric A that are below
+ * `shift` (Sylvester's law on an LDL^T factorisation of A - shift I). Used to
+ * measure numerical null spaces (nullity = eigenvalues below a tolerance). */
+int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count, sc_error *err);
+
+/* An upper bound of the largest |eigenvalue| (largest absolute row sum). */
+double sc_sparse_norm_bound(const sc_sparse *a);
+
+#endif

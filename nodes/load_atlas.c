@@ -1,0 +1,495 @@
+/* load_atlas.c - the node `load_atlas`: a textured mesh from an OBJ or glTF file.
+ *
+ * Design note. The node is glue around three readers that never touch the
+ * file system themselves (sc_obj, sc_gltf, sc_imageio): every file it needs,
+ * the model, an MTL, a glTF buffer, each texture, goes through
+ * sc_ctx_read_file, so the cache records exactly which bytes the atlas came
+ * from. The parser is picked by extension (.obj, .gltf, .glb). Textures are
+ * gathered as (material, slot, file) references first; each distinct file is
+ * read once (in reference order, on the calling thread, as the context is not
+ * thread-safe) and then decoded, in parallel up to sc_ctx_threads, into one
+ * IMAGE value that every reference to it shares. Results never depend on the
+ * thread count: each decode is independent, and the first failure in
+ * reference order is the one reported.
+ *
+ * Slots: "color" and "emissive" are colour (sRGB when 8/16-bit); "normal",
+ * "occlusion" and "metallic_roughness" are data, and their images are tagged
+ * SC_COLOR_DATA so no later step applies a transfer curve to them.
+ *
+ * Metrics: the mesh's counts, seam and boundary edges (meshstats.py's
+ * definitions: an edge of two or more faces is a seam when its faces do not
+ * all use the same pair of uv indices at its endpoints; a boundary edge has
+ * one face), what the readers repaired, and the time spent parsing and
+ * decoding (report only, never in the output value).
+ */
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "sc_gltf.h"
+#include "sc_imageio.h"
+#include "sc_nodes.h"
+#include "sc_obj.h"
+
+#define MAX_MODEL_BYTES ((size_t)2 << 30)
+#define MAX_IMAGE_BYTES ((size_t)1 << 30)
+
+static const char *const slot_names[] = {"color", "normal", "emissive", "occlusion",
+                                         "metallic_roughness"};
+#define NSLOTS ((int)(sizeof slot_names / sizeof slot_names[0]))
+
+static int slot_index(const char *name, size_t len) {
+    for (int s = 0; s < NSLOTS; s++)
+        if (strlen(slot_names[s]) == len && strncmp(slot_names[s], name, len) == 0) return s;
+    return -1;
+}
+
+static bool slot_is_colour(int slot) { return slot == 0 || slot == 2; }
+
+/* ---------------------------------------------------------------- file access */
+
+typedef struct file_reader {
+    sc_ctx *ctx;
+    const char *dir;   /* the model's directory */
+} file_reader;
+
+static char *resolve(const char *dir, const char *rel) {
+    return strcmp(dir, ".") == 0 ? sc_strdup(rel) : sc_path_join(dir, rel);
+}
+
+static int read_beside_model(void *ud, const char *rel, sc_buf *out, sc_error *err) {
+    file_reader *fr = ud;
+    char *path = resolve(fr->dir, rel);
+    if (!path) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = sc_ctx_read_file(fr->ctx, path, MAX_MODEL_BYTES, out, err);
+    free(path);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- texture references */
+
+typedef struct texref {
+    int32_t material;
+    int slot;
+    char *path;              /* file to read (resolved), or NULL when embedded */
+    const uint8_t *data;     /* embedded bytes (owned by the parse result) */
+    size_t size;
+    sc_wrap wrap_u, wrap_v;
+    char *origin;            /* who names it, for messages: "a.mtl:12", "a.gltf" */
+    int job;                 /* index into the decode jobs */
+} texref;
+
+typedef struct decode_job {
+    const char *path;        /* borrowed from the first texref */
+    const uint8_t *data;     /* embedded, or the bytes read */
+    size_t size;
+    sc_colorspace colorspace;
+    sc_buf bytes;
+    sc_image_data *image;
+    sc_value *value;
+    int rc;
+    sc_error err;
+} decode_job;
+
+typedef struct loaded {
+    sc_mesh *mesh;           /* owned until wrapped */
+    texref *refs;
+    int nrefs;
+    sc_obj obj;
+    sc_gltf gltf;
+    decode_job *jobs;
+    int njobs;
+} loaded;
+
+static void loaded_free(loaded *l) {
+    for (int i = 0; i < l->nrefs; i++) free(l->refs[i].path), free(l->refs[i].origin);
+    free(l->refs);
+    for (int i = 0; i < l->njobs; i++) {
+        sc_buf_free(&l->jobs[i].bytes);
+        sc_image_free(l->jobs[i].image);
+        sc_value_release(l->jobs[i].value);
+    }
+    free(l->jobs);
+    sc_mesh_free(l->mesh);
+    sc_obj_free(&l->obj);
+    sc_gltf_free(&l->gltf);
+}
+
+static int add_ref(loaded *l, int32_t material, int slot, char *path, const uint8_t *data,
+                   size_t size, sc_wrap wu, sc_wrap wv, char *origin, sc_error *err) {
+    texref *r = realloc(l->refs, sizeof *r * (size_t)(l->nrefs + 1));
+    if (!r || !origin || (!path && !data)) {
+        free(path), free(origin);
+        if (r) l->refs = r;
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    l->refs = r;
+    r += l->nrefs++;
+    r->material = material, r->slot = slot;
+    r->path = path, r->data = data, r->size = size;
+    r->wrap_u = wu, r->wrap_v = wv;
+    r->origin = origin;
+    r->job = -1;
+    return SC_OK;
+}
+
+/* Which slots the `slots` parameter asks for. */
+static int parse_slots(const char *text, bool wanted[NSLOTS], sc_error *err) {
+    bool all = strcmp(text, "all") == 0;
+    for (int s = 0; s < NSLOTS; s++) wanted[s] = all;
+    if (all) return SC_OK;
+    for (const char *p = text; *p;) {
+        while (*p == ',' || *p == ' ') p++;
+        size_t n = 0;
+        while (p[n] && p[n] != ',' && p[n] != ' ') n++;
+        if (!n) break;
+        int s = slot_index(p, n);
+        if (s < 0)
+            return sc_fail(err, SC_EINPUT,
+                           "slots: unknown slot '%.*s' (known: all, color, normal, emissive, "
+                           "occlusion, metallic_roughness)",
+                           (int)n, p);
+        wanted[s] = true;
+        p += n;
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- parsing */
+
+static int load_obj(sc_ctx *ctx, const char *path, const char *dir, const sc_buf *bytes,
+                    const bool wanted[NSLOTS], loaded *l, sc_error *err) {
+    file_reader fr = {ctx, dir};
+    int rc = sc_obj_parse(path, bytes->data, bytes->len, read_beside_model, &fr, &l->obj, err);
+    if (rc) return rc;
+    l->mesh = l->obj.mesh;
+    l->obj.mesh = NULL;
+    for (int32_t i = 0; i < l->obj.nmaps; i++) {
+        const sc_obj_map *m = &l->obj.maps[i];
+        int slot = slot_index(m->slot, strlen(m->slot));
+        if (slot < 0 || !wanted[slot]) continue;
+        char *mtl_path = resolve(dir, m->mtl);
+        char *origin = mtl_path ? sc_strprintf("%s:%d", mtl_path, m->line) : NULL;
+        free(mtl_path);
+        if ((rc = add_ref(l, m->material, slot, resolve(dir, m->path), NULL, 0, SC_WRAP_REPEAT,
+                          SC_WRAP_REPEAT, origin, err)))
+            return rc;
+    }
+    sc_ctx_metric(ctx, "polygons_triangulated", (double)l->obj.polygons);
+    sc_ctx_metric(ctx, "unreferenced_dropped", (double)l->obj.unreferenced_dropped);
+    return SC_OK;
+}
+
+static int load_gltf(sc_ctx *ctx, const char *path, const char *dir, const sc_buf *bytes,
+                     const bool wanted[NSLOTS], loaded *l, sc_error *err) {
+    file_reader fr = {ctx, dir};
+    int rc = sc_gltf_parse(path, bytes->data, bytes->len, read_beside_model, &fr, &l->gltf, err);
+    if (rc) return rc;
+    l->mesh = l->gltf.mesh;
+    l->gltf.mesh = NULL;
+    for (int32_t i = 0; i < l->gltf.ntextures; i++) {
+        const sc_gltf_texture *t = &l->gltf.textures[i];
+        const sc_gltf_image *im = &l->gltf.images[t->image];
+        int slot = slot_index(t->slot, strlen(t->slot));
+        if (slot < 0 || !wanted[slot]) continue;
+        char *file = im->path ? resolve(dir, im->path) : NULL;
+        if ((rc = add_ref(l, t->material, slot, file, im->data, im->size, t->wrap_u, t->wrap_v,
+                          sc_strprintf("%s: image %d", path, im->index), err)))
+            return rc;
+    }
+    sc_ctx_metric(ctx, "primitives_skipped", (double)l->gltf.primitives_skipped);
+    sc_ctx_metric(ctx, "textures_skipped", (double)l->gltf.textures_skipped);
+    return SC_OK;
+}
+
+/* The `texture` parameter replaces every material's colour texture. */
+static int apply_texture_override(const char *texture, const sc_mesh *mesh, loaded *l,
+                                  sc_error *err) {
+    for (int32_t m = 0; m < mesh->nmat; m++) {
+        sc_wrap wu = SC_WRAP_REPEAT, wv = SC_WRAP_REPEAT;
+        int found = -1;
+        for (int i = 0; i < l->nrefs; i++)
+            if (l->refs[i].material == m && l->refs[i].slot == 0) found = i;
+        if (found >= 0) {
+            texref *r = &l->refs[found];
+            wu = r->wrap_u, wv = r->wrap_v;
+            free(r->path), free(r->origin);
+            r->path = sc_strdup(texture);
+            r->origin = sc_strdup("texture");
+            r->data = NULL;
+            if (!r->path || !r->origin) return sc_fail(err, SC_ENOMEM, "out of memory");
+            continue;
+        }
+        int rc = add_ref(l, m, 0, sc_strdup(texture), NULL, 0, wu, wv, sc_strdup("texture"), err);
+        if (rc) return rc;
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- decoding */
+
+typedef struct decode_pool {
+    decode_job *jobs;
+    int njobs;
+    int next;
+    pthread_mutex_t lock;
+} decode_pool;
+
+static void decode_one(decode_job *j) {
+    j->rc = sc_image_decode(j->path ? j->path : "embedded image", j->data, j->size, &j->image, &j->err);
+    if (j->rc == SC_OK && j->colorspace == SC_COLOR_DATA) j->image->colorspace = SC_COLOR_DATA;
+}
+
+static void *decode_worker(void *ud) {
+    decode_pool *pool = ud;
+    for (;;) {
+        pthread_mutex_lock(&pool->lock);
+        int k = pool->next++;
+        pthread_mutex_unlock(&pool->lock);
+        if (k >= pool->njobs) return NULL;
+        decode_one(&pool->jobs[k]);
+    }
+}
+
+static void decode_all(decode_job *jobs, int njobs, int threads) {
+    decode_pool pool = {jobs, njobs, 0, PTHREAD_MUTEX_INITIALIZER};
+    if (threads > njobs) threads = njobs;
+    pthread_t tid[16];
+    if (threads > 16) threads = 16;
+    int started = 0;
+    for (int i = 1; i < threads; i++)
+        if (pthread_create(&tid[started], NULL, decode_worker, &pool) == 0) started++;
+    decode_worker(&pool);
+    for (int i = 0; i < started; i++) pthread_join(tid[i], NULL);
+}
+
+static const char *material_name(const sc_mesh *m, int32_t k) {
+    return (k >= 0 && k < m->nmat && m->materials[k]) ? m->materials[k] : "?";
+}
+
+/* Read every distinct texture file, then decode them. */
+static int load_textures(sc_ctx *ctx, loaded *l, sc_error *err) {
+    l->jobs = calloc((size_t)l->nrefs + 1, sizeof *l->jobs);
+    if (!l->jobs) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int i = 0; i < l->nrefs; i++) {
+        texref *r = &l->refs[i];
+        sc_colorspace cs = slot_is_colour(r->slot) ? SC_COLOR_SRGB : SC_COLOR_DATA;
+        for (int k = 0; k < l->njobs && r->job < 0; k++) {
+            decode_job *j = &l->jobs[k];
+            bool same = r->path ? (j->path && strcmp(j->path, r->path) == 0)
+                                : (!j->path && j->data == r->data);
+            if (same && j->colorspace == cs) r->job = k;
+        }
+        if (r->job >= 0) continue;
+        decode_job *j = &l->jobs[l->njobs];
+        j->path = r->path;
+        j->colorspace = cs;
+        sc_buf_init(&j->bytes);
+        if (r->path) {
+            int rc = sc_ctx_read_file(ctx, r->path, MAX_IMAGE_BYTES, &j->bytes, err);
+            if (rc != SC_OK) {
+                sc_error_prefix(err, "%s: material '%s': %s texture", r->origin,
+                                material_name(l->mesh, r->material), slot_names[r->slot]);
+                return rc;
+            }
+            j->data = j->bytes.data, j->size = j->bytes.len;
+        } else {
+            j->data = r->data, j->size = r->size;
+        }
+        r->job = l->njobs++;
+    }
+    decode_all(l->jobs, l->njobs, sc_ctx_threads(ctx));
+    for (int i = 0; i < l->nrefs; i++) {
+        texref *r = &l->refs[i];
+        decode_job *j = &l->jobs[r->job];
+        if (j->rc != SC_OK) {
+            *err = j->err;
+            return sc_error_prefix(err, "%s: material '%s': %s texture", r->origin,
+                                   material_name(l->mesh, r->material), slot_names[r->slot]);
+        }
+    }
+    for (int k = 0; k < l->njobs; k++) {
+        decode_job *j = &l->jobs[k];
+        sc_buf_free(&j->bytes);
+        j->value = sc_value_new_image(j->image);
+        j->image = NULL;
+        if (!j->value) return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- edges */
+
+typedef struct edge_slot {
+    int32_t lo, hi;      /* surface vertices, lo < hi; lo = -1: empty */
+    int32_t ulo, uhi;    /* uv indices at lo and hi of the first face */
+    int32_t faces;
+    bool seam;
+} edge_slot;
+
+typedef struct edge_counts {
+    int64_t edges, boundary, seams, nonmanifold;
+} edge_counts;
+
+static uint64_t edge_hash(int32_t a, int32_t b) {
+    uint64_t x = ((uint64_t)(uint32_t)a << 32) | (uint32_t)b;
+    x ^= x >> 33;
+    x *= 0xff51afd7ed558ccdull;
+    x ^= x >> 33;
+    return x;
+}
+
+static int count_edges(const sc_mesh *m, edge_counts *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    uint64_t n = 16;
+    while (n < (uint64_t)m->nf * 3 * 2) n *= 2;
+    edge_slot *t = sc_alloc_array((size_t)n, sizeof *t);
+    if (!t) return sc_fail(err, SC_ENOMEM, "out of memory for the edge table");
+    for (uint64_t i = 0; i < n; i++) t[i].lo = -1;
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int32_t a = m->FV[3 * f + k], b = m->FV[3 * f + (k + 1) % 3];
+            int32_t ua = m->FU[3 * f + k], ub = m->FU[3 * f + (k + 1) % 3];
+            int32_t lo = a < b ? a : b, hi = a < b ? b : a;
+            int32_t ulo = a < b ? ua : ub, uhi = a < b ? ub : ua;
+            uint64_t i = edge_hash(lo, hi) & (n - 1);
+            while (t[i].lo >= 0 && (t[i].lo != lo || t[i].hi != hi)) i = (i + 1) & (n - 1);
+            edge_slot *e = &t[i];
+            if (e->lo < 0) {
+                *e = (edge_slot){lo, hi, ulo, uhi, 0, false};
+                out->edges++;
+            } else if (e->ulo != ulo || e->uhi != uhi) {
+                e->seam = true;
+            }
+            e->faces++;
+        }
+    for (uint64_t i = 0; i < n; i++) {
+        if (t[i].lo < 0) continue;
+        if (t[i].faces == 1) out->boundary++;
+        if (t[i].faces > 2) out->nonmanifold++;
+        if (t[i].faces >= 2 && t[i].seam) out->seams++;
+    }
+    free(t);
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- the node */
+
+static bool has_extension(const char *path, const char *ext) {
+    size_t n = strlen(path), e = strlen(ext);
+    return n > e && strcasecmp(path + n - e, ext) == 0;
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    const char *path = sc_ctx_string(ctx, "path");
+    const char *texture = sc_ctx_string(ctx, "texture");
+    const char *wrap = sc_ctx_string(ctx, "wrap");
+    bool wanted[NSLOTS];
+    int rc = parse_slots(sc_ctx_string(ctx, "slots"), wanted, err);
+    if (rc) return rc;
+    bool is_obj = has_extension(path, ".obj");
+    bool is_gltf = has_extension(path, ".gltf") || has_extension(path, ".glb");
+    if (!is_obj && !is_gltf)
+        return sc_fail(err, SC_EINPUT, "path: %s: unknown model format (expected .obj, .gltf or .glb)", path);
+
+    double t0 = sc_now();
+    sc_buf bytes;
+    sc_buf_init(&bytes);
+    if ((rc = sc_ctx_read_file(ctx, path, MAX_MODEL_BYTES, &bytes, err))) return rc;
+    char *dir = sc_path_dirname(path);
+    loaded l;
+    memset(&l, 0, sizeof l);
+    if (!dir) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    else if (is_obj) rc = load_obj(ctx, path, dir, &bytes, wanted, &l, err);
+    else rc = load_gltf(ctx, path, dir, &bytes, wanted, &l, err);
+    sc_buf_free(&bytes);
+    free(dir);
+    if (rc == SC_OK && *texture) rc = apply_texture_override(texture, l.mesh, &l, err);
+    if (rc == SC_OK) rc = sc_mesh_check(l.mesh, err);
+    double t1 = sc_now();
+    if (rc == SC_OK) rc = load_textures(ctx, &l, err);
+    double t2 = sc_now();
+    edge_counts edges = {0};
+    if (rc == SC_OK) rc = count_edges(l.mesh, &edges, err);
+    if (rc != SC_OK) {
+        loaded_free(&l);
+        return rc;
+    }
+
+    const sc_mesh *mesh = l.mesh;
+    double faces = mesh->nf, vertices = mesh->nv, uvs = mesh->nu, materials = mesh->nmat;
+    sc_value *mesh_value = sc_value_new_mesh(l.mesh);
+    l.mesh = NULL;
+    sc_atlas *atlas = mesh_value ? sc_atlas_new(mesh_value) : NULL;
+    if (!atlas) {
+        loaded_free(&l);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    /* textures in material order, then slot order: the same atlas for any file order */
+    for (int32_t m = 0; m < (int32_t)materials && rc == SC_OK; m++)
+        for (int s = 0; s < NSLOTS && rc == SC_OK; s++)
+            for (int i = 0; i < l.nrefs && rc == SC_OK; i++) {
+                texref *r = &l.refs[i];
+                if (r->material != m || r->slot != s) continue;
+                sc_wrap wu = r->wrap_u, wv = r->wrap_v;
+                if (strcmp(wrap, "auto") != 0) {
+                    wu = wv = strcmp(wrap, "clamp") == 0    ? SC_WRAP_CLAMP
+                              : strcmp(wrap, "mirror") == 0 ? SC_WRAP_MIRROR
+                                                            : SC_WRAP_REPEAT;
+                }
+                const char *base = r->path ? strrchr(r->path, '/') : NULL;
+                const char *source = r->path ? (base ? base + 1 : r->path) : "";
+                rc = sc_atlas_add_texture(atlas, slot_names[s], m, wu, wv, source,
+                                          sc_value_retain(l.jobs[r->job].value));
+                break;   /* one texture per (material, slot) */
+            }
+    int32_t ntex = atlas->ntex;
+    sc_value *value = rc == SC_OK ? sc_value_new_atlas(atlas) : NULL;
+    if (rc != SC_OK) sc_atlas_free(atlas);
+    int64_t degenerate = l.obj.degenerate_faces_dropped + l.gltf.degenerate_faces_dropped;
+    loaded_free(&l);
+    if (!value) return sc_fail(err, SC_ENOMEM, "out of memory");
+    sc_ctx_set_output(ctx, "atlas", value);
+    sc_ctx_metric(ctx, "faces", faces);
+    sc_ctx_metric(ctx, "vertices", vertices);
+    sc_ctx_metric(ctx, "uv_vertices", uvs);
+    sc_ctx_metric(ctx, "materials", materials);
+    sc_ctx_metric(ctx, "textures", ntex);
+    sc_ctx_metric(ctx, "seam_edges", (double)edges.seams);
+    sc_ctx_metric(ctx, "boundary_edges", (double)edges.boundary);
+    sc_ctx_metric(ctx, "nonmanifold_edges", (double)edges.nonmanifold);
+    sc_ctx_metric(ctx, "degenerate_faces_dropped", (double)degenerate);
+    sc_ctx_metric(ctx, "seconds_parse", t1 - t0);
+    sc_ctx_metric(ctx, "seconds_decode", t2 - t1);
+    return SC_OK;
+}
+
+static const char *const wrap_choices[] = {"auto", "repeat", "clamp", "mirror", NULL};
+
+static const sc_param_desc params[] = {
+    {.name = "path", .type = SC_PARAM_PATH, .required = true,
+     .doc = "the model: .obj (with its MTL), .gltf or .glb"},
+    {.name = "texture", .type = SC_PARAM_PATH, .def_string = "",
+     .doc = "when given, this image is the colour texture of every material"},
+    {.name = "wrap", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = wrap_choices,
+     .doc = "texture wrap mode; auto: what the file says (OBJ: repeat, glTF: the sampler)"},
+    {.name = "slots", .type = SC_PARAM_STRING, .def_string = "all",
+     .doc = "texture slots to load, comma-separated (color, normal, emissive, occlusion, "
+            "metallic_roughness), or all"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the mesh and its textures"},
+};
+
+const sc_node_desc sc_node_load_atlas = {
+    .type = "load_atlas",
+    .version = 1,
+    .summary = "load a textured mesh (OBJ + MTL, glTF 2.0) and its textures",
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+};

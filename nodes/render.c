@@ -1,0 +1,1514 @@
+/* render.c - the node `render`: draws every LOD headless in every mode and
+ * proves, on the pictures and on the GPU's own numbers, that nothing cracks.
+ *
+ * Design note.
+ *  - Context: one EGL/OpenGL 4.5 core context per run (sc_gl), made current
+ *    on the calling worker thread and destroyed before returning, so runs on
+ *    several threads never share GL state. Mesa's llvmpipe renders the same
+ *    bytes for the same inputs, so the pictures are part of the output value.
+ *  - Modes (a "pass" is one mode at one tessellation level):
+ *      textured        base positions, colour texture, lit;
+ *      geometry_image  positions fetched in the vertex stage from the texture
+ *                      slot "geometry_image" at each vertex's uv;
+ *      displaced       base position + slot "displacement" at the vertex uv;
+ *      tessellated<L>  TCS/TES at uniform level L (tess_levels), the TES
+ *                      sampling the geometry image (or, without one, adding
+ *                      the displacement) at every generated vertex.
+ *    Every pass colours with the "color" slot when the material has one. A
+ *    mode whose texture a material lacks is skipped, with the metric
+ *    lod<k>.<mode>.skipped = 1. All sampling is bilinear without mipmaps, in
+ *    the wrap mode of each texture, with design.md's texel convention (which
+ *    is GL's: uvs go to the GPU untouched and images go up bottom row first).
+ *  - Seam gap, "what the hardware really computed": per pass, every seam edge
+ *    (sc_seam_find) is evaluated on both of its sides and captured with
+ *    transform feedback. Untessellated passes: seam_points points per side at
+ *    the same parameters t, each placed by seam_vs.glsl with the very
+ *    function (sc_surface) the render's vertex stage uses, with that side's
+ *    uvs; t = 0 and 1 are the vertices themselves. Tessellated passes: the
+ *    faces along seams are drawn as patches through the render program itself
+ *    with rasterisation off; the TES outputs (position, tessellation
+ *    coordinate, patch) are sorted onto their seam sides and each point is
+ *    paired with the other side's point of nearest edge parameter. The gap is
+ *    the largest distance between paired points over the level's
+ *    bounding-box diagonal; max_vertex_gap is the same at t = 0 and 1 only.
+ *  - Crack pixels: front faces shaded, back faces pure red, no culling; the
+ *    alpha channel tells background (0), front (1) and back faces (1/2)
+ *    apart, so a red texture never counts. A closed mesh (no boundary, no non-manifold edge) shows back
+ *    faces only through cracks - except on the silhouette, where a nearly
+ *    edge-on front face can lose a pixel to the back face folded under it
+ *    (seen on the closed procedural sphere: 1 pixel in 10 views at 512^2).
+ *    So a back-face pixel next to the background (3 x 3) is not counted; a
+ *    crack runs between front faces and shows in the other views. For an open mesh, the `reference` mesh is
+ *    drawn from the same views and a back-face pixel counts only when no
+ *    back face of the reference lies within 2 pixels of it (silhouettes of
+ *    holes move a little between LODs). Without a reference, every back-face
+ *    pixel of an open mesh counts.
+ *  - Views: orthographic, all framing one bounding sphere (the union of every
+ *    level and the reference), so a view is the same camera for every LOD,
+ *    mode and the reference. 6 axis views (posx ... negz), then the cube's
+ *    corners (obl0 ... obl7), then a Fibonacci sphere. Depth clamping keeps
+ *    displaced geometry from being cut open by the near or far plane.
+ *  - Output: a REPORT with render/lod<k>_<pass>_<view>.png, one contact sheet
+ *    render/lod<k>_sheet.png per LOD (rows: passes in order, columns: views),
+ *    render/reference_<view>.png when a reference is given, and the
+ *    deterministic metrics. Timings are node metrics only (seconds_*), never
+ *    part of the value.
+ *  - Limits: max_crack_pixels bounds lod<k>.<pass>.crack_pixels (the sum over
+ *    views) and max_seam_gap bounds lod<k>.<pass>.max_seam_gap; the first
+ *    pass over a limit fails the node with the LOD, the mode and the view.
+ */
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_gl.h"
+#include "sc_imageio.h"
+#include "sc_nodes.h"
+#include "sc_seam.h"
+#include "sc_shaders.h"
+
+#define MAX_TESS_LEVELS 16
+#define MAX_PASSES (3 + MAX_TESS_LEVELS)
+#define REFERENCE_SLACK 2      /* pixels of tolerance around reference back faces */
+#define SHEET_THUMB 128        /* contact-sheet thumbnails are at most this wide */
+#define SHEET_GAP 2
+#define EDGE_COORD_EPS 1e-6f   /* a tessellation coordinate this small is on an edge */
+
+enum { POS_BASE = 0, POS_GEOMETRY = 1, POS_DISPLACED = 2 };
+enum { MODE_TEXTURED, MODE_GEOMETRY, MODE_DISPLACED, MODE_TESSELLATED, MODE_COUNT };
+static const char *const mode_names[MODE_COUNT] = {"textured", "geometry_image", "displaced",
+                                                   "tessellated"};
+
+static const uint8_t background[3] = {38, 42, 48};
+
+typedef struct pass {
+    int mode;          /* MODE_* */
+    int pos;           /* POS_* */
+    int level;         /* tessellation level, 0 for none */
+    char name[32];     /* "textured", "tessellated4" */
+} pass;
+
+typedef struct view {
+    char name[16];
+    float view_proj[16];   /* column-major */
+    float light[3], eye[3];
+} view;
+
+/* Textures of one material, as bound for a draw. */
+typedef struct material_gl {
+    GLuint color, geometry, displacement;
+    GLuint color_sampler, geometry_sampler, displacement_sampler;
+} material_gl;
+
+typedef struct group {
+    int32_t material, first, count;   /* in vertices (corners) */
+} group;
+
+/* Where a seam side sits in its face. */
+typedef struct seam_corner {
+    int32_t k0, k1, k2;   /* corners of v0, v1 and the third vertex */
+} seam_corner;
+
+/* One level, uploaded. */
+typedef struct level_gl {
+    const sc_atlas *atlas;
+    const sc_mesh *mesh;
+    GLuint vbo, vao;
+    group *groups;
+    int32_t ngroups;
+    material_gl *materials;     /* mesh->nmat */
+    sc_seam_set seams;
+    seam_corner *corners;       /* 2 per seam edge */
+    bool closed;
+    double diag;
+} level_gl;
+
+typedef struct uploaded {
+    sc_digest digest;
+    GLuint texture;
+} uploaded;
+
+typedef struct renderer {
+    sc_gl *gl;
+    sc_gl_target target;
+    int32_t size;
+    GLuint programs[3][2];      /* [pos][tessellated] */
+    GLuint seam_programs[3];
+    GLuint samplers[3][3];      /* [wrap_u][wrap_v] */
+    uploaded *textures;
+    int32_t ntextures;
+    uint8_t *rgba, *flags;      /* size*size*4, size*size */
+    double t_render, t_gap;
+} renderer;
+
+/* The run's results and the report being built. */
+typedef struct encoder encoder;
+
+typedef struct outcome {
+    sc_ctx *ctx;
+    sc_report *report;
+    encoder *enc;
+    double crack_total, gap_max, vertex_gap_max;
+    int32_t renders, skipped;
+} outcome;
+
+/* ---------------------------------------------------------------- small helpers */
+
+static int metric(outcome *o, const char *name, double value) {
+    sc_ctx_metric(o->ctx, name, value);
+    return sc_report_metric(o->report, name, value);
+}
+
+static int metricf(outcome *o, double value, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static int metricf(outcome *o, double value, const char *fmt, ...) {
+    char name[160];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(name, sizeof name, fmt, ap);
+    va_end(ap);
+    return metric(o, name, value);
+}
+
+static double vlen(const double a[3]) { return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); }
+
+static void vnorm(double a[3]) {
+    double l = vlen(a);
+    if (l > 0) a[0] /= l, a[1] /= l, a[2] /= l;
+}
+
+static void vcross(const double a[3], const double b[3], double out[3]) {
+    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    memcpy(out, c, sizeof c);
+}
+
+static double vdot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void bbox_add(const sc_mesh *m, double lo[3], double hi[3]) {
+    for (int32_t i = 0; i < m->nv; i++)
+        for (int c = 0; c < 3; c++) {
+            double x = m->V[3 * i + c];
+            if (x < lo[c]) lo[c] = x;
+            if (x > hi[c]) hi[c] = x;
+        }
+}
+
+/* ---------------------------------------------------------------- params */
+
+static int parse_modes(const char *text, bool want[MODE_COUNT], sc_error *err) {
+    memset(want, 0, sizeof(bool) * MODE_COUNT);
+    int n = 0;
+    const char *p = text;
+    while (*p) {
+        while (*p == ' ' || *p == ',') p++;
+        if (!*p) break;
+        const char *end = p;
+        while (*end && *end != ',' && *end != ' ') end++;
+        size_t len = (size_t)(end - p);
+        int found = -1;
+        for (int m = 0; m < MODE_COUNT; m++)
+            if (strlen(mode_names[m]) == len && memcmp(mode_names[m], p, len) == 0) found = m;
+        if (found < 0)
+            return sc_fail(err, SC_EINPUT, "modes: unknown mode '%.*s' (known: textured, geometry_image, "
+                                           "displaced, tessellated)", (int)len, p);
+        want[found] = true;
+        n++;
+        p = end;
+    }
+    if (n == 0) return sc_fail(err, SC_EINPUT, "modes: no mode given");
+    return SC_OK;
+}
+
+static int parse_levels(sc_ctx *ctx, int *levels, int *nlevels, sc_error *err) {
+    int count = 0;
+    const double *x = sc_ctx_numbers(ctx, "tess_levels", &count);
+    *nlevels = 0;
+    if (count > MAX_TESS_LEVELS)
+        return sc_fail(err, SC_EINPUT, "tess_levels: %d levels, at most %d", count, MAX_TESS_LEVELS);
+    for (int i = 0; i < count; i++) {
+        if (x[i] != floor(x[i]) || x[i] < 1 || x[i] > 64)
+            return sc_fail(err, SC_EINPUT, "tess_levels: element %d (%g) is not an integer in [1, 64]", i + 1,
+                           x[i]);
+        for (int j = 0; j < *nlevels; j++)
+            if (levels[j] == (int)x[i])
+                return sc_fail(err, SC_EINPUT, "tess_levels: level %d is given twice", (int)x[i]);
+        levels[(*nlevels)++] = (int)x[i];
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- views */
+
+static void make_view(view *v, const char *name, const double dir_in[3], const double center[3],
+                      double radius) {
+    snprintf(v->name, sizeof v->name, "%s", name);
+    double d[3] = {dir_in[0], dir_in[1], dir_in[2]};
+    vnorm(d);
+    double up[3] = {0, 1, 0};
+    if (fabs(d[1]) > 0.99) up[0] = 0, up[1] = 0, up[2] = d[1] > 0 ? -1 : 1;
+    double f[3] = {-d[0], -d[1], -d[2]}, r[3], u[3];
+    vcross(f, up, r);
+    vnorm(r);
+    vcross(r, f, u);
+    double near = 0.5 * radius, far = 5.5 * radius, dist = 3.0 * radius;
+    double m[4][4] = {{0}};   /* row-major */
+    for (int c = 0; c < 3; c++) {
+        m[0][c] = r[c] / radius;
+        m[1][c] = u[c] / radius;
+        m[2][c] = 2.0 * f[c] / (far - near);
+    }
+    m[0][3] = -vdot(center, r) / radius;
+    m[1][3] = -vdot(center, u) / radius;
+    m[2][3] = 2.0 * (-vdot(center, f) + dist - near) / (far - near) - 1.0;
+    m[3][3] = 1.0;
+    for (int row = 0; row < 4; row++)
+        for (int col = 0; col < 4; col++) v->view_proj[col * 4 + row] = (float)m[row][col];
+    double light[3];
+    for (int c = 0; c < 3; c++) light[c] = d[c] + 0.6 * u[c] + 0.4 * r[c];
+    vnorm(light);
+    for (int c = 0; c < 3; c++) v->light[c] = (float)light[c], v->eye[c] = (float)d[c];
+}
+
+static void make_views(view *views, int n, const double center[3], double radius) {
+    static const double axis[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    static const char *const axis_names[6] = {"posx", "negx", "posy", "negy", "posz", "negz"};
+    static const double corner[8][3] = {{1, 1, 1},  {-1, 1, -1}, {1, -1, -1}, {-1, -1, 1},
+                                        {-1, 1, 1}, {1, 1, -1},  {-1, -1, -1}, {1, -1, 1}};
+    for (int i = 0; i < n; i++) {
+        char name[16];
+        if (i < 6) {
+            make_view(&views[i], axis_names[i], axis[i], center, radius);
+            continue;
+        }
+        snprintf(name, sizeof name, "obl%d", i - 6);
+        if (i < 14) {
+            make_view(&views[i], name, corner[i - 6], center, radius);
+            continue;
+        }
+        /* a Fibonacci sphere for the rest */
+        int k = i - 14, count = n - 14;
+        double z = 1.0 - (2.0 * k + 1.0) / count, rho = sqrt(fmax(0.0, 1.0 - z * z));
+        double phi = k * 2.399963229728653;
+        double dir[3] = {rho * cos(phi), z, rho * sin(phi)};
+        make_view(&views[i], name, dir, center, radius);
+    }
+}
+
+/* ---------------------------------------------------------------- GL objects */
+
+static int get_sampler(renderer *R, sc_wrap wu, sc_wrap wv, GLuint *out, sc_error *err) {
+    int a = (int)wu, b = (int)wv;
+    if (a < 0 || a > 2) a = 0;
+    if (b < 0 || b > 2) b = 0;
+    if (!R->samplers[a][b]) {
+        int rc = sc_gl_sampler((sc_wrap)a, (sc_wrap)b, &R->samplers[a][b], err);
+        if (rc != SC_OK) return rc;
+    }
+    *out = R->samplers[a][b];
+    return SC_OK;
+}
+
+static int get_texture(renderer *R, const sc_value *image, GLuint *out, sc_error *err) {
+    for (int32_t i = 0; i < R->ntextures; i++)
+        if (sc_digest_equal(&R->textures[i].digest, &image->digest)) {
+            *out = R->textures[i].texture;
+            return SC_OK;
+        }
+    uploaded *t = realloc(R->textures, sizeof *t * (size_t)(R->ntextures + 1));
+    if (!t) return sc_fail(err, SC_ENOMEM, "out of memory");
+    R->textures = t;
+    GLuint tex = 0;
+    int rc = sc_gl_texture(image->as.image, &tex, err);
+    if (rc != SC_OK) return rc;
+    t[R->ntextures].digest = image->digest;
+    t[R->ntextures].texture = tex;
+    R->ntextures++;
+    *out = tex;
+    return SC_OK;
+}
+
+static int build_program(renderer *R, int pos, bool tess, bool seam, GLuint *out, sc_error *err) {
+    static const char *const pos_defines[3] = {"#define SC_POS 0\n", "#define SC_POS 1\n", "#define SC_POS 2\n"};
+    const char *version = "#version 450 core\n";
+    const char *tess_define = tess ? "#define SC_TESS 1\n" : "";
+    const char *common = sc_shader_source("render_common.glsl");
+    const char *names[5] = {"render_vs.glsl", "render_tcs.glsl", "render_tes.glsl", "render_fs.glsl",
+                            "seam_vs.glsl"};
+    const char *src[5];
+    for (int i = 0; i < 5; i++) {
+        src[i] = sc_shader_source(names[i]);
+        if (!src[i] || !common)
+            return sc_fail(err, SC_EIO, "shader %s is not embedded in this build",
+                           !common ? "render_common.glsl" : names[i]);
+    }
+    sc_gl_stage stages[4];
+    int n = 0;
+    char label[64];
+    snprintf(label, sizeof label, "%s%s (%s)", seam ? "seam probe" : "render", tess ? ", tessellated" : "",
+             pos == POS_BASE ? "base" : pos == POS_GEOMETRY ? "geometry image" : "displacement");
+    if (seam) {
+        stages[n++] = (sc_gl_stage){GL_VERTEX_SHADER, names[4], {version, pos_defines[pos], common, src[4], NULL}};
+        const char *const feedback[] = {"f_pos"};
+        return sc_gl_program(label, stages, n, feedback, 1, out, err);
+    }
+    stages[n++] = (sc_gl_stage){GL_VERTEX_SHADER, names[0],
+                                {version, pos_defines[pos], tess_define, common, src[0], NULL}};
+    if (tess) {
+        stages[n++] = (sc_gl_stage){GL_TESS_CONTROL_SHADER, names[1],
+                                    {version, pos_defines[pos], tess_define, common, src[1], NULL}};
+        stages[n++] = (sc_gl_stage){GL_TESS_EVALUATION_SHADER, names[2],
+                                    {version, pos_defines[pos], tess_define, common, src[2], NULL}};
+    }
+    stages[n++] = (sc_gl_stage){GL_FRAGMENT_SHADER, names[3],
+                                {version, pos_defines[pos], tess_define, common, src[3], NULL}};
+    const char *const feedback[] = {"v_world", "f_coord", "f_patch"};
+    return sc_gl_program(label, stages, n, tess ? feedback : NULL, tess ? 3 : 0, out, err);
+}
+
+static int get_program(renderer *R, int pos, bool tess, GLuint *out, sc_error *err) {
+    if (!R->programs[pos][tess]) {
+        int rc = build_program(R, pos, tess, false, &R->programs[pos][tess], err);
+        if (rc != SC_OK) return rc;
+    }
+    *out = R->programs[pos][tess];
+    return SC_OK;
+}
+
+static int get_seam_program(renderer *R, int pos, GLuint *out, sc_error *err) {
+    if (!R->seam_programs[pos]) {
+        int rc = build_program(R, pos, false, true, &R->seam_programs[pos], err);
+        if (rc != SC_OK) return rc;
+    }
+    *out = R->seam_programs[pos];
+    return SC_OK;
+}
+
+static void renderer_free(renderer *R) {
+    if (!R->gl) return;
+    sc_gl_target_destroy(&R->target);
+    for (int p = 0; p < 3; p++) {
+        for (int t = 0; t < 2; t++)
+            if (R->programs[p][t]) glDeleteProgram(R->programs[p][t]);
+        if (R->seam_programs[p]) glDeleteProgram(R->seam_programs[p]);
+        for (int q = 0; q < 3; q++)
+            if (R->samplers[p][q]) glDeleteSamplers(1, &R->samplers[p][q]);
+    }
+    for (int32_t i = 0; i < R->ntextures; i++) glDeleteTextures(1, &R->textures[i].texture);
+    free(R->textures);
+    free(R->rgba);
+    free(R->flags);
+    sc_gl_close(R->gl);
+    memset(R, 0, sizeof *R);
+}
+
+/* ---------------------------------------------------------------- levels */
+
+static void level_free(level_gl *L) {
+    if (L->vao) glDeleteVertexArrays(1, &L->vao);
+    if (L->vbo) glDeleteBuffers(1, &L->vbo);
+    free(L->groups);
+    free(L->materials);
+    free(L->corners);
+    sc_seam_set_free(&L->seams);
+    memset(L, 0, sizeof *L);
+}
+
+/* Find the material's texture in `slot`, uploaded, with its sampler. */
+static int bind_slot(renderer *R, const sc_atlas *a, int32_t material, const char *slot, GLuint *tex,
+                     GLuint *sampler, sc_error *err) {
+    int i = sc_atlas_find_texture(a, material, slot);
+    if (i < 0) return SC_OK;
+    const sc_texture *t = &a->textures[i];
+    int rc = get_texture(R, t->image, tex, err);
+    if (rc == SC_OK) rc = get_sampler(R, t->wrap_u, t->wrap_v, sampler, err);
+    if (rc != SC_OK) return sc_error_prefix(err, "texture '%s' of material %d", slot, material);
+    return SC_OK;
+}
+
+static int level_upload(renderer *R, const sc_atlas *atlas, int k, level_gl *L, sc_error *err) {
+    memset(L, 0, sizeof *L);
+    L->atlas = atlas;
+    const sc_mesh *m = L->mesh = atlas->mesh->as.mesh;
+    if (m->nf < 1) return sc_fail(err, SC_EINPUT, "lods: level %d has no faces", k);
+    int rc = sc_mesh_check(m, err);
+    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    bbox_add(m, lo, hi);
+    double ext[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+    L->diag = vlen(ext);
+    if (!(L->diag > 0)) L->diag = 1;
+
+    /* faces grouped by material (stable), three corners each: x y z u v */
+    int32_t nmat = m->nmat;
+    int32_t *count = calloc((size_t)nmat + 1, sizeof *count);
+    float *data = sc_alloc_array((size_t)m->nf * 3, 5 * sizeof(float));
+    L->materials = calloc((size_t)nmat, sizeof *L->materials);
+    L->groups = calloc((size_t)nmat, sizeof *L->groups);
+    if (!count || !data || !L->materials || !L->groups) {
+        free(count);
+        free(data);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t f = 0; f < m->nf; f++) count[m->FM[f] + 1]++;
+    for (int32_t i = 0; i < nmat; i++) count[i + 1] += count[i];
+    for (int32_t i = 0; i < nmat; i++)
+        if (count[i + 1] > count[i])
+            L->groups[L->ngroups++] = (group){i, 3 * count[i], 3 * (count[i + 1] - count[i])};
+    for (int32_t f = 0; f < m->nf; f++) {
+        int32_t slot = count[m->FM[f]]++;
+        for (int c = 0; c < 3; c++) {
+            float *v = data + 5 * ((size_t)slot * 3 + c);
+            const double *p = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
+            v[0] = (float)p[0], v[1] = (float)p[1], v[2] = (float)p[2];
+            v[3] = (float)uv[0], v[4] = (float)uv[1];
+        }
+    }
+    free(count);
+    glGenVertexArrays(1, &L->vao);
+    glGenBuffers(1, &L->vbo);
+    glBindVertexArray(L->vao);
+    glBindBuffer(GL_ARRAY_BUFFER, L->vbo);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->nf * 3 * 5 * sizeof(float)), data, GL_STATIC_DRAW);
+    free(data);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)0);
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)(3 * sizeof(float)));
+    glBindVertexArray(0);
+    rc = sc_gl_check("uploading a mesh", err);
+    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+
+    for (int32_t i = 0; i < nmat && rc == SC_OK; i++) {
+        material_gl *mg = &L->materials[i];
+        rc = bind_slot(R, atlas, i, "color", &mg->color, &mg->color_sampler, err);
+        if (rc == SC_OK)
+            rc = bind_slot(R, atlas, i, "geometry_image", &mg->geometry, &mg->geometry_sampler, err);
+        if (rc == SC_OK)
+            rc = bind_slot(R, atlas, i, "displacement", &mg->displacement, &mg->displacement_sampler, err);
+    }
+    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+
+    rc = sc_seam_find(m, -1, &L->seams, err);
+    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+    L->closed = L->seams.nboundary == 0 && L->seams.nnonmanifold == 0;
+    L->corners = calloc((size_t)L->seams.nseams * 2 + 1, sizeof *L->corners);
+    if (!L->corners) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t e = 0; e < L->seams.nseams; e++)
+        for (int s = 0; s < 2; s++) {
+            const sc_seam_edge *se = &L->seams.seams[e];
+            const int32_t *fv = m->FV + 3 * se->side[s].face;
+            seam_corner *c = &L->corners[2 * e + s];
+            c->k0 = c->k1 = -1;
+            for (int q = 0; q < 3; q++) {
+                if (fv[q] == se->v0) c->k0 = q;
+                if (fv[q] == se->v1) c->k1 = q;
+            }
+            if (c->k0 < 0 || c->k1 < 0 || c->k0 == c->k1)
+                return sc_fail(err, SC_EINPUT, "lods: level %d: seam edge %d-%d is not an edge of face %d", k,
+                               se->v0, se->v1, se->side[s].face);
+            c->k2 = 3 - c->k0 - c->k1;
+        }
+    return SC_OK;
+}
+
+/* Whether every material with faces has the texture a position source needs. */
+static bool level_has(const level_gl *L, int pos) {
+    for (int32_t g = 0; g < L->ngroups; g++) {
+        const material_gl *mg = &L->materials[L->groups[g].material];
+        if (pos == POS_GEOMETRY && !mg->geometry) return false;
+        if (pos == POS_DISPLACED && !mg->displacement) return false;
+    }
+    return true;
+}
+
+/* A position texture must have three channels. */
+static int check_position_texture(const level_gl *L, int k, int pos, sc_error *err) {
+    const char *slot = pos == POS_GEOMETRY ? "geometry_image" : "displacement";
+    for (int32_t g = 0; g < L->ngroups; g++) {
+        int i = sc_atlas_find_texture(L->atlas, L->groups[g].material, slot);
+        if (i < 0) continue;
+        const sc_image_data *im = L->atlas->textures[i].image->as.image;
+        if (im->channels < 3)
+            return sc_fail(err, SC_EINPUT, "lods: level %d: texture '%s' has %d channel%s; it holds xyz and "
+                           "needs 3 or 4", k, slot, im->channels, im->channels == 1 ? "" : "s");
+    }
+    return SC_OK;
+}
+
+static void bind_material(const material_gl *mg, GLuint program) {
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, mg->color);
+    glBindSampler(0, mg->color_sampler);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, mg->geometry);
+    glBindSampler(1, mg->geometry_sampler);
+    glActiveTexture(GL_TEXTURE2);
+    glBindTexture(GL_TEXTURE_2D, mg->displacement);
+    glBindSampler(2, mg->displacement_sampler);
+    glActiveTexture(GL_TEXTURE0);
+    glUniform1i(glGetUniformLocation(program, "u_has_color"), mg->color != 0);
+}
+
+/* ---------------------------------------------------------------- drawing */
+
+/* Patches go to the GPU in draws of at most ~16k generated vertices:
+ * llvmpipe's tessellation slows down by orders of magnitude once one draw
+ * generates more than 64k vertices (blub at level 8 in one draw: 7 s a view;
+ * in draws of 237 patches: 0.25 s). The split changes nothing in the
+ * picture: every patch is tessellated on its own either way. */
+static void draw_patches(int32_t first, int32_t count, int level) {
+    int32_t per_patch = (level + 1) * (level + 2) / 2 + 3 * level;
+    int32_t chunk = 3 * (16384 / per_patch > 1 ? 16384 / per_patch : 1);
+    for (int32_t i = 0; i < count; i += chunk)
+        glDrawArrays(GL_PATCHES, first + i, count - i < chunk ? count - i : chunk);
+}
+
+static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, sc_error *err) {
+    GLuint program = 0;
+    int rc = get_program(R, ps->pos, ps->level > 0, &program, err);
+    if (rc != SC_OK) return rc;
+    glBindFramebuffer(GL_FRAMEBUFFER, R->target.fbo);
+    glViewport(0, 0, R->size, R->size);
+    const float bg[4] = {background[0] / 255.0f, background[1] / 255.0f, background[2] / 255.0f, 0.0f};
+    const float one = 1.0f;
+    glClearBufferfv(GL_COLOR, 0, bg);
+    glClearBufferfv(GL_DEPTH, 0, &one);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    glEnable(GL_DEPTH_CLAMP);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_BLEND);
+    glDisable(GL_RASTERIZER_DISCARD);
+    glUseProgram(program);
+    glUniformMatrix4fv(glGetUniformLocation(program, "u_view_proj"), 1, GL_FALSE, v->view_proj);
+    glUniform3fv(glGetUniformLocation(program, "u_light"), 1, v->light);
+    glUniform3fv(glGetUniformLocation(program, "u_eye_dir"), 1, v->eye);
+    glUniform1f(glGetUniformLocation(program, "u_back_bias"), 1e-5f);
+    if (ps->level > 0) {
+        glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
+        glUniform1i(glGetUniformLocation(program, "u_patch_base"), 0);
+        glPatchParameteri(GL_PATCH_VERTICES, 3);
+    }
+    glBindVertexArray(L->vao);
+    for (int32_t g = 0; g < L->ngroups; g++) {
+        bind_material(&L->materials[L->groups[g].material], program);
+        if (ps->level == 0) {
+            glDrawArrays(GL_TRIANGLES, L->groups[g].first, L->groups[g].count);
+            continue;
+        }
+        draw_patches(L->groups[g].first, L->groups[g].count, ps->level);
+    }
+    glBindVertexArray(0);
+    return sc_gl_check("drawing", err);
+}
+
+/* Read the picture back and sort its pixels by alpha: 0 background, 1 front
+ * face, 2 back face (render_fs.glsl writes alpha 0, 1 and 1/2). */
+static int read_target(renderer *R, sc_error *err) {
+    int rc = sc_gl_target_read(&R->target, R->rgba, err);
+    if (rc != SC_OK) return rc;
+    size_t n = (size_t)R->size * (size_t)R->size;
+    for (size_t i = 0; i < n; i++) {
+        uint8_t a = R->rgba[4 * i + 3];
+        R->flags[i] = a == 0 ? 0 : a >= 192 ? 1 : 2;
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- seam gap */
+
+typedef struct gap_result {
+    double gap, vertex_gap;     /* relative to the bounding-box diagonal */
+    int32_t edge;               /* worst seam edge, -1 when none */
+    double edge_t;
+} gap_result;
+
+static void gap_consider(gap_result *g, double d, double t, int32_t edge) {
+    if (g->edge < 0 || d > g->gap) {
+        g->gap = fmax(g->gap, d);
+        g->edge = edge;
+        g->edge_t = t;
+    }
+    if (t <= 0.0 || t >= 1.0) g->vertex_gap = fmax(g->vertex_gap, d);
+}
+
+/* Capture into a buffer of `bytes`; returns primitives written, or -1 on overflow. */
+typedef struct capture {
+    GLuint buffer, q_written, q_generated;
+    size_t bytes;
+} capture;
+
+static int capture_begin(capture *c, size_t bytes, GLenum primitive, sc_error *err) {
+    memset(c, 0, sizeof *c);
+    c->bytes = bytes ? bytes : 16;
+    glGenBuffers(1, &c->buffer);
+    glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, c->buffer);
+    glBufferData(GL_TRANSFORM_FEEDBACK_BUFFER, (GLsizeiptr)c->bytes, NULL, GL_STREAM_READ);
+    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, c->buffer);
+    glGenQueries(1, &c->q_written);
+    glGenQueries(1, &c->q_generated);
+    glEnable(GL_RASTERIZER_DISCARD);
+    glBeginQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN, c->q_written);
+    glBeginQuery(GL_PRIMITIVES_GENERATED, c->q_generated);
+    glBeginTransformFeedback(primitive);
+    return sc_gl_check("starting transform feedback", err);
+}
+
+/* Ends the capture, maps the data; *written = primitives written, *overflow
+ * when some did not fit. The caller frees *out. */
+static int capture_end(capture *c, void **out, GLuint *written, bool *overflow, sc_error *err) {
+    glEndTransformFeedback();
+    glEndQuery(GL_PRIMITIVES_GENERATED);
+    glEndQuery(GL_TRANSFORM_FEEDBACK_PRIMITIVES_WRITTEN);
+    glDisable(GL_RASTERIZER_DISCARD);
+    GLuint w = 0, g = 0;
+    glGetQueryObjectuiv(c->q_written, GL_QUERY_RESULT, &w);
+    glGetQueryObjectuiv(c->q_generated, GL_QUERY_RESULT, &g);
+    *written = w;
+    *overflow = g > w;
+    *out = malloc(c->bytes);
+    if (*out) glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, (GLsizeiptr)c->bytes, *out);
+    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
+    glDeleteBuffers(1, &c->buffer);
+    glDeleteQueries(1, &c->q_written);
+    glDeleteQueries(1, &c->q_generated);
+    if (!*out) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = sc_gl_check("transform feedback", err);
+    if (rc != SC_OK) {
+        free(*out);
+        *out = NULL;
+    }
+    return rc;
+}
+
+/* Untessellated passes: seam_points points per side. */
+static int seam_gap_points(renderer *R, const level_gl *L, const pass *ps, int npoints, gap_result *res,
+                           sc_error *err) {
+    const sc_mesh *m = L->mesh;
+    int32_t ne = L->seams.nseams;
+    if (ne == 0) return SC_OK;
+    size_t total = (size_t)ne * 2 * (size_t)npoints;
+    /* points ordered by material (stable) so each draw binds one texture set */
+    float *data = sc_alloc_array(total, 11 * sizeof(float));
+    int32_t *slot_of = sc_alloc_array(total, sizeof(int32_t));   /* point -> capture slot */
+    int32_t *start = calloc((size_t)m->nmat + 1, sizeof *start);
+    if (!data || !slot_of || !start) {
+        free(data), free(slot_of), free(start);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t e = 0; e < ne; e++)
+        for (int s = 0; s < 2; s++) start[m->FM[L->seams.seams[e].side[s].face] + 1] += npoints;
+    for (int32_t i = 0; i < m->nmat; i++) start[i + 1] += start[i];
+    int32_t *fill = calloc((size_t)m->nmat + 1, sizeof *fill);
+    if (!fill) {
+        free(data), free(slot_of), free(start);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    memcpy(fill, start, sizeof *fill * (size_t)(m->nmat + 1));
+    for (int32_t e = 0; e < ne; e++) {
+        const sc_seam_edge *se = &L->seams.seams[e];
+        const double *p0 = m->V + 3 * se->v0, *p1 = m->V + 3 * se->v1;
+        for (int s = 0; s < 2; s++) {
+            const double *u0 = m->U + 2 * se->side[s].uv0, *u1 = m->U + 2 * se->side[s].uv1;
+            int32_t mat = m->FM[se->side[s].face];
+            for (int i = 0; i < npoints; i++) {
+                size_t point = ((size_t)e * 2 + (size_t)s) * (size_t)npoints + (size_t)i;
+                int32_t slot = fill[mat]++;
+                slot_of[point] = slot;
+                float *d = data + 11 * (size_t)slot;
+                for (int c = 0; c < 3; c++) d[c] = (float)p0[c], d[3 + c] = (float)p1[c];
+                d[6] = (float)u0[0], d[7] = (float)u0[1], d[8] = (float)u1[0], d[9] = (float)u1[1];
+                d[10] = i == npoints - 1 ? 1.0f : (float)((double)i / (npoints - 1));
+            }
+        }
+    }
+    free(fill);
+    GLuint program = 0, vao = 0, vbo = 0;
+    int rc = get_seam_program(R, ps->pos, &program, err);
+    if (rc != SC_OK) {
+        free(data), free(slot_of), free(start);
+        return rc;
+    }
+    glGenVertexArrays(1, &vao);
+    glGenBuffers(1, &vbo);
+    glBindVertexArray(vao);
+    glBindBuffer(GL_ARRAY_BUFFER, vbo);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(total * 11 * sizeof(float)), data, GL_STATIC_DRAW);
+    free(data);
+    static const int sizes[5] = {3, 3, 2, 2, 1}, offsets[5] = {0, 3, 6, 8, 10};
+    for (int a = 0; a < 5; a++) {
+        glEnableVertexAttribArray((GLuint)a);
+        glVertexAttribPointer((GLuint)a, sizes[a], GL_FLOAT, GL_FALSE, 11 * sizeof(float),
+                              (void *)(offsets[a] * sizeof(float)));
+    }
+    glUseProgram(program);
+    capture cap;
+    rc = capture_begin(&cap, total * 3 * sizeof(float), GL_POINTS, err);
+    for (int32_t mat = 0; rc == SC_OK && mat < m->nmat; mat++) {
+        if (start[mat + 1] == start[mat]) continue;
+        bind_material(&L->materials[mat], program);
+        glDrawArrays(GL_POINTS, start[mat], start[mat + 1] - start[mat]);
+    }
+    float *out = NULL;
+    GLuint written = 0;
+    bool overflow = false;
+    if (rc == SC_OK) rc = capture_end(&cap, (void **)&out, &written, &overflow, err);
+    glBindVertexArray(0);
+    glDeleteVertexArrays(1, &vao);
+    glDeleteBuffers(1, &vbo);
+    free(start);
+    if (rc == SC_OK && (overflow || written != total))
+        rc = sc_fail(err, SC_EIO, "OpenGL: the seam probe captured %u of %zu points", written, total);
+    if (rc == SC_OK)
+        for (int32_t e = 0; e < ne; e++)
+            for (int i = 0; i < npoints; i++) {
+                const float *a = out + 3 * (size_t)slot_of[((size_t)e * 2) * (size_t)npoints + (size_t)i];
+                const float *b = out + 3 * (size_t)slot_of[((size_t)e * 2 + 1) * (size_t)npoints + (size_t)i];
+                double d[3] = {(double)a[0] - b[0], (double)a[1] - b[1], (double)a[2] - b[2]};
+                double t = i == npoints - 1 ? 1.0 : (double)i / (npoints - 1);
+                gap_consider(res, vlen(d) / L->diag, t, e);
+            }
+    free(out);
+    free(slot_of);
+    return rc;
+}
+
+typedef struct edge_sample {
+    int32_t edge, side;
+    float t;
+    float p[3];
+} edge_sample;
+
+static int compare_samples(const void *pa, const void *pb) {
+    const edge_sample *a = pa, *b = pb;
+    if (a->edge != b->edge) return a->edge < b->edge ? -1 : 1;
+    if (a->side != b->side) return a->side < b->side ? -1 : 1;
+    if (a->t != b->t) return a->t < b->t ? -1 : 1;
+    for (int c = 0; c < 3; c++)
+        if (a->p[c] != b->p[c]) return a->p[c] < b->p[c] ? -1 : 1;
+    return 0;
+}
+
+/* Pair each sample of run a with the sample of run b nearest in t. */
+static void pair_runs(const edge_sample *a, int32_t na, const edge_sample *b, int32_t nb, double diag,
+                      gap_result *res) {
+    int32_t j = 0;
+    for (int32_t i = 0; i < na; i++) {
+        while (j + 1 < nb && fabsf(b[j + 1].t - a[i].t) <= fabsf(b[j].t - a[i].t)) j++;
+        double d[3] = {(double)a[i].p[0] - b[j].p[0], (double)a[i].p[1] - b[j].p[1],
+                       (double)a[i].p[2] - b[j].p[2]};
+        gap_consider(res, vlen(d) / diag, a[i].t, a[i].edge);
+    }
+}
+
+/* Tessellated passes: the seam faces through the render program itself. */
+static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_result *res, sc_error *err) {
+    const sc_mesh *m = L->mesh;
+    int32_t ne = L->seams.nseams;
+    if (ne == 0) return SC_OK;
+    /* the faces along seams, once each, ordered by (material, face) */
+    int32_t *patch_of = malloc(sizeof(int32_t) * (size_t)m->nf);
+    int32_t *faces = malloc(sizeof(int32_t) * (size_t)ne * 2);
+    int32_t *start = calloc((size_t)m->nmat + 1, sizeof *start);
+    if (!patch_of || !faces || !start) {
+        free(patch_of), free(faces), free(start);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t f = 0; f < m->nf; f++) patch_of[f] = -1;
+    for (int32_t e = 0; e < ne; e++)
+        for (int s = 0; s < 2; s++) patch_of[L->seams.seams[e].side[s].face] = 0;
+    int32_t npatches = 0;
+    for (int32_t f = 0; f < m->nf; f++)
+        if (patch_of[f] == 0) start[m->FM[f] + 1]++, npatches++;
+    for (int32_t i = 0; i < m->nmat; i++) start[i + 1] += start[i];
+    {
+        int32_t *fill = calloc((size_t)m->nmat + 1, sizeof *fill);
+        if (!fill) {
+            free(patch_of), free(faces), free(start);
+            return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        memcpy(fill, start, sizeof *fill * (size_t)(m->nmat + 1));
+        for (int32_t f = 0; f < m->nf; f++)
+            if (patch_of[f] == 0) {
+                int32_t p = fill[m->FM[f]]++;
+                faces[p] = f;
+                patch_of[f] = p;
+            }
+        free(fill);
+    }
+    float *data = sc_alloc_array((size_t)npatches * 3, 5 * sizeof(float));
+    if (!data) {
+        free(patch_of), free(faces), free(start);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t p = 0; p < npatches; p++)
+        for (int c = 0; c < 3; c++) {
+            int32_t f = faces[p];
+            float *v = data + 5 * ((size_t)p * 3 + c);
+            const double *x = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
+            v[0] = (float)x[0], v[1] = (float)x[1], v[2] = (float)x[2];
+            v[3] = (float)uv[0], v[4] = (float)uv[1];
+        }
+    GLuint program = 0, vao = 0, vbo = 0;
+    int rc = get_program(R, ps->pos, true, &program, err);
+    if (rc == SC_OK) {
+        glGenVertexArrays(1, &vao);
+        glGenBuffers(1, &vbo);
+        glBindVertexArray(vao);
+        glBindBuffer(GL_ARRAY_BUFFER, vbo);
+        glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)npatches * 15 * sizeof(float)), data, GL_STATIC_DRAW);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)0);
+        glEnableVertexAttribArray(1);
+        glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)(3 * sizeof(float)));
+        glUseProgram(program);
+        glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
+        glPatchParameteri(GL_PATCH_VERTICES, 3);
+    }
+    free(data);
+    /* 7 words a vertex: position, tessellation coordinate, patch */
+    size_t per_patch = 3 * (2 * (size_t)ps->level * (size_t)ps->level + 8);
+    float *out = NULL;
+    GLuint written = 0;
+    for (int attempt = 0; rc == SC_OK && attempt < 4; attempt++) {
+        capture cap;
+        bool overflow = false;
+        rc = capture_begin(&cap, (size_t)npatches * per_patch * 7 * sizeof(float), GL_TRIANGLES, err);
+        for (int32_t mat = 0; rc == SC_OK && mat < m->nmat; mat++) {
+            if (start[mat + 1] == start[mat]) continue;
+            bind_material(&L->materials[mat], program);
+            /* gl_PrimitiveID restarts with every draw: one draw per chunk */
+            int32_t verts = (ps->level + 1) * (ps->level + 2) / 2 + 3 * ps->level;
+            int32_t chunk = 16384 / verts > 1 ? 16384 / verts : 1;
+            for (int32_t p0 = start[mat]; p0 < start[mat + 1]; p0 += chunk) {
+                int32_t n = start[mat + 1] - p0 < chunk ? start[mat + 1] - p0 : chunk;
+                glUniform1i(glGetUniformLocation(program, "u_patch_base"), p0);
+                glDrawArrays(GL_PATCHES, 3 * p0, 3 * n);
+            }
+        }
+        if (rc == SC_OK) rc = capture_end(&cap, (void **)&out, &written, &overflow, err);
+        if (rc != SC_OK || !overflow) break;
+        free(out);
+        out = NULL;
+        per_patch *= 4;
+        if (attempt == 3) rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture overflowed");
+    }
+    if (vao) {
+        glBindVertexArray(0);
+        glDeleteVertexArrays(1, &vao);
+        glDeleteBuffers(1, &vbo);
+    }
+    /* sort the captured vertices onto seam sides */
+    edge_sample *samples = NULL;
+    size_t nsamples = 0, cap_samples = 0;
+    int32_t *first_side = NULL;   /* patch -> first (edge, side) entry */
+    int32_t *sides = NULL;        /* entries: 2 * edge + side */
+    if (rc == SC_OK) {
+        first_side = calloc((size_t)npatches + 1, sizeof *first_side);
+        sides = malloc(sizeof(int32_t) * (size_t)ne * 2);
+        if (!first_side || !sides) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    if (rc == SC_OK) {
+        for (int32_t e = 0; e < ne; e++)
+            for (int s = 0; s < 2; s++) first_side[patch_of[L->seams.seams[e].side[s].face] + 1]++;
+        for (int32_t p = 0; p < npatches; p++) first_side[p + 1] += first_side[p];
+        int32_t *fill = malloc(sizeof(int32_t) * ((size_t)npatches + 1));
+        if (!fill) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        else {
+            memcpy(fill, first_side, sizeof(int32_t) * ((size_t)npatches + 1));
+            for (int32_t e = 0; e < ne; e++)
+                for (int s = 0; s < 2; s++) sides[fill[patch_of[L->seams.seams[e].side[s].face]]++] = 2 * e + s;
+            free(fill);
+        }
+    }
+    size_t nvert = (size_t)written * 3;
+    for (size_t i = 0; rc == SC_OK && i < nvert; i++) {
+        const float *w = out + 7 * i;
+        int32_t patch;
+        memcpy(&patch, w + 6, sizeof patch);
+        if (patch < 0 || patch >= npatches) {
+            rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture gave patch %d of %d", patch, npatches);
+            break;
+        }
+        for (int32_t j = first_side[patch]; j < first_side[patch + 1]; j++) {
+            int32_t e = sides[j] / 2, s = sides[j] % 2;
+            const seam_corner *c = &L->corners[2 * e + s];
+            if (fabsf(w[3 + c->k2]) > EDGE_COORD_EPS) continue;
+            if (nsamples == cap_samples) {
+                size_t ncap = cap_samples ? 2 * cap_samples : 1024;
+                edge_sample *ns = realloc(samples, ncap * sizeof *ns);
+                if (!ns) {
+                    rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                    break;
+                }
+                samples = ns, cap_samples = ncap;
+            }
+            edge_sample *es = &samples[nsamples++];
+            es->edge = e, es->side = s;
+            es->t = w[3 + c->k1];
+            memcpy(es->p, w, sizeof es->p);
+        }
+    }
+    if (rc == SC_OK && nsamples > 0) {
+        qsort(samples, nsamples, sizeof *samples, compare_samples);
+        size_t i = 0;
+        while (i < nsamples) {
+            size_t a = i, mid = i, b;
+            while (mid < nsamples && samples[mid].edge == samples[a].edge && samples[mid].side == 0) mid++;
+            b = mid;
+            while (b < nsamples && samples[b].edge == samples[a].edge) b++;
+            if (mid == a || b == mid) {
+                /* one side produced no vertex on its edge: the tessellator and
+                 * the seam disagree about this edge: count it as a gap of a
+                 * whole diagonal */
+                gap_consider(res, 1.0, 0.5, samples[a].edge);
+            } else {
+                pair_runs(samples + a, (int32_t)(mid - a), samples + mid, (int32_t)(b - mid), L->diag, res);
+                pair_runs(samples + mid, (int32_t)(b - mid), samples + a, (int32_t)(mid - a), L->diag, res);
+            }
+            i = b;
+        }
+    }
+    free(samples);
+    free(first_side);
+    free(sides);
+    free(out);
+    free(patch_of);
+    free(faces);
+    free(start);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- pictures */
+
+/* PNG encoding (OpenImageIO, ~20-60 ms a picture) runs on worker threads
+ * while the GL thread renders the next picture. Jobs are numbered in
+ * submission order and their files go into the report in that order, so the
+ * output never depends on the number of workers (sc_ctx_threads; with one,
+ * encoding happens inline). At most `limit` pictures wait at a time. */
+typedef struct png_job {
+    char path[96];
+    sc_image_data *image;
+    sc_buf png;
+    int rc;
+    sc_error err;
+} png_job;
+
+typedef struct encoder {
+    pthread_t workers[4];
+    int nworkers;
+    pthread_mutex_t lock;
+    pthread_cond_t work, room;
+    png_job **jobs;
+    int32_t njobs, cap, next, done, limit;
+    bool closing;
+    double seconds;   /* summed over workers */
+} encoder;
+
+static void encode_job(png_job *j) {
+    sc_buf_init(&j->png);
+    j->rc = sc_image_encode_png(j->image, 8, &j->png, &j->err);
+    if (j->rc == SC_OK && j->png.failed) j->rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
+    sc_image_free(j->image);
+    j->image = NULL;
+}
+
+static void *encoder_main(void *ud) {
+    encoder *e = ud;
+    pthread_mutex_lock(&e->lock);
+    for (;;) {
+        while (e->next == e->njobs && !e->closing) pthread_cond_wait(&e->work, &e->lock);
+        if (e->next == e->njobs) break;
+        png_job *j = e->jobs[e->next++];
+        pthread_mutex_unlock(&e->lock);
+        double t0 = sc_now();
+        encode_job(j);
+        double dt = sc_now() - t0;
+        pthread_mutex_lock(&e->lock);
+        e->seconds += dt;
+        e->done++;
+        pthread_cond_signal(&e->room);
+    }
+    pthread_mutex_unlock(&e->lock);
+    return NULL;
+}
+
+static void encoder_start(encoder *e, int threads) {
+    memset(e, 0, sizeof *e);
+    pthread_mutex_init(&e->lock, NULL);
+    pthread_cond_init(&e->work, NULL);
+    pthread_cond_init(&e->room, NULL);
+    int want = threads > 1 ? (threads < 4 ? threads : 4) : 0;
+    for (int i = 0; i < want; i++)
+        if (pthread_create(&e->workers[e->nworkers], NULL, encoder_main, e) == 0) e->nworkers++;
+    e->limit = 2 * e->nworkers + 2;
+}
+
+/* Queue a picture (rgba, bottom-up unless top_down) for path. */
+static int encoder_submit(encoder *e, const char *path, const uint8_t *rgba, int32_t w, int32_t h, bool top_down,
+                          sc_error *err) {
+    png_job *j = calloc(1, sizeof *j);
+    sc_image_data *im = sc_image_alloc(w, h, 3, SC_PIXEL_U8);
+    if (!j || !im) {
+        free(j);
+        sc_image_free(im);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    snprintf(j->path, sizeof j->path, "%s", path);
+    im->colorspace = SC_COLOR_SRGB;
+    memcpy(im->format, "png", 4);
+    uint8_t *px = im->pixels;
+    for (int32_t y = 0; y < h; y++) {
+        const uint8_t *src = rgba + 4 * (size_t)(top_down ? h - 1 - y : y) * (size_t)w;
+        uint8_t *dst = px + 3 * (size_t)y * (size_t)w;
+        for (int32_t x = 0; x < w; x++) memcpy(dst + 3 * x, src + 4 * x, 3);
+    }
+    j->image = im;
+    pthread_mutex_lock(&e->lock);
+    if (e->njobs == e->cap) {
+        int32_t ncap = e->cap ? 2 * e->cap : 64;
+        png_job **nj = realloc(e->jobs, sizeof *nj * (size_t)ncap);
+        if (!nj) {
+            pthread_mutex_unlock(&e->lock);
+            sc_image_free(im);
+            free(j);
+            return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        e->jobs = nj, e->cap = ncap;
+    }
+    e->jobs[e->njobs++] = j;
+    if (e->nworkers == 0) {
+        pthread_mutex_unlock(&e->lock);
+        double t0 = sc_now();
+        encode_job(j);
+        e->seconds += sc_now() - t0;
+        e->next++, e->done++;
+        return SC_OK;
+    }
+    pthread_cond_signal(&e->work);
+    while (e->njobs - e->done > e->limit) pthread_cond_wait(&e->room, &e->lock);
+    pthread_mutex_unlock(&e->lock);
+    return SC_OK;
+}
+
+/* Wait for every job, stop the workers and, when `report` is given, add the
+ * files in submission order (the first failure wins). Frees everything. */
+static int encoder_finish(encoder *e, sc_report *report, sc_error *err) {
+    pthread_mutex_lock(&e->lock);
+    e->closing = true;
+    pthread_cond_broadcast(&e->work);
+    pthread_mutex_unlock(&e->lock);
+    for (int i = 0; i < e->nworkers; i++) pthread_join(e->workers[i], NULL);
+    int rc = SC_OK;
+    for (int32_t i = 0; i < e->njobs; i++) {
+        png_job *j = e->jobs[i];
+        if (report && rc == SC_OK && j->rc != SC_OK) {
+            if (err) *err = j->err;
+            rc = sc_error_prefix(err, "%s", j->path);
+        }
+        if (report && rc == SC_OK) {
+            if (sc_report_add_file(report, j->path, j->png.data, j->png.len) != SC_OK)   /* takes the bytes */
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        } else {
+            sc_buf_free(&j->png);
+        }
+        sc_image_free(j->image);
+        free(j);
+    }
+    free(e->jobs);
+    pthread_cond_destroy(&e->work);
+    pthread_cond_destroy(&e->room);
+    pthread_mutex_destroy(&e->lock);
+    e->jobs = NULL;
+    e->njobs = 0;
+    return rc;
+}
+
+static int add_png(outcome *o, renderer *R, const char *path, const uint8_t *rgba, int32_t w, int32_t h,
+                   bool top_down, sc_error *err) {
+    (void)R;
+    int rc = encoder_submit(o->enc, path, rgba, w, h, top_down, err);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", path);
+    return SC_OK;
+}
+
+typedef struct sheet {
+    int32_t thumb, factor, cols, rows, width, height;
+    uint8_t *rgba;    /* top-down */
+} sheet;
+
+static int sheet_init(sheet *s, int32_t size, int32_t cols, int32_t rows, sc_error *err) {
+    s->factor = (size + SHEET_THUMB - 1) / SHEET_THUMB;
+    s->thumb = size / s->factor;
+    s->cols = cols, s->rows = rows;
+    s->width = cols * (s->thumb + SHEET_GAP) + SHEET_GAP;
+    s->height = rows * (s->thumb + SHEET_GAP) + SHEET_GAP;
+    s->rgba = calloc((size_t)s->width * (size_t)s->height, 4);
+    if (!s->rgba) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (size_t i = 0; i < (size_t)s->width * (size_t)s->height; i++) s->rgba[4 * i + 3] = 255;
+    return SC_OK;
+}
+
+/* Box-filter a bottom-up render into cell (row, col) of the top-down sheet. */
+static void sheet_put(sheet *s, int32_t row, int32_t col, const uint8_t *rgba, int32_t size) {
+    int32_t x0 = SHEET_GAP + col * (s->thumb + SHEET_GAP), y0 = SHEET_GAP + row * (s->thumb + SHEET_GAP);
+    int32_t f = s->factor;
+    for (int32_t ty = 0; ty < s->thumb; ty++)
+        for (int32_t tx = 0; tx < s->thumb; tx++) {
+            uint32_t sum[3] = {0, 0, 0};
+            for (int32_t dy = 0; dy < f; dy++)
+                for (int32_t dx = 0; dx < f; dx++) {
+                    int32_t sy = size - 1 - (ty * f + dy), sx = tx * f + dx;
+                    const uint8_t *p = rgba + 4 * ((size_t)sy * (size_t)size + (size_t)sx);
+                    for (int c = 0; c < 3; c++) sum[c] += p[c];
+                }
+            uint8_t *d = s->rgba + 4 * ((size_t)(y0 + ty) * (size_t)s->width + (size_t)(x0 + tx));
+            for (int c = 0; c < 3; c++) d[c] = (uint8_t)((sum[c] + (uint32_t)(f * f) / 2) / (uint32_t)(f * f));
+        }
+}
+
+/* ---------------------------------------------------------------- the run */
+
+typedef struct job {
+    const view *views;
+    int nviews;
+    int32_t size;
+    int seam_points;
+    double max_cracks, max_gap;
+    uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
+} job;
+
+/* Whether pixel (x, y) touches the background (flag 0) in its 3 x 3
+ * neighbourhood; outside the picture is not background. */
+static bool on_silhouette(const uint8_t *flags, int32_t s, int32_t x, int32_t y) {
+    for (int32_t yy = y - 1; yy <= y + 1; yy++)
+        for (int32_t xx = x - 1; xx <= x + 1; xx++)
+            if (yy >= 0 && yy < s && xx >= 0 && xx < s && flags[(size_t)yy * s + xx] == 0) return true;
+    return false;
+}
+
+static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v) {
+    int32_t s = J->size;
+    size_t n = (size_t)s * (size_t)s;
+    const uint8_t *ref = (!L->closed && J->reference) ? J->reference + n * (size_t)v : NULL;
+    int64_t count = 0;
+    for (int32_t y = 0; y < s; y++)
+        for (int32_t x = 0; x < s; x++) {
+            size_t i = (size_t)y * s + x;
+            if (R->flags[i] == 2 && !(ref && ref[i]) && !on_silhouette(R->flags, s, x, y)) count++;
+        }
+    return count;
+}
+
+static int run_pass(renderer *R, const level_gl *L, int k, const pass *ps, const job *J, outcome *o,
+                    sheet *sh, int32_t row, gap_result *gap_out, sc_error *err) {
+    double t0 = sc_now();
+    gap_result gap = {0, 0, -1, 0};
+    int rc = ps->level > 0 ? seam_gap_tess(R, L, ps, &gap, err)
+                           : seam_gap_points(R, L, ps, J->seam_points, &gap, err);
+    R->t_gap += sc_now() - t0;
+    if (rc != SC_OK) return sc_error_prefix(err, "lod %d, mode %s: seam gap", k, ps->name);
+    if (J->max_gap >= 0 && gap.gap > J->max_gap) {
+        const sc_seam_edge *se = &L->seams.seams[gap.edge];
+        return sc_fail(err, SC_EINPUT,
+                       "max_seam_gap: lod %d, mode %s, every view: the seam gap is %.3g of the bounding-box "
+                       "diagonal, over the limit %.3g (seam edge between vertices %d and %d, faces %d and %d, "
+                       "at t = %.3g)",
+                       k, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
+                       gap.edge_t);
+    }
+    int64_t total = 0, worst = -1;
+    int worst_view = 0;
+    for (int v = 0; v < J->nviews; v++) {
+        t0 = sc_now();
+        rc = draw(R, L, ps, &J->views[v], err);
+        if (rc == SC_OK) rc = read_target(R, err);
+        R->t_render += sc_now() - t0;
+        if (rc != SC_OK) return sc_error_prefix(err, "lod %d, mode %s, view %s", k, ps->name, J->views[v].name);
+        int64_t cracks = count_cracks(R, L, J, v);
+        total += cracks;
+        if (cracks > worst) worst = cracks, worst_view = v;
+        char path[96];
+        snprintf(path, sizeof path, "render/lod%d_%s_%s.png", k, ps->name, J->views[v].name);
+        rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err);
+        if (rc != SC_OK) return rc;
+        sheet_put(sh, row, v, R->rgba, J->size);
+        o->renders++;
+    }
+    *gap_out = gap;
+    o->crack_total += (double)total;
+    o->gap_max = fmax(o->gap_max, gap.gap);
+    o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
+    if (metricf(o, (double)total, "lod%d.%s.crack_pixels", k, ps->name) ||
+        metricf(o, gap.gap, "lod%d.%s.max_seam_gap", k, ps->name) ||
+        metricf(o, gap.vertex_gap, "lod%d.%s.max_vertex_gap", k, ps->name))
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (J->max_cracks >= 0 && (double)total > J->max_cracks)
+        return sc_fail(err, SC_EINPUT,
+                       "max_crack_pixels: lod %d, mode %s, view %s: %lld crack pixels in this mode (%lld in view "
+                       "%s), over the limit %.17g%s",
+                       k, ps->name, J->views[worst_view].name, (long long)total, (long long)worst,
+                       J->views[worst_view].name, J->max_cracks,
+                       L->closed ? "" : J->reference ? " (open mesh, compared with the reference)"
+                                                     : " (open mesh and no reference connected: every back "
+                                                       "face counts)");
+    return SC_OK;
+}
+
+/* Render the reference from every view: masks of back faces, dilated. */
+static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o, sc_error *err) {
+    level_gl L;
+    int rc = level_upload(R, ref, 0, &L, err);
+    if (rc != SC_OK) {
+        level_free(&L);
+        return sc_error_prefix(err, "reference");
+    }
+    size_t n = (size_t)J->size * (size_t)J->size;
+    J->reference = calloc((size_t)J->nviews, n);
+    if (!J->reference) {
+        level_free(&L);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    pass ps = {MODE_TEXTURED, POS_BASE, 0, "textured"};
+    int64_t back = 0;
+    for (int v = 0; v < J->nviews && rc == SC_OK; v++) {
+        double t0 = sc_now();
+        rc = draw(R, &L, &ps, &J->views[v], err);
+        if (rc == SC_OK) rc = read_target(R, err);
+        R->t_render += sc_now() - t0;
+        if (rc != SC_OK) break;
+        uint8_t *mask = J->reference + n * (size_t)v;
+        int32_t s = J->size;
+        for (int32_t y = 0; y < s; y++)
+            for (int32_t x = 0; x < s; x++) {
+                if (R->flags[(size_t)y * s + x] != 2) continue;
+                back++;
+                for (int32_t dy = -REFERENCE_SLACK; dy <= REFERENCE_SLACK; dy++)
+                    for (int32_t dx = -REFERENCE_SLACK; dx <= REFERENCE_SLACK; dx++) {
+                        int32_t yy = y + dy, xx = x + dx;
+                        if (yy >= 0 && yy < s && xx >= 0 && xx < s) mask[(size_t)yy * s + xx] = 1;
+                    }
+            }
+        char path[64];
+        snprintf(path, sizeof path, "render/reference_%s.png", J->views[v].name);
+        rc = add_png(o, R, path, R->rgba, s, s, false, err);
+    }
+    level_free(&L);
+    if (rc != SC_OK) return sc_error_prefix(err, "reference");
+    if (metric(o, "reference.back_pixels", (double)back)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    return SC_OK;
+}
+
+static int run_level(renderer *R, const sc_atlas *atlas, int k, const bool want[MODE_COUNT], const int *levels,
+                     int nlevels, const job *J, outcome *o, sc_error *err) {
+    level_gl L;
+    int rc = level_upload(R, atlas, k, &L, err);
+    if (rc != SC_OK) {
+        level_free(&L);
+        return rc;
+    }
+    if (metricf(o, L.mesh->nf, "lod%d.faces", k) || metricf(o, L.seams.nseams, "lod%d.seam_edges", k) ||
+        metricf(o, L.closed ? 1 : 0, "lod%d.closed", k)) {
+        level_free(&L);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    pass passes[MAX_PASSES];
+    int npasses = 0;
+    static const int pos_of_mode[3] = {POS_BASE, POS_GEOMETRY, POS_DISPLACED};
+    for (int m = 0; m < MODE_TESSELLATED && rc == SC_OK; m++) {
+        if (!want[m]) continue;
+        if (!level_has(&L, pos_of_mode[m])) {
+            rc = metricf(o, 1, "lod%d.%s.skipped", k, mode_names[m]);
+            o->skipped++;
+            continue;
+        }
+        if (m != MODE_TEXTURED) rc = check_position_texture(&L, k, pos_of_mode[m], err);
+        pass *p = &passes[npasses++];
+        *p = (pass){m, pos_of_mode[m], 0, ""};
+        snprintf(p->name, sizeof p->name, "%s", mode_names[m]);
+    }
+    int tess_pos = level_has(&L, POS_GEOMETRY) ? POS_GEOMETRY : level_has(&L, POS_DISPLACED) ? POS_DISPLACED : -1;
+    if (rc == SC_OK && want[MODE_TESSELLATED]) {
+        if (tess_pos < 0 || nlevels == 0) {
+            rc = metricf(o, 1, "lod%d.tessellated.skipped", k);
+            o->skipped++;
+        } else {
+            rc = check_position_texture(&L, k, tess_pos, err);
+            if (rc == SC_OK)
+                rc = metricf(o, tess_pos == POS_GEOMETRY ? 1 : 2, "lod%d.tessellated.source", k);
+            for (int i = 0; i < nlevels && rc == SC_OK; i++) {
+                pass *p = &passes[npasses++];
+                *p = (pass){MODE_TESSELLATED, tess_pos, levels[i], ""};
+                snprintf(p->name, sizeof p->name, "tessellated%d", levels[i]);
+            }
+        }
+    }
+    if (rc != SC_OK) {
+        level_free(&L);
+        return rc == SC_ENOMEM ? sc_fail(err, SC_ENOMEM, "out of memory") : rc;
+    }
+    sheet sh = {0};
+    rc = sheet_init(&sh, J->size, J->nviews, npasses > 0 ? npasses : 1, err);
+    double tess_cracks = 0, tess_gap = 0, tess_vgap = 0;
+    for (int p = 0; p < npasses && rc == SC_OK; p++) {
+        double before = o->crack_total;
+        gap_result gap = {0, 0, -1, 0};
+        rc = run_pass(R, &L, k, &passes[p], J, o, &sh, p, &gap, err);
+        if (rc == SC_OK && passes[p].level > 0) {
+            tess_cracks += o->crack_total - before;
+            tess_gap = fmax(tess_gap, gap.gap);
+            tess_vgap = fmax(tess_vgap, gap.vertex_gap);
+        }
+    }
+    if (rc == SC_OK && tess_pos >= 0 && want[MODE_TESSELLATED] && nlevels > 0) {
+        if (metricf(o, tess_cracks, "lod%d.tessellated.crack_pixels", k) ||
+            metricf(o, tess_gap, "lod%d.tessellated.max_seam_gap", k) ||
+            metricf(o, tess_vgap, "lod%d.tessellated.max_vertex_gap", k))
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    if (rc == SC_OK && npasses > 0) {
+        char path[64];
+        snprintf(path, sizeof path, "render/lod%d_sheet.png", k);
+        rc = add_png(o, R, path, sh.rgba, sh.width, sh.height, true, err);
+    }
+    free(sh.rgba);
+    level_free(&L);
+    return rc;
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    double t_start = sc_now();
+    const sc_lods *lods = sc_ctx_lods(ctx, "lods");
+    const sc_atlas *single = sc_ctx_atlas(ctx, "atlas");
+    const sc_atlas *reference = sc_ctx_atlas(ctx, "reference");
+    if (!lods && !single) return sc_fail(err, SC_EINPUT, "lods: connect `lods` or `atlas` (nothing to render)");
+    if (lods && single) return sc_fail(err, SC_EINPUT, "atlas: connect `lods` or `atlas`, not both");
+    int32_t nlevels = lods ? lods->count : 1;
+    if (nlevels < 1) return sc_fail(err, SC_EINPUT, "lods: the list is empty");
+
+    bool want[MODE_COUNT];
+    int rc = parse_modes(sc_ctx_string(ctx, "modes"), want, err);
+    int levels[MAX_TESS_LEVELS], ntess = 0;
+    if (rc == SC_OK) rc = parse_levels(ctx, levels, &ntess, err);
+    if (rc != SC_OK) return rc;
+
+    job J = {0};
+    J.nviews = (int)sc_ctx_integer(ctx, "views");
+    J.size = (int32_t)sc_ctx_integer(ctx, "size");
+    J.seam_points = (int)sc_ctx_integer(ctx, "seam_points");
+    J.max_cracks = sc_ctx_number(ctx, "max_crack_pixels");
+    J.max_gap = sc_ctx_number(ctx, "max_seam_gap");
+
+    /* one framing for every level and the reference */
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (int32_t k = 0; k < nlevels; k++) {
+        const sc_atlas *a = lods ? lods->levels[k]->as.atlas : single;
+        bbox_add(a->mesh->as.mesh, lo, hi);
+    }
+    if (reference) bbox_add(reference->mesh->as.mesh, lo, hi);
+    if (!(lo[0] <= hi[0])) return sc_fail(err, SC_EINPUT, "lods: no vertices to render");
+    double center[3], ext[3];
+    for (int c = 0; c < 3; c++) center[c] = 0.5 * (lo[c] + hi[c]), ext[c] = hi[c] - lo[c];
+    double radius = 0.5 * vlen(ext) * 1.02;
+    if (!(radius > 0) || !isfinite(radius)) radius = 1;
+    view *views = calloc((size_t)J.nviews, sizeof *views);
+    if (!views) return sc_fail(err, SC_ENOMEM, "out of memory");
+    make_views(views, J.nviews, center, radius);
+    J.views = views;
+
+    encoder enc;
+    encoder_start(&enc, sc_ctx_threads(ctx));
+    outcome o = {.ctx = ctx, .report = sc_report_new(), .enc = &enc};
+    renderer R = {0};
+    R.size = J.size;
+    if (!o.report) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    double t0 = sc_now();
+    if (rc == SC_OK) rc = sc_gl_open(&R.gl, err);
+    double t_context = sc_now() - t0;
+    if (rc == SC_OK) {
+        R.rgba = malloc((size_t)J.size * (size_t)J.size * 4);
+        R.flags = malloc((size_t)J.size * (size_t)J.size);
+        if (!R.rgba || !R.flags) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
+    if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);
+    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
+        rc = run_level(&R, lods ? lods->levels[k]->as.atlas : single, k, want, levels, ntess, &J, &o, err);
+    if (rc == SC_OK &&
+        (metric(&o, "levels", nlevels) || metric(&o, "views", J.nviews) || metric(&o, "size", J.size) ||
+         metric(&o, "renders", o.renders) || metric(&o, "skipped_modes", o.skipped) ||
+         metric(&o, "crack_pixels", o.crack_total) || metric(&o, "max_seam_gap", o.gap_max) ||
+         metric(&o, "max_vertex_gap", o.vertex_gap_max)))
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    double t_render = R.t_render, t_gap = R.t_gap;
+    t0 = sc_now();
+    renderer_free(&R);
+    t_context += sc_now() - t0;
+    t0 = sc_now();
+    int rc_png = encoder_finish(&enc, rc == SC_OK ? o.report : NULL, err);
+    if (rc == SC_OK) rc = rc_png;
+    double t_encode = enc.seconds, t_drain = sc_now() - t0;
+    free(views);
+    free(J.reference);
+    if (rc != SC_OK) {
+        sc_report_free(o.report);
+        return rc;
+    }
+    sc_value *out = sc_value_new_report(o.report);
+    if (!out) return sc_fail(err, SC_ENOMEM, "out of memory");
+    /* timings: node metrics only, never part of the report value */
+    sc_ctx_metric(ctx, "seconds_context", t_context);
+    sc_ctx_metric(ctx, "seconds_render", t_render);
+    sc_ctx_metric(ctx, "seconds_seam_gap", t_gap);
+    sc_ctx_metric(ctx, "seconds_encode", t_encode);
+    sc_ctx_metric(ctx, "seconds_encode_wait", t_drain);
+    sc_ctx_metric(ctx, "seconds_total", sc_now() - t_start);
+    sc_ctx_set_output(ctx, "report", out);
+    return SC_OK;
+}
+
+static const sc_param_desc params[] = {
+    {.name = "modes", .type = SC_PARAM_STRING, .def_string = "textured,geometry_image,displaced,tessellated",
+     .doc = "comma-separated render modes: textured, geometry_image (needs the texture slot geometry_image), "
+            "displaced (needs displacement), tessellated (needs either)"},
+    {.name = "views", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 64,
+     .doc = "views per LOD and mode: 6 axis views, then oblique ones"},
+    {.name = "size", .type = SC_PARAM_INTEGER, .def = 512, .min = 16, .max = 4096,
+     .doc = "side of each render, in pixels"},
+    {.name = "seam_points", .type = SC_PARAM_INTEGER, .def = 16, .min = 2, .max = 4096,
+     .doc = "points per seam half-edge in the GPU seam-gap check (untessellated modes)"},
+    {.name = "tess_levels", .type = SC_PARAM_NUMBERS, .def_string = "1,2,4,8", .min = 1, .max = 64,
+     .doc = "uniform tessellation levels of the tessellated mode"},
+    {.name = "max_crack_pixels", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
+     .doc = "fail when a LOD and mode shows more crack pixels (summed over views); -1: no limit"},
+    {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
+     .doc = "fail when a LOD and mode has a larger GPU seam gap (fraction of the bounding-box diagonal); "
+            "-1: no limit"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "lods", .kind = SC_KIND_LODS, .optional = true, .doc = "the levels of detail to check"},
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .optional = true, .doc = "a single level to check (instead of lods)"},
+    {.name = "reference", .kind = SC_KIND_ATLAS, .optional = true,
+     .doc = "the input mesh: back faces it already shows (holes of open meshes) are not cracks"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "report", .kind = SC_KIND_REPORT,
+     .doc = "render/lod<k>_<mode>_<view>.png, render/lod<k>_sheet.png, crack and seam-gap metrics"},
+};
+
+const sc_node_desc sc_node_render = {
+    .type = "render",
+    .version = 1,
+    .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+};

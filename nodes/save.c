@@ -1,0 +1,423 @@
+/* save.c - the node `save`: an atlas, a chain of LODs or an image as files.
+ *
+ * Design note. save never touches the file system: it encodes everything
+ * into memory and returns a REPORT whose files (relative paths -> bytes) the
+ * engine writes into --out, so a failed run never leaves half an asset
+ * behind. Output bytes depend only on the inputs and parameters: OBJ numbers
+ * are printed as the shortest text that reads back to the same double
+ * (sc_format_double), so an OBJ written here loads back bit-identical; no
+ * dates or versions are written.
+ *
+ * Files, for name = N:
+ *   atlas   N.obj, N.mtl, and one texture file per (material, slot):
+ *           N_<material>_<slot>.<ext>
+ *   lods    N_lod<k>.obj for every level, all naming N.mtl: one shared
+ *           texture set, written once, from the atlas input when connected,
+ *           else from level 0 (the levels share one parameterisation)
+ *   image   N.<ext>
+ * The MTL names colour maps with map_Kd, normal maps with norm, emissive maps
+ * with map_Ke; other slots (occlusion, metallic_roughness, ...) have no MTL
+ * statement and are listed in a comment. Faces are written in the mesh's
+ * order with a usemtl wherever the material changes. Material names are made
+ * file-safe ([A-Za-z0-9_.-], others become '_'; duplicates get a suffix). A
+ * texture image shared by several (material, slot) pairs is written once.
+ *
+ * Texture format: auto keeps an 8/16-bit image's own format (jpg stays jpg,
+ * anything else becomes png) and writes float data as EXR; png, jpg and exr
+ * force one. exr_too also writes every texture as float EXR beside it.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_imageio.h"
+#include "sc_nodes.h"
+
+/* ---------------------------------------------------------------- text */
+
+static void put_number(sc_buf *b, double v) {
+    char text[32];
+    sc_format_double(v, text);
+    sc_buf_puts(b, text);
+}
+
+static void put_int(sc_buf *b, int64_t v) {
+    char text[24];
+    int n = 0;
+    uint64_t u = v < 0 ? (uint64_t)(-(v + 1)) + 1 : (uint64_t)v;
+    do {
+        text[n++] = (char)('0' + u % 10);
+        u /= 10;
+    } while (u);
+    if (v < 0) text[n++] = '-';
+    char out[24];
+    for (int i = 0; i < n; i++) out[i] = text[n - 1 - i];
+    sc_buf_append(b, out, (size_t)n);
+}
+
+/* A file-safe version of a material name. */
+static char *safe_name(const char *s) {
+    char *out = sc_strdup(*s ? s : "material");
+    if (!out) return NULL;
+    for (char *c = out; *c; c++) {
+        bool ok = (*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') ||
+                  *c == '_' || *c == '-' || *c == '.';
+        if (!ok) *c = '_';
+    }
+    return out;
+}
+
+static int check_name(const char *name, sc_error *err) {
+    if (!*name) return sc_fail(err, SC_EINPUT, "file: must not be empty");
+    if (strcmp(name, ".") == 0 || strcmp(name, "..") == 0)
+        return sc_fail(err, SC_EINPUT, "file: '%s' is not a file name", name);
+    for (const char *c = name; *c; c++) {
+        bool ok = (*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') ||
+                  *c == '_' || *c == '-' || *c == '.';
+        if (!ok)
+            return sc_fail(err, SC_EINPUT,
+                           "file: '%s' is not a plain file name (letters, digits, '_', '-', '.')", name);
+    }
+    return SC_OK;
+}
+
+/* Material names for the files: safe and distinct. */
+static char **material_names(const sc_mesh *m) {
+    char **names = sc_calloc_array((size_t)m->nmat, sizeof(char *));
+    if (!names) return NULL;
+    for (int32_t k = 0; k < m->nmat; k++) {
+        char *s = safe_name(m->materials[k] ? m->materials[k] : "");
+        for (int32_t j = 0; s && j < k; j++)
+            if (strcmp(names[j], s) == 0) {
+                char *t = sc_strprintf("%s_%d", s, k);
+                free(s);
+                s = t;
+                j = -1;
+            }
+        if (!s) {
+            for (int32_t j = 0; j < k; j++) free(names[j]);
+            free(names);
+            return NULL;
+        }
+        names[k] = s;
+    }
+    return names;
+}
+
+static void free_names(char **names, int32_t n) {
+    if (!names) return;
+    for (int32_t k = 0; k < n; k++) free(names[k]);
+    free(names);
+}
+
+/* The OBJ text of a mesh. Material names are looked up by the mesh's own
+ * names in the texture set's (so LOD levels use the MTL's names). */
+static int write_obj(const sc_mesh *m, const sc_mesh *set, char *const *set_names, const char *mtl,
+                     sc_buf *out, sc_error *err) {
+    int32_t *usemtl = sc_alloc_array((size_t)m->nmat, sizeof(int32_t));
+    if (!usemtl) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t k = 0; k < m->nmat; k++) {
+        usemtl[k] = -1;
+        for (int32_t j = 0; j < set->nmat; j++)
+            if (strcmp(m->materials[k], set->materials[j]) == 0) usemtl[k] = j;
+        if (usemtl[k] < 0) {
+            free(usemtl);
+            return sc_fail(err, SC_EINPUT, "material '%s' is not in the texture set", m->materials[k]);
+        }
+    }
+    sc_buf_puts(out, "# seamcook\nmtllib ");
+    sc_buf_puts(out, mtl);
+    sc_buf_puts(out, "\n");
+    for (int32_t i = 0; i < m->nv; i++) {
+        sc_buf_puts(out, "v ");
+        put_number(out, m->V[3 * i]);
+        sc_buf_puts(out, " ");
+        put_number(out, m->V[3 * i + 1]);
+        sc_buf_puts(out, " ");
+        put_number(out, m->V[3 * i + 2]);
+        sc_buf_puts(out, "\n");
+    }
+    for (int32_t i = 0; i < m->nu; i++) {
+        sc_buf_puts(out, "vt ");
+        put_number(out, m->U[2 * i]);
+        sc_buf_puts(out, " ");
+        put_number(out, m->U[2 * i + 1]);
+        sc_buf_puts(out, "\n");
+    }
+    for (int32_t i = 0; i < m->nn; i++) {
+        sc_buf_puts(out, "vn ");
+        put_number(out, m->N[3 * i]);
+        sc_buf_puts(out, " ");
+        put_number(out, m->N[3 * i + 1]);
+        sc_buf_puts(out, " ");
+        put_number(out, m->N[3 * i + 2]);
+        sc_buf_puts(out, "\n");
+    }
+    int32_t current = -1;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != current) {
+            current = m->FM[f];
+            sc_buf_puts(out, "usemtl ");
+            sc_buf_puts(out, set_names[usemtl[current]]);
+            sc_buf_puts(out, "\n");
+        }
+        sc_buf_puts(out, "f");
+        for (int k = 0; k < 3; k++) {
+            sc_buf_puts(out, " ");
+            put_int(out, (int64_t)m->FV[3 * f + k] + 1);
+            sc_buf_puts(out, "/");
+            put_int(out, (int64_t)m->FU[3 * f + k] + 1);
+            if (m->nn) {
+                sc_buf_puts(out, "/");
+                put_int(out, (int64_t)m->FN[3 * f + k] + 1);
+            }
+        }
+        sc_buf_puts(out, "\n");
+    }
+    free(usemtl);
+    if (out->failed) return sc_fail(err, SC_ENOMEM, "out of memory");
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- files */
+
+static int add_file(sc_report *r, const char *path, sc_buf *b, sc_error *err) {
+    if (b->failed) return sc_fail(err, SC_ENOMEM, "%s: out of memory", path);
+    void *data = b->data ? b->data : malloc(1);
+    size_t size = b->len;
+    memset(b, 0, sizeof *b);
+    if (!data || sc_report_add_file(r, path, data, size) != SC_OK)
+        return sc_fail(err, SC_ENOMEM, "%s: out of memory", path);
+    return SC_OK;
+}
+
+/* The extension a texture is written with under `format`. */
+static const char *texture_ext(const sc_image_data *im, const char *format) {
+    if (strcmp(format, "auto") != 0) return format;
+    if (im->pixel == SC_PIXEL_F32) return "exr";
+    return strcmp(im->format, "jpg") == 0 && im->pixel == SC_PIXEL_U8 ? "jpg" : "png";
+}
+
+static int encode(const sc_image_data *im, const char *ext, sc_buf *out, sc_error *err) {
+    if (strcmp(ext, "png") == 0) return sc_image_encode_png(im, 0, out, err);
+    if (strcmp(ext, "jpg") == 0) return sc_image_encode_jpeg(im, 95, out, err);
+    return sc_image_encode_exr(im, out, err);
+}
+
+/* One written texture file, so a shared image is written once. */
+typedef struct written {
+    sc_digest digest;
+    char ext[8];
+    char *path;
+} written;
+
+typedef struct saver {
+    sc_report *report;
+    const char *name, *format;
+    bool exr_too;
+    written *files;
+    int nfiles;
+    int64_t bytes;
+} saver;
+
+/* Write image under `path_base`.<ext> (and .exr with exr_too), unless the
+ * same image was written already; *path receives the file name used. */
+static int save_image(saver *s, const sc_value *image, const char *path_base, const char **path,
+                      sc_error *err) {
+    const sc_image_data *im = image->as.image;
+    const char *ext = texture_ext(im, s->format);
+    const char *exts[2] = {ext, (s->exr_too && strcmp(ext, "exr") != 0) ? "exr" : NULL};
+    for (int e = 0; e < 2 && exts[e]; e++) {
+        int found = -1;
+        for (int i = 0; i < s->nfiles; i++)
+            if (sc_digest_equal(&s->files[i].digest, &image->digest) && strcmp(s->files[i].ext, exts[e]) == 0)
+                found = i;
+        if (found >= 0) {
+            if (e == 0) *path = s->files[found].path;
+            continue;
+        }
+        char *file = sc_strprintf("%s.%s", path_base, exts[e]);
+        written *w = realloc(s->files, sizeof *w * (size_t)(s->nfiles + 1));
+        if (!file || !w) {
+            free(file);
+            if (w) s->files = w;
+            return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        s->files = w;
+        sc_buf b;
+        sc_buf_init(&b);
+        int rc = encode(im, exts[e], &b, err);
+        if (rc == SC_OK) {
+            s->bytes += (int64_t)b.len;
+            rc = add_file(s->report, file, &b, err);
+        } else {
+            sc_error_prefix(err, "%s", file);
+        }
+        sc_buf_free(&b);
+        if (rc) {
+            free(file);
+            return rc;
+        }
+        w = &s->files[s->nfiles++];
+        w->digest = image->digest;
+        snprintf(w->ext, sizeof w->ext, "%s", exts[e]);
+        w->path = file;
+        if (e == 0) *path = file;
+    }
+    return SC_OK;
+}
+
+static const char *mtl_statement(const char *slot) {
+    if (strcmp(slot, "color") == 0) return "map_Kd";
+    if (strcmp(slot, "normal") == 0) return "norm";
+    if (strcmp(slot, "emissive") == 0) return "map_Ke";
+    return NULL;
+}
+
+/* The texture files and the MTL of a texture set. */
+static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, sc_error *err) {
+    const sc_mesh *m = set->mesh->as.mesh;
+    sc_buf mtl;
+    sc_buf_init(&mtl);
+    sc_buf_puts(&mtl, "# seamcook\n");
+    int rc = SC_OK;
+    for (int32_t k = 0; k < m->nmat && rc == SC_OK; k++) {
+        sc_buf_printf(&mtl, "\nnewmtl %s\nKd 1 1 1\n", names[k]);
+        for (int32_t t = 0; t < set->ntex && rc == SC_OK; t++) {
+            const sc_texture *tex = &set->textures[t];
+            if (tex->material != k) continue;
+            char *slot = safe_name(tex->name);
+            char *base = slot ? sc_strprintf("%s_%s_%s", s->name, names[k], slot) : NULL;
+            const char *file = NULL;
+            if (!base) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            else rc = save_image(s, tex->image, base, &file, err);
+            if (rc == SC_OK) {
+                const char *statement = mtl_statement(tex->name);
+                if (statement) sc_buf_printf(&mtl, "%s %s\n", statement, file);
+                else sc_buf_printf(&mtl, "# %s %s\n", slot, file);
+            }
+            free(slot), free(base);
+        }
+    }
+    char *path = rc == SC_OK ? sc_strprintf("%s.mtl", s->name) : NULL;
+    if (rc == SC_OK && !path) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) rc = add_file(s->report, path, &mtl, err);
+    free(path);
+    sc_buf_free(&mtl);
+    return rc;
+}
+
+static int save_obj(saver *s, const sc_mesh *m, const sc_mesh *set, char *const *names,
+                    const char *file, sc_error *err) {
+    sc_buf b;
+    sc_buf_init(&b);
+    char *mtl = sc_strprintf("%s.mtl", s->name);
+    int rc = mtl ? write_obj(m, set, names, mtl, &b, err) : sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) {
+        s->bytes += (int64_t)b.len;
+        rc = add_file(s->report, file, &b, err);
+    } else {
+        sc_error_prefix(err, "%s", file);
+    }
+    free(mtl);
+    sc_buf_free(&b);
+    return rc;
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    const sc_atlas *atlas = sc_ctx_atlas(ctx, "atlas");
+    const sc_lods *lods = sc_ctx_lods(ctx, "lods");
+    const sc_value *image = sc_ctx_input(ctx, "image");
+    saver s = {.name = sc_ctx_string(ctx, "file"), .format = sc_ctx_string(ctx, "format"),
+               .exr_too = sc_ctx_bool(ctx, "exr_too")};
+    int rc = check_name(s.name, err);
+    if (rc) return rc;
+    if (!atlas && !lods && !image)
+        return sc_fail(err, SC_EINPUT, "nothing to save: connect atlas, lods or image");
+    if (lods && lods->count < 1) return sc_fail(err, SC_EINPUT, "lods: no levels");
+    if (image && image->kind != SC_KIND_IMAGE) return sc_fail(err, SC_EINPUT, "image: not an image");
+    s.report = sc_report_new();
+    if (!s.report) return sc_fail(err, SC_ENOMEM, "out of memory");
+
+    const sc_atlas *set = atlas ? atlas : lods ? lods->levels[0]->as.atlas : NULL;
+    char **names = NULL;
+    if (set) {
+        const sc_mesh *set_mesh = set->mesh->as.mesh;
+        names = material_names(set_mesh);
+        if (!names) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK) rc = save_texture_set(&s, set, names, err);
+        if (rc == SC_OK && atlas) {
+            char *file = sc_strprintf("%s.obj", s.name);
+            rc = file ? save_obj(&s, atlas->mesh->as.mesh, set_mesh, names, file, err)
+                      : sc_fail(err, SC_ENOMEM, "out of memory");
+            if (rc) sc_error_prefix(err, "atlas");
+            free(file);
+        }
+        for (int32_t k = 0; lods && k < lods->count && rc == SC_OK; k++) {
+            char *file = sc_strprintf("%s_lod%d.obj", s.name, k);
+            rc = file ? save_obj(&s, lods->levels[k]->as.atlas->mesh->as.mesh, set_mesh, names, file, err)
+                      : sc_fail(err, SC_ENOMEM, "out of memory");
+            if (rc) sc_error_prefix(err, "lods: level %d", k);
+            free(file);
+        }
+        free_names(names, set_mesh->nmat);
+    }
+    if (rc == SC_OK && image) {
+        const char *file = NULL;
+        rc = save_image(&s, image, s.name, &file, err);
+        if (rc) sc_error_prefix(err, "image");
+    }
+    int nfiles = s.report->nfiles;
+    for (int i = 0; i < s.nfiles; i++) free(s.files[i].path);
+    free(s.files);
+    if (rc == SC_OK) {
+        rc = sc_report_metric(s.report, "files", nfiles) || sc_report_metric(s.report, "bytes", (double)s.bytes)
+                 ? sc_fail(err, SC_ENOMEM, "out of memory")
+                 : SC_OK;
+    }
+    if (rc != SC_OK) {
+        sc_report_free(s.report);
+        return rc;
+    }
+    sc_value *v = sc_value_new_report(s.report);
+    if (!v) return sc_fail(err, SC_ENOMEM, "out of memory");
+    sc_ctx_set_output(ctx, "files", v);
+    sc_ctx_metric(ctx, "files", nfiles);
+    sc_ctx_metric(ctx, "bytes", (double)s.bytes);
+    return SC_OK;
+}
+
+static const char *const format_choices[] = {"auto", "png", "jpg", "exr", NULL};
+
+static const sc_param_desc params[] = {
+    {.name = "file", .type = SC_PARAM_STRING, .def_string = "asset",
+     .doc = "base file name of everything written"},
+    {.name = "format", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = format_choices,
+     .doc = "texture format; auto: the texture's own (png/jpg) for 8/16-bit images, exr for float"},
+    {.name = "exr_too", .type = SC_PARAM_BOOL, .def = 0,
+     .doc = "also write every texture as float EXR"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .optional = true, .doc = "a textured mesh"},
+    {.name = "lods", .kind = SC_KIND_LODS, .optional = true,
+     .doc = "levels of detail sharing one texture set"},
+    {.name = "image", .kind = SC_KIND_IMAGE, .optional = true, .doc = "an image on its own"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "files", .kind = SC_KIND_REPORT, .doc = "the files, for the engine to write into --out"},
+};
+
+const sc_node_desc sc_node_save = {
+    .type = "save",
+    .version = 1,
+    .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+};

@@ -1,0 +1,456 @@
+/* sc_base.c - errors, buffers, digests, files and number formatting.
+ *
+ * Design note: everything here is small and dependency-free except SHA-256,
+ * which comes from OpenSSL's libcrypto (EVP), so it uses the CPU's SHA
+ * extensions where present. Binary encodings are little endian and written
+ * byte by byte, so the canonical bytes do not depend on the host.
+ */
+#include "sc_base.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <openssl/evp.h>
+
+/* ---------------------------------------------------------------- errors */
+
+int sc_fail(sc_error *err, int code, const char *fmt, ...) {
+    if (err) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(err->message, sizeof err->message, fmt, ap);
+        va_end(ap);
+        err->code = code;
+    }
+    return code;
+}
+
+int sc_error_prefix(sc_error *err, const char *fmt, ...) {
+    if (!err) return SC_EINPUT;
+    char prefix[512], old[sizeof err->message];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(prefix, sizeof prefix, fmt, ap);
+    va_end(ap);
+    memcpy(old, err->message, sizeof old);
+    size_t n = strlen(prefix);
+    if (n > sizeof err->message - 3) n = sizeof err->message - 3;
+    memcpy(err->message, prefix, n);
+    memcpy(err->message + n, ": ", 2);
+    size_t room = sizeof err->message - n - 3;
+    size_t m = strnlen(old, room);
+    memcpy(err->message + n + 2, old, m);
+    err->message[n + 2 + m] = 0;
+    return err->code ? err->code : SC_EINPUT;
+}
+
+/* ---------------------------------------------------------------- memory */
+
+void *sc_alloc_array(size_t count, size_t size) {
+    if (count == 0 || size == 0 || count > SIZE_MAX / size) return NULL;
+    return malloc(count * size);
+}
+
+void *sc_calloc_array(size_t count, size_t size) {
+    if (count == 0 || size == 0 || count > SIZE_MAX / size) return NULL;
+    return calloc(count, size);
+}
+
+void *sc_realloc_array(void *p, size_t count, size_t size) {
+    if (count == 0 || size == 0 || count > SIZE_MAX / size) return NULL;
+    return realloc(p, count * size);
+}
+
+char *sc_strdup(const char *s) {
+    return s ? sc_strndup(s, strlen(s)) : NULL;
+}
+
+char *sc_strndup(const char *s, size_t n) {
+    char *d = malloc(n + 1);
+    if (!d) return NULL;
+    memcpy(d, s, n);
+    d[n] = 0;
+    return d;
+}
+
+char *sc_strprintf(const char *fmt, ...) {
+    va_list ap, ap2;
+    va_start(ap, fmt);
+    va_copy(ap2, ap);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (s) vsnprintf(s, (size_t)n + 1, fmt, ap2);
+    va_end(ap2);
+    return s;
+}
+
+/* ---------------------------------------------------------------- buffer */
+
+void sc_buf_init(sc_buf *b) { memset(b, 0, sizeof *b); }
+
+void sc_buf_free(sc_buf *b) {
+    free(b->data);
+    memset(b, 0, sizeof *b);
+}
+
+void sc_buf_reset(sc_buf *b) {
+    b->len = 0;
+    b->failed = false;
+}
+
+bool sc_buf_reserve(sc_buf *b, size_t extra) {
+    if (b->failed) return false;
+    if (extra > SIZE_MAX - b->len - 1) {
+        b->failed = true;
+        return false;
+    }
+    size_t need = b->len + extra + 1;   /* room for a terminating NUL */
+    if (need <= b->cap) return true;
+    size_t cap = b->cap ? b->cap : 64;
+    while (cap < need) cap = cap > SIZE_MAX / 2 ? need : cap * 2;
+    uint8_t *d = realloc(b->data, cap);
+    if (!d) {
+        b->failed = true;
+        return false;
+    }
+    b->data = d;
+    b->cap = cap;
+    return true;
+}
+
+void sc_buf_append(sc_buf *b, const void *p, size_t n) {
+    if (!sc_buf_reserve(b, n)) return;
+    if (n) memcpy(b->data + b->len, p, n);
+    b->len += n;
+    b->data[b->len] = 0;
+}
+
+void sc_buf_puts(sc_buf *b, const char *s) { sc_buf_append(b, s, strlen(s)); }
+
+void sc_buf_printf(sc_buf *b, const char *fmt, ...) {
+    va_list ap, ap2;
+    va_start(ap, fmt);
+    va_copy(ap2, ap);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (n > 0 && sc_buf_reserve(b, (size_t)n)) {
+        vsnprintf((char *)b->data + b->len, (size_t)n + 1, fmt, ap2);
+        b->len += (size_t)n;
+    }
+    va_end(ap2);
+}
+
+void sc_buf_u8(sc_buf *b, uint8_t v) { sc_buf_append(b, &v, 1); }
+
+void sc_buf_u32(sc_buf *b, uint32_t v) {
+    uint8_t x[4] = {(uint8_t)v, (uint8_t)(v >> 8), (uint8_t)(v >> 16), (uint8_t)(v >> 24)};
+    sc_buf_append(b, x, 4);
+}
+
+void sc_buf_u64(sc_buf *b, uint64_t v) {
+    sc_buf_u32(b, (uint32_t)v);
+    sc_buf_u32(b, (uint32_t)(v >> 32));
+}
+
+void sc_buf_f64(sc_buf *b, double v) {
+    uint64_t u;
+    memcpy(&u, &v, 8);
+    sc_buf_u64(b, u);
+}
+
+void sc_buf_str(sc_buf *b, const char *s) {
+    size_t n = s ? strlen(s) : 0;
+    sc_buf_u32(b, (uint32_t)n);
+    if (n) sc_buf_append(b, s, n);
+}
+
+char *sc_buf_take_string(sc_buf *b) {
+    if (b->failed) {
+        sc_buf_free(b);
+        return NULL;
+    }
+    if (!b->data && !sc_buf_reserve(b, 0)) return NULL;
+    b->data[b->len] = 0;
+    char *s = (char *)b->data;
+    memset(b, 0, sizeof *b);
+    return s;
+}
+
+/* ---------------------------------------------------------------- reader */
+
+void sc_reader_init(sc_reader *r, const void *data, size_t n) {
+    r->p = data;
+    r->end = r->p + n;
+    r->failed = false;
+}
+
+const void *sc_read_bytes(sc_reader *r, size_t n) {
+    if (r->failed || (size_t)(r->end - r->p) < n) {
+        r->failed = true;
+        return NULL;
+    }
+    const void *p = r->p;
+    r->p += n;
+    return p;
+}
+
+uint8_t sc_read_u8(sc_reader *r) {
+    const uint8_t *p = sc_read_bytes(r, 1);
+    return p ? p[0] : 0;
+}
+
+uint32_t sc_read_u32(sc_reader *r) {
+    const uint8_t *p = sc_read_bytes(r, 4);
+    if (!p) return 0;
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+uint64_t sc_read_u64(sc_reader *r) {
+    uint64_t lo = sc_read_u32(r);
+    uint64_t hi = sc_read_u32(r);
+    return lo | hi << 32;
+}
+
+double sc_read_f64(sc_reader *r) {
+    uint64_t u = sc_read_u64(r);
+    double v;
+    memcpy(&v, &u, 8);
+    return v;
+}
+
+char *sc_read_str(sc_reader *r) {
+    uint32_t n = sc_read_u32(r);
+    const char *p = sc_read_bytes(r, n);
+    if (!p) return NULL;
+    if (memchr(p, 0, n)) {
+        r->failed = true;
+        return NULL;
+    }
+    return sc_strndup(p, n);
+}
+
+/* ---------------------------------------------------------------- digests */
+
+struct sc_hasher {
+    EVP_MD_CTX *ctx;
+};
+
+sc_hasher *sc_hasher_new(void) {
+    sc_hasher *h = malloc(sizeof *h);
+    if (!h) return NULL;
+    h->ctx = EVP_MD_CTX_new();
+    if (!h->ctx || EVP_DigestInit_ex(h->ctx, EVP_sha256(), NULL) != 1) {
+        EVP_MD_CTX_free(h->ctx);
+        free(h);
+        return NULL;
+    }
+    return h;
+}
+
+void sc_hasher_update(sc_hasher *h, const void *p, size_t n) {
+    if (h && n) EVP_DigestUpdate(h->ctx, p, n);
+}
+
+void sc_hasher_final(sc_hasher *h, sc_digest *out) {
+    memset(out, 0, sizeof *out);
+    if (!h) return;
+    unsigned int len = 0;
+    EVP_DigestFinal_ex(h->ctx, out->bytes, &len);
+    EVP_MD_CTX_free(h->ctx);
+    free(h);
+}
+
+void sc_digest_bytes(const void *p, size_t n, sc_digest *out) {
+    unsigned int len = 0;
+    if (EVP_Digest(p, n, out->bytes, &len, EVP_sha256(), NULL) != 1)
+        memset(out, 0, sizeof *out);
+}
+
+void sc_digest_hex(const sc_digest *d, char out[65]) {
+    static const char hex[] = "0123456789abcdef";
+    for (int i = 0; i < 32; i++) {
+        out[2 * i] = hex[d->bytes[i] >> 4];
+        out[2 * i + 1] = hex[d->bytes[i] & 15];
+    }
+    out[64] = 0;
+}
+
+static int hex_value(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+int sc_digest_parse(const char *hex, sc_digest *out) {
+    if (!hex || strlen(hex) != 64) return -1;
+    for (int i = 0; i < 32; i++) {
+        int hi = hex_value(hex[2 * i]), lo = hex_value(hex[2 * i + 1]);
+        if (hi < 0 || lo < 0) return -1;
+        out->bytes[i] = (uint8_t)(hi << 4 | lo);
+    }
+    return 0;
+}
+
+bool sc_digest_equal(const sc_digest *a, const sc_digest *b) {
+    return memcmp(a->bytes, b->bytes, 32) == 0;
+}
+
+bool sc_digest_is_zero(const sc_digest *d) {
+    static const sc_digest zero;
+    return sc_digest_equal(d, &zero);
+}
+
+/* ---------------------------------------------------------------- files */
+
+int sc_read_file(const char *path, size_t max_bytes, sc_buf *out, sc_error *err) {
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return sc_fail(err, SC_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        close(fd);
+        return sc_fail(err, SC_EINPUT, "%s: not a regular file", path);
+    }
+    if ((uint64_t)st.st_size > max_bytes) {
+        close(fd);
+        return sc_fail(err, SC_ENOMEM, "%s: %lld bytes is larger than the limit of %zu",
+                       path, (long long)st.st_size, max_bytes);
+    }
+    sc_buf_reset(out);
+    if (!sc_buf_reserve(out, (size_t)st.st_size)) {
+        close(fd);
+        return sc_fail(err, SC_ENOMEM, "%s: out of memory", path);
+    }
+    for (;;) {
+        if (out->len >= max_bytes) break;
+        if (!sc_buf_reserve(out, 65536)) {
+            close(fd);
+            return sc_fail(err, SC_ENOMEM, "%s: out of memory", path);
+        }
+        size_t room = out->cap - out->len - 1;
+        if (room > max_bytes - out->len + 1) room = max_bytes - out->len + 1;
+        ssize_t n = read(fd, out->data + out->len, room);
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            close(fd);
+            return sc_fail(err, SC_EINPUT, "%s: read failed: %s", path, strerror(errno));
+        }
+        if (n == 0) break;
+        out->len += (size_t)n;
+    }
+    close(fd);
+    if (out->len > max_bytes)
+        return sc_fail(err, SC_ENOMEM, "%s: larger than the limit of %zu bytes", path, max_bytes);
+    out->data[out->len] = 0;
+    return SC_OK;
+}
+
+int sc_write_file_atomic(const char *path, const void *p, size_t n, sc_error *err) {
+    size_t plen = strlen(path);
+    char *tmp = malloc(plen + 32);
+    if (!tmp) return sc_fail(err, SC_ENOMEM, "out of memory");
+    snprintf(tmp, plen + 32, "%s.tmp.%ld.XXXXXX", path, (long)getpid());
+    int fd = mkstemp(tmp);
+    if (fd < 0) {
+        int e = errno;
+        free(tmp);
+        return sc_fail(err, SC_EIO, "%s: cannot create: %s", path, strerror(e));
+    }
+    const uint8_t *q = p;
+    size_t left = n;
+    while (left > 0) {
+        ssize_t w = write(fd, q, left);
+        if (w < 0) {
+            if (errno == EINTR) continue;
+            int e = errno;
+            close(fd);
+            unlink(tmp);
+            free(tmp);
+            return sc_fail(err, SC_EIO, "%s: write failed: %s", path, strerror(e));
+        }
+        q += w;
+        left -= (size_t)w;
+    }
+    if (fchmod(fd, 0644) != 0 || fsync(fd) != 0 || close(fd) != 0) {
+        int e = errno;
+        unlink(tmp);
+        free(tmp);
+        return sc_fail(err, SC_EIO, "%s: cannot finish writing: %s", path, strerror(e));
+    }
+    if (rename(tmp, path) != 0) {
+        int e = errno;
+        unlink(tmp);
+        free(tmp);
+        return sc_fail(err, SC_EIO, "%s: cannot publish: %s", path, strerror(e));
+    }
+    free(tmp);
+    return SC_OK;
+}
+
+int sc_make_dirs(const char *path, sc_error *err) {
+    char *p = sc_strdup(path);
+    if (!p) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (char *s = p + 1; *s; s++) {
+        if (*s != '/') continue;
+        *s = 0;
+        if (mkdir(p, 0755) != 0 && errno != EEXIST) {
+            int e = errno;
+            int rc = sc_fail(err, SC_EIO, "%s: cannot make directory: %s", p, strerror(e));
+            free(p);
+            return rc;
+        }
+        *s = '/';
+    }
+    if (mkdir(p, 0755) != 0 && errno != EEXIST) {
+        int e = errno;
+        int rc = sc_fail(err, SC_EIO, "%s: cannot make directory: %s", p, strerror(e));
+        free(p);
+        return rc;
+    }
+    free(p);
+    return SC_OK;
+}
+
+char *sc_path_join(const char *dir, const char *name) {
+    if (name[0] == '/' || !dir || !*dir) return sc_strdup(name);
+    size_t dl = strlen(dir);
+    if (dir[dl - 1] == '/') return sc_strprintf("%s%s", dir, name);
+    return sc_strprintf("%s/%s", dir, name);
+}
+
+char *sc_path_dirname(const char *path) {
+    const char *slash = strrchr(path, '/');
+    if (!slash) return sc_strdup(".");
+    if (slash == path) return sc_strdup("/");
+    return sc_strndup(path, (size_t)(slash - path));
+}
+
+double sc_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void sc_format_double(double v, char out[32]) {
+    if (v == 0) {   /* both zeros print as 0: they compare equal everywhere */
+        strcpy(out, "0");
+        return;
+    }
+    if (v == floor(v) && fabs(v) < 9007199254740992.0) {
+        snprintf(out, 32, "%.0f", v);
+        return;
+    }
+    for (int prec = 1; prec <= 17; prec++) {
+        snprintf(out, 32, "%.*g", prec, v);
+        if (strtod(out, NULL) == v) return;
+    }
+}

@@ -1,0 +1,136 @@
+/* sc_base.h - the few things every module of seamcook shares.
+ *
+ *   sc_error   an error as a value: a code and a message, filled by the callee.
+ *   sc_buf     a growable byte buffer, owned by the caller (sc_buf_free).
+ *   sc_digest  a SHA-256 digest (OpenSSL), printed as 64 lower-case hex digits.
+ *
+ * Convention: a function that can fail returns int (0 = ok, non-zero = the
+ * error code) and takes `sc_error *err` last; on failure it fills err. err may
+ * be NULL when the caller does not want the message.
+ */
+#ifndef SC_BASE_H
+#define SC_BASE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdbool.h>
+
+/* ---------------------------------------------------------------- errors */
+
+enum {
+    SC_OK = 0,
+    SC_EINPUT = 1,   /* bad input: file, parameter, graph, value (exit status 1) */
+    SC_EUSAGE = 2,   /* bad command line (exit status 2) */
+    SC_EIO = 3,      /* the file system or the cache failed */
+    SC_ENOMEM = 4,   /* out of memory, or a size beyond the limits */
+    SC_EMISS = 5,    /* not found (a cache miss); not a failure in itself */
+};
+
+typedef struct sc_error {
+    int code;
+    char message[1024];
+} sc_error;
+
+/* Fill err (if not NULL) with printf-style text; returns code. */
+int sc_fail(sc_error *err, int code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+/* Prefix an existing message: "prefix: old message". Returns err->code. */
+int sc_error_prefix(sc_error *err, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+
+/* ---------------------------------------------------------------- memory */
+
+/* malloc/calloc/realloc that return NULL for a zero or overflowing size
+ * product instead of wrapping around. */
+void *sc_alloc_array(size_t count, size_t size);
+void *sc_calloc_array(size_t count, size_t size);
+void *sc_realloc_array(void *p, size_t count, size_t size);
+char *sc_strdup(const char *s);
+char *sc_strndup(const char *s, size_t n);
+/* printf into a new heap string (caller frees). */
+char *sc_strprintf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* ---------------------------------------------------------------- buffer */
+
+typedef struct sc_buf {
+    uint8_t *data;
+    size_t len, cap;
+    bool failed;          /* set once an allocation failed; appends then no-op */
+} sc_buf;
+
+void sc_buf_init(sc_buf *b);
+void sc_buf_free(sc_buf *b);
+void sc_buf_reset(sc_buf *b);                      /* len = 0, keeps capacity */
+bool sc_buf_reserve(sc_buf *b, size_t extra);
+void sc_buf_append(sc_buf *b, const void *p, size_t n);
+void sc_buf_puts(sc_buf *b, const char *s);
+void sc_buf_printf(sc_buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void sc_buf_u8(sc_buf *b, uint8_t v);
+void sc_buf_u32(sc_buf *b, uint32_t v);            /* little endian */
+void sc_buf_u64(sc_buf *b, uint64_t v);
+void sc_buf_f64(sc_buf *b, double v);
+void sc_buf_str(sc_buf *b, const char *s);         /* u32 length + bytes */
+/* Take the bytes out as a NUL-terminated string; the buffer is left empty. */
+char *sc_buf_take_string(sc_buf *b);
+
+/* A bounds-checked reader over bytes (for deserialisation). Reads past the
+ * end set `failed` and return zeros; check it once at the end. */
+typedef struct sc_reader {
+    const uint8_t *p, *end;
+    bool failed;
+} sc_reader;
+
+void sc_reader_init(sc_reader *r, const void *data, size_t n);
+uint8_t sc_read_u8(sc_reader *r);
+uint32_t sc_read_u32(sc_reader *r);
+uint64_t sc_read_u64(sc_reader *r);
+double sc_read_f64(sc_reader *r);
+const void *sc_read_bytes(sc_reader *r, size_t n);  /* NULL when short */
+char *sc_read_str(sc_reader *r);                    /* new string, NULL when bad */
+
+/* ---------------------------------------------------------------- digests */
+
+typedef struct sc_digest {
+    uint8_t bytes[32];
+} sc_digest;
+
+typedef struct sc_hasher sc_hasher;   /* incremental SHA-256 */
+
+sc_hasher *sc_hasher_new(void);
+void sc_hasher_update(sc_hasher *h, const void *p, size_t n);
+void sc_hasher_final(sc_hasher *h, sc_digest *out);   /* also frees h */
+
+void sc_digest_bytes(const void *p, size_t n, sc_digest *out);
+void sc_digest_hex(const sc_digest *d, char out[65]);
+int sc_digest_parse(const char *hex, sc_digest *out);  /* 0 ok, -1 bad */
+bool sc_digest_equal(const sc_digest *a, const sc_digest *b);
+bool sc_digest_is_zero(const sc_digest *d);
+
+/* ---------------------------------------------------------------- files */
+
+/* Read a whole file. Fails with SC_EINPUT naming the path when it is missing
+ * or unreadable, and with SC_ENOMEM when larger than max_bytes. */
+int sc_read_file(const char *path, size_t max_bytes, sc_buf *out, sc_error *err);
+
+/* Write bytes to path atomically: a temporary file beside it, fsync, rename.
+ * A failure leaves no partial file at path. */
+int sc_write_file_atomic(const char *path, const void *p, size_t n, sc_error *err);
+
+/* mkdir -p */
+int sc_make_dirs(const char *path, sc_error *err);
+
+/* Join a directory and a relative name into a new string. A name that is
+ * already absolute is returned as is. */
+char *sc_path_join(const char *dir, const char *name);
+/* The directory part of path ("." when none), as a new string. */
+char *sc_path_dirname(const char *path);
+
+/* Monotonic seconds, for timings that go into reports (never into values). */
+double sc_now(void);
+
+/* Shortest decimal text that reads back to exactly v ("nan"/"inf" never
+ * occur: callers reject them first). Integral values print without ".0". */
+void sc_format_double(double v, char out[32]);
+
+#endif

@@ -1,0 +1,1052 @@
+/* sc_engine.c - cooking a graph.
+ *
+ * Design note. The engine is a small state machine per node, driven from one
+ * libuv loop on the calling thread:
+ *
+ *   WAITING --inputs' digests known--> key --hit--> CACHED (digests, no bytes)
+ *                                          \-miss-> NEED_RUN --inputs loaded--> RUNNING --> DONE
+ *
+ * Only the loop thread touches node states; worker threads run a node (or
+ * load a cached node's outputs) on data nobody else changes meanwhile, and
+ * hand the result back in the after-work callback. Every call into the cache
+ * is made under one mutex (the index is one SQLite connection).
+ *
+ * Values are loaded lazily: a hit costs one indexed lookup, a stat per
+ * output and no bytes. Only when a consumer must cook are its inputs read from
+ * the blob store (verified against their digests). If a cached output turns
+ * out to be missing or corrupt, its producer simply cooks again. An input port
+ * of kind MESH fed by an ATLAS is keyed by the atlas's mesh digest, so a
+ * texture change does not re-cook mesh-only nodes.
+ */
+#include "sc_engine.h"
+
+#include <limits.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cjson/cJSON.h>
+#include <uv.h>
+
+#include "sc_exec.h"
+
+typedef enum node_state {
+    ST_WAITING,
+    ST_CACHED,
+    ST_NEED_RUN,
+    ST_RUNNING,
+    ST_DONE,
+    ST_FAILED,
+    ST_SKIPPED,
+    ST_WOULD_RUN,
+} node_state;
+
+typedef struct report_file {
+    char *path;
+    sc_digest value;     /* the BYTES value's digest (the blob) */
+    sc_digest content;   /* SHA-256 of the file's bytes */
+} report_file;
+
+typedef struct node_rt {
+    node_state state;
+    char *canon;               /* canonical action text: the key's preimage */
+    sc_value **values;         /* per output, when in memory */
+    sc_value **meshes;         /* per ATLAS output: its mesh alone, when loaded */
+    bool loading;
+    int pending_consumers;     /* consumer edges not yet finished */
+    int nfiles;
+    report_file *files;        /* report files of every REPORT output */
+} node_rt;
+
+typedef struct engine {
+    const sc_graph *g;
+    sc_cache *cache;
+    const sc_engine_options *opt;
+    uv_loop_t loop;
+    uv_mutex_t cache_lock;
+    node_rt *rt;
+    sc_run *run;
+    int inflight;              /* cooking jobs */
+    int loads;                 /* load jobs */
+    bool stop;                 /* a node failed: start nothing new */
+    int first_rc;
+    sc_error first_err;
+    int done_count;
+    double t0;
+} engine;
+
+const char *sc_status_name(sc_node_status s) {
+    switch (s) {
+    case SC_STATUS_PENDING: return "pending";
+    case SC_STATUS_CACHED: return "cached";
+    case SC_STATUS_RAN: return "ran";
+    case SC_STATUS_FAILED: return "failed";
+    case SC_STATUS_SKIPPED: return "skipped";
+    case SC_STATUS_WOULD_RUN: return "would run";
+    }
+    return "?";
+}
+
+/* ---------------------------------------------------------------- loading values */
+
+typedef struct loader {
+    sc_cache *cache;
+    int depth;
+} loader;
+
+static sc_value *load_digest(void *ud, const sc_digest *d, sc_error *err) {
+    loader *ld = ud;
+    if (ld->depth > 8) {
+        sc_fail(err, SC_EINPUT, "values nest too deeply");
+        return NULL;
+    }
+    sc_buf buf;
+    sc_buf_init(&buf);
+    int rc = sc_cache_get_blob(ld->cache, d, &buf, err);
+    if (rc != SC_OK) {
+        sc_buf_free(&buf);
+        return NULL;
+    }
+    ld->depth++;
+    sc_value *v = sc_value_deserialize(buf.data, buf.len, d, load_digest, ld, err);
+    ld->depth--;
+    sc_buf_free(&buf);
+    return v;
+}
+
+sc_value *sc_engine_load(sc_cache *cache, const sc_digest *digest, sc_error *err) {
+    loader ld = {cache, 0};
+    return load_digest(&ld, digest, err);
+}
+
+/* ---------------------------------------------------------------- storing values */
+
+typedef struct storer {
+    sc_cache *cache;
+    sc_digest *blobs;
+    int nblobs, cap;
+    int rc;
+    sc_error *err;
+} storer;
+
+static void store_value(void *ud, sc_value *v) {
+    storer *s = ud;
+    if (s->rc != SC_OK) return;
+    sc_value_parts(v, store_value, s);   /* parts first: a record never names missing bytes */
+    if (s->nblobs == s->cap) {
+        int cap = s->cap ? 2 * s->cap : 16;
+        sc_digest *b = realloc(s->blobs, sizeof *b * (size_t)cap);
+        if (!b) {
+            s->rc = sc_fail(s->err, SC_ENOMEM, "out of memory");
+            return;
+        }
+        s->blobs = b, s->cap = cap;
+    }
+    s->blobs[s->nblobs++] = v->digest;
+    if (sc_cache_has_blob(s->cache, &v->digest)) return;
+    sc_buf buf;
+    sc_buf_init(&buf);
+    if (sc_value_serialize(v, &buf) != SC_OK)
+        s->rc = sc_fail(s->err, SC_ENOMEM, "out of memory serialising a %s", sc_kind_name(v->kind));
+    else
+        s->rc = sc_cache_put_blob(s->cache, &v->digest, buf.data, buf.len, s->err);
+    sc_buf_free(&buf);
+}
+
+/* ---------------------------------------------------------------- small helpers */
+
+static const sc_graph_node *gnode(engine *e, int i) { return &e->g->nodes[i]; }
+
+static void hexof(const sc_digest *d, char out[65]) { sc_digest_hex(d, out); }
+
+/* A node's identity across runs: the graph file's real path and its name. */
+static char *node_id(engine *e, int i) {
+    char resolved[PATH_MAX];
+    const char *file = realpath(e->g->file, resolved) ? resolved : e->g->file;
+    return sc_strprintf("%s#%s", file, gnode(e, i)->name);
+}
+
+static void say(engine *e, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void say(engine *e, const char *fmt, ...) {
+    if (!e->opt->log) return;
+    if (e->opt->live) fputs("\r\033[K", e->opt->log);
+    va_list ap;
+    va_start(ap, fmt);
+    vfprintf(e->opt->log, fmt, ap);
+    va_end(ap);
+    fputc('\n', e->opt->log);
+    fflush(e->opt->log);
+}
+
+static void show_progress(engine *e) {
+    if (!e->opt->log || !e->opt->live) return;
+    int running = 0;
+    char names[160] = "";
+    size_t used = 0;
+    for (int i = 0; i < e->g->count; i++) {
+        if (e->rt[i].state != ST_RUNNING) continue;
+        running++;
+        int n = snprintf(names + used, sizeof names - used, "%s%s", used ? ", " : "",
+                         gnode(e, i)->name);
+        if (n > 0 && (size_t)n < sizeof names - used) used += (size_t)n;
+    }
+    fprintf(e->opt->log, "\r\033[K[%d/%d] %d cached, %d ran%s%s", e->done_count, e->g->count,
+            e->run->cached, e->run->ran, running ? " | cooking: " : "", names);
+    fflush(e->opt->log);
+}
+
+/* The digest a consumer's input port is keyed by. */
+static const sc_digest *input_digest(engine *e, int i, int port) {
+    const sc_graph_node *n = gnode(e, i);
+    int p = n->input_node[port], k = n->input_port[port];
+    const sc_node_output *o = &e->run->results[p].outputs[k];
+    if (n->desc->inputs[port].kind == SC_KIND_MESH && o->kind == SC_KIND_ATLAS) return &o->mesh;
+    return &o->digest;
+}
+
+static bool wants_mesh_only(engine *e, int i, int port) {
+    const sc_graph_node *n = gnode(e, i);
+    int p = n->input_node[port], k = n->input_port[port];
+    return n->desc->inputs[port].kind == SC_KIND_MESH &&
+           gnode(e, p)->desc->outputs[k].kind == SC_KIND_ATLAS;
+}
+
+/* The canonical action text: its SHA-256 is the key. */
+static char *canonical_action(engine *e, int i) {
+    const sc_graph_node *n = gnode(e, i);
+    sc_buf b, params;
+    sc_buf_init(&b);
+    sc_buf_init(&params);
+    sc_buf_printf(&b, "seamcook action\nformat %d.%d\ntype %s\nversion %d\n", SC_ENGINE_FORMAT,
+                  SC_VALUE_FORMAT, n->desc->type, n->desc->version);
+    sc_graph_canonical_params(n, &params);
+    /* prefix each parameter line, so explain can tell lines apart */
+    const char *p = params.data ? (const char *)params.data : "";
+    while (*p) {
+        const char *nl = strchr(p, '\n');
+        size_t len = nl ? (size_t)(nl - p) : strlen(p);
+        sc_buf_puts(&b, "param ");
+        sc_buf_append(&b, p, len);
+        sc_buf_puts(&b, "\n");
+        p += len + (nl ? 1 : 0);
+    }
+    sc_buf_free(&params);
+    for (int port = 0; port < n->desc->ninputs; port++) {
+        if (n->input_node[port] < 0) continue;
+        char hex[65];
+        hexof(input_digest(e, i, port), hex);
+        sc_buf_printf(&b, "input %s %s\n", n->desc->inputs[port].name, hex);
+    }
+    return sc_buf_take_string(&b);
+}
+
+/* ---------------------------------------------------------------- output records */
+
+static cJSON *outputs_json(engine *e, int i) {
+    const sc_node_result *r = &e->run->results[i];
+    node_rt *rt = &e->rt[i];
+    cJSON *arr = cJSON_CreateArray();
+    for (int k = 0; k < r->noutputs; k++) {
+        char hex[65];
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "kind", sc_kind_name(r->outputs[k].kind));
+        hexof(&r->outputs[k].digest, hex);
+        cJSON_AddStringToObject(o, "digest", hex);
+        if (r->outputs[k].kind == SC_KIND_ATLAS) {
+            hexof(&r->outputs[k].mesh, hex);
+            cJSON_AddStringToObject(o, "mesh", hex);
+        }
+        cJSON_AddItemToArray(arr, o);
+    }
+    cJSON *files = cJSON_CreateArray();
+    for (int f = 0; f < rt->nfiles; f++) {
+        char hex[65];
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "path", rt->files[f].path);
+        hexof(&rt->files[f].value, hex);
+        cJSON_AddStringToObject(o, "value", hex);
+        hexof(&rt->files[f].content, hex);
+        cJSON_AddStringToObject(o, "content", hex);
+        cJSON_AddItemToArray(files, o);
+    }
+    cJSON *root = cJSON_CreateObject();
+    cJSON_AddItemToObject(root, "outputs", arr);
+    cJSON_AddItemToObject(root, "files", files);
+    return root;
+}
+
+static int parse_digest_field(const cJSON *o, const char *name, sc_digest *d) {
+    const cJSON *s = cJSON_GetObjectItemCaseSensitive(o, name);
+    return (cJSON_IsString(s) && sc_digest_parse(s->valuestring, d) == 0) ? 0 : -1;
+}
+
+/* Read a recorded action's outputs into the node's result. 0 ok, -1 unusable. */
+static int read_outputs(engine *e, int i, const char *text) {
+    sc_node_result *r = &e->run->results[i];
+    node_rt *rt = &e->rt[i];
+    cJSON *root = cJSON_Parse(text);
+    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, "outputs");
+    const cJSON *files = cJSON_GetObjectItemCaseSensitive(root, "files");
+    int rc = (cJSON_IsArray(arr) && cJSON_IsArray(files) &&
+              cJSON_GetArraySize(arr) == r->noutputs) ? 0 : -1;
+    for (int k = 0; rc == 0 && k < r->noutputs; k++) {
+        const cJSON *o = cJSON_GetArrayItem(arr, k);
+        const cJSON *kind = cJSON_GetObjectItemCaseSensitive(o, "kind");
+        r->outputs[k].kind = cJSON_IsString(kind) ? sc_kind_from_name(kind->valuestring) : SC_KIND_NONE;
+        if (r->outputs[k].kind != gnode(e, i)->desc->outputs[k].kind ||
+            parse_digest_field(o, "digest", &r->outputs[k].digest) != 0 ||
+            (r->outputs[k].kind == SC_KIND_ATLAS && parse_digest_field(o, "mesh", &r->outputs[k].mesh) != 0))
+            rc = -1;
+    }
+    int nf = rc == 0 ? cJSON_GetArraySize(files) : 0;
+    if (nf > 0) {
+        rt->files = calloc((size_t)nf, sizeof *rt->files);
+        if (!rt->files) rc = -1;
+    }
+    for (int f = 0; rc == 0 && f < nf; f++) {
+        const cJSON *o = cJSON_GetArrayItem(files, f);
+        const cJSON *path = cJSON_GetObjectItemCaseSensitive(o, "path");
+        if (!cJSON_IsString(path) || parse_digest_field(o, "value", &rt->files[f].value) != 0 ||
+            parse_digest_field(o, "content", &rt->files[f].content) != 0) {
+            rc = -1;
+            break;
+        }
+        rt->files[f].path = sc_strdup(path->valuestring);
+        rt->nfiles++;
+    }
+    cJSON_Delete(root);
+    return rc;
+}
+
+static void forget_files(node_rt *rt) {
+    for (int f = 0; f < rt->nfiles; f++) free(rt->files[f].path);
+    free(rt->files);
+    rt->files = NULL;
+    rt->nfiles = 0;
+}
+
+/* ---------------------------------------------------------------- explain */
+
+/* The first line of `text` that starts with `prefix` and a space, or NULL. */
+static const char *find_line(const char *text, const char *prefix, const char *name, size_t *len) {
+    size_t pl = strlen(prefix), nl = name ? strlen(name) : 0;
+    for (const char *p = text; p && *p;) {
+        const char *end = strchr(p, '\n');
+        size_t l = end ? (size_t)(end - p) : strlen(p);
+        if (l > pl && strncmp(p, prefix, pl) == 0 && p[pl] == ' ' &&
+            (!name || (l > pl + 1 + nl && strncmp(p + pl + 1, name, nl) == 0 &&
+                       (p[pl + 1 + nl] == ' ' || p[pl + 1 + nl] == '=')))) {
+            *len = l;
+            return p;
+        }
+        p = end ? end + 1 : NULL;
+    }
+    return NULL;
+}
+
+/* Why the node with canonical text `now` cooks, given what it was last time. */
+static char *explain(engine *e, int i, const char *now, const char *before) {
+    if (!before) return sc_strdup("no previous cook of this node");
+    sc_buf why;
+    sc_buf_init(&why);
+    size_t la, lb;
+    const char *a = find_line(before, "version", NULL, &la), *b = find_line(now, "version", NULL, &lb);
+    if (a && b && (la != lb || strncmp(a, b, la) != 0))
+        sc_buf_printf(&why, "node version %.*s -> %.*s; ", (int)(la - 8), a + 8, (int)(lb - 8), b + 8);
+    const sc_graph_node *n = gnode(e, i);
+    for (int k = 0; k < n->desc->nparams; k++) {
+        const char *name = n->desc->params[k].name;
+        a = find_line(before, "param", name, &la);
+        b = find_line(now, "param", name, &lb);
+        if (a && b && la == lb && strncmp(a, b, la) == 0) continue;
+        size_t skip = 6 + strlen(name) + 1;
+        sc_buf_printf(&why, "parameter %s: %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
+                      a ? a + skip : "(unset)", b ? (int)(lb - skip) : 7, b ? b + skip : "(unset)");
+    }
+    for (int k = 0; k < n->desc->ninputs; k++) {
+        const char *name = n->desc->inputs[k].name;
+        a = find_line(before, "input", name, &la);
+        b = find_line(now, "input", name, &lb);
+        if (a && b && la == lb && strncmp(a, b, la) == 0) continue;
+        if (!a && !b) continue;
+        int p = n->input_node[k];
+        sc_buf_printf(&why, "input %s changed (from %s); ", name, p >= 0 ? gnode(e, p)->name : "nothing");
+    }
+    /* files read last time that differ now */
+    for (const char *p = before; p && *p;) {
+        const char *end = strchr(p, '\n');
+        size_t l = end ? (size_t)(end - p) : strlen(p);
+        if (l > 4 + 65 && strncmp(p, "dep ", 4) == 0) {
+            char hex[65], *path = sc_strndup(p + 4 + 65, l - 4 - 65);
+            memcpy(hex, p + 4, 64);
+            hex[64] = 0;
+            sc_digest then, cur;
+            sc_error ignored;
+            if (path && sc_digest_parse(hex, &then) == 0) {
+                uv_mutex_lock(&e->cache_lock);
+                int rc = sc_cache_file_digest(e->cache, path, &cur, &ignored);
+                uv_mutex_unlock(&e->cache_lock);
+                if (rc != SC_OK) sc_buf_printf(&why, "file %s is gone; ", path);
+                else if (!sc_digest_equal(&then, &cur)) sc_buf_printf(&why, "file %s changed; ", path);
+            }
+            free(path);
+        }
+        p = end ? end + 1 : NULL;
+    }
+    if (why.len == 0) sc_buf_puts(&why, "no cache entry for this key (removed, or never stored)");
+    else why.len -= 2, why.data[why.len] = 0;   /* drop the last "; " */
+    return sc_buf_take_string(&why);
+}
+
+/* History text = canonical action + "dep <hex> <path>" per file read. */
+static char *history_text(const char *canon, const sc_node_result *r, const sc_digest *dep_digests) {
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_buf_puts(&b, canon);
+    for (int d = 0; d < r->ndeps; d++) {
+        char hex[65];
+        hexof(&dep_digests[d], hex);
+        sc_buf_printf(&b, "dep %s %s\n", hex, r->deps[d]);
+    }
+    return sc_buf_take_string(&b);
+}
+
+static void remember(engine *e, int i, const sc_digest *dep_digests) {
+    if (e->opt->dry_run) return;
+    char *id = node_id(e, i);
+    char *text = history_text(e->rt[i].canon, &e->run->results[i], dep_digests);
+    char *old = NULL;
+    sc_error err;
+    uv_mutex_lock(&e->cache_lock);
+    if (id && text && (sc_cache_get_history(e->cache, id, &old, &err) != SC_OK || strcmp(old, text) != 0))
+        sc_cache_put_history(e->cache, id, text, &err);
+    uv_mutex_unlock(&e->cache_lock);
+    free(old), free(text), free(id);
+}
+
+/* ---------------------------------------------------------------- report files */
+
+static bool safe_relative_path(const char *p) {
+    if (!*p || p[0] == '/') return false;
+    for (const char *s = p; *s;) {
+        const char *slash = strchr(s, '/');
+        size_t l = slash ? (size_t)(slash - s) : strlen(s);
+        if (l == 0 || (l == 2 && s[0] == '.' && s[1] == '.') || (l == 1 && s[0] == '.')) return false;
+        s += l + (slash ? 1 : 0);
+    }
+    return true;
+}
+
+/* The BYTES value with this digest among the node's in-memory reports. */
+static sc_value *bytes_in_memory(engine *e, int i, const sc_digest *d) {
+    for (int k = 0; k < gnode(e, i)->desc->noutputs; k++) {
+        const sc_value *v = e->rt[i].values[k];
+        if (!v || v->kind != SC_KIND_REPORT) continue;
+        for (int f = 0; f < v->as.report->nfiles; f++)
+            if (sc_digest_equal(&v->as.report->files[f].bytes->digest, d))
+                return sc_value_retain(v->as.report->files[f].bytes);
+    }
+    return NULL;
+}
+
+/* Write the node's report files under out_dir, skipping those already there. */
+static int materialize(engine *e, int i, sc_error *err) {
+    node_rt *rt = &e->rt[i];
+    sc_node_result *r = &e->run->results[i];
+    if (!e->opt->out_dir || e->opt->dry_run || rt->nfiles == 0) return SC_OK;
+    r->files = calloc((size_t)rt->nfiles, sizeof(char *));
+    if (!r->files) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int f = 0; f < rt->nfiles; f++) {
+        const char *rel = rt->files[f].path;
+        if (!safe_relative_path(rel))
+            return sc_fail(err, SC_EINPUT, "output file name '%s' is not a plain relative path", rel);
+        for (int j = 0; j < e->g->count; j++)
+            for (int g = 0; j != i && g < e->run->results[j].nfiles; g++)
+                if (strcmp(e->run->results[j].files[g], rel) == 0)
+                    return sc_fail(err, SC_EINPUT, "output file '%s' is also written by %s", rel,
+                                   gnode(e, j)->name);
+        char *path = sc_path_join(e->opt->out_dir, rel);
+        char *dir = path ? sc_path_dirname(path) : NULL;
+        sc_digest have;
+        sc_error ignored;
+        int rc = SC_OK;
+        uv_mutex_lock(&e->cache_lock);
+        bool same = path && sc_cache_file_digest(e->cache, path, &have, &ignored) == SC_OK &&
+                    sc_digest_equal(&have, &rt->files[f].content);
+        uv_mutex_unlock(&e->cache_lock);
+        if (!path || !dir) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK && !same) {
+            rc = sc_make_dirs(dir, err);
+            sc_value *bytes = bytes_in_memory(e, i, &rt->files[f].value);
+            if (!bytes && rc == SC_OK) {
+                uv_mutex_lock(&e->cache_lock);
+                bytes = sc_engine_load(e->cache, &rt->files[f].value, err);
+                uv_mutex_unlock(&e->cache_lock);
+            }
+            if (rc == SC_OK && (!bytes || bytes->kind != SC_KIND_BYTES))
+                rc = sc_fail(err, SC_EMISS, "%s: its stored bytes are missing or corrupt", rel);
+            if (rc == SC_OK)
+                rc = sc_write_file_atomic(path, bytes->as.bytes->data, bytes->as.bytes->size, err);
+            sc_value_release(bytes);
+        }
+        free(path), free(dir);
+        if (rc != SC_OK) return rc;
+        r->files[r->nfiles++] = sc_strdup(rel);
+    }
+    return SC_OK;
+}
+
+/* Collect report files from in-memory REPORT outputs. */
+static int files_from_values(engine *e, int i) {
+    node_rt *rt = &e->rt[i];
+    const sc_node_desc *d = gnode(e, i)->desc;
+    for (int k = 0; k < d->noutputs; k++) {
+        sc_value *v = rt->values[k];
+        if (!v || v->kind != SC_KIND_REPORT) continue;
+        const sc_report *rep = v->as.report;
+        report_file *files = realloc(rt->files, sizeof *files * (size_t)(rt->nfiles + rep->nfiles + 1));
+        if (!files) return SC_ENOMEM;
+        rt->files = files;
+        for (int f = 0; f < rep->nfiles; f++) {
+            report_file *rf = &rt->files[rt->nfiles++];
+            rf->path = sc_strdup(rep->files[f].path);
+            rf->value = rep->files[f].bytes->digest;
+            sc_digest_bytes(rep->files[f].bytes->as.bytes->data, rep->files[f].bytes->as.bytes->size,
+                            &rf->content);
+        }
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- node transitions */
+
+static void pump(engine *e);
+
+static void finish_consumer_edges(engine *e, int i) {
+    const sc_graph_node *n = gnode(e, i);
+    for (int port = 0; port < n->desc->ninputs; port++) {
+        int p = n->input_node[port];
+        if (p < 0) continue;
+        node_rt *prt = &e->rt[p];
+        if (--prt->pending_consumers > 0) continue;
+        for (int k = 0; k < gnode(e, p)->desc->noutputs; k++) {
+            sc_value_release(prt->values[k]);
+            sc_value_release(prt->meshes[k]);
+            prt->values[k] = prt->meshes[k] = NULL;
+        }
+    }
+}
+
+static void set_terminal(engine *e, int i, node_state st) {
+    e->rt[i].state = st;
+    e->done_count++;
+    sc_node_result *r = &e->run->results[i];
+    switch (st) {
+    case ST_CACHED: r->status = SC_STATUS_CACHED; e->run->cached++; break;
+    case ST_DONE: r->status = SC_STATUS_RAN; e->run->ran++; break;
+    case ST_FAILED: r->status = SC_STATUS_FAILED; e->run->failed++; break;
+    case ST_SKIPPED: r->status = SC_STATUS_SKIPPED; e->run->skipped++; break;
+    case ST_WOULD_RUN: r->status = SC_STATUS_WOULD_RUN; break;
+    default: break;
+    }
+    finish_consumer_edges(e, i);   /* a finished node no longer needs its inputs */
+}
+
+static void fail_node(engine *e, int i, int rc, const sc_error *err) {
+    const sc_graph_node *n = gnode(e, i);
+    sc_node_result *r = &e->run->results[i];
+    r->error = sc_strprintf("%s:%d: %s (%s): %s", n->file, n->line, n->name, n->desc->type,
+                            err->message);
+    if (!e->stop) {
+        e->stop = true;
+        e->first_rc = rc ? rc : SC_EINPUT;
+        snprintf(e->first_err.message, sizeof e->first_err.message, "%s", r->error ? r->error : "failed");
+        e->first_err.code = e->first_rc;
+    }
+    say(e, "FAILED %s", r->error ? r->error : n->name);
+    set_terminal(e, i, ST_FAILED);
+}
+
+/* Drop what a hit filled in, when it turns out not to be usable. */
+static void forget_result(sc_node_result *r) {
+    free(r->metrics_json);
+    r->metrics_json = NULL;
+    for (int d = 0; d < r->ndeps; d++) free(r->deps[d]);
+    free(r->deps);
+    r->deps = NULL, r->ndeps = 0;
+    for (int f = 0; f < r->nfiles; f++) free(r->files[f]);
+    free(r->files);
+    r->files = NULL, r->nfiles = 0;
+}
+
+/* Decide hit or miss for a node whose inputs' digests are all known. */
+static void resolve(engine *e, int i) {
+    node_rt *rt = &e->rt[i];
+    sc_node_result *r = &e->run->results[i];
+    rt->canon = canonical_action(e, i);
+    if (!rt->canon) {
+        sc_error err;
+        sc_fail(&err, SC_ENOMEM, "out of memory");
+        fail_node(e, i, SC_ENOMEM, &err);
+        return;
+    }
+    sc_digest_bytes(rt->canon, strlen(rt->canon), &r->key);
+
+    sc_cache_action act = {0};
+    sc_error err = {0};
+    const char *miss = NULL;
+    sc_digest *dep_digests = NULL;
+    uv_mutex_lock(&e->cache_lock);
+    int rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
+    if (rc == SC_OK) {
+        dep_digests = calloc((size_t)act.ndeps + 1, sizeof *dep_digests);
+        for (int d = 0; d < act.ndeps && !miss; d++) {
+            sc_digest cur;
+            sc_error ignored;
+            if (sc_cache_file_digest(e->cache, act.deps[d].path, &cur, &ignored) != SC_OK ||
+                !sc_digest_equal(&cur, &act.deps[d].digest))
+                miss = "a source file changed";
+            else if (dep_digests)
+                dep_digests[d] = cur;
+        }
+        if (!miss && read_outputs(e, i, act.outputs) != 0) miss = "the cache entry is unreadable";
+        for (int k = 0; !miss && k < r->noutputs; k++)
+            if (!sc_cache_has_blob(e->cache, &r->outputs[k].digest)) miss = "a cached output is missing";
+    }
+    uv_mutex_unlock(&e->cache_lock);
+
+    if (rc == SC_OK && !miss) {
+        r->cooked_seconds = act.seconds;
+        r->metrics_json = act.metrics ? sc_strdup(act.metrics) : sc_strdup("{}");
+        r->deps = calloc((size_t)act.ndeps + 1, sizeof(char *));
+        for (int d = 0; r->deps && d < act.ndeps; d++) r->deps[r->ndeps++] = sc_strdup(act.deps[d].path);
+        remember(e, i, dep_digests);
+        free(dep_digests);
+        dep_digests = NULL;
+        sc_cache_action_free(&act);
+        int mrc = materialize(e, i, &err);
+        if (mrc == SC_OK) {
+            set_terminal(e, i, ST_CACHED);
+            return;
+        }
+        if (mrc != SC_EMISS) {
+            fail_node(e, i, mrc, &err);
+            return;
+        }
+        /* the record is fine but the bytes of a file it made are not: cook again */
+        miss = "the bytes of a cached output are missing or corrupt";
+        forget_result(r);
+        rc = SC_EMISS;
+        memset(&act, 0, sizeof act);
+    }
+    free(dep_digests);
+    sc_cache_action_free(&act);
+    forget_files(rt);
+
+    /* a miss: find out why, from what this node was last time */
+    if (e->opt->explain || e->opt->dry_run) {
+        char *id = node_id(e, i), *before = NULL;
+        uv_mutex_lock(&e->cache_lock);
+        if (id) sc_cache_get_history(e->cache, id, &before, &err);
+        uv_mutex_unlock(&e->cache_lock);
+        r->why = explain(e, i, rt->canon, before);
+        if (miss && r->why && strstr(r->why, "no cache entry")) {
+            free(r->why);
+            r->why = sc_strdup(miss);
+        }
+        free(id), free(before);
+    }
+    if (e->opt->dry_run) {
+        say(e, "would cook %s (%s)%s%s", gnode(e, i)->name, gnode(e, i)->desc->type,
+            r->why ? ": " : "", r->why ? r->why : "");
+        set_terminal(e, i, ST_WOULD_RUN);
+        return;
+    }
+    if (e->opt->explain) say(e, "why %s: %s", gnode(e, i)->name, r->why ? r->why : "?");
+    rt->state = ST_NEED_RUN;
+}
+
+/* ---------------------------------------------------------------- jobs */
+
+typedef enum job_kind { JOB_RUN, JOB_LOAD } job_kind;
+
+typedef struct job {
+    uv_work_t req;
+    engine *e;
+    int node;
+    job_kind kind;
+    int rc;
+    sc_error err;
+    double seconds;
+    sc_ctx *ctx;
+    bool *want_full, *want_mesh;   /* JOB_LOAD: which outputs to load */
+    sc_value **full, **mesh;       /* JOB_LOAD: what was loaded */
+    storer stored;                 /* JOB_RUN: blobs written */
+} job;
+
+static void run_work(uv_work_t *req) {
+    job *j = req->data;
+    engine *e = j->e;
+    const sc_graph_node *n = gnode(e, j->node);
+    sc_value **inputs = calloc((size_t)n->desc->ninputs + 1, sizeof *inputs);
+    if (!inputs) {
+        j->rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
+        return;
+    }
+    for (int port = 0; port < n->desc->ninputs; port++) {
+        int p = n->input_node[port], k = n->input_port[port];
+        if (p < 0) continue;
+        inputs[port] = e->rt[p].values[k] ? e->rt[p].values[k] : e->rt[p].meshes[k];
+    }
+    double t = sc_now();
+    j->ctx = sc_ctx_new(n->desc, n->params, inputs);
+    free(inputs);
+    if (!j->ctx) {
+        j->rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
+        return;
+    }
+    sc_ctx_set_threads(j->ctx, e->opt->jobs);
+    j->rc = sc_ctx_run(j->ctx, &j->err);
+    j->seconds = sc_now() - t;
+    if (j->rc != SC_OK) return;
+    j->stored = (storer){.cache = e->cache, .err = &j->err};
+    uv_mutex_lock(&e->cache_lock);
+    for (int k = 0; k < n->desc->noutputs && j->stored.rc == SC_OK; k++)
+        store_value(&j->stored, sc_ctx_output(j->ctx, k));
+    uv_mutex_unlock(&e->cache_lock);
+    j->rc = j->stored.rc;
+}
+
+static char *metrics_json(const sc_ctx *ctx) {
+    cJSON *o = cJSON_CreateObject();
+    const sc_metric *m = sc_ctx_metrics(ctx);
+    for (int k = 0; k < sc_ctx_nmetrics(ctx); k++) {
+        if (m[k].value == m[k].value && m[k].value - m[k].value == 0)
+            cJSON_AddNumberToObject(o, m[k].name, m[k].value);
+        else
+            cJSON_AddNullToObject(o, m[k].name);
+    }
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+static void run_done(uv_work_t *req, int status) {
+    (void)status;
+    job *j = req->data;
+    engine *e = j->e;
+    int i = j->node;
+    node_rt *rt = &e->rt[i];
+    sc_node_result *r = &e->run->results[i];
+    const sc_graph_node *n = gnode(e, i);
+    e->inflight--;
+    r->seconds = j->seconds;
+    if (j->rc == SC_OK) {
+        for (int k = 0; k < n->desc->noutputs; k++) {
+            sc_value *v = sc_ctx_output(j->ctx, k);
+            rt->values[k] = sc_value_retain(v);
+            r->outputs[k].kind = v->kind;
+            r->outputs[k].digest = v->digest;
+            if (v->kind == SC_KIND_ATLAS) r->outputs[k].mesh = v->as.atlas->mesh->digest;
+        }
+        r->metrics_json = metrics_json(j->ctx);
+        int nd = sc_ctx_ndeps(j->ctx);
+        r->deps = calloc((size_t)nd + 1, sizeof(char *));
+        sc_digest *dep_digests = calloc((size_t)nd + 1, sizeof *dep_digests);
+        sc_cache_dep *deps = calloc((size_t)nd + 1, sizeof *deps);
+        for (int d = 0; r->deps && dep_digests && deps && d < nd; d++) {
+            r->deps[r->ndeps++] = sc_strdup(sc_ctx_dep_path(j->ctx, d));
+            dep_digests[d] = *sc_ctx_dep_digest(j->ctx, d);
+            deps[d].path = (char *)sc_ctx_dep_path(j->ctx, d);
+            deps[d].digest = dep_digests[d];
+        }
+        int rc = files_from_values(e, i);
+        cJSON *oj = outputs_json(e, i);
+        char *outputs = cJSON_PrintUnformatted(oj);
+        cJSON_Delete(oj);
+        sc_cache_action act = {
+            .key = r->key, .node_type = (char *)n->desc->type, .outputs = outputs,
+            .metrics = r->metrics_json, .ndeps = nd, .deps = deps,
+            .nblobs = j->stored.nblobs, .blobs = j->stored.blobs, .seconds = j->seconds,
+        };
+        if (rc == SC_OK && (!outputs || !r->metrics_json || !r->deps || !deps || !dep_digests))
+            rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK) {
+            uv_mutex_lock(&e->cache_lock);
+            rc = sc_cache_put_action(e->cache, &act, &j->err);
+            uv_mutex_unlock(&e->cache_lock);
+            /* a concurrent gc took a blob: the result stands, it is just not recorded */
+            if (rc == SC_EMISS) {
+                say(e, "note: %s was cooked but not recorded: %s", n->name, j->err.message);
+                rc = SC_OK;
+            }
+        }
+        if (rc == SC_OK) {
+            remember(e, i, dep_digests);
+            rc = materialize(e, i, &j->err);
+        }
+        free(outputs), free(deps), free(dep_digests);
+        if (rc == SC_OK) {
+            say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
+            set_terminal(e, i, ST_DONE);
+        } else {
+            fail_node(e, i, rc, &j->err);
+        }
+    } else {
+        fail_node(e, i, j->rc, &j->err);
+    }
+    free(j->stored.blobs);
+    sc_ctx_free(j->ctx);
+    free(j);
+    show_progress(e);
+    pump(e);
+}
+
+static void load_work(uv_work_t *req) {
+    job *j = req->data;
+    engine *e = j->e;
+    const sc_node_result *r = &e->run->results[j->node];
+    uv_mutex_lock(&e->cache_lock);
+    for (int k = 0; k < r->noutputs && j->rc == SC_OK; k++) {
+        if (j->want_full[k]) {
+            j->full[k] = sc_engine_load(e->cache, &r->outputs[k].digest, &j->err);
+            if (!j->full[k]) j->rc = SC_EMISS;
+        } else if (j->want_mesh[k]) {
+            j->mesh[k] = sc_engine_load(e->cache, &r->outputs[k].mesh, &j->err);
+            if (!j->mesh[k]) j->rc = SC_EMISS;
+        }
+    }
+    uv_mutex_unlock(&e->cache_lock);
+}
+
+static void load_done(uv_work_t *req, int status) {
+    (void)status;
+    job *j = req->data;
+    engine *e = j->e;
+    int p = j->node;
+    node_rt *rt = &e->rt[p];
+    int nout = e->run->results[p].noutputs;
+    e->loads--;
+    rt->loading = false;
+    if (j->rc == SC_OK) {
+        for (int k = 0; k < nout; k++) {
+            if (j->full[k]) rt->values[k] = j->full[k];
+            if (j->mesh[k]) rt->meshes[k] = j->mesh[k];
+        }
+    } else {
+        for (int k = 0; k < nout; k++) sc_value_release(j->full[k]), sc_value_release(j->mesh[k]);
+        /* the cached bytes are gone or bad: cook the producer again */
+        sc_node_result *r = &e->run->results[p];
+        if (rt->state == ST_CACHED) e->run->cached--, e->done_count--;
+        else if (rt->state == ST_DONE) e->run->ran--, e->done_count--;
+        free(r->why);
+        r->why = sc_strprintf("its cached output could not be read (%s)", j->err.message);
+        if (e->opt->explain) say(e, "why %s: %s", gnode(e, p)->name, r->why);
+        forget_result(r);
+        forget_files(rt);
+        rt->state = ST_NEED_RUN;
+        r->status = SC_STATUS_PENDING;
+        /* its consumers still count on it */
+    }
+    free(j->want_full), free(j->want_mesh), free(j->full), free(j->mesh);
+    free(j);
+    pump(e);
+}
+
+static void start_load(engine *e, int p) {
+    int nout = e->run->results[p].noutputs;
+    job *j = calloc(1, sizeof *j);
+    if (!j) return;
+    j->e = e, j->node = p, j->kind = JOB_LOAD, j->req.data = j;
+    j->want_full = calloc((size_t)nout + 1, sizeof(bool));
+    j->want_mesh = calloc((size_t)nout + 1, sizeof(bool));
+    j->full = calloc((size_t)nout + 1, sizeof(sc_value *));
+    j->mesh = calloc((size_t)nout + 1, sizeof(sc_value *));
+    if (!j->want_full || !j->want_mesh || !j->full || !j->mesh) {
+        free(j->want_full), free(j->want_mesh), free(j->full), free(j->mesh), free(j);
+        return;
+    }
+    /* what do the consumers that must cook need? */
+    for (int c = p + 1; c < e->g->count; c++) {
+        if (e->rt[c].state != ST_NEED_RUN) continue;
+        const sc_graph_node *n = gnode(e, c);
+        for (int port = 0; port < n->desc->ninputs; port++) {
+            if (n->input_node[port] != p) continue;
+            int k = n->input_port[port];
+            if (e->rt[p].values[k]) continue;
+            if (wants_mesh_only(e, c, port)) {
+                if (!e->rt[p].meshes[k]) j->want_mesh[k] = true;
+            } else {
+                j->want_full[k] = true;
+            }
+        }
+    }
+    e->rt[p].loading = true;
+    e->loads++;
+    uv_queue_work(&e->loop, &j->req, load_work, load_done);
+}
+
+static void start_run(engine *e, int i) {
+    job *j = calloc(1, sizeof *j);
+    if (!j) return;
+    j->e = e, j->node = i, j->kind = JOB_RUN, j->req.data = j;
+    e->rt[i].state = ST_RUNNING;
+    e->inflight++;
+    show_progress(e);
+    uv_queue_work(&e->loop, &j->req, run_work, run_done);
+}
+
+/* Whether every input value node i needs is in memory; starts loads if not. */
+static bool inputs_in_memory(engine *e, int i) {
+    const sc_graph_node *n = gnode(e, i);
+    bool ready = true;
+    for (int port = 0; port < n->desc->ninputs; port++) {
+        int p = n->input_node[port], k = n->input_port[port];
+        if (p < 0) continue;
+        node_rt *prt = &e->rt[p];
+        if (prt->values[k] || (wants_mesh_only(e, i, port) && prt->meshes[k])) continue;
+        ready = false;
+        if ((prt->state == ST_CACHED || prt->state == ST_DONE) && !prt->loading) start_load(e, p);
+    }
+    return ready;
+}
+
+static void pump(engine *e) {
+    bool progress = true;
+    while (progress) {
+        progress = false;
+        for (int i = 0; i < e->g->count; i++) {
+            node_rt *rt = &e->rt[i];
+            if (rt->state != ST_WAITING) continue;
+            const sc_graph_node *n = gnode(e, i);
+            bool known = true, blocked = false, would = false;
+            for (int port = 0; port < n->desc->ninputs; port++) {
+                int p = n->input_node[port];
+                if (p < 0) continue;
+                node_state ps = e->rt[p].state;
+                if (ps == ST_FAILED || ps == ST_SKIPPED) blocked = true;
+                else if (ps == ST_WOULD_RUN) would = true;
+                else if (ps != ST_CACHED && ps != ST_DONE) known = false;
+            }
+            if (blocked || (e->stop && known)) {
+                set_terminal(e, i, ST_SKIPPED);
+                progress = true;
+            } else if (would) {
+                sc_node_result *r = &e->run->results[i];
+                for (int port = 0; port < n->desc->ninputs && !r->why; port++) {
+                    int p = n->input_node[port];
+                    if (p >= 0 && e->rt[p].state == ST_WOULD_RUN)
+                        r->why = sc_strprintf("input %s comes from %s, which would cook",
+                                              n->desc->inputs[port].name, gnode(e, p)->name);
+                }
+                say(e, "would cook %s (%s): %s", n->name, n->desc->type, r->why ? r->why : "");
+                set_terminal(e, i, ST_WOULD_RUN);
+                progress = true;
+            } else if (known) {
+                resolve(e, i);
+                progress = true;
+            }
+        }
+        for (int i = 0; i < e->g->count; i++) {
+            if (e->rt[i].state != ST_NEED_RUN) continue;
+            if (e->stop) {
+                set_terminal(e, i, ST_SKIPPED);
+                progress = true;
+                continue;
+            }
+            if (e->inflight >= e->opt->jobs) continue;
+            if (inputs_in_memory(e, i)) {
+                start_run(e, i);
+                progress = true;
+            }
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- the run */
+
+int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *opt,
+                  sc_run **out, sc_error *err) {
+    *out = NULL;
+    engine e = {.g = g, .cache = cache, .opt = opt};
+    sc_run *run = calloc(1, sizeof *run);
+    e.rt = calloc((size_t)g->count + 1, sizeof *e.rt);
+    if (!run || !e.rt) {
+        free(run), free(e.rt);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    run->graph = g;
+    run->results = calloc((size_t)g->count + 1, sizeof *run->results);
+    e.run = run;
+    if (!run->results) {
+        free(e.rt);
+        sc_run_free(run);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int i = 0; i < g->count; i++) {
+        int nout = g->nodes[i].desc->noutputs;
+        run->results[i].noutputs = nout;
+        run->results[i].outputs = calloc((size_t)nout + 1, sizeof(sc_node_output));
+        e.rt[i].values = calloc((size_t)nout + 1, sizeof(sc_value *));
+        e.rt[i].meshes = calloc((size_t)nout + 1, sizeof(sc_value *));
+        if (!run->results[i].outputs || !e.rt[i].values || !e.rt[i].meshes) {
+            e.stop = true;
+            e.first_rc = sc_fail(&e.first_err, SC_ENOMEM, "out of memory");
+        }
+        for (int port = 0; port < g->nodes[i].desc->ninputs; port++)
+            if (g->nodes[i].input_node[port] >= 0) e.rt[g->nodes[i].input_node[port]].pending_consumers++;
+    }
+    e.t0 = sc_now();
+    uv_loop_init(&e.loop);
+    uv_mutex_init(&e.cache_lock);
+    if (!e.stop) {
+        pump(&e);
+        while (e.inflight > 0 || e.loads > 0) {
+            uv_run(&e.loop, UV_RUN_ONCE);
+        }
+    }
+    /* anything left could not cook */
+    for (int i = 0; i < g->count; i++)
+        if (e.rt[i].state == ST_WAITING || e.rt[i].state == ST_NEED_RUN) set_terminal(&e, i, ST_SKIPPED);
+    uv_run(&e.loop, UV_RUN_DEFAULT);
+    uv_loop_close(&e.loop);
+    uv_mutex_destroy(&e.cache_lock);
+    run->seconds = sc_now() - e.t0;
+    if (opt->log && opt->live) {
+        fputs("\r\033[K", opt->log);
+        fflush(opt->log);
+    }
+    for (int i = 0; i < g->count; i++) {
+        for (int k = 0; k < g->nodes[i].desc->noutputs; k++) {
+            if (e.rt[i].values) sc_value_release(e.rt[i].values[k]);
+            if (e.rt[i].meshes) sc_value_release(e.rt[i].meshes[k]);
+        }
+        free(e.rt[i].values), free(e.rt[i].meshes), free(e.rt[i].canon);
+        forget_files(&e.rt[i]);
+    }
+    free(e.rt);
+    if (!opt->dry_run) {
+        sc_error ignored;
+        sc_cache_put_run(cache, g->file, run->ran, run->cached, run->failed, run->seconds, &ignored);
+    }
+    *out = run;
+    if (e.stop) {
+        if (err) *err = e.first_err;
+        return e.first_rc ? e.first_rc : SC_EINPUT;
+    }
+    return SC_OK;
+}
+
+void sc_run_free(sc_run *r) {
+    if (!r) return;
+    for (int i = 0; r->results && i < r->graph->count; i++) {
+        sc_node_result *x = &r->results[i];
+        free(x->outputs), free(x->metrics_json), free(x->why), free(x->error);
+        for (int f = 0; f < x->nfiles; f++) free(x->files[f]);
+        for (int d = 0; d < x->ndeps; d++) free(x->deps[d]);
+        free(x->files), free(x->deps);
+    }
+    free(r->results);
+    free(r);
+}

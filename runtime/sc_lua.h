@@ -1,0 +1,34 @@
+/* sc_lua.h - running a graph file (Lua 5.4, sandboxed) to build an sc_graph.
+ *
+ * The sandbox opens base, string, table, math and utf8 only; removes dofile,
+ * loadfile, require, collectgarbage, string.dump and every way to load
+ * bytecode; bounds instructions and memory. Each registered node type is a
+ * global constructor taking one table: input ports (node handles) and
+ * parameters by name, plus an optional `name`. It returns a handle; for a
+ * node with several outputs, handle.<port> selects one. `param(name, default)`
+ * reads `--set name=value`. Running the file only builds the graph.
+ */
+#ifndef SC_LUA_H
+#define SC_LUA_H
+
+#include "sc_graph.h"
+
+typedef struct sc_setting {
+    const char *name;
+    const char *value;
+} sc_setting;
+
+typedef struct sc_lua_limits {
+    int64_t max_instructions;   /* 0: the default (100 million) */
+    size_t max_memory;          /* 0: the default (256 MiB) */
+} sc_lua_limits;
+
+/* Build the graph described by the file at `path`, with `types` as the node
+ * constructors (the engine passes sc_registry_all; tests pass their own). Every --set must be read
+ * by some param() call, or it is an error naming it. On failure *out is NULL
+ * and err says file:line. Errors: SC_EINPUT for graph problems. */
+int sc_lua_build(const char *path, const sc_node_desc *const *types, int ntypes,
+                 const sc_setting *settings, int nsettings,
+                 const sc_lua_limits *limits, sc_graph **out, sc_error *err);
+
+#endif

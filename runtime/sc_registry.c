@@ -1,0 +1,28 @@
+/* sc_registry.c - the one table of node types. Adding a node means adding its
+ * descriptor here (kept sorted by type name) and in nodes/sc_nodes.h. */
+#include "sc_registry.h"
+
+#include <string.h>
+
+#include "sc_nodes.h"
+
+static const sc_node_desc *const registry[] = {
+    &sc_node_load_atlas,
+    &sc_node_procedural,
+    &sc_node_save,
+    &sc_node_share_textures,
+    NULL,
+};
+
+const sc_node_desc *sc_registry_find(const char *type) {
+    for (int i = 0; registry[i]; i++)
+        if (strcmp(registry[i]->type, type) == 0) return registry[i];
+    return NULL;
+}
+
+const sc_node_desc *const *sc_registry_all(int *count) {
+    int n = 0;
+    while (registry[n]) n++;
+    *count = n;
+    return registry;
+}

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# seamcook setup: installs what is missing (Debian 12, as root), builds, and then
+#   ./setup.sh          cooks graphs/lod_chain.lua on the procedural asset and says where the results are
+#   ./setup.sh test     runs the whole test suite (unit tests, graph tests, sanitizers, a short fuzz run)
+set -euo pipefail
+cd "$(dirname "$0")"
+mode=${1:-demo}
+jobs=$(nproc 2>/dev/null || echo 2)
+
+packages=(build-essential cmake pkg-config libuv1-dev libsqlite3-dev liblua5.4-dev
+  libsuitesparse-dev libopenblas0-pthread libopenimageio-dev libopencv-core-dev
+  libopenexr-dev libegl-dev libgles-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev
+  libssl-dev libcjson-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "installing: ${missing[*]}"
+  if [ "$(id -u)" != 0 ]; then
+    echo "setup.sh: these Debian packages are missing and installing them needs root: ${missing[*]}" >&2
+    exit 1
+  fi
+  apt-get update -q
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSC_WERROR=ON >/dev/null
+cmake --build build -j"$jobs"
+
+case "$mode" in
+demo)
+  out=out/lod_chain
+  ./build/seamcook run graphs/lod_chain.lua --cache build/cache --out "$out"
+  echo
+  echo "results: $PWD/$out"
+  echo "report:  $PWD/$out/report.json"
+  ;;
+test)
+  # 1. every unit test and graph test, optimised build
+  ctest --test-dir build -j"$jobs" --output-on-failure
+  # 2. the unit tests again under AddressSanitizer and UndefinedBehaviorSanitizer
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DSC_WERROR=ON -DSC_SANITIZE=ON >/dev/null
+  cmake --build build-asan -j"$jobs"
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 UBSAN_OPTIONS=print_stacktrace=1 \
+    ctest --test-dir build-asan -j"$jobs" -R '^test_' --output-on-failure
+  # 3. a short run of each parser fuzzer over the checked-in seeds
+  if ls tests/fuzz/fuzz_*.c >/dev/null 2>&1; then
+    CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSC_FUZZ=ON >/dev/null
+    cmake --build build-fuzz -j"$jobs" --target $(cd tests/fuzz && ls fuzz_*.c | sed 's/\.c$//')
+    for f in tests/fuzz/fuzz_*.c; do
+      name=$(basename "$f" .c)
+      seeds=tests/fuzz/seeds/${name#fuzz_}
+      mkdir -p build-fuzz/corpus-$name
+      ./build-fuzz/$name -max_total_time="${SC_FUZZ_SECONDS:-20}" -timeout=10 \
+        build-fuzz/corpus-$name $( [ -d "$seeds" ] && echo "$seeds" ) 2>&1 | tail -n 3
+    done
+  fi
+  echo "all tests passed"
+  ;;
+*)
+  echo "usage: ./setup.sh [test]" >&2
+  exit 2
+  ;;
+esac

@@ -1,0 +1,2 @@
+local asset = procedural{ name = "asset",
+  resolution = 100000 }

@@ -1,0 +1,2 @@
+local p = pair{}
+mid{ atlas = p }

@@ -1,0 +1,1 @@
+src{ name = "has space" }

@@ -1,0 +1,2 @@
+local t = two{}
+local x = t.nope

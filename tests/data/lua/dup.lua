@@ -1,0 +1,3 @@
+src{ name = "a" }
+src{ name = "b" }
+src{ name = "a" }

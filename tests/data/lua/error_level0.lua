@@ -1,0 +1,3 @@
+src{}
+src{}
+error("no position", 0)

@@ -1,0 +1,2 @@
+src{}
+error({ code = 1 })

@@ -1,0 +1,3 @@
+local s = src{}
+expect(s, "psnr", ">=", 30)
+expect(s, "psnr", "!=", 30)

@@ -1,0 +1,2 @@
+local s = src{}
+expect(s, "psnr", "~", 30)

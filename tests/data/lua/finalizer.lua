@@ -1,0 +1,2 @@
+src{}
+local keep = setmetatable({}, { __gc = function() while true do end end })

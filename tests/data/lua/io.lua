@@ -1,0 +1,2 @@
+src{}
+local f = io.open("/etc/passwd")

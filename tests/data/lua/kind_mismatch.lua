@@ -1,0 +1,2 @@
+local t = two{}
+mid{ atlas = t.img }

@@ -1,0 +1,2 @@
+src{}
+while true do end

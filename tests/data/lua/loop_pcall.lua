@@ -1,0 +1,4 @@
+src{}
+while true do
+    pcall(function() while true do end end)
+end

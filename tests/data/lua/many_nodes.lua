@@ -1,0 +1,2 @@
+local s = src{}
+for i = 1, 1e7 do mid{ atlas = s } end

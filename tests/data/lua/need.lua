@@ -1,0 +1,2 @@
+-- "need" has a required parameter
+need{}

@@ -1,0 +1,2 @@
+src{}
+os.execute("touch /tmp/seamcook-sandbox-escaped")

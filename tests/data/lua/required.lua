@@ -1,0 +1,3 @@
+-- the asset has no default
+local asset = param("asset")
+src{ file = asset }

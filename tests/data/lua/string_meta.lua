@@ -1,0 +1,2 @@
+local dump = ("x").dump
+dump(function() end)

@@ -1,0 +1,3 @@
+local s = src{}
+
+local x = = 1

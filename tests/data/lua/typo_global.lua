@@ -1,0 +1,2 @@
+local source = src{}
+local m = mid{ atlas = sourse }

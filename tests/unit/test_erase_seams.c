@@ -1,0 +1,1111 @@
+/* test_erase_seams.c - the seam operator (sc_seam), the sparse layer
+ * (sc_sparse) and the node `erase_seams`.
+ *
+ * Everything is checked against code in this file that shares nothing with
+ * the implementation: a plain bilinear sampler (texel centres at
+ * ((i + 1/2)/W, (j + 1/2)/H), row 0 at v = 0, GL wrap rules), its own seam
+ * finder, and quadrature: dense composite Gauss-Legendre over uniform
+ * sub-intervals for the analytic checks, Gauss-Legendre over the pieces
+ * between texel-grid crossings (which makes it exact) plus dense point
+ * sampling for the corpus checks.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_exec.h"
+#include "sc_nodes.h"
+#include "sc_seam.h"
+#include "sc_sparse.h"
+#include "sc_test.h"
+
+/* ================================================================ reference sampler */
+
+static long ref_wrap(long i, long n, sc_wrap w) {
+    if (w == SC_WRAP_CLAMP) return i < 0 ? 0 : (i > n - 1 ? n - 1 : i);
+    if (w == SC_WRAP_MIRROR) {
+        /* GL: (n - 1) - mirror((i mod 2n) - n), mirror(a) = a >= 0 ? a : -(1 + a) */
+        long m = ((i % (2 * n)) + 2 * n) % (2 * n);
+        long a = m - n;
+        long mir = a >= 0 ? a : -(1 + a);
+        return (n - 1) - mir;
+    }
+    return ((i % n) + n) % n;
+}
+
+static double ref_texel(const sc_image_data *im, long i, long j, int c) {
+    size_t k = ((size_t)j * (size_t)im->width + (size_t)i) * (size_t)im->channels + (size_t)c;
+    /* integer texels are normalised the way the runtime does (sc_image_texel) */
+    if (im->pixel == SC_PIXEL_U8) return ((const uint8_t *)im->pixels)[k] * (1.0f / 255.0f);
+    if (im->pixel == SC_PIXEL_U16) return ((const uint16_t *)im->pixels)[k] * (1.0f / 65535.0f);
+    return ((const float *)im->pixels)[k];
+}
+
+/* bilinear value and texel-space gradient at uv */
+static void ref_sample(const sc_image_data *im, sc_wrap wu, sc_wrap wv, double u, double v,
+                       double *val, double *gx, double *gy) {
+    double x = u * im->width - 0.5, y = v * im->height - 0.5;
+    double fx = floor(x), fy = floor(y), a = x - fx, b = y - fy;
+    long i0 = ref_wrap((long)fx, im->width, wu), i1 = ref_wrap((long)fx + 1, im->width, wu);
+    long j0 = ref_wrap((long)fy, im->height, wv), j1 = ref_wrap((long)fy + 1, im->height, wv);
+    for (int c = 0; c < im->channels; c++) {
+        double p00 = ref_texel(im, i0, j0, c), p10 = ref_texel(im, i1, j0, c);
+        double p01 = ref_texel(im, i0, j1, c), p11 = ref_texel(im, i1, j1, c);
+        double bot = p00 + a * (p10 - p00), top = p01 + a * (p11 - p01);
+        if (val) val[c] = bot + b * (top - bot);
+        if (gx) gx[c] = (1 - b) * (p10 - p00) + b * (p11 - p01);
+        if (gy) gy[c] = top - bot;
+    }
+}
+
+/* ================================================================ reference seams */
+
+typedef struct ref_seam {
+    double a0[2], a1[2], b0[2], b1[2]; /* both sides, from vertex v0 to v1 */
+    double len;
+} ref_seam;
+
+typedef struct ref_he {
+    int lo, hi, face, k;
+} ref_he;
+
+static int cmp_ref_he(const void *pa, const void *pb) {
+    const ref_he *a = pa, *b = pb;
+    if (a->lo != b->lo) return a->lo - b->lo;
+    if (a->hi != b->hi) return a->hi - b->hi;
+    return a->face - b->face;
+}
+
+/* Seam edges of one material: two faces on a surface edge whose uv indices
+ * differ at either end (and whose uv coordinates differ too). */
+static int ref_find_seams(const sc_mesh *m, int material, ref_seam **out) {
+    ref_he *h = malloc(sizeof *h * (size_t)m->nf * 3);
+    int n = 0;
+    for (int f = 0; f < m->nf; f++) {
+        if (m->FM[f] != material) continue;
+        for (int k = 0; k < 3; k++) {
+            int a = m->FV[3 * f + k], b = m->FV[3 * f + (k + 1) % 3];
+            h[n++] = (ref_he){a < b ? a : b, a < b ? b : a, f, k};
+        }
+    }
+    qsort(h, (size_t)n, sizeof *h, cmp_ref_he);
+    ref_seam *s = malloc(sizeof *s * (size_t)(n / 2 + 1));
+    int ns = 0;
+    for (int i = 0; i < n;) {
+        int j = i;
+        while (j < n && h[j].lo == h[i].lo && h[j].hi == h[i].hi) j++;
+        if (j - i == 2) {
+            int uvs[2][2]; /* [side][at lo, at hi] */
+            for (int q = 0; q < 2; q++) {
+                int f = h[i + q].face, k = h[i + q].k;
+                int va = m->FV[3 * f + k];
+                int ua = m->FU[3 * f + k], ub = m->FU[3 * f + (k + 1) % 3];
+                uvs[q][0] = va == h[i].lo ? ua : ub;
+                uvs[q][1] = va == h[i].lo ? ub : ua;
+            }
+            bool same = true;
+            for (int e = 0; e < 2; e++)
+                same &= m->U[2 * uvs[0][e]] == m->U[2 * uvs[1][e]] &&
+                        m->U[2 * uvs[0][e] + 1] == m->U[2 * uvs[1][e] + 1];
+            if (!same) {
+                ref_seam *r = &s[ns++];
+                memcpy(r->a0, &m->U[2 * uvs[0][0]], sizeof r->a0);
+                memcpy(r->a1, &m->U[2 * uvs[0][1]], sizeof r->a1);
+                memcpy(r->b0, &m->U[2 * uvs[1][0]], sizeof r->b0);
+                memcpy(r->b1, &m->U[2 * uvs[1][1]], sizeof r->b1);
+                const double *p = &m->V[3 * h[i].lo], *q = &m->V[3 * h[i].hi];
+                r->len = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                              (p[2] - q[2]) * (p[2] - q[2]));
+            }
+        }
+        i = j;
+    }
+    free(h);
+    *out = s;
+    return ns;
+}
+
+/* ================================================================ reference quadrature */
+
+static const double GLX[3] = {0.11270166537925831148, 0.5, 0.88729833462074168852};
+static const double GLW[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+
+static void lerp_uv(const double *a, const double *b, double t, double *o) {
+    o[0] = a[0] + t * (b[0] - a[0]);
+    o[1] = a[1] + t * (b[1] - a[1]);
+}
+
+/* |B(e1(g)) - B(e2(g))|^2 summed over channels, and the largest |.| */
+static double gap2(const sc_image_data *im, sc_wrap wu, sc_wrap wv, const ref_seam *s, double g,
+                   double *maxabs) {
+    double p[2], q[2], va[4], vb[4], sum = 0;
+    lerp_uv(s->a0, s->a1, g, p);
+    lerp_uv(s->b0, s->b1, g, q);
+    ref_sample(im, wu, wv, p[0], p[1], va, NULL, NULL);
+    ref_sample(im, wu, wv, q[0], q[1], vb, NULL, NULL);
+    for (int c = 0; c < im->channels; c++) {
+        double d = va[c] - vb[c];
+        sum += d * d;
+        if (maxabs && fabs(d) > *maxabs) *maxabs = fabs(d);
+    }
+    return sum;
+}
+
+
+static int cmp_dbl(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* parameters where either side crosses a line x or y = integer (texel space) */
+static int ref_breaks(const sc_image_data *im, const ref_seam *s, double **out) {
+    int cap = 64, n = 0;
+    double *t = malloc(sizeof *t * (size_t)cap);
+    t[n++] = 0, t[n++] = 1;
+    const double *ends[2][2] = {{s->a0, s->a1}, {s->b0, s->b1}};
+    for (int side = 0; side < 2; side++)
+        for (int axis = 0; axis < 2; axis++) {
+            double sz = axis ? im->height : im->width;
+            double x0 = ends[side][0][axis] * sz - 0.5, x1 = ends[side][1][axis] * sz - 0.5;
+            if (x0 == x1) continue;
+            for (double k = ceil(fmin(x0, x1)); k <= floor(fmax(x0, x1)); k++) {
+                if (n == cap) t = realloc(t, sizeof *t * (size_t)(cap *= 2));
+                t[n++] = (k - x0) / (x1 - x0);
+            }
+        }
+    qsort(t, (size_t)n, sizeof *t, cmp_dbl);
+    *out = t;
+    return n;
+}
+
+/* Composite 3-point Gauss-Legendre of f over [0, 1]: `per` uniform
+ * sub-intervals inside each piece between texel-grid crossings (the
+ * integrands of §3-4 are smooth polynomials there, and only there). */
+typedef double (*integrand)(void *ud, double g);
+static double dense_quad(const sc_image_data *im, const ref_seam *s, int per, integrand f, void *ud) {
+    double *t;
+    int n = ref_breaks(im, s, &t);
+    double sum = 0;
+    for (int i = 0; i + 1 < n; i++) {
+        double a = t[i], b = t[i + 1];
+        if (!(b > a)) continue;
+        for (int j = 0; j < per; j++) {
+            double lo = a + (b - a) * j / per, hi = a + (b - a) * (j + 1) / per;
+            for (int k = 0; k < 3; k++) sum += GLW[k] * (hi - lo) * f(ud, lo + GLX[k] * (hi - lo));
+        }
+    }
+    free(t);
+    return sum;
+}
+
+typedef struct gap_ud {
+    const sc_image_data *im;
+    sc_wrap wrap;
+    const ref_seam *s;
+} gap_ud;
+static double gap_f(void *ud, double g) {
+    gap_ud *u = ud;
+    return gap2(u->im, u->wrap, u->wrap, u->s, g, NULL);
+}
+
+/* D exactly (Gauss-Legendre on each piece between crossings) and the largest
+ * gap sampled at 16 points per piece */
+static double piece_D(const sc_image_data *im, sc_wrap wu, sc_wrap wv, const ref_seam *s,
+                      double *maxgap) {
+    double *t;
+    int n = ref_breaks(im, s, &t);
+    double sum = 0;
+    for (int i = 0; i + 1 < n; i++) {
+        double a = t[i], b = t[i + 1];
+        if (!(b > a)) continue;
+        for (int k = 0; k < 3; k++) sum += GLW[k] * (b - a) * gap2(im, wu, wv, s, a + GLX[k] * (b - a), NULL);
+        for (int k = 0; k <= 16 && maxgap; k++) gap2(im, wu, wv, s, a + (b - a) * k / 16.0, maxgap);
+    }
+    free(t);
+    return sum;
+}
+
+/* D_total of eq. 9 over a list of seams, and the max gap */
+static double ref_total(const sc_image_data *im, sc_wrap wu, sc_wrap wv, const ref_seam *s, int n,
+                        double *maxgap) {
+    double num = 0, L = 0;
+    if (maxgap) *maxgap = 0;
+    for (int i = 0; i < n; i++) {
+        num += s[i].len * piece_D(im, wu, wv, &s[i], maxgap);
+        L += s[i].len;
+    }
+    return L > 0 ? num / L : 0;
+}
+
+/* ================================================================ synthetic data */
+
+static uint64_t rng_state = 12345;
+static double rnd(void) {
+    rng_state = rng_state * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(rng_state >> 11) / 9007199254740992.0;
+}
+
+static sc_image_data *noise_image(int w, int h, int c, sc_pixel px, double constant) {
+    sc_image_data *im = sc_image_alloc(w, h, c, px);
+    size_t n = (size_t)w * h * c;
+    for (size_t k = 0; k < n; k++) {
+        double v = constant >= 0 ? constant : 0.1 + 0.8 * rnd();
+        if (px == SC_PIXEL_U8) ((uint8_t *)im->pixels)[k] = (uint8_t)lrint(v * 255);
+        else ((float *)im->pixels)[k] = (float)v;
+    }
+    strcpy(im->format, px == SC_PIXEL_U8 ? "png" : "exr");
+    im->colorspace = px == SC_PIXEL_U8 ? SC_COLOR_SRGB : SC_COLOR_LINEAR;
+    return im;
+}
+
+/* Two triangles sharing the surface edge v0-v1, with separate uvs there:
+ * face A (v0, v1, v2) uses a0 a1 a2, face B (v1, v0, v3) uses b1 b0 b3. */
+static sc_mesh *pair_mesh(const double a0[2], const double a1[2], const double a2[2],
+                          const double b0[2], const double b1[2], const double b3[2]) {
+    sc_mesh *m = sc_mesh_alloc(4, 6, 0, 2, 1);
+    const double V[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0.5};
+    memcpy(m->V, V, sizeof V);
+    const double *U[6] = {a0, a1, a2, b0, b1, b3};
+    for (int k = 0; k < 6; k++) m->U[2 * k] = U[k][0], m->U[2 * k + 1] = U[k][1];
+    const int32_t FV[6] = {0, 1, 2, 1, 0, 3}, FU[6] = {0, 1, 2, 4, 3, 5};
+    memcpy(m->FV, FV, sizeof FV);
+    memcpy(m->FU, FU, sizeof FU);
+    m->materials[0] = sc_strdup("m");
+    return m;
+}
+
+static void uv_of(double x, double y, int W, int H, double out[2]) {
+    out[0] = (x + 0.5) / W;
+    out[1] = (y + 0.5) / H;
+}
+
+/* A cube with one square chart per face, each chart rotated by `angle`
+ * degrees about its centre, in a 3 x 2 layout with margins. */
+static sc_mesh *cube_mesh(double angle, bool open_top) {
+    static const int quads[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4},
+                                    {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+    int nq = open_top ? 5 : 6;
+    sc_mesh *m = sc_mesh_alloc(8, 4 * nq, 0, 2 * nq, 1);
+    for (int i = 0; i < 8; i++) {
+        m->V[3 * i] = i & 1;
+        m->V[3 * i + 1] = (i >> 1) & 1;
+        m->V[3 * i + 2] = (i >> 2) & 1;
+    }
+    double rad = angle * M_PI / 180, cs = cos(rad), sn = sin(rad);
+    for (int q = 0; q < nq; q++) {
+        double cx = (q % 3 + 0.5) / 3, cy = (q / 3 + 0.5) / 2, half = 0.11 + 0.01 * q;
+        static const double corner[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+        for (int k = 0; k < 4; k++) {
+            double x = corner[k][0] * half, y = corner[k][1] * half;
+            m->U[2 * (4 * q + k)] = cx + cs * x - sn * y;
+            m->U[2 * (4 * q + k) + 1] = cy + sn * x + cs * y;
+        }
+        const int tri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+        for (int t = 0; t < 2; t++)
+            for (int k = 0; k < 3; k++) {
+                m->FV[3 * (2 * q + t) + k] = quads[q][tri[t][k]];
+                m->FU[3 * (2 * q + t) + k] = 4 * q + tri[t][k];
+            }
+    }
+    m->materials[0] = sc_strdup("cube");
+    return m;
+}
+
+/* A flat n x n grid of quads with one chart: no seams at all. */
+static sc_mesh *grid_mesh(int n) {
+    int nv = (n + 1) * (n + 1);
+    sc_mesh *m = sc_mesh_alloc(nv, nv, 0, 2 * n * n, 1);
+    for (int j = 0; j <= n; j++)
+        for (int i = 0; i <= n; i++) {
+            int v = j * (n + 1) + i;
+            m->V[3 * v] = i, m->V[3 * v + 1] = j, m->V[3 * v + 2] = 0;
+            m->U[2 * v] = 0.1 + 0.8 * i / n, m->U[2 * v + 1] = 0.1 + 0.8 * j / n;
+        }
+    int f = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            int a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
+            int t[2][3] = {{a, b, c}, {a, c, d}};
+            for (int q = 0; q < 2; q++, f++)
+                for (int k = 0; k < 3; k++) m->FV[3 * f + k] = m->FU[3 * f + k] = t[q][k];
+        }
+    m->materials[0] = sc_strdup("grid");
+    return m;
+}
+
+static sc_value *atlas_of(sc_mesh *m, sc_value **images, const char **slots, int n, sc_wrap wrap) {
+    sc_atlas *a = sc_atlas_new(sc_value_new_mesh(m));
+    for (int i = 0; i < n; i++) sc_atlas_add_texture(a, slots[i], 0, wrap, wrap, "", images[i]);
+    return sc_value_new_atlas(a);
+}
+
+static sc_value *one_texture_atlas(sc_mesh *m, sc_image_data *im, sc_wrap wrap) {
+    sc_value *img = sc_value_new_image(im);
+    const char *slot = "color";
+    return atlas_of(m, &img, &slot, 1, wrap);
+}
+
+/* run erase_seams; returns the context (caller frees) or NULL on failure */
+static sc_ctx *run_erase(sc_value *atlas, const char *const *kv, int threads, sc_error *err) {
+    sc_ctx *ctx = sc_ctx_new(&sc_node_erase_seams, NULL, &atlas);
+    for (int i = 0; kv && kv[i]; i += 2)
+        if (sc_ctx_set_param(ctx, kv[i], kv[i + 1], err) != SC_OK) {
+            sc_ctx_free(ctx);
+            return NULL;
+        }
+    sc_ctx_set_threads(ctx, threads);
+    if (sc_ctx_run(ctx, err) != SC_OK) {
+        sc_ctx_free(ctx);
+        return NULL;
+    }
+    return ctx;
+}
+
+static const sc_image_data *out_image(sc_ctx *ctx, int port, int tex) {
+    sc_value *a = sc_ctx_output(ctx, port);
+    return a ? a->as.atlas->textures[tex].image->as.image : NULL;
+}
+
+/* ================================================================ sparse layer */
+
+SC_TEST(sparse_assembly_and_solve) {
+    /* a 1D Laplacian plus identity, built from shuffled, duplicated triplets */
+    int n = 50;
+    sc_triplets t;
+    sc_triplets_init(&t, n);
+    for (int i = n - 1; i >= 0; i--) {
+        sc_triplets_add(&t, i, i, 1.0);
+        sc_triplets_add(&t, i, i, 1.0);
+        if (i + 1 < n) {
+            sc_triplets_add(&t, i + 1, i, -1.0); /* below the diagonal: mirrored */
+            sc_triplets_add(&t, i, i, 1.0);
+            sc_triplets_add(&t, i + 1, i + 1, 1.0);
+        }
+    }
+    sc_sparse a;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_sparse_from_triplets(&t, &a, &err), SC_OK);
+    SC_CHECK_INT(a.nnz, 2 * n - 1);
+    double x[50], y[50], b[100];
+    for (int i = 0; i < n; i++) x[i] = sin(i * 0.3);
+    sc_sparse_symv(&a, x, y);
+    double xy = 0;
+    for (int i = 0; i < n; i++) xy += x[i] * y[i];
+    SC_CHECK_NEAR(sc_sparse_quadform(&a, x), xy, 1e-12);
+    for (int i = 0; i < n; i++) b[i] = y[i], b[n + i] = 2 * y[i];
+    sc_sparse_chol *f = NULL;
+    SC_CHECK_INT(sc_sparse_chol_factor(&a, NULL, &f, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_chol_solve(f, 2, b, &err), SC_OK);
+    double e = 0;
+    for (int i = 0; i < n; i++) e = fmax(e, fmax(fabs(b[i] - x[i]), fabs(b[n + i] - 2 * x[i])));
+    SC_CHECK(e < 1e-12);
+    sc_sparse_chol_free(f);
+    /* inertia: eigenvalues of 1 + L lie in [1, 5]: none below 0.5, all below 6 */
+    int64_t cnt = -1;
+    SC_CHECK_INT(sc_sparse_count_eigs_below(&a, 0.5, &cnt, &err), SC_OK);
+    SC_CHECK_INT(cnt, 0);
+    SC_CHECK_INT(sc_sparse_count_eigs_below(&a, 6.0, &cnt, &err), SC_OK);
+    SC_CHECK_INT(cnt, n);
+    sc_sparse_free(&a);
+    sc_triplets_free(&t);
+}
+
+SC_TEST(sparse_not_positive_definite) {
+    sc_triplets t;
+    sc_triplets_init(&t, 3);
+    sc_triplets_add(&t, 0, 0, 1);
+    sc_triplets_add(&t, 1, 1, -1);
+    sc_triplets_add(&t, 2, 2, 1);
+    sc_sparse a;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_sparse_from_triplets(&t, &a, &err), SC_OK);
+    sc_sparse_chol *f = NULL;
+    SC_CHECK(sc_sparse_chol_factor(&a, NULL, &f, &err) != SC_OK);
+    SC_CHECK(f == NULL);
+    SC_CHECK(strstr(err.message, "not positive definite") != NULL);
+    sc_sparse_free(&a);
+    sc_triplets_add(&t, 5, 1, 1.0); /* out of range */
+    SC_CHECK(sc_sparse_from_triplets(&t, &a, &err) == SC_EINPUT);
+    sc_triplets_free(&t);
+}
+
+/* ================================================================ analytic D */
+
+typedef struct pair_case {
+    const char *name;
+    int W, H;
+    sc_wrap wrap;
+    double a[2][2], b[2][2]; /* texel-space endpoints of both sides (from v0 to v1) */
+} pair_case;
+
+static const pair_case pair_cases[] = {
+    {"many cells", 16, 16, SC_WRAP_REPEAT, {{0.3, 1.1}, {14.4, 10.8}}, {{12.6, 14.7}, {1.4, 4.8}}},
+    {"one cell", 16, 16, SC_WRAP_REPEAT, {{5.1, 7.2}, {5.8, 7.9}}, {{9.2, 3.1}, {9.7, 3.6}}},
+    {"axis aligned", 16, 16, SC_WRAP_REPEAT, {{1.3, 4.5}, {12.7, 4.5}}, {{3.5, 1.2}, {3.5, 14.1}}},
+    {"on texel lines", 16, 16, SC_WRAP_REPEAT, {{2.0, 3.0}, {11.0, 3.0}}, {{7.0, 1.0}, {7.0, 10.0}}},
+    {"through lattice points", 16, 16, SC_WRAP_REPEAT, {{2.0, 2.0}, {10.0, 10.0}}, {{12.0, 3.0}, {4.0, 11.0}}},
+    {"repeat across the border", 16, 16, SC_WRAP_REPEAT, {{-6.3, 2.2}, {21.4, 9.9}}, {{3.3, -4.1}, {9.9, 19.2}}},
+    {"clamp beyond the border", 16, 16, SC_WRAP_CLAMP, {{-3.3, 2.2}, {18.4, 9.9}}, {{3.3, -4.1}, {9.9, 17.2}}},
+    {"mirror beyond the border", 16, 16, SC_WRAP_MIRROR, {{-6.3, 2.2}, {21.4, 9.9}}, {{3.3, -4.1}, {9.9, 19.2}}},
+    {"non-square texture", 24, 10, SC_WRAP_REPEAT, {{0.7, 0.9}, {22.1, 8.3}}, {{20.2, 1.1}, {3.3, 7.6}}},
+    {"same line both sides", 16, 16, SC_WRAP_REPEAT, {{2.2, 5.5}, {9.1, 8.3}}, {{9.1, 8.3}, {2.2, 5.5}}},
+};
+
+/* the third corners: any point off the edge, on a fixed side */
+static void third_corner(const double *p0, const double *p1, double side, int W, int H, double out[2]) {
+    double dx = p1[0] - p0[0], dy = p1[1] - p0[1];
+    double x = 0.5 * (p0[0] + p1[0]) - side * dy * 0.5, y = 0.5 * (p0[1] + p1[1]) + side * dx * 0.5;
+    uv_of(x, y, W, H, out);
+}
+
+SC_TEST(analytic_D_matches_quadrature) {
+    for (size_t ci = 0; ci < sizeof pair_cases / sizeof pair_cases[0]; ci++) {
+        const pair_case *pc = &pair_cases[ci];
+        double a0[2], a1[2], b0[2], b1[2], a2[2], b3[2];
+        uv_of(pc->a[0][0], pc->a[0][1], pc->W, pc->H, a0);
+        uv_of(pc->a[1][0], pc->a[1][1], pc->W, pc->H, a1);
+        uv_of(pc->b[0][0], pc->b[0][1], pc->W, pc->H, b0);
+        uv_of(pc->b[1][0], pc->b[1][1], pc->W, pc->H, b1);
+        third_corner(pc->a[0], pc->a[1], 1, pc->W, pc->H, a2);
+        third_corner(pc->b[0], pc->b[1], -1, pc->W, pc->H, b3);
+        sc_mesh *m = pair_mesh(a0, a1, a2, b0, b1, b3);
+        sc_image_data *im = noise_image(pc->W, pc->H, 2, SC_PIXEL_F32, -1);
+        sc_seam_grid g = {pc->W, pc->H, pc->wrap, pc->wrap};
+        sc_seam_set s;
+        sc_error err = {0};
+        SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+        SC_CHECK_INT(s.nseams, 1);
+        SC_CHECK_INT(s.nboundary, 4);
+        ref_seam rs = {{a0[0], a0[1]}, {a1[0], a1[1]}, {b0[0], b0[1]}, {b1[0], b1[1]}, 1.0};
+        gap_ud gu = {im, pc->wrap, &rs};
+        double ref = dense_quad(im, &rs, 64, gap_f, &gu);
+        double closed = sc_seam_edge_energy(m, &s.seams[0], &g, im);
+        /* plain uniform composite quadrature, blind to the crossings: agrees to
+         * its own (kink-limited) accuracy */
+        double uni = 0;
+        for (int i = 0; i < 20000; i++)
+            for (int k = 0; k < 3; k++) uni += GLW[k] * gap_f(&gu, (i + GLX[k]) / 20000) / 20000;
+        SC_CHECK_MSG(fabs(uni - ref) <= 1e-6 * ref, "%s: uniform quadrature %.12g, piecewise %.12g",
+                     pc->name, uni, ref);
+        SC_CHECK_MSG(fabs(closed - ref) <= 1e-9 * ref, "%s: closed form %.15g, quadrature %.15g",
+                     pc->name, closed, ref);
+        /* the same through the assembled operator: p^T M p */
+        sc_seam_texset all;
+        sc_seam_texset_init(&all, pc->W, pc->H);
+        for (int t = 0; t < pc->W * pc->H; t++) sc_seam_texset_add(&all, t);
+        sc_seam_texset_finish(&all);
+        sc_triplets tr;
+        sc_triplets_init(&tr, all.count);
+        sc_seam_terms terms = {.w_seam = 1};
+        SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &terms, 3, &tr, &err), SC_OK);
+        sc_sparse M;
+        SC_CHECK_INT(sc_sparse_from_triplets(&tr, &M, &err), SC_OK);
+        double *x = malloc(sizeof *x * (size_t)all.count), viaM = 0;
+        for (int c = 0; c < 2; c++) {
+            for (int t = 0; t < all.count; t++) x[t] = ((float *)im->pixels)[2 * t + c];
+            viaM += sc_sparse_quadform(&M, x);
+        }
+        SC_CHECK_MSG(fabs(viaM - ref) <= 1e-9 * ref, "%s: p^T M p %.15g, quadrature %.15g", pc->name,
+                     viaM, ref);
+        /* the residual r = -1/2 grad D at p: D(p + d) = D(p) - 2 r.d + d^T M d */
+        sc_image_data *im1 = noise_image(pc->W, pc->H, 1, SC_PIXEL_F32, -1);
+        double *res = calloc((size_t)all.count, sizeof *res), *dd = malloc(sizeof *dd * (size_t)all.count);
+        sc_seam_terms rterms = {.w_seam = 1, .p0 = im1, .rhs = res};
+        SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &rterms, 2, NULL, &err), SC_OK);
+        sc_image_data *im2 = noise_image(pc->W, pc->H, 1, SC_PIXEL_F32, 0);
+        double rd = 0;
+        for (int t = 0; t < all.count; t++) {
+            dd[t] = (float)(0.3 * (rnd() - 0.5));
+            ((float *)im2->pixels)[t] = (float)(((float *)im1->pixels)[t] + dd[t]);
+            dd[t] = (double)((float *)im2->pixels)[t] - ((float *)im1->pixels)[t];
+            rd += res[t] * dd[t];
+        }
+        ref_seam rs1 = rs;
+        gap_ud g1 = {im1, pc->wrap, &rs1}, g2 = {im2, pc->wrap, &rs1};
+        double d1 = dense_quad(im1, &rs1, 16, gap_f, &g1), d2 = dense_quad(im2, &rs1, 16, gap_f, &g2);
+        double pred = d1 - 2 * rd + sc_sparse_quadform(&M, dd);
+        SC_CHECK_MSG(fabs(pred - d2) <= 1e-9 * d2, "%s: residual predicts %.15g, quadrature %.15g", pc->name,
+                     pred, d2);
+        free(res), free(dd);
+        sc_image_free(im1), sc_image_free(im2);
+        /* and the node-facing total (eq. 9 with one edge) */
+        double tot = -1, gap = -1;
+        SC_CHECK_INT(sc_seam_energy(m, &s, &g, im, 2, &tot, &gap, &err), SC_OK);
+        SC_CHECK_NEAR(tot, closed, 1e-12 * closed);
+        free(x);
+        sc_sparse_free(&M);
+        sc_triplets_free(&tr);
+        sc_seam_texset_free(&all);
+        sc_seam_set_free(&s);
+        sc_image_free(im);
+        sc_mesh_free(m);
+    }
+}
+
+typedef struct c1_ud {
+    const sc_image_data *im;
+    sc_wrap wrap;
+    const double *a0, *a1, *b0, *b1;
+    double n[2][2];
+} c1_ud;
+static double c1_f(void *ud, double gm) {
+    c1_ud *u = ud;
+    double p[2], q[2], gx[2], gy[2];
+    lerp_uv(u->a0, u->a1, gm, p);
+    lerp_uv(u->b0, u->b1, gm, q);
+    ref_sample(u->im, u->wrap, u->wrap, p[0], p[1], NULL, &gx[0], &gy[0]);
+    ref_sample(u->im, u->wrap, u->wrap, q[0], q[1], NULL, &gx[1], &gy[1]);
+    double v = gx[0] * u->n[0][0] + gy[0] * u->n[0][1] + gx[1] * u->n[1][0] + gy[1] * u->n[1][1];
+    return v * v;
+}
+
+typedef struct one_ud {
+    const sc_image_data *im;
+    sc_wrap wrap;
+    const double *a0, *a1;
+} one_ud;
+static double one_f(void *ud, double gm) {
+    one_ud *u = ud;
+    double p[2], v;
+    lerp_uv(u->a0, u->a1, gm, p);
+    ref_sample(u->im, u->wrap, u->wrap, p[0], p[1], &v, NULL, NULL);
+    return v * v;
+}
+
+/* E_C1 and E_outside, checked the same way */
+SC_TEST(analytic_c1_and_outside_match_quadrature) {
+    for (size_t ci = 0; ci < sizeof pair_cases / sizeof pair_cases[0]; ci++) {
+        const pair_case *pc = &pair_cases[ci];
+        double a0[2], a1[2], b0[2], b1[2], a2[2], b3[2];
+        uv_of(pc->a[0][0], pc->a[0][1], pc->W, pc->H, a0);
+        uv_of(pc->a[1][0], pc->a[1][1], pc->W, pc->H, a1);
+        uv_of(pc->b[0][0], pc->b[0][1], pc->W, pc->H, b0);
+        uv_of(pc->b[1][0], pc->b[1][1], pc->W, pc->H, b1);
+        third_corner(pc->a[0], pc->a[1], 1, pc->W, pc->H, a2);
+        third_corner(pc->b[0], pc->b[1], -1, pc->W, pc->H, b3);
+        sc_mesh *m = pair_mesh(a0, a1, a2, b0, b1, b3);
+        sc_image_data *im = noise_image(pc->W, pc->H, 1, SC_PIXEL_F32, -1);
+        sc_image_data *im0 = noise_image(pc->W, pc->H, 1, SC_PIXEL_F32, -1);
+        sc_seam_grid g = {pc->W, pc->H, pc->wrap, pc->wrap};
+        sc_seam_set s;
+        sc_error err = {0};
+        SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+        sc_seam_texset all;
+        sc_seam_texset_init(&all, pc->W, pc->H);
+        for (int t = 0; t < pc->W * pc->H; t++) sc_seam_texset_add(&all, t);
+        sc_seam_texset_finish(&all);
+        double *x = malloc(sizeof *x * (size_t)all.count), *d = malloc(sizeof *d * (size_t)all.count);
+        for (int t = 0; t < all.count; t++) {
+            x[t] = ((float *)im->pixels)[t];
+            d[t] = (float)(x[t] - ((float *)im0->pixels)[t]); /* exactly representable below */
+        }
+        /* E_C1 = int (dB/dn1 (e1) + dB/dn2 (e2))^2, inward unit normals in texel space */
+        double n[2][2];
+        const double *ends[2][3] = {{pc->a[0], pc->a[1], NULL}, {pc->b[0], pc->b[1], NULL}};
+        for (int q = 0; q < 2; q++) {
+            double dx = ends[q][1][0] - ends[q][0][0], dy = ends[q][1][1] - ends[q][0][1];
+            double len = sqrt(dx * dx + dy * dy), side = q ? -1 : 1; /* as third_corner placed them */
+            n[q][0] = -side * dy / len, n[q][1] = side * dx / len;
+        }
+        c1_ud cu = {im, pc->wrap, a0, a1, b0, b1, {{n[0][0], n[0][1]}, {n[1][0], n[1][1]}}};
+        ref_seam rs = {{a0[0], a0[1]}, {a1[0], a1[1]}, {b0[0], b0[1]}, {b1[0], b1[1]}, 1.0};
+        double ref_c1 = dense_quad(im, &rs, 64, c1_f, &cu);
+        sc_triplets tr;
+        sc_triplets_init(&tr, all.count);
+        sc_seam_terms terms = {.w_c1 = 1};
+        SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &terms, 1, &tr, &err), SC_OK);
+        sc_sparse Q;
+        SC_CHECK_INT(sc_sparse_from_triplets(&tr, &Q, &err), SC_OK);
+        double c1 = sc_sparse_quadform(&Q, x);
+        SC_CHECK_MSG(fabs(c1 - ref_c1) <= 1e-9 * ref_c1, "%s: E_C1 %.15g, quadrature %.15g", pc->name,
+                     c1, ref_c1);
+        sc_sparse_free(&Q);
+        sc_triplets_free(&tr);
+        /* E_outside = (1/L') sum_s l_s int |B_s(p - p0)|^2 over every silhouette half-edge */
+        double num = 0, L = 0;
+        sc_image_data *dm = noise_image(pc->W, pc->H, 1, SC_PIXEL_F32, 0);
+        for (int t = 0; t < all.count; t++) ((float *)dm->pixels)[t] = (float)d[t];
+        for (int q = 0; q < s.nsil; q++) {
+            const sc_seam_silhouette *sl = &s.sil[q];
+            ref_seam one = {{0}, {0}, {0}, {0}, 0};
+            memcpy(one.a0, &m->U[2 * sl->side.uv0], sizeof one.a0);
+            memcpy(one.a1, &m->U[2 * sl->side.uv1], sizeof one.a1);
+            memcpy(one.b0, one.a0, sizeof one.b0); /* compared against a zero image below */
+            memcpy(one.b1, one.a1, sizeof one.b1);
+            one_ud ou = {dm, pc->wrap, one.a0, one.a1};
+            double e = dense_quad(dm, &one, 64, one_f, &ou);
+            num += sl->length * e;
+            L += sl->length;
+        }
+        double ref_out = num / L;
+        sc_triplets_init(&tr, all.count);
+        sc_seam_terms oterms = {.w_outside = 1};
+        SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &oterms, 2, &tr, &err), SC_OK);
+        SC_CHECK_INT(sc_sparse_from_triplets(&tr, &Q, &err), SC_OK);
+        double eo = sc_sparse_quadform(&Q, d);
+        SC_CHECK_MSG(fabs(eo - ref_out) <= 1e-9 * ref_out, "%s: E_outside %.15g, quadrature %.15g",
+                     pc->name, eo, ref_out);
+        /* E_outside is minimal at p0: its residual is zero */
+        double *rhs = calloc((size_t)all.count, sizeof *rhs), rmax = 0;
+        oterms.p0 = im0;
+        oterms.rhs = rhs;
+        SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &oterms, 2, NULL, &err), SC_OK);
+        for (int t = 0; t < all.count; t++) rmax = fmax(rmax, fabs(rhs[t]));
+        SC_CHECK(rmax == 0);
+        free(rhs);
+        sc_sparse_free(&Q);
+        sc_triplets_free(&tr);
+        sc_image_free(dm);
+        free(x), free(d);
+        sc_seam_texset_free(&all);
+        sc_seam_set_free(&s);
+        sc_image_free(im), sc_image_free(im0);
+        sc_mesh_free(m);
+    }
+}
+
+SC_TEST(sampling_convention_and_wrap) {
+    /* 4 x 2 image with texel value = i + 10 j: the texel centres sample exactly */
+    sc_image_data *im = sc_image_alloc(4, 2, 1, SC_PIXEL_F32);
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 4; i++) ((float *)im->pixels)[j * 4 + i] = (float)(i + 10 * j);
+    sc_seam_grid g = {4, 2, SC_WRAP_REPEAT, SC_WRAP_CLAMP};
+    double v;
+    sc_seam_sample(&g, im->pixels, 1, (2 + 0.5) / 4, (1 + 0.5) / 2, &v);
+    SC_CHECK_NEAR(v, 12, 1e-12);
+    sc_seam_sample(&g, im->pixels, 1, 0.0, 0.25, &v); /* halfway between texel 3 and texel 0 (repeat) */
+    SC_CHECK_NEAR(v, 1.5, 1e-12);
+    sc_seam_sample(&g, im->pixels, 1, 0.5, 0.0, &v); /* clamp in v: row 0 */
+    SC_CHECK_NEAR(v, 1.5, 1e-12);
+    for (int k = 0; k < 200; k++) {
+        double u = -2 + 5 * rnd(), w = -2 + 5 * rnd(), r;
+        for (int mode = 0; mode < 3; mode++) {
+            sc_seam_grid gm = {4, 2, (sc_wrap)mode, (sc_wrap)((mode + 1) % 3)};
+            sc_seam_sample(&gm, im->pixels, 1, u, w, &v);
+            ref_sample(im, gm.wrap_u, gm.wrap_v, u, w, &r, NULL, NULL);
+            SC_CHECK_NEAR(v, r, 1e-12);
+        }
+    }
+    sc_image_free(im);
+}
+
+SC_TEST(coverage_partitions_texels) {
+    /* a square [2, 10]^2 in texel space made of two triangles: 8 x 8 centres */
+    double c[4][2];
+    const double sq[4][2] = {{2, 2}, {10, 2}, {10, 10}, {2, 10}};
+    for (int k = 0; k < 4; k++) uv_of(sq[k][0], sq[k][1], 16, 16, c[k]);
+    sc_mesh *m = sc_mesh_alloc(4, 4, 0, 4, 1);
+    for (int k = 0; k < 4; k++) {
+        m->V[3 * k] = sq[k][0], m->V[3 * k + 1] = sq[k][1];
+        m->U[2 * k] = c[k][0], m->U[2 * k + 1] = c[k][1];
+    }
+    /* faces 0, 1: the square; faces 2, 3: a mirrored copy (clockwise) on top of it */
+    const int32_t F[12] = {0, 1, 2, 0, 2, 3, 0, 2, 1, 0, 3, 2};
+    memcpy(m->FV, F, sizeof F);
+    memcpy(m->FU, F, sizeof F);
+    m->FM[2] = m->FM[3] = 0;
+    m->materials[0] = sc_strdup("m");
+    sc_seam_grid g = {16, 16, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
+    sc_seam_coverage cov;
+    sc_error err = {0};
+    m->nf = 2;
+    SC_CHECK_INT(sc_seam_coverage_build(m, 0, &g, &cov, &err), SC_OK);
+    SC_CHECK_INT(cov.ncovered, 64);
+    SC_CHECK_INT(cov.nshared, 0);
+    sc_seam_coverage_free(&cov);
+    m->nf = 4;
+    SC_CHECK_INT(sc_seam_coverage_build(m, 0, &g, &cov, &err), SC_OK);
+    SC_CHECK_INT(cov.ncovered, 64);
+    SC_CHECK_INT(cov.nshared, 64);
+    sc_seam_coverage_free(&cov);
+    sc_mesh_free(m);
+}
+
+SC_TEST(seam_finding_kinds) {
+    sc_mesh *m = cube_mesh(0, false);
+    sc_seam_set s;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    SC_CHECK_INT(s.nseams, 12);
+    SC_CHECK_INT(s.nboundary, 0);
+    SC_CHECK_INT(s.nsil, 24);
+    SC_CHECK_NEAR(s.seam_length, 12, 1e-12);
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+    m = cube_mesh(0, true);
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    SC_CHECK_INT(s.nseams, 8);
+    SC_CHECK_INT(s.nboundary, 4);
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+    m = grid_mesh(3);
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    SC_CHECK_INT(s.nseams, 0);
+    SC_CHECK_INT(s.nboundary, 12);
+    SC_CHECK_INT(s.nfoldover, 0);
+    sc_seam_set_free(&s);
+    /* fold one triangle over its neighbour: move uv of the grid's corner vertex 0 across */
+    m->U[0] = 0.1 + 0.8 * (2.0 / 3), m->U[1] = 0.1 + 0.8 * (2.0 / 3);
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    SC_CHECK(s.nfoldover >= 1);
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+}
+
+/* ================================================================ the node, synthetic */
+
+static void check_erased(sc_ctx *ctx, const char *what, double gap_limit) {
+    double before = sc_ctx_metric_value(ctx, "seam_energy_before");
+    double after = sc_ctx_metric_value(ctx, "seam_energy_after");
+    SC_CHECK_MSG(before > 0 && after <= 1e-6 * before, "%s: seam energy %g -> %g", what, before, after);
+    SC_CHECK_MSG(sc_ctx_metric_value(ctx, "max_seam_gap_after") <= gap_limit, "%s: gap %g", what,
+                 sc_ctx_metric_value(ctx, "max_seam_gap_after"));
+}
+
+/* measure the node's output with the reference sampler */
+static void ref_measure(sc_value *atlas_in, sc_ctx *ctx, int port, int tex, double *before,
+                        double *after, double *gap_after) {
+    const sc_atlas *a = atlas_in->as.atlas;
+    const sc_mesh *m = a->mesh->as.mesh;
+    ref_seam *rs;
+    int ns = ref_find_seams(m, a->textures[tex].material, &rs);
+    const sc_texture *t = &a->textures[tex];
+    double g0;
+    *before = ref_total(t->image->as.image, t->wrap_u, t->wrap_v, rs, ns, &g0);
+    *after = ref_total(out_image(ctx, port, tex), t->wrap_u, t->wrap_v, rs, ns, gap_after);
+    free(rs);
+}
+
+SC_TEST(node_erases_synthetic_cube) {
+    const double angles[3] = {0, 17, -33};
+    for (int k = 0; k < 3; k++) {
+        sc_value *atlas = one_texture_atlas(cube_mesh(angles[k], k == 2),
+                                            noise_image(64, 64, 3, SC_PIXEL_F32, -1), SC_WRAP_REPEAT);
+        sc_error err = {0};
+        sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);
+        SC_CHECK_MSG(ctx != NULL, "run failed: %s", err.message);
+        if (ctx) {
+            check_erased(ctx, "cube", 1e-4);
+            double b, a, g;
+            ref_measure(atlas, ctx, 0, 0, &b, &a, &g);
+            SC_CHECK_NEAR(b, sc_ctx_metric_value(ctx, "seam_energy_before"), 1e-9 * b);
+            SC_CHECK_MSG(a <= 1e-6 * b, "reference: %g -> %g", b, a);
+            SC_CHECK_MSG(g <= 1e-4, "reference gap %g", g);
+            SC_CHECK_INT(sc_ctx_metric_value(ctx, "seam_edges"), k == 2 ? 8 : 12);
+            SC_CHECK(sc_ctx_metric_value(ctx, "nullity") > 0);
+            SC_CHECK(out_image(ctx, 0, 0)->pixel == SC_PIXEL_F32);
+            SC_CHECK(out_image(ctx, 1, 0) == out_image(ctx, 0, 0)); /* f32 input: native is f32 */
+        }
+        sc_ctx_free(ctx);
+        sc_value_release(atlas);
+    }
+}
+
+SC_TEST(node_global_preset_and_weights) {
+    sc_value *atlas = one_texture_atlas(cube_mesh(11, false), noise_image(48, 48, 1, SC_PIXEL_F32, -1),
+                                        SC_WRAP_CLAMP);
+    sc_error err = {0};
+    const char *g[] = {"preset", "global", NULL};
+    sc_ctx *c1 = run_erase(atlas, g, 1, &err);
+    SC_CHECK(c1 != NULL);
+    const char *o[] = {"outside", "true", "lerp", "true", NULL};
+    sc_ctx *c2 = run_erase(atlas, o, 1, &err);
+    SC_CHECK_MSG(c2 != NULL, "%s", err.message);
+    const char *w[] = {"w_change", "1e4", "preset", "global", NULL};
+    sc_ctx *c3 = run_erase(atlas, w, 1, &err);
+    sc_ctx *c4 = run_erase(atlas, NULL, 1, &err);
+    if (c1 && c2 && c3 && c4) {
+        check_erased(c1, "global", 1e-4);
+        check_erased(c2, "outside+lerp", 1e-4);
+        /* an explicit w_change overrides the preset: the same as local */
+        SC_CHECK(sc_digest_equal(&sc_ctx_output(c3, 0)->digest, &sc_ctx_output(c4, 0)->digest));
+        SC_CHECK(!sc_digest_equal(&sc_ctx_output(c1, 0)->digest, &sc_ctx_output(c4, 0)->digest));
+    }
+    sc_ctx_free(c1), sc_ctx_free(c2), sc_ctx_free(c3), sc_ctx_free(c4);
+    sc_value_release(atlas);
+}
+
+SC_TEST(node_same_output_for_any_thread_count) {
+    sc_value *atlas = one_texture_atlas(cube_mesh(23, false), noise_image(64, 64, 4, SC_PIXEL_U8, -1),
+                                        SC_WRAP_REPEAT);
+    sc_error err = {0};
+    sc_ctx *a = run_erase(atlas, NULL, 1, &err), *b = run_erase(atlas, NULL, 4, &err);
+    SC_CHECK(a && b);
+    if (a && b) {
+        for (int port = 0; port < 2; port++)
+            SC_CHECK(sc_digest_equal(&sc_ctx_output(a, port)->digest, &sc_ctx_output(b, port)->digest));
+    }
+    sc_ctx_free(a), sc_ctx_free(b);
+    sc_value_release(atlas);
+}
+
+SC_TEST(node_8bit_rounding) {
+    sc_value *atlas = one_texture_atlas(cube_mesh(7, false), noise_image(96, 96, 3, SC_PIXEL_U8, -1),
+                                        SC_WRAP_REPEAT);
+    sc_error err = {0};
+    sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        double naive = sc_ctx_metric_value(ctx, "seam_energy_after_u8_naive");
+        double opt = sc_ctx_metric_value(ctx, "seam_energy_after_u8_optimal");
+        double before = sc_ctx_metric_value(ctx, "seam_energy_before");
+        SC_CHECK(naive > 0 && opt > 0);
+        SC_CHECK_MSG(opt < 0.5 * naive, "optimal rounding %g vs naive %g", opt, naive);
+        SC_CHECK(naive < 1e-2 * before);
+        const sc_image_data *f = out_image(ctx, 0, 0), *q = out_image(ctx, 1, 0);
+        const sc_image_data *in = atlas->as.atlas->textures[0].image->as.image;
+        SC_CHECK(q->pixel == SC_PIXEL_U8 && f->pixel == SC_PIXEL_F32);
+        SC_CHECK_STR(q->format, "png");
+        /* every byte within one step of the float result; untouched texels exact */
+        size_t n = (size_t)q->width * q->height * q->channels, bad = 0, changed = 0;
+        for (size_t k = 0; k < n; k++) {
+            double x = ((float *)f->pixels)[k] * 255.0;
+            x = x < 0 ? 0 : x > 255 ? 255 : x;
+            int b = ((uint8_t *)q->pixels)[k];
+            bad += fabs(b - x) >= 1.0;
+            changed += b != ((uint8_t *)in->pixels)[k];
+        }
+        SC_CHECK_INT(bad, 0);
+        SC_CHECK(changed > 0);
+        /* the independent measure agrees with the metric */
+        ref_seam *rs;
+        int ns = ref_find_seams(atlas->as.atlas->mesh->as.mesh, 0, &rs);
+        double gq, eq = ref_total(q, SC_WRAP_REPEAT, SC_WRAP_REPEAT, rs, ns, &gq);
+        SC_CHECK_NEAR(eq, opt, 1e-9 * opt);
+        free(rs);
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+}
+
+SC_TEST(node_controls) {
+    sc_error err = {0};
+    /* no seams: the very same atlas comes out */
+    sc_value *flat = one_texture_atlas(grid_mesh(4), noise_image(32, 32, 3, SC_PIXEL_U8, -1), SC_WRAP_REPEAT);
+    sc_ctx *ctx = run_erase(flat, NULL, 1, &err);
+    SC_CHECK(ctx && sc_ctx_output(ctx, 0) == flat && sc_ctx_output(ctx, 1) == flat);
+    if (ctx) SC_CHECK_INT(sc_ctx_metric_value(ctx, "textures_unchanged"), 1);
+    sc_ctx_free(ctx);
+    sc_value_release(flat);
+
+    /* a constant texture stays constant: passed through (no seam gap), and
+     * even when forced through the solver, bit for bit (float and bytes) */
+    for (int px = 0; px < 2; px++) {
+        sc_value *cst = one_texture_atlas(cube_mesh(13, false),
+                                          noise_image(40, 40, 2, px ? SC_PIXEL_U8 : SC_PIXEL_F32, 0.4),
+                                          SC_WRAP_REPEAT);
+        ctx = run_erase(cst, NULL, 2, &err);
+        SC_CHECK(ctx && sc_ctx_output(ctx, 0) == cst);
+        sc_ctx_free(ctx);
+        const char *force[] = {"gap_tolerance", "0", NULL};
+        ctx = run_erase(cst, force, 2, &err);
+        SC_CHECK(ctx != NULL);
+        if (ctx) {
+            SC_CHECK_INT(sc_ctx_metric_value(ctx, "textures_erased"), 1);
+            const sc_image_data *in = cst->as.atlas->textures[0].image->as.image;
+            const sc_image_data *o = out_image(ctx, 0, 0), *nat = out_image(ctx, 1, 0);
+            size_t n = (size_t)in->width * in->height * in->channels;
+            size_t diff = 0;
+            for (size_t k = 0; k < n; k++)
+                diff += ((float *)o->pixels)[k] != (px ? ((uint8_t *)in->pixels)[k] * (1.0f / 255.0f)
+                                                       : ((float *)in->pixels)[k]);
+            SC_CHECK_MSG(diff == 0, "constant texture: %zu texels changed", diff);
+            SC_CHECK(nat->pixel == in->pixel);
+            SC_CHECK(memcmp(nat->pixels, in->pixels, n * (size_t)in->pixel) == 0);
+        }
+        sc_ctx_free(ctx);
+        sc_value_release(cst);
+    }
+}
+
+SC_TEST(node_rerun_changes_nothing_measurable) {
+    sc_value *atlas = one_texture_atlas(cube_mesh(29, false), noise_image(64, 64, 3, SC_PIXEL_F32, -1),
+                                        SC_WRAP_REPEAT);
+    sc_error err = {0};
+    sc_ctx *c1 = run_erase(atlas, NULL, 2, &err);
+    SC_CHECK(c1 != NULL);
+    if (c1) {
+        sc_value *once = sc_value_retain(sc_ctx_output(c1, 0));
+        sc_ctx *c2 = run_erase(once, NULL, 2, &err);
+        SC_CHECK(c2 != NULL);
+        if (c2) {
+            /* its seams are within the tolerance: the very same atlas comes out */
+            double first = sc_ctx_metric_value(c1, "seam_energy_before");
+            SC_CHECK(sc_ctx_metric_value(c2, "seam_energy_before") <= 1e-6 * first);
+            SC_CHECK_INT(sc_ctx_metric_value(c2, "already_seam_free"), 1);
+            SC_CHECK(sc_ctx_output(c2, 0) == once);
+        }
+        /* forcing a second solve (no tolerance) keeps the seams closed and moves
+         * interior texels far less than the first erasure did */
+        const char *force[] = {"gap_tolerance", "0", NULL};
+        sc_ctx *c3 = run_erase(once, force, 2, &err);
+        SC_CHECK(c3 != NULL);
+        if (c3) {
+            double ch1 = sc_ctx_metric_value(c1, "max_change_interior");
+            double ch3 = sc_ctx_metric_value(c3, "max_change_interior");
+            printf("     forced re-run: max interior change %.3g (first run %.3g), mean %.3g (first %.3g)\n", ch3,
+                   ch1, sc_ctx_metric_value(c3, "mean_change_interior"),
+                   sc_ctx_metric_value(c1, "mean_change_interior"));
+            SC_CHECK(sc_ctx_metric_value(c3, "seam_energy_after") <= 1e-6 * sc_ctx_metric_value(c1, "seam_energy_before"));
+            SC_CHECK(sc_ctx_metric_value(c3, "mean_change_interior") < 0.1 * sc_ctx_metric_value(c1, "mean_change_interior"));
+        }
+        sc_ctx_free(c3);
+        sc_ctx_free(c2);
+        sc_value_release(once);
+    }
+    sc_ctx_free(c1);
+    sc_value_release(atlas);
+}
+
+SC_TEST(node_several_textures_and_params) {
+    sc_value *imgs[3] = {sc_value_new_image(noise_image(64, 64, 3, SC_PIXEL_U8, -1)),
+                         sc_value_new_image(noise_image(64, 64, 3, SC_PIXEL_U8, -1)),
+                         sc_value_new_image(noise_image(32, 32, 1, SC_PIXEL_F32, -1))};
+    const char *slots[3] = {"color", "normal", "occlusion"};
+    sc_value *atlas = atlas_of(cube_mesh(5, false), imgs, slots, 3, SC_WRAP_REPEAT);
+    sc_error err = {0};
+    sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        SC_CHECK_INT(sc_ctx_metric_value(ctx, "textures_erased"), 3);
+        SC_CHECK_INT(sc_ctx_metric_value(ctx, "factorizations"), 2); /* 64^2 shared, 32^2 */
+        SC_CHECK(sc_ctx_metric_value(ctx, "color.seam_energy_after") <=
+                 1e-6 * sc_ctx_metric_value(ctx, "color.seam_energy_before"));
+        SC_CHECK(sc_ctx_metric_value(ctx, "occlusion.seam_energy_after") <=
+                 1e-6 * sc_ctx_metric_value(ctx, "occlusion.seam_energy_before"));
+        SC_CHECK(!isnan(sc_ctx_metric_value(ctx, "normal.tangent_space_suspect")));
+    }
+    sc_ctx_free(ctx);
+    const char *ts[] = {"tangent_space_normals", "true", "textures", "normal, occlusion", NULL};
+    ctx = run_erase(atlas, ts, 1, &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        SC_CHECK_INT(sc_ctx_metric_value(ctx, "normal.tangent_space_unerasable"), 1);
+        SC_CHECK_INT(sc_ctx_metric_value(ctx, "textures_erased"), 1);
+        const sc_atlas *o = sc_ctx_output(ctx, 0)->as.atlas;
+        SC_CHECK(o->textures[0].image == imgs[0] && o->textures[1].image == imgs[1]);
+        SC_CHECK(o->textures[2].image != imgs[2]);
+        SC_CHECK(o->mesh == atlas->as.atlas->mesh);
+    }
+    sc_ctx_free(ctx);
+    const char *bad[] = {"textures", "colour", NULL};
+    ctx = run_erase(atlas, bad, 1, &err);
+    SC_CHECK(ctx == NULL);
+    SC_CHECK(strstr(err.message, "colour") != NULL);
+    sc_value_release(atlas);
+}
+
+/* ================================================================ corpus */
+
+static sc_value *load_corpus_tex(const char *rel, const char *texture) {
+    const char *dir = sc_test_corpus();
+    if (!dir) return NULL;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, rel);
+    sc_ctx *ctx = sc_ctx_new(&sc_node_load_atlas, NULL, NULL);
+    sc_ctx_set_threads(ctx, 2);
+    sc_error err = {0};
+    sc_value *out = NULL;
+    int rc = sc_ctx_set_param(ctx, "path", path, &err);
+    if (rc == SC_OK && texture) {
+        snprintf(path, sizeof path, "%s/%s", dir, texture);
+        rc = sc_ctx_set_param(ctx, "texture", path, &err);
+    }
+    if (rc == SC_OK && sc_ctx_run(ctx, &err) == SC_OK)
+        out = sc_value_retain(sc_ctx_output(ctx, 0));
+    else
+        sc_test_fail(__FILE__, __LINE__, "loading %s: %s", rel, err.message);
+    sc_ctx_free(ctx);
+    return out;
+}
+
+static sc_value *load_corpus(const char *rel) { return load_corpus_tex(rel, NULL); }
+
+/* erase, then check every texture with the reference sampler */
+static void corpus_check(const char *rel, const char *texture, const char *slots, bool expect_clean) {
+    if (!sc_test_corpus()) {
+        printf("     corpus absent: skipped %s\n", rel);
+        return;
+    }
+    sc_value *atlas = load_corpus_tex(rel, texture);
+    if (!atlas) return;
+    const char *kv[] = {"textures", slots, NULL};
+    sc_error err = {0};
+    double t0 = sc_now();
+    sc_ctx *ctx = run_erase(atlas, kv, 2, &err);
+    double t1 = sc_now();
+    SC_CHECK_MSG(ctx != NULL, "%s: %s", rel, err.message);
+    if (!ctx) {
+        sc_value_release(atlas);
+        return;
+    }
+    const sc_atlas *a = atlas->as.atlas;
+    const sc_atlas *o = sc_ctx_output(ctx, 0)->as.atlas;
+    SC_CHECK_MSG(sc_ctx_metric_value(ctx, "textures_erased") >= 1, "%s: nothing erased", rel);
+    double naive = sc_ctx_metric_value(ctx, "seam_energy_after_u8_naive");
+    double opt = sc_ctx_metric_value(ctx, "seam_energy_after_u8_optimal");
+    if (!isnan(naive)) {
+        printf("     %s: 8-bit seam energy naive %.3g, optimal %.3g\n", rel, naive, opt);
+        SC_CHECK_MSG(opt < naive, "%s: optimal rounding %g not below naive %g", rel, opt, naive);
+    }
+    for (int i = 0; i < a->ntex; i++) {
+        if (o->textures[i].image == a->textures[i].image) continue;
+        double b, af, g;
+        ref_measure(atlas, ctx, 0, i, &b, &af, &g);
+        printf("     %s %s: D %.3g -> %.3g, gap %.3g (%.2f s)\n", rel, a->textures[i].name, b, af, g, t1 - t0);
+        if (expect_clean) {
+            SC_CHECK_MSG(af <= 1e-6 * b, "%s %s: seam energy %g -> %g", rel, a->textures[i].name, b, af);
+            SC_CHECK_MSG(g <= 1e-4, "%s %s: max gap %g", rel, a->textures[i].name, g);
+        }
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+}
+
+SC_TEST(corpus_spot) { corpus_check("spot/spot_triangulated.obj", "spot/spot_texture.png", "all", true); }
+SC_TEST(corpus_blub) { corpus_check("blub/blub.obj", "blub/blub_texture.png", "all", true); }
+SC_TEST(corpus_avocado) { corpus_check("Avocado/Avocado.gltf", NULL, "color,normal", true); }
+SC_TEST(corpus_boombox) { corpus_check("BoomBox/BoomBox_welded.obj", NULL, "all", true); }
+/* mirrored and overlapping charts: erased as far as they can be, not held to the bar */
+SC_TEST(corpus_murucat_two_materials) { corpus_check("MuruCat/MuruCat_welded.obj", NULL, "all", false); }
+
+SC_TEST(corpus_suzanne_unchanged) {
+    if (!sc_test_corpus()) {
+        printf("     corpus absent: skipped\n");
+        return;
+    }
+    sc_value *atlas = load_corpus("Suzanne/Suzanne_welded.obj");
+    if (!atlas) return;
+    sc_error err = {0};
+    sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);
+    SC_CHECK(ctx != NULL);
+    if (ctx) {
+        SC_CHECK(sc_ctx_output(ctx, 0) == atlas);
+        SC_CHECK(sc_ctx_output(ctx, 1) == atlas);
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+}
+
+SC_TEST(corpus_duck_shared_texels) {
+    if (!sc_test_corpus()) {
+        printf("     corpus absent: skipped\n");
+        return;
+    }
+    sc_value *atlas = load_corpus("Duck/Duck_welded.obj");
+    if (!atlas) return;
+    sc_error err = {0};
+    sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        double frac = sc_ctx_metric_value(ctx, "shared_texel_fraction");
+        printf("     Duck: shared %.3f, D %.3g -> %.3g\n", frac, sc_ctx_metric_value(ctx, "seam_energy_before"),
+               sc_ctx_metric_value(ctx, "seam_energy_after"));
+        SC_CHECK(frac > 0.5);
+        SC_CHECK(sc_ctx_metric_value(ctx, "seam_energy_after") < sc_ctx_metric_value(ctx, "seam_energy_before"));
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+}
+
+int main(void) { return sc_test_main(); }

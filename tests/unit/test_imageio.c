@@ -1,0 +1,355 @@
+/* test_imageio.c - image decoding and encoding (nodes/lib/sc_imageio.h).
+ *
+ * Binary images are made here: some with our encoder, and some byte by byte
+ * (a PNG with stored deflate blocks), so that the row order is checked
+ * against a file whose top row is known without trusting our own writer.
+ */
+#include <stdlib.h>
+
+#include "sc_imageio.h"
+#include "sc_test.h"
+
+/* ---------------------------------------------------------------- a PNG by hand */
+
+static uint32_t crc32_of(const uint8_t *p, size_t n, uint32_t crc) {
+    crc = ~crc;
+    for (size_t i = 0; i < n; i++) {
+        crc ^= p[i];
+        for (int k = 0; k < 8; k++) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1)));
+    }
+    return ~crc;
+}
+
+static void put_be32(sc_buf *b, uint32_t v) {
+    uint8_t x[4] = {(uint8_t)(v >> 24), (uint8_t)(v >> 16), (uint8_t)(v >> 8), (uint8_t)v};
+    sc_buf_append(b, x, 4);
+}
+
+static void put_chunk(sc_buf *png, const char *type, const uint8_t *data, size_t n) {
+    put_be32(png, (uint32_t)n);
+    size_t start = png->len;
+    sc_buf_append(png, type, 4);
+    if (n) sc_buf_append(png, data, n);
+    put_be32(png, crc32_of(png->data + start, n + 4, 0));
+}
+
+/* An 8-bit RGB PNG of w x h with the given top-down rows (no compression:
+ * zlib stored blocks). */
+static void make_png(sc_buf *png, uint32_t w, uint32_t h, const uint8_t *rgb_top_down,
+                     size_t rows_given) {
+    sc_buf_init(png);
+    sc_buf_append(png, "\x89PNG\r\n\x1a\n", 8);
+    uint8_t ihdr[13] = {0};
+    for (int i = 0; i < 4; i++) ihdr[i] = (uint8_t)(w >> (24 - 8 * i)), ihdr[4 + i] = (uint8_t)(h >> (24 - 8 * i));
+    ihdr[8] = 8, ihdr[9] = 2;   /* 8 bits, RGB */
+    put_chunk(png, "IHDR", ihdr, 13);
+    sc_buf raw, z;
+    sc_buf_init(&raw), sc_buf_init(&z);
+    for (size_t y = 0; y < rows_given; y++) {
+        sc_buf_u8(&raw, 0);   /* filter: none */
+        sc_buf_append(&raw, rgb_top_down + y * w * 3, w * 3);
+    }
+    sc_buf_u8(&z, 0x78), sc_buf_u8(&z, 0x01);
+    uint32_t a = 1, b = 0;
+    for (size_t i = 0; i < raw.len; i++) a = (a + raw.data[i]) % 65521, b = (b + a) % 65521;
+    size_t off = 0;
+    do {
+        size_t n = raw.len - off > 65535 ? 65535 : raw.len - off;
+        sc_buf_u8(&z, off + n == raw.len ? 1 : 0);
+        uint8_t len[4] = {(uint8_t)n, (uint8_t)(n >> 8), (uint8_t)~n, (uint8_t)(~n >> 8)};
+        sc_buf_append(&z, len, 4);
+        if (n) sc_buf_append(&z, raw.data + off, n);
+        off += n;
+    } while (off < raw.len);
+    put_be32(&z, (b << 16) | a);
+    put_chunk(png, "IDAT", z.data, z.len);
+    put_chunk(png, "IEND", NULL, 0);
+    sc_buf_free(&raw), sc_buf_free(&z);
+}
+
+/* ---------------------------------------------------------------- helpers */
+
+static sc_image_data *gradient_u8(int w, int h, int c) {
+    sc_image_data *im = sc_image_alloc(w, h, c, SC_PIXEL_U8);
+    uint8_t *p = im->pixels;
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++)
+            for (int k = 0; k < c; k++) p[((size_t)j * w + i) * c + k] = (uint8_t)((i * 7 + j * 13 + k * 50) & 255);
+    return im;
+}
+
+static bool same_pixels(const sc_image_data *a, const sc_image_data *b) {
+    if (a->width != b->width || a->height != b->height || a->channels != b->channels || a->pixel != b->pixel)
+        return false;
+    size_t n = (size_t)a->width * a->height * a->channels * a->pixel;
+    return memcmp(a->pixels, b->pixels, n) == 0;
+}
+
+static bool message_has(const sc_error *err, const char *text) {
+    bool ok = strstr(err->message, text) != NULL;
+    if (!ok) fprintf(stderr, "  message was: %s\n  expected it to contain: %s\n", err->message, text);
+    return ok;
+}
+
+/* ---------------------------------------------------------------- tests */
+
+SC_TEST(png_rows_are_bottom_up) {
+    /* 3 x 4, top row red at x = 0, bottom row green at x = 2 */
+    uint8_t rows[4][3][3] = {{{0}}};
+    rows[0][0][0] = 255;
+    rows[3][2][1] = 255;
+    sc_buf png;
+    make_png(&png, 3, 4, &rows[0][0][0], 4);
+    sc_image_data *im = NULL;
+    sc_error err = {0};
+    int rc = sc_image_decode("hand.png", png.data, png.len, &im, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        SC_CHECK_INT(im->width, 3);
+        SC_CHECK_INT(im->height, 4);
+        SC_CHECK_INT(im->channels, 3);
+        SC_CHECK_INT(im->pixel, SC_PIXEL_U8);
+        SC_CHECK_INT(im->colorspace, SC_COLOR_SRGB);
+        SC_CHECK_STR(im->format, "png");
+        const uint8_t *p = im->pixels;
+        /* top row of the picture = row H-1 in memory */
+        SC_CHECK_INT(p[((3 * 3) + 0) * 3 + 0], 255);
+        SC_CHECK_INT(p[(0 * 3 + 2) * 3 + 1], 255);
+        SC_CHECK_INT(p[0], 0);
+        SC_CHECK_NEAR(sc_image_texel(im, 0, 3, 0), 1.0, 0);
+        /* our encoder writes it back the same way round */
+        sc_buf again;
+        sc_buf_init(&again);
+        SC_CHECK(sc_image_encode_png(im, 0, &again, &err) == SC_OK);
+        sc_image_data *back = NULL;
+        SC_CHECK(sc_image_decode("again.png", again.data, again.len, &back, &err) == SC_OK);
+        SC_CHECK(back && same_pixels(im, back));
+        sc_image_free(back);
+        sc_buf_free(&again);
+    }
+    sc_image_free(im);
+    sc_buf_free(&png);
+}
+
+SC_TEST(png_round_trip_u8_u16) {
+    for (int c = 1; c <= 4; c++) {
+        sc_image_data *im = gradient_u8(37, 19, c);
+        sc_buf b;
+        sc_buf_init(&b);
+        sc_error err = {0};
+        SC_CHECK(sc_image_encode_png(im, 0, &b, &err) == SC_OK);
+        SC_CHECK(strcmp(sc_image_sniff(b.data, b.len), "png") == 0);
+        sc_image_data *back = NULL;
+        SC_CHECK_MSG(sc_image_decode("rt.png", b.data, b.len, &back, &err) == SC_OK, "%s", err.message);
+        SC_CHECK_MSG(back && same_pixels(im, back), "u8 round trip, %d channels", c);
+        /* deterministic bytes */
+        sc_buf b2;
+        sc_buf_init(&b2);
+        SC_CHECK(sc_image_encode_png(im, 0, &b2, &err) == SC_OK);
+        SC_CHECK(b.len == b2.len && memcmp(b.data, b2.data, b.len) == 0);
+        sc_buf_free(&b2);
+        sc_image_free(back);
+        sc_buf_free(&b);
+        sc_image_free(im);
+    }
+    sc_image_data *im = sc_image_alloc(5, 3, 3, SC_PIXEL_U16);
+    uint16_t *p = im->pixels;
+    for (int k = 0; k < 45; k++) p[k] = (uint16_t)(k * 1457 + 3);
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_error err = {0};
+    SC_CHECK(sc_image_encode_png(im, 0, &b, &err) == SC_OK);
+    sc_image_data *back = NULL;
+    SC_CHECK(sc_image_decode("rt16.png", b.data, b.len, &back, &err) == SC_OK);
+    SC_CHECK(back && back->pixel == SC_PIXEL_U16 && same_pixels(im, back));
+    sc_image_free(back);
+    sc_buf_free(&b);
+    sc_image_free(im);
+}
+
+SC_TEST(png_from_float_quantises) {
+    sc_image_data *im = sc_image_alloc(4, 1, 1, SC_PIXEL_F32);
+    float *f = im->pixels;
+    f[0] = -0.5f, f[1] = 0.5f, f[2] = 2.0f, f[3] = 0.25f;
+    im->colorspace = SC_COLOR_DATA;
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_error err = {0};
+    SC_CHECK(sc_image_encode_png(im, 8, &b, &err) == SC_OK);
+    sc_image_data *back = NULL;
+    SC_CHECK(sc_image_decode("q.png", b.data, b.len, &back, &err) == SC_OK);
+    if (back) {
+        const uint8_t *p = back->pixels;
+        SC_CHECK_INT(p[0], 0);
+        SC_CHECK_INT(p[1], 128);   /* 127.5 rounds to nearest (up) */
+        SC_CHECK_INT(p[2], 255);
+        SC_CHECK_INT(p[3], 64);    /* 63.75 */
+    }
+    sc_image_free(back);
+    /* linear float is written with the sRGB curve, 16 bits by default */
+    im->colorspace = SC_COLOR_LINEAR;
+    sc_buf_reset(&b);
+    SC_CHECK(sc_image_encode_png(im, 0, &b, &err) == SC_OK);
+    back = NULL;
+    SC_CHECK(sc_image_decode("q16.png", b.data, b.len, &back, &err) == SC_OK);
+    if (back) {
+        SC_CHECK_INT(back->pixel, SC_PIXEL_U16);
+        double expect = 1.055 * pow(0.5, 1 / 2.4) - 0.055;
+        SC_CHECK_NEAR(sc_image_texel(back, 1, 0, 0), expect, 1.0 / 65535);
+    }
+    sc_image_free(back);
+    sc_buf_free(&b);
+    sc_image_free(im);
+}
+
+SC_TEST(jpeg_round_trip) {
+    sc_image_data *im = sc_image_alloc(32, 16, 3, SC_PIXEL_U8);
+    memset(im->pixels, 120, 32 * 16 * 3);
+    uint8_t *p = im->pixels;
+    for (int i = 0; i < 32 * 3; i++) p[(size_t)15 * 32 * 3 + i] = 200;   /* top row brighter */
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_error err = {0};
+    SC_CHECK(sc_image_encode_jpeg(im, 95, &b, &err) == SC_OK);
+    sc_image_data *back = NULL;
+    SC_CHECK_MSG(sc_image_decode("rt.jpg", b.data, b.len, &back, &err) == SC_OK, "%s", err.message);
+    if (back) {
+        SC_CHECK_STR(back->format, "jpg");
+        SC_CHECK_INT(back->channels, 3);
+        SC_CHECK_NEAR(sc_image_texel(back, 5, 0, 0), 120 / 255.0, 6 / 255.0);
+        SC_CHECK_NEAR(sc_image_texel(back, 5, 15, 1), 200 / 255.0, 12 / 255.0);
+    }
+    sc_image_free(back);
+    sc_buf_free(&b);
+    sc_image_free(im);
+}
+
+SC_TEST(exr_float_round_trip) {
+    for (int c = 1; c <= 4; c++) {
+        sc_image_data *im = sc_image_alloc(13, 7, c, SC_PIXEL_F32);
+        im->colorspace = SC_COLOR_LINEAR;
+        float *f = im->pixels;
+        for (int k = 0; k < 13 * 7 * c; k++) f[k] = (float)(sin(k * 0.37) * 3.5 + (k % 5 == 0 ? 1e-6 : 0));
+        f[0] = -0.0f;
+        sc_buf b;
+        sc_buf_init(&b);
+        sc_error err = {0};
+        SC_CHECK_MSG(sc_image_encode_exr(im, &b, &err) == SC_OK, "%s", err.message);
+        SC_CHECK(strcmp(sc_image_sniff(b.data, b.len), "exr") == 0);
+        sc_image_data *back = NULL;
+        SC_CHECK_MSG(sc_image_decode("rt.exr", b.data, b.len, &back, &err) == SC_OK, "%s", err.message);
+        SC_CHECK_MSG(back && same_pixels(im, back), "EXR round trip, %d channels", c);
+        if (back) {
+            SC_CHECK_STR(back->format, "exr");
+            SC_CHECK_INT(back->colorspace, SC_COLOR_LINEAR);
+        }
+        sc_buf b2;
+        sc_buf_init(&b2);
+        SC_CHECK(sc_image_encode_exr(im, &b2, &err) == SC_OK);
+        SC_CHECK(b.len == b2.len && memcmp(b.data, b2.data, b.len) == 0);
+        sc_buf_free(&b2);
+        sc_image_free(back);
+        sc_buf_free(&b);
+        sc_image_free(im);
+    }
+    /* 8-bit sRGB colour is linearised into the EXR */
+    sc_image_data *im = sc_image_alloc(1, 1, 3, SC_PIXEL_U8);
+    memset(im->pixels, 128, 3);
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_error err = {0};
+    SC_CHECK(sc_image_encode_exr(im, &b, &err) == SC_OK);
+    sc_image_data *back = NULL;
+    SC_CHECK(sc_image_decode("lin.exr", b.data, b.len, &back, &err) == SC_OK);
+    if (back) SC_CHECK_NEAR(sc_image_texel(back, 0, 0, 0), pow((128 / 255.0 + 0.055) / 1.055, 2.4), 1e-6);
+    sc_image_free(back);
+    sc_buf_free(&b);
+    sc_image_free(im);
+}
+
+SC_TEST(encoders_write_no_time_stamps) {
+    sc_image_data *im = gradient_u8(16, 8, 4);
+    sc_image_data *f = sc_image_to_f32(im);
+    sc_buf first[3], second[3];
+    sc_error err = {0};
+    for (int pass = 0; pass < 2; pass++) {
+        sc_buf *b = pass ? second : first;
+        for (int k = 0; k < 3; k++) sc_buf_init(&b[k]);
+        SC_CHECK(sc_image_encode_png(im, 0, &b[0], &err) == SC_OK);
+        SC_CHECK(sc_image_encode_jpeg(im, 90, &b[1], &err) == SC_OK);
+        SC_CHECK(sc_image_encode_exr(f, &b[2], &err) == SC_OK);
+        if (!pass) sc_test_system("sleep 1.1");
+    }
+    for (int k = 0; k < 3; k++) {
+        SC_CHECK_MSG(first[k].len == second[k].len && memcmp(first[k].data, second[k].data, first[k].len) == 0,
+                     "encoder %d wrote different bytes a second later", k);
+        sc_buf_free(&first[k]), sc_buf_free(&second[k]);
+    }
+    sc_image_free(f);
+    sc_image_free(im);
+}
+
+SC_TEST(bad_images_fail_cleanly) {
+    sc_error err = {0};
+    sc_image_data *im = NULL;
+    /* garbage and empty */
+    SC_CHECK(sc_image_decode("junk.png", "hello, world", 12, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "junk.png: not an image"));
+    SC_CHECK(sc_image_decode("empty.png", "", 0, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "empty.png"));
+    SC_CHECK(im == NULL);
+
+    /* a valid PNG, then truncated and corrupted */
+    sc_image_data *src = gradient_u8(64, 64, 3);
+    sc_buf png;
+    sc_buf_init(&png);
+    SC_CHECK(sc_image_encode_png(src, 0, &png, &err) == SC_OK);
+    SC_CHECK(sc_image_decode("cut.png", png.data, png.len / 2, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "cut.png: corrupt or truncated png"));
+    SC_CHECK(im == NULL);
+    SC_CHECK(sc_image_decode("cut.png", png.data, 40, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "cut.png"));
+    for (size_t i = 60; i < png.len - 20; i += 7) png.data[i] ^= 0x5a;
+    SC_CHECK(sc_image_decode("bits.png", png.data, png.len, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "bits.png: corrupt or truncated png"));
+    SC_CHECK(im == NULL);
+    sc_buf_free(&png);
+
+    /* a header claiming 100000 x 100000 (with a single row of data) */
+    uint8_t row[3] = {1, 2, 3};
+    make_png(&png, 100000, 100000, row, 0);
+    SC_CHECK(sc_image_decode("huge.png", png.data, png.len, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "huge.png: 100000x100000 pixels is beyond the limits"));
+    SC_CHECK(err.code == SC_ENOMEM);
+    SC_CHECK(im == NULL);
+    sc_buf_free(&png);
+    make_png(&png, 40000, 2, row, 0);   /* one side too long, few pixels */
+    SC_CHECK(sc_image_decode("wide.png", png.data, png.len, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "wide.png: 40000x2 pixels"));
+    sc_buf_free(&png);
+
+    /* truncated JPEG and EXR */
+    sc_buf b;
+    sc_buf_init(&b);
+    SC_CHECK(sc_image_encode_jpeg(src, 90, &b, &err) == SC_OK);
+    SC_CHECK(sc_image_decode("cut.jpg", b.data, b.len / 3, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "cut.jpg"));
+    sc_buf_reset(&b);
+    sc_image_data *f = sc_image_to_f32(src);
+    SC_CHECK(sc_image_encode_exr(f, &b, &err) == SC_OK);
+    SC_CHECK(sc_image_decode("cut.exr", b.data, b.len / 2, &im, &err) != SC_OK);
+    SC_CHECK(message_has(&err, "cut.exr"));
+    SC_CHECK(im == NULL);
+    sc_image_free(f);
+    sc_buf_free(&b);
+    sc_image_free(src);
+
+    /* invalid images are refused by the encoders */
+    sc_image_data bad = {0};
+    sc_buf_init(&b);
+    SC_CHECK(sc_image_encode_png(&bad, 0, &b, &err) != SC_OK);
+    SC_CHECK(sc_image_encode_exr(&bad, &b, &err) != SC_OK);
+    sc_buf_free(&b);
+}
+
+int main(void) { return sc_test_main(); }

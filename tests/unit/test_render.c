@@ -1,0 +1,463 @@
+/* test_render.c - the node `render`: GPU seam gaps, crack pixels, open meshes
+ * against a reference, limits that fail the cook, skipped modes, and
+ * byte-identical pictures from run to run and thread to thread.
+ *
+ * The assets are made here. The main one is a flat cube (six faces, each an
+ * n x n grid and its own uv chart with padding), because on it every chart's
+ * map uv -> position is affine: its geometry image, rasterised at texel
+ * centres with the padding extrapolated, is reproduced exactly by bilinear
+ * filtering, so the seam gap of a correct renderer is float rounding only.
+ * Variants add a per-chart offset to the geometry image or the displacement
+ * (real seams), split one face off and shrink it (a real crack), or drop a
+ * face (an open mesh). Levels of detail of the flat cube are the same cube
+ * with a coarser grid and the very same textures.
+ */
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_exec.h"
+#include "sc_nodes.h"
+#include "sc_test.h"
+
+extern const sc_node_desc sc_node_render;   /* nodes/render.c */
+
+/* ---------------------------------------------------------------- the flat cube */
+
+enum {
+    CUBE_GI_SEAMS = 1,     /* per-chart offset in the geometry image */
+    CUBE_DISP_SEAMS = 2,   /* per-chart offset in the displacement */
+    CUBE_SPLIT = 4,        /* face 0 has its own vertices, pulled in by 3% */
+    CUBE_OPEN = 8,         /* face 0 removed */
+    CUBE_NO_POSITIONS = 16 /* colour texture only */
+};
+
+static const int face_origin[6][3] = {{1, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 0, 0}, {0, 0, 1}, {0, 0, 0}};
+static const int face_a[6][3] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 1}, {1, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+static const int face_b[6][3] = {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}, {0, 1, 0}, {1, 0, 0}};
+
+#define CELL 32   /* texels per chart cell; the texture is 3 x 2 cells */
+#define PAD 3     /* texels of padding on each side of a chart */
+
+/* Point of face f at chart coordinates (a, b) (any reals: the plane extends). */
+static void cube_point(int f, double a, double b, double out[3]) {
+    for (int k = 0; k < 3; k++)
+        out[k] = 2.0 * (face_origin[f][k] + a * face_a[f][k] + b * face_b[f][k]) - 1.0;
+}
+
+static void chart_uv(int f, double a, double b, double uv[2]) {
+    double side = CELL - 2 * PAD;
+    uv[0] = ((f % 3) * CELL + PAD + a * side) / (3.0 * CELL);
+    uv[1] = ((f / 3) * CELL + PAD + b * side) / (2.0 * CELL);
+}
+
+static sc_value *image_value(sc_image_data *im) { return im ? sc_value_new_image(im) : NULL; }
+
+/* The three textures of the flat cube, shared by all its levels. */
+typedef struct cube_textures {
+    sc_value *color, *geometry, *displacement;
+} cube_textures;
+
+static cube_textures cube_textures_make(int flags) {
+    int w = 3 * CELL, h = 2 * CELL;
+    sc_image_data *color = sc_image_alloc(w, h, 3, SC_PIXEL_U8);
+    sc_image_data *geom = sc_image_alloc(w, h, 3, SC_PIXEL_F32);
+    sc_image_data *disp = sc_image_alloc(w, h, 4, SC_PIXEL_F32);
+    SC_CHECK(color && geom && disp);
+    color->colorspace = SC_COLOR_SRGB;
+    geom->colorspace = disp->colorspace = SC_COLOR_DATA;
+    double side = CELL - 2 * PAD;
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            int f = i / CELL + 3 * (j / CELL);
+            double a = (i + 0.5 - ((f % 3) * CELL + PAD)) / side, b = (j + 0.5 - ((f / 3) * CELL + PAD)) / side;
+            double p[3];
+            cube_point(f, a, b, p);
+            size_t t = (size_t)j * w + i;
+            uint8_t *c = (uint8_t *)color->pixels + 3 * t;
+            int check = ((int)floor(a * 4) + (int)floor(b * 4)) & 1;
+            c[0] = (uint8_t)(90 + 25 * f + 40 * check);
+            c[1] = (uint8_t)(200 - 20 * f);
+            c[2] = (uint8_t)(120 + 50 * check);
+            float *g = (float *)geom->pixels + 3 * t, *d = (float *)disp->pixels + 4 * t;
+            double off_g = (flags & CUBE_GI_SEAMS) ? 0.02 * (f + 1) : 0.0;
+            double off_d = (flags & CUBE_DISP_SEAMS) ? 0.02 * (f + 1) : 0.0;
+            for (int k = 0; k < 3; k++) {
+                g[k] = (float)(p[k] + off_g);
+                d[k] = (float)(0.25 * p[k] + off_d);   /* affine: the cube grows by a quarter */
+            }
+            d[3] = 1.0f;
+        }
+    cube_textures t = {image_value(color), image_value(geom), image_value(disp)};
+    SC_CHECK(t.color && t.geometry && t.displacement);
+    return t;
+}
+
+static void cube_textures_free(cube_textures *t) {
+    sc_value_release(t->color);
+    sc_value_release(t->geometry);
+    sc_value_release(t->displacement);
+}
+
+static int lattice_index(int n, int f, int a, int b) {
+    int m = n + 1, l[3];
+    for (int k = 0; k < 3; k++) l[k] = face_origin[f][k] * n + a * face_a[f][k] + b * face_b[f][k];
+    return (l[0] * m + l[1]) * m + l[2];
+}
+
+static sc_value *cube_atlas(int n, int flags, const cube_textures *tex) {
+    int m = n + 1;
+    int *vertex_of = malloc(sizeof(int) * (size_t)m * m * m);
+    for (int i = 0; i < m * m * m; i++) vertex_of[i] = -1;
+    int nv_max = 6 * m * m, nf = 12 * n * n - ((flags & CUBE_OPEN) ? 2 * n * n : 0);
+    sc_mesh *mesh = sc_mesh_alloc(nv_max, 6 * m * m, 0, nf, 1);
+    mesh->materials[0] = sc_strdup("cube");
+    int nv = 0, face = 0;
+    int *local = malloc(sizeof(int) * (size_t)m * m);
+    for (int f = 0; f < 6; f++) {
+        for (int b = 0; b <= n; b++)
+            for (int a = 0; a <= n; a++) {
+                int li = lattice_index(n, f, a, b), vi;
+                if (f == 0 && (flags & CUBE_SPLIT)) {
+                    vi = nv++;
+                    cube_point(f, (double)a / n, (double)b / n, mesh->V + 3 * vi);
+                    for (int k = 0; k < 3; k++) mesh->V[3 * vi + k] *= 0.97;
+                } else {
+                    if (vertex_of[li] < 0) {
+                        vertex_of[li] = nv++;
+                        cube_point(f, (double)a / n, (double)b / n, mesh->V + 3 * vertex_of[li]);
+                    }
+                    vi = vertex_of[li];
+                }
+                local[b * m + a] = vi;
+                chart_uv(f, (double)a / n, (double)b / n, mesh->U + 2 * (f * m * m + b * m + a));
+            }
+        if (f == 0 && (flags & CUBE_OPEN)) continue;
+        for (int b = 0; b < n; b++)
+            for (int a = 0; a < n; a++) {
+                int c[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
+                int tri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+                for (int t = 0; t < 2; t++, face++)
+                    for (int k = 0; k < 3; k++) {
+                        int q = tri[t][k];
+                        mesh->FV[3 * face + k] = local[c[q][1] * m + c[q][0]];
+                        mesh->FU[3 * face + k] = f * m * m + c[q][1] * m + c[q][0];
+                    }
+            }
+    }
+    free(local);
+    free(vertex_of);
+    mesh->nv = nv;   /* the unused tail of V is never referenced */
+    SC_CHECK_INT(face, nf);
+    sc_atlas *a = sc_atlas_new(sc_value_new_mesh(mesh));
+    sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "cube.png", sc_value_retain(tex->color));
+    if (!(flags & CUBE_NO_POSITIONS)) {
+        sc_atlas_add_texture(a, "geometry_image", 0, SC_WRAP_CLAMP, SC_WRAP_CLAMP, "",
+                             sc_value_retain(tex->geometry));
+        sc_atlas_add_texture(a, "displacement", 0, SC_WRAP_CLAMP, SC_WRAP_CLAMP, "",
+                             sc_value_retain(tex->displacement));
+    }
+    return sc_value_new_atlas(a);
+}
+
+static sc_value *lods_of(sc_value *const *levels, int n) {
+    sc_lods *l = sc_lods_new();
+    for (int i = 0; i < n; i++) sc_lods_add(l, sc_value_retain(levels[i]));
+    return sc_value_new_lods(l);
+}
+
+/* ---------------------------------------------------------------- running render */
+
+typedef struct run_result {
+    int rc;
+    sc_error err;
+    sc_ctx *ctx;
+    sc_value *report;   /* borrowed from ctx */
+} run_result;
+
+/* params: "name", "value", ..., NULL */
+static run_result render(sc_value *lods, sc_value *atlas, sc_value *reference, const char *const *params) {
+    run_result r = {0};
+    r.ctx = sc_ctx_new(&sc_node_render, NULL, NULL);
+    if (lods) sc_ctx_set_input(r.ctx, "lods", lods);
+    if (atlas) sc_ctx_set_input(r.ctx, "atlas", atlas);
+    if (reference) sc_ctx_set_input(r.ctx, "reference", reference);
+    for (int i = 0; params && params[i]; i += 2) {
+        sc_error e;
+        int rc = sc_ctx_set_param(r.ctx, params[i], params[i + 1], &e);
+        SC_CHECK_MSG(rc == SC_OK, "set %s: %s", params[i], e.message);
+    }
+    r.rc = sc_ctx_run(r.ctx, &r.err);
+    if (r.rc == SC_OK) r.report = sc_ctx_output(r.ctx, 0);
+    return r;
+}
+
+static double M(const run_result *r, const char *name) { return sc_ctx_metric_value(r->ctx, name); }
+
+static const sc_report *report_of(const run_result *r) { return r->report ? r->report->as.report : NULL; }
+
+static bool has_file(const run_result *r, const char *path) {
+    const sc_report *rep = report_of(r);
+    for (int i = 0; rep && i < rep->nfiles; i++)
+        if (strcmp(rep->files[i].path, path) == 0) return true;
+    return false;
+}
+
+/* ---------------------------------------------------------------- tests */
+
+static const char *const small[] = {"size", "128", "views", "10", "tess_levels", "1,2,4,8", NULL};
+
+SC_TEST(seam_free_geometry_image_has_no_gap) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *cube = cube_atlas(4, 0, &tex);
+    run_result r = render(NULL, cube, NULL, small);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    const char *modes[] = {"textured", "geometry_image", "displaced", "tessellated1", "tessellated2",
+                           "tessellated4", "tessellated8"};
+    for (int i = 0; i < 7; i++) {
+        char name[96];
+        snprintf(name, sizeof name, "lod0.%s.max_seam_gap", modes[i]);
+        SC_CHECK_MSG(M(&r, name) <= 1e-6, "%s = %g", name, M(&r, name));
+        snprintf(name, sizeof name, "lod0.%s.crack_pixels", modes[i]);
+        SC_CHECK_MSG(M(&r, name) == 0, "%s = %g", name, M(&r, name));
+    }
+    SC_CHECK(M(&r, "crack_pixels") == 0);
+    SC_CHECK(M(&r, "max_seam_gap") <= 1e-6);
+    SC_CHECK(M(&r, "lod0.closed") == 1);
+    SC_CHECK(M(&r, "lod0.seam_edges") == 12 * 4);
+    SC_CHECK(M(&r, "lod0.tessellated.source") == 1);
+    SC_CHECK(M(&r, "renders") == 70);
+    SC_CHECK(has_file(&r, "render/lod0_textured_posx.png"));
+    SC_CHECK(has_file(&r, "render/lod0_tessellated8_obl3.png"));
+    SC_CHECK(has_file(&r, "render/lod0_sheet.png"));
+    SC_CHECK(!has_file(&r, "render/lod0_textured_obl4.png"));
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+SC_TEST(geometry_image_with_seams_has_gap_and_cracks) {
+    cube_textures tex = cube_textures_make(CUBE_GI_SEAMS | CUBE_DISP_SEAMS);
+    sc_value *cube = cube_atlas(4, 0, &tex);
+    run_result r = render(NULL, cube, NULL, small);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    /* neighbouring charts are offset by 0.02 per axis: 0.0346 / diagonal 3.46 */
+    SC_CHECK_MSG(M(&r, "lod0.geometry_image.max_seam_gap") > 1e-3, "%g", M(&r, "lod0.geometry_image.max_seam_gap"));
+    SC_CHECK_NEAR(M(&r, "lod0.geometry_image.max_seam_gap"), 0.02 * 5 * sqrt(3.0) / (2 * sqrt(3.0)), 1e-5);
+    SC_CHECK(M(&r, "lod0.geometry_image.max_vertex_gap") > 1e-3);
+    SC_CHECK(M(&r, "lod0.displaced.max_seam_gap") > 1e-3);
+    SC_CHECK(M(&r, "lod0.tessellated4.max_seam_gap") > 1e-3);
+    SC_CHECK(M(&r, "lod0.geometry_image.crack_pixels") > 0);
+    SC_CHECK(M(&r, "lod0.displaced.crack_pixels") > 0);
+    SC_CHECK(M(&r, "lod0.tessellated2.crack_pixels") > 0);
+    SC_CHECK(M(&r, "lod0.textured.max_seam_gap") == 0);
+    SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+SC_TEST(closed_procedural_textured_has_no_cracks) {
+    sc_ctx *p = sc_ctx_new(&sc_node_procedural, NULL, NULL);
+    sc_error e;
+    SC_CHECK(sc_ctx_set_param(p, "resolution", "12", &e) == SC_OK);
+    SC_CHECK(sc_ctx_set_param(p, "texture_size", "256", &e) == SC_OK);
+    SC_CHECK(sc_ctx_run(p, &e) == SC_OK);
+    sc_value *atlas = sc_ctx_output(p, 0);
+    run_result r = render(NULL, atlas, NULL, (const char *const[]){"size", "256", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
+    SC_CHECK(M(&r, "lod0.textured.max_seam_gap") == 0);
+    SC_CHECK(M(&r, "crack_pixels") == 0);
+    /* the procedural asset has a colour texture only */
+    SC_CHECK(M(&r, "lod0.geometry_image.skipped") == 1);
+    SC_CHECK(M(&r, "lod0.displaced.skipped") == 1);
+    SC_CHECK(M(&r, "lod0.tessellated.skipped") == 1);
+    SC_CHECK(M(&r, "skipped_modes") == 3);
+    SC_CHECK(M(&r, "renders") == 10);
+    SC_CHECK(M(&r, "lod0.seam_edges") == 12 * 12);
+    sc_ctx_free(r.ctx);
+    sc_ctx_free(p);
+}
+
+SC_TEST(split_mesh_shows_cracks) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *cube = cube_atlas(4, CUBE_SPLIT | CUBE_NO_POSITIONS, &tex);
+    run_result r = render(NULL, cube, NULL, (const char *const[]){"size", "128", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK_MSG(M(&r, "lod0.textured.crack_pixels") > 50, "%g", M(&r, "lod0.textured.crack_pixels"));
+    /* split along a boundary: no longer closed */
+    SC_CHECK(M(&r, "lod0.closed") == 0);
+    sc_ctx_free(r.ctx);
+
+    /* the limit fails the cook and names the LOD, the mode and the view */
+    r = render(NULL, cube, NULL, (const char *const[]){"size", "128", "max_crack_pixels", "0", NULL});
+    SC_CHECK(r.rc != SC_OK);
+    SC_CHECK_MSG(strstr(r.err.message, "max_crack_pixels") && strstr(r.err.message, "lod 0") &&
+                     strstr(r.err.message, "mode textured") && strstr(r.err.message, "view "),
+                 "%s", r.err.message);
+    SC_CHECK(sc_ctx_output(r.ctx, 0) == NULL);
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+SC_TEST(displacement_with_seams_fails_the_gap_limit) {
+    cube_textures tex = cube_textures_make(CUBE_DISP_SEAMS);
+    sc_value *good = cube_atlas(3, 0, &tex);
+    sc_value *lods = lods_of((sc_value *const[]){good}, 1);
+    run_result r = render(lods, NULL, NULL,
+                          (const char *const[]){"size", "64", "views", "2", "modes", "geometry_image,displaced",
+                                                "max_seam_gap", "1e-6", NULL});
+    SC_CHECK(r.rc != SC_OK);
+    SC_CHECK_MSG(strstr(r.err.message, "max_seam_gap: lod 0, mode displaced") != NULL, "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    sc_value_release(lods);
+    sc_value_release(good);
+    cube_textures_free(&tex);
+}
+
+SC_TEST(open_mesh_is_compared_with_the_reference) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *open = cube_atlas(4, CUBE_OPEN, &tex);
+    const char *const p[] = {"size", "128", "modes", "textured,geometry_image", NULL};
+
+    /* without a reference every back face of the hole counts */
+    run_result r = render(NULL, open, NULL, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.closed") == 0);
+    SC_CHECK(M(&r, "lod0.textured.crack_pixels") > 100);
+    sc_ctx_free(r.ctx);
+
+    /* with itself as the reference, nothing is new */
+    r = render(NULL, open, open, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "reference.back_pixels") > 100);
+    SC_CHECK_MSG(M(&r, "lod0.textured.crack_pixels") == 0, "%g", M(&r, "lod0.textured.crack_pixels"));
+    SC_CHECK_MSG(M(&r, "lod0.geometry_image.crack_pixels") == 0, "%g", M(&r, "lod0.geometry_image.crack_pixels"));
+    SC_CHECK(has_file(&r, "render/reference_posx.png"));
+    sc_ctx_free(r.ctx);
+
+    /* a coarser level of the same open box: the hole barely moves */
+    sc_value *coarse = cube_atlas(2, CUBE_OPEN, &tex);
+    sc_value *lods = lods_of((sc_value *const[]){open, coarse}, 2);
+    r = render(lods, NULL, open, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod1.textured.crack_pixels") == 0);
+    SC_CHECK(has_file(&r, "render/lod1_sheet.png"));
+    sc_ctx_free(r.ctx);
+
+    /* a crack that the reference does not have still counts */
+    sc_value *cracked = cube_atlas(4, CUBE_OPEN | CUBE_GI_SEAMS, &tex);
+    cube_textures seams = cube_textures_make(CUBE_GI_SEAMS);
+    sc_value *bad = cube_atlas(4, CUBE_OPEN, &seams);
+    r = render(NULL, bad, open, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
+    SC_CHECK_MSG(M(&r, "lod0.geometry_image.crack_pixels") > 0, "%g", M(&r, "lod0.geometry_image.crack_pixels"));
+    sc_ctx_free(r.ctx);
+    sc_value_release(bad);
+    sc_value_release(cracked);
+    cube_textures_free(&seams);
+    sc_value_release(lods);
+    sc_value_release(coarse);
+    sc_value_release(open);
+    cube_textures_free(&tex);
+}
+
+SC_TEST(levels_share_textures_and_all_stay_crack_free) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *l0 = cube_atlas(6, 0, &tex), *l1 = cube_atlas(3, 0, &tex), *l2 = cube_atlas(1, 0, &tex);
+    sc_value *lods = lods_of((sc_value *const[]){l0, l1, l2}, 3);
+    run_result r = render(lods, NULL, NULL, (const char *const[]){"size", "96", "views", "14", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "levels") == 3);
+    SC_CHECK(M(&r, "crack_pixels") == 0);
+    SC_CHECK(M(&r, "max_seam_gap") <= 1e-6);
+    SC_CHECK(M(&r, "lod2.faces") == 12);
+    SC_CHECK(M(&r, "lod2.tessellated.crack_pixels") == 0);
+    SC_CHECK(has_file(&r, "render/lod2_displaced_obl7.png"));
+    SC_CHECK(has_file(&r, "render/lod0_sheet.png") && has_file(&r, "render/lod2_sheet.png"));
+    sc_ctx_free(r.ctx);
+    sc_value_release(lods);
+    sc_value_release(l0), sc_value_release(l1), sc_value_release(l2);
+    cube_textures_free(&tex);
+}
+
+/* ---------------------------------------------------------------- determinism */
+
+typedef struct thread_job {
+    sc_value *atlas;
+    sc_digest digest;
+    int rc;
+} thread_job;
+
+static void *thread_render(void *ud) {
+    thread_job *j = ud;
+    run_result r = render(NULL, j->atlas, NULL, (const char *const[]){"size", "96", "views", "7", NULL});
+    j->rc = r.rc;
+    if (r.rc == SC_OK) j->digest = r.report->digest;
+    sc_ctx_free(r.ctx);
+    return NULL;
+}
+
+SC_TEST(rendering_is_deterministic) {
+    cube_textures tex = cube_textures_make(CUBE_GI_SEAMS);
+    sc_value *cube = cube_atlas(5, 0, &tex);
+    thread_job serial[2] = {{cube, {{0}}, -1}, {cube, {{0}}, -1}};
+    thread_render(&serial[0]);
+    thread_render(&serial[1]);
+    SC_CHECK(serial[0].rc == SC_OK && serial[1].rc == SC_OK);
+    SC_CHECK(sc_digest_equal(&serial[0].digest, &serial[1].digest));
+    /* several renders at once on different threads: each its own context */
+    thread_job jobs[3] = {{cube, {{0}}, -1}, {cube, {{0}}, -1}, {cube, {{0}}, -1}};
+    pthread_t th[3];
+    for (int i = 0; i < 3; i++) pthread_create(&th[i], NULL, thread_render, &jobs[i]);
+    for (int i = 0; i < 3; i++) pthread_join(th[i], NULL);
+    for (int i = 0; i < 3; i++) {
+        SC_CHECK(jobs[i].rc == SC_OK);
+        SC_CHECK(sc_digest_equal(&jobs[i].digest, &serial[0].digest));
+    }
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+/* ---------------------------------------------------------------- bad input */
+
+SC_TEST(parameters_and_inputs_are_checked) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *cube = cube_atlas(2, 0, &tex);
+    run_result r = render(NULL, cube, NULL, (const char *const[]){"modes", "textured,wireframe", NULL});
+    SC_CHECK(r.rc == SC_EINPUT);
+    SC_CHECK_MSG(strstr(r.err.message, "modes") && strstr(r.err.message, "wireframe"), "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    r = render(NULL, cube, NULL, (const char *const[]){"tess_levels", "2,2.5", NULL});
+    SC_CHECK(r.rc == SC_EINPUT);
+    SC_CHECK_MSG(strstr(r.err.message, "tess_levels") != NULL, "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    r = render(NULL, NULL, NULL, NULL);
+    SC_CHECK(r.rc == SC_EINPUT);
+    SC_CHECK_MSG(strstr(r.err.message, "lods") != NULL, "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    sc_value *lods = lods_of(&cube, 1);
+    r = render(lods, cube, NULL, NULL);
+    SC_CHECK(r.rc == SC_EINPUT);
+    sc_ctx_free(r.ctx);
+    sc_value_release(lods);
+
+    /* a one-channel geometry image cannot hold positions */
+    sc_image_data *gray = sc_image_alloc(8, 8, 1, SC_PIXEL_F32);
+    sc_value *gray_value = sc_value_new_image(gray);
+    sc_atlas *a = sc_atlas_new(sc_value_retain(cube->as.atlas->mesh));
+    sc_atlas_add_texture(a, "geometry_image", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", gray_value);
+    sc_value *bad = sc_value_new_atlas(a);
+    r = render(NULL, bad, NULL, (const char *const[]){"size", "32", "views", "1", NULL});
+    SC_CHECK(r.rc == SC_EINPUT);
+    SC_CHECK_MSG(strstr(r.err.message, "geometry_image") && strstr(r.err.message, "channel"), "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    sc_value_release(bad);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+int main(void) { return sc_test_main(); }
