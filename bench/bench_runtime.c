@@ -57,9 +57,9 @@ static void bench_noop(const char *bin) {
     if (!f) return;
     fprintf(f, "-- 250 sources and 250 saves\n");
     for (int i = 0; i < 250; i++) {
-        fprintf(f, "local a%d = procedural{ name = \"src%d\", resolution = %d, texture_size = %d }\n", i, i,
+        fprintf(f, "do local a = procedural{ name = \"src%d\", resolution = %d, texture_size = %d }\n", i,
                 1 + i % 4, 32 + (i / 4));
-        fprintf(f, "save{ name = \"save%d\", atlas = a%d, file = \"asset%d\" }\n", i, i, i);
+        fprintf(f, "save{ name = \"save%d\", atlas = a, file = \"asset%d\" } end\n", i, i);
     }
     fclose(f);
     char *cmd = sc_strprintf("cd %s && '%s' run g500.lua --cache cache --out out -q", dir, bin);
@@ -84,13 +84,17 @@ static void bench_noop(const char *bin) {
     free(rm), free(report), free(cmd), free(graph);
 }
 
-static void bench_load(const char *corpus, const char *rel) {
+static void bench_load(const char *corpus, const char *rel, const char *param, const char *value) {
     char *path = sc_strprintf("%s/%s", corpus, rel);
     double best = 1e9, parse = 0, decode = 0, faces = 0;
     for (int k = 0; k < 3; k++) {
         sc_ctx *ctx = sc_ctx_new(&sc_node_load_atlas, NULL, NULL);
         sc_error err = {0};
-        if (sc_ctx_set_param(ctx, "path", path, &err) != SC_OK) {
+        char *value_path = param && !strcmp(param, "texture") ? sc_strprintf("%s/%s", corpus, value) : sc_strdup(value ? value : "");
+        int prc = sc_ctx_set_param(ctx, "path", path, &err);
+        if (prc == SC_OK && param) prc = sc_ctx_set_param(ctx, param, value_path, &err);
+        free(value_path);
+        if (prc != SC_OK) {
             fprintf(stderr, "bench: %s\n", err.message);
             sc_ctx_free(ctx);
             break;
@@ -132,9 +136,9 @@ int main(int argc, char **argv) {
     if (access(corpus, R_OK) != 0) {
         printf("corpus not found at %s: load timings skipped\n", corpus);
     } else {
-        bench_load(corpus, "blub/blub.obj");
-        bench_load(corpus, "pizza/pizza.obj");
-        bench_load(corpus, "BoomBox/BoomBox.gltf");
+        bench_load(corpus, "blub/blub.obj", "texture", "blub/blub_texture.png");
+        bench_load(corpus, "pizza/pizza.obj", "texture", "pizza/pizza_gloss_map.jpg");
+        bench_load(corpus, "BoomBox/BoomBox.gltf", "slots", "color,normal");
     }
     free(bin);
     return 0;

@@ -426,7 +426,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     sc_triplets_free(&w.trip);
     SC_ERASE_PHASE("csc");
 #ifdef SC_ERASE_DEBUG_HOOK
-    SC_ERASE_DEBUG_HOOK(&w.q);
+    SC_ERASE_DEBUG_HOOK(&w, g);
 #endif
     double tm0 = sc_now();
     bool want_round = false;

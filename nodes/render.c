@@ -33,16 +33,18 @@
  *    bounding-box diagonal; max_vertex_gap is the same at t = 0 and 1 only.
  *  - Crack pixels: front faces shaded, back faces pure red, no culling; the
  *    alpha channel tells background (0), front (1) and back faces (1/2)
- *    apart, so a red texture never counts. A closed mesh (no boundary, no non-manifold edge) shows back
- *    faces only through cracks - except on the silhouette, where a nearly
- *    edge-on front face can lose a pixel to the back face folded under it
- *    (seen on the closed procedural sphere: 1 pixel in 10 views at 512^2).
- *    So a back-face pixel next to the background (3 x 3) is not counted; a
- *    crack runs between front faces and shows in the other views. For an open mesh, the `reference` mesh is
- *    drawn from the same views and a back-face pixel counts only when no
- *    back face of the reference lies within 2 pixels of it (silhouettes of
- *    holes move a little between LODs). Without a reference, every back-face
- *    pixel of an open mesh counts.
+ *    apart, so a red texture never counts. A closed mesh (no boundary, no
+ *    non-manifold edge) shows back faces only through cracks - except on the
+ *    silhouette, where a nearly edge-on front face can lose a pixel to the
+ *    back face folded under it (seen on the closed procedural sphere: one
+ *    pixel in 10 views at 512^2). So back-face pixels are grouped into
+ *    8-connected components and a component of at most 3 pixels touching
+ *    the background is not counted; a crack along a silhouette still shows
+ *    as a longer run, and in the other views. For an open mesh, the
+ *    `reference` mesh is drawn from the same views and a back-face pixel
+ *    counts only when no back face of the reference lies within 2 pixels of
+ *    it (silhouettes of holes move a little between LODs). Without a
+ *    reference, every back-face pixel of an open mesh counts.
  *  - Views: orthographic, all framing one bounding sphere (the union of every
  *    level and the reference), so a view is the same camera for every LOD,
  *    mode and the reference. 6 axis views (posx ... negz), then the cube's
@@ -141,6 +143,7 @@ typedef struct renderer {
     uploaded *textures;
     int32_t ntextures;
     uint8_t *rgba, *flags;      /* size*size*4, size*size */
+    int32_t *stack;             /* size*size, for count_cracks */
     double t_render, t_gap;
 } renderer;
 
@@ -399,6 +402,7 @@ static void renderer_free(renderer *R) {
     free(R->textures);
     free(R->rgba);
     free(R->flags);
+    free(R->stack);
     sc_gl_close(R->gl);
     memset(R, 0, sizeof *R);
 }
@@ -585,7 +589,7 @@ static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, s
     glUniformMatrix4fv(glGetUniformLocation(program, "u_view_proj"), 1, GL_FALSE, v->view_proj);
     glUniform3fv(glGetUniformLocation(program, "u_light"), 1, v->light);
     glUniform3fv(glGetUniformLocation(program, "u_eye_dir"), 1, v->eye);
-    glUniform1f(glGetUniformLocation(program, "u_back_bias"), 1e-5f);
+    glUniform1f(glGetUniformLocation(program, "u_back_bias"), getenv("SC_BIAS") ? (float)atof(getenv("SC_BIAS")) : 1e-5f);
     if (ps->level > 0) {
         glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
         glUniform1i(glGetUniformLocation(program, "u_patch_base"), 0);
@@ -1180,25 +1184,46 @@ typedef struct job {
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
 } job;
 
-/* Whether pixel (x, y) touches the background (flag 0) in its 3 x 3
- * neighbourhood; outside the picture is not background. */
-static bool on_silhouette(const uint8_t *flags, int32_t s, int32_t x, int32_t y) {
-    for (int32_t yy = y - 1; yy <= y + 1; yy++)
-        for (int32_t xx = x - 1; xx <= x + 1; xx++)
-            if (yy >= 0 && yy < s && xx >= 0 && xx < s && flags[(size_t)yy * s + xx] == 0) return true;
-    return false;
-}
+/* Crack pixels of the picture in R: back-face pixels (not near a back face
+ * of the reference, for an open mesh with a reference), grouped into
+ * 8-connected components; a component of at most SPECKLE pixels that touches
+ * the background is a silhouette speckle and does not count. */
+#define SPECKLE 3
 
-static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v) {
+static int64_t count_cracks(renderer *R, const level_gl *L, const job *J, int v) {
     int32_t s = J->size;
     size_t n = (size_t)s * (size_t)s;
     const uint8_t *ref = (!L->closed && J->reference) ? J->reference + n * (size_t)v : NULL;
+    uint8_t *f = R->flags;   /* 2: candidate; becomes 3 once visited */
+    if (ref)
+        for (size_t i = 0; i < n; i++)
+            if (f[i] == 2 && ref[i]) f[i] = 1;
     int64_t count = 0;
-    for (int32_t y = 0; y < s; y++)
-        for (int32_t x = 0; x < s; x++) {
-            size_t i = (size_t)y * s + x;
-            if (R->flags[i] == 2 && !(ref && ref[i]) && !on_silhouette(R->flags, s, x, y)) count++;
+    int32_t *stack = R->stack;
+    for (size_t seed = 0; seed < n; seed++) {
+        if (f[seed] != 2) continue;
+        int64_t size = 0;
+        bool touches = false;
+        size_t top = 0;
+        stack[top++] = (int32_t)seed;
+        f[seed] = 3;
+        while (top > 0) {
+            int32_t i = stack[--top], x = i % s, y = i / s;
+            size++;
+            for (int32_t dy = -1; dy <= 1; dy++)
+                for (int32_t dx = -1; dx <= 1; dx++) {
+                    int32_t xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= s || yy >= s) continue;
+                    size_t j = (size_t)yy * s + xx;
+                    if (f[j] == 0) touches = true;
+                    else if (f[j] == 2) {
+                        f[j] = 3;
+                        stack[top++] = (int32_t)j;
+                    }
+                }
         }
+        if (!(touches && size <= SPECKLE)) count += size;
+    }
     return count;
 }
 
@@ -1430,7 +1455,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc == SC_OK) {
         R.rgba = malloc((size_t)J.size * (size_t)J.size * 4);
         R.flags = malloc((size_t)J.size * (size_t)J.size);
-        if (!R.rgba || !R.flags) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        R.stack = malloc(sizeof(int32_t) * (size_t)J.size * (size_t)J.size);
+        if (!R.rgba || !R.flags || !R.stack) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
     if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
     if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);

@@ -449,7 +449,9 @@ void sc_format_double(double v, char out[32]) {
         snprintf(out, 32, "%.0f", v);
         return;
     }
-    for (int prec = 1; prec <= 17; prec++) {
+    /* %g drops trailing zeros, and a double is exact to ~1e-17, so 15 digits
+     * already give the shortest text of any value that has <= 15 digits */
+    for (int prec = 15; prec <= 17; prec++) {
         snprintf(out, 32, "%.*g", prec, v);
         if (strtod(out, NULL) == v) return;
     }

@@ -59,6 +59,12 @@ typedef struct node_rt {
     report_file *files;        /* report files of every REPORT output */
 } node_rt;
 
+typedef struct claim {
+    char *path;                /* an output file name, relative to out_dir */
+    uint32_t hash;
+    int node;                  /* the node that writes it */
+} claim;
+
 typedef struct engine {
     const sc_graph *g;
     sc_cache *cache;
@@ -74,6 +80,9 @@ typedef struct engine {
     sc_error first_err;
     int done_count;
     double t0;
+    char graph_path[PATH_MAX]; /* the graph file's real path */
+    claim *claims;             /* output file names taken so far */
+    int nclaims, claim_cap;
 } engine;
 
 const char *sc_status_name(sc_node_status s) {
@@ -162,9 +171,7 @@ static void hexof(const sc_digest *d, char out[65]) { sc_digest_hex(d, out); }
 
 /* A node's identity across runs: the graph file's real path and its name. */
 static char *node_id(engine *e, int i) {
-    char resolved[PATH_MAX];
-    const char *file = realpath(e->g->file, resolved) ? resolved : e->g->file;
-    return sc_strprintf("%s#%s", file, gnode(e, i)->name);
+    return sc_strprintf("%s#%s", e->graph_path, gnode(e, i)->name);
 }
 
 static void say(engine *e, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -438,6 +445,37 @@ static bool safe_relative_path(const char *p) {
     return true;
 }
 
+/* Claim an output file name for node i: returns i, or the node that claimed
+ * it first, or -1 when out of memory. An open-addressing table of names. */
+static int claim_path(engine *e, const char *rel, int i) {
+    if (e->nclaims * 2 >= e->claim_cap) {
+        int cap = e->claim_cap ? 2 * e->claim_cap : 256;
+        claim *t = calloc((size_t)cap, sizeof *t);
+        if (!t) return -1;
+        for (int k = 0; k < e->claim_cap; k++) {
+            if (!e->claims[k].path) continue;
+            uint32_t h = e->claims[k].hash & (uint32_t)(cap - 1);
+            while (t[h].path) h = (h + 1) & (uint32_t)(cap - 1);
+            t[h] = e->claims[k];
+        }
+        free(e->claims);
+        e->claims = t, e->claim_cap = cap;
+    }
+    uint32_t hash = 2166136261u;   /* FNV-1a */
+    for (const char *c = rel; *c; c++) hash = (hash ^ (uint8_t)*c) * 16777619u;
+    uint32_t h = hash & (uint32_t)(e->claim_cap - 1);
+    while (e->claims[h].path) {
+        if (e->claims[h].hash == hash && strcmp(e->claims[h].path, rel) == 0) return e->claims[h].node;
+        h = (h + 1) & (uint32_t)(e->claim_cap - 1);
+    }
+    e->claims[h].path = sc_strdup(rel);
+    if (!e->claims[h].path) return -1;
+    e->claims[h].hash = hash;
+    e->claims[h].node = i;
+    e->nclaims++;
+    return i;
+}
+
 /* The BYTES value with this digest among the node's in-memory reports. */
 static sc_value *bytes_in_memory(engine *e, int i, const sc_digest *d) {
     for (int k = 0; k < gnode(e, i)->desc->noutputs; k++) {
@@ -461,11 +499,10 @@ static int materialize(engine *e, int i, sc_error *err) {
         const char *rel = rt->files[f].path;
         if (!safe_relative_path(rel))
             return sc_fail(err, SC_EINPUT, "output file name '%s' is not a plain relative path", rel);
-        for (int j = 0; j < e->g->count; j++)
-            for (int g = 0; j != i && g < e->run->results[j].nfiles; g++)
-                if (strcmp(e->run->results[j].files[g], rel) == 0)
-                    return sc_fail(err, SC_EINPUT, "output file '%s' is also written by %s", rel,
-                                   gnode(e, j)->name);
+        int other = claim_path(e, rel, i);
+        if (other != i)
+            return sc_fail(err, other < 0 ? SC_ENOMEM : SC_EINPUT, "output file '%s' is also written by %s",
+                           rel, other < 0 ? "?" : gnode(e, other)->name);
         char *path = sc_path_join(e->opt->out_dir, rel);
         char *dir = path ? sc_path_dirname(path) : NULL;
         sc_digest have;
@@ -913,6 +950,12 @@ static bool inputs_in_memory(engine *e, int i) {
 }
 
 static void pump(engine *e) {
+    /* one index transaction for the whole pass: a pass over hundreds of
+     * cached nodes then takes SQLite's locks once, not once per lookup */
+    sc_error ignored;
+    uv_mutex_lock(&e->cache_lock);
+    bool batched = !e->opt->dry_run && sc_cache_begin(e->cache, &ignored) == SC_OK;
+    uv_mutex_unlock(&e->cache_lock);
     bool progress = true;
     while (progress) {
         progress = false;
@@ -962,6 +1005,11 @@ static void pump(engine *e) {
             }
         }
     }
+    if (batched) {
+        uv_mutex_lock(&e->cache_lock);
+        sc_cache_commit(e->cache, &ignored);
+        uv_mutex_unlock(&e->cache_lock);
+    }
 }
 
 /* ---------------------------------------------------------------- the run */
@@ -997,6 +1045,7 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
         for (int port = 0; port < g->nodes[i].desc->ninputs; port++)
             if (g->nodes[i].input_node[port] >= 0) e.rt[g->nodes[i].input_node[port]].pending_consumers++;
     }
+    if (!realpath(g->file, e.graph_path)) snprintf(e.graph_path, sizeof e.graph_path, "%s", g->file);
     e.t0 = sc_now();
     uv_loop_init(&e.loop);
     uv_mutex_init(&e.cache_lock);
@@ -1026,6 +1075,8 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
         forget_files(&e.rt[i]);
     }
     free(e.rt);
+    for (int k = 0; k < e.claim_cap; k++) free(e.claims[k].path);
+    free(e.claims);
     if (!opt->dry_run) {
         sc_error ignored;
         sc_cache_put_run(cache, g->file, run->ran, run->cached, run->failed, run->seconds, &ignored);

@@ -16,11 +16,13 @@ uniform int u_has_color;     // 0: no colour texture, use grey
 uniform vec3 u_light;        // unit vector towards the key light
 uniform vec3 u_eye_dir;      // unit vector towards the viewer (orthographic)
 uniform float u_back_bias;   // depth bias for back faces
+uniform float u_back_slope;  // and its slope-scaled part
 
 void main() {
     if (!gl_FrontFacing) {
         o_color = vec4(1.0, 0.0, 0.0, 0.5);
-        gl_FragDepth = min(gl_FragCoord.z + u_back_bias, 1.0);
+        float slope = max(abs(dFdx(gl_FragCoord.z)), abs(dFdy(gl_FragCoord.z)));
+        gl_FragDepth = min(gl_FragCoord.z + u_back_bias + u_back_slope * slope, 1.0);
         return;
     }
     // Shading works on the stored (sRGB) values directly: these pictures are

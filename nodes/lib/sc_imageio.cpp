@@ -14,6 +14,7 @@
  * a later message.
  */
 #include "sc_imageio.h"
+#include "sc_imageio_codecs.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -139,7 +140,7 @@ bool png_chunks_complete(const unsigned char *p, size_t size) {
 }
 
 int decode(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err) {
-    const char *format = sc_image_sniff(bytes, size);
+    const char *format = sc_imageio_sniff(bytes, size);
     if (!format)
         return sc_fail(err, SC_EINPUT, "%s: not an image seamcook reads (PNG, JPEG, TIFF, OpenEXR, HDR, BMP)",
                        name);
@@ -250,19 +251,7 @@ int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
 
 }  // namespace
 
-extern "C" const char *sc_image_sniff(const void *bytes, size_t size) {
-    const unsigned char *p = (const unsigned char *)bytes;
-    if (!p) return NULL;
-    if (size >= 8 && std::memcmp(p, "\x89PNG\r\n\x1a\n", 8) == 0) return "png";
-    if (size >= 3 && p[0] == 0xFF && p[1] == 0xD8 && p[2] == 0xFF) return "jpg";
-    if (size >= 4 && (std::memcmp(p, "II*\0", 4) == 0 || std::memcmp(p, "MM\0*", 4) == 0)) return "tif";
-    if (size >= 4 && std::memcmp(p, "\x76\x2f\x31\x01", 4) == 0) return "exr";
-    if (size >= 6 && (std::memcmp(p, "#?RADI", 6) == 0 || std::memcmp(p, "#?RGBE", 6) == 0)) return "hdr";
-    if (size >= 2 && p[0] == 'B' && p[1] == 'M') return "bmp";
-    return NULL;
-}
-
-extern "C" int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_data **out,
+static int module_decode(const char *name, const void *bytes, size_t size, sc_image_data **out,
                                sc_error *err) {
     *out = NULL;
     try {
@@ -274,7 +263,7 @@ extern "C" int sc_image_decode(const char *name, const void *bytes, size_t size,
     }
 }
 
-extern "C" int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
+static int module_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
     try {
         return encode_png(im, bits, out, err);
     } catch (const std::bad_alloc &) {
@@ -286,7 +275,7 @@ extern "C" int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *ou
     }
 }
 
-extern "C" int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
+static int module_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
     try {
         return encode_jpeg(im, quality, out, err);
     } catch (const std::bad_alloc &) {
@@ -298,7 +287,7 @@ extern "C" int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf
     }
 }
 
-extern "C" int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
+static int module_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
     try {
         return encode_exr(im, out, err);
     } catch (const std::bad_alloc &) {
@@ -308,4 +297,13 @@ extern "C" int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_erro
     } catch (...) {
         return sc_fail(err, SC_EIO, "EXR: cannot encode (unknown exception)");
     }
+}
+
+/* The module's one exported symbol: the table sc_imageio.c loads on first use. */
+static const sc_imageio_codecs codecs = {
+    SC_IMAGEIO_ABI, module_decode, module_encode_png, module_encode_jpeg, module_encode_exr,
+};
+
+extern "C" __attribute__((visibility("default"))) const sc_imageio_codecs *sc_imageio_codecs_get(void) {
+    return &codecs;
 }

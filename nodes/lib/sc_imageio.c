@@ -1,0 +1,91 @@
+/* sc_imageio.c - the C side of image I/O: loads the codec module on first use.
+ *
+ * Design note: see sc_imageio_codecs.h for why the codecs are a module. The
+ * module is looked for, in order: $SEAMCOOK_IMAGEIO_MODULE; beside the running
+ * executable; in the build folder it was built in. It is opened once
+ * (pthread_once), with RTLD_LOCAL so its hundreds of libraries stay out of the
+ * global namespace; a missing module is an error naming the places searched.
+ */
+#include "sc_imageio.h"
+
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include "sc_imageio_codecs.h"
+
+static pthread_once_t load_once = PTHREAD_ONCE_INIT;
+static const sc_imageio_codecs *codecs;
+static char load_error[1024];
+
+static const sc_imageio_codecs *try_open(const char *path) {
+    void *module = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!module) {
+        snprintf(load_error, sizeof load_error, "%s", dlerror());
+        return NULL;
+    }
+    const sc_imageio_codecs *(*get)(void) = (const sc_imageio_codecs *(*)(void))dlsym(module, SC_IMAGEIO_ENTRY);
+    const sc_imageio_codecs *c = get ? get() : NULL;
+    if (!c || c->abi != SC_IMAGEIO_ABI) {
+        snprintf(load_error, sizeof load_error, "%s: not a seamcook image module of version %d", path,
+                 SC_IMAGEIO_ABI);
+        dlclose(module);
+        return NULL;
+    }
+    return c;   /* stays loaded for the life of the process */
+}
+
+static void load_codecs(void) {
+    const char *env = getenv("SEAMCOOK_IMAGEIO_MODULE");
+    if (env && *env && (codecs = try_open(env))) return;
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n > 0) {
+        self[n] = 0;
+        char *dir = sc_path_dirname(self);
+        char *path = dir ? sc_path_join(dir, SC_IMAGEIO_MODULE) : NULL;
+        if (path && access(path, R_OK) == 0) codecs = try_open(path);
+        free(dir), free(path);
+        if (codecs) return;
+    }
+#ifdef SC_IMAGEIO_BUILD_DIR
+    char *path = sc_path_join(SC_IMAGEIO_BUILD_DIR, SC_IMAGEIO_MODULE);
+    if (path && access(path, R_OK) == 0) codecs = try_open(path);
+    free(path);
+    if (codecs) return;
+#endif
+    if (!load_error[0])
+        snprintf(load_error, sizeof load_error, "%s not found beside the executable or in the build folder",
+                 SC_IMAGEIO_MODULE);
+}
+
+static const sc_imageio_codecs *get_codecs(sc_error *err) {
+    pthread_once(&load_once, load_codecs);
+    if (!codecs) sc_fail(err, SC_EIO, "image codecs unavailable: %s", load_error);
+    return codecs;
+}
+
+const char *sc_image_sniff(const void *bytes, size_t size) { return sc_imageio_sniff(bytes, size); }
+
+int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err) {
+    *out = NULL;
+    const sc_imageio_codecs *c = get_codecs(err);
+    return c ? c->decode(name, bytes, size, out, err) : SC_EIO;
+}
+
+int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
+    const sc_imageio_codecs *c = get_codecs(err);
+    return c ? c->encode_png(im, bits, out, err) : SC_EIO;
+}
+
+int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
+    const sc_imageio_codecs *c = get_codecs(err);
+    return c ? c->encode_jpeg(im, quality, out, err) : SC_EIO;
+}
+
+int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
+    const sc_imageio_codecs *c = get_codecs(err);
+    return c ? c->encode_exr(im, out, err) : SC_EIO;
+}
