@@ -51,7 +51,7 @@ test)
     cmake --build build-fuzz -j"$jobs" --target $(cd tests/fuzz && ls fuzz_*.c | sed 's/\.c$//')
     for f in tests/fuzz/fuzz_*.c; do
       name=$(basename "$f" .c)
-      seeds=tests/fuzz/seeds/${name#fuzz_}
+      seeds=tests/data/${name#fuzz_}
       mkdir -p build-fuzz/corpus-$name
       ./build-fuzz/$name -max_total_time="${SC_FUZZ_SECONDS:-20}" -timeout=10 \
         build-fuzz/corpus-$name $( [ -d "$seeds" ] && echo "$seeds" ) 2>&1 | tail -n 3

@@ -201,7 +201,7 @@ typedef struct state {
     heap_entry *heap;
     int64_t heap_len, heap_cap;
     int64_t heap_compacted;      /* entries left by the last compaction */
-    int64_t border_edges;        /* surface border edges of the input */
+    int64_t border_edges;        /* border spokes of the input: twice its border edges */
     /* scratch */
     int32_t *scratch;
     int32_t scratch_cap;
@@ -209,8 +209,7 @@ typedef struct state {
     int32_t touched_cap, neighbours_cap;
     bool out_of_memory;
     /* statistics */
-    int64_t seam_collapses, collapses;
-    int64_t rejected[BLOCK_COUNT];
+    int64_t seam_collapses, collapses, rejected;
 } state;
 
 /* ---------------------------------------------------------------- small helpers */
@@ -1749,11 +1748,12 @@ static int read_targets(sc_ctx *ctx, int32_t nf, int64_t **out, int *count, sc_e
             if (t[i] < 1) t[i] = 1;
         }
         if (i > 0 && t[i] > t[i - 1]) {
+            long long now = (long long)t[i], before = (long long)t[i - 1];
             free(t);
             return sc_fail(err, SC_EINPUT,
                            "decimate:%s: targets must not increase (each level is decimated from the one before): "
                            "target %d asks for %lld faces after %lld",
-                           param, i, (long long)t[i], (long long)t[i - 1]);
+                           param, i, now, before);
         }
     }
     *out = t;
@@ -1810,7 +1810,7 @@ static bool decimate_to(state *st, int64_t target) {
         }
         block_reason r = check_plan(st, &p);
         if (r != BLOCK_NONE) {
-            st->rejected[r]++;
+            st->rejected++;
             st->vflags[a] |= V_RETRY;
             st->vflags[b] |= V_RETRY;
             continue;
@@ -1935,6 +1935,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     if (rc == SC_OK) {
         sc_ctx_metric(ctx, "seconds", total_seconds);
+        sc_ctx_metric(ctx, "collapses", (double)st.collapses);
+        sc_ctx_metric(ctx, "rejected_collapses", (double)st.rejected);
         sc_ctx_metric(ctx, "levels", ntargets);
         sc_value *out = sc_value_new_lods(lods);
         lods = NULL;

@@ -719,12 +719,16 @@ static bool acc_rehash(acc *a) {
     return true;
 }
 
+static void acc_add_key(acc *a, int32_t r, int32_t c, double v);
+
 static void acc_add(acc *a, int32_t r, int32_t c, double v) {
+    if (r > c) acc_add_key(a, c, r, v);
+    else acc_add_key(a, r, c, v);
+}
+
+/* (r, c) taken as given: also used for (index, channel) right-hand sides */
+static void acc_add_key(acc *a, int32_t r, int32_t c, double v) {
     if (a->failed) return;
-    if (r > c) {
-        int32_t t = r;
-        r = c, c = t;
-    }
     uint64_t key = ((uint64_t)(uint32_t)r << 32) | (uint32_t)c;
     uint32_t h = (uint32_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (a->cap - 1);
     while (a->keys[h] != UINT64_MAX) {
@@ -800,6 +804,22 @@ static bool push_rhs(asm_chunk *c, int32_t index, int32_t channel, double v) {
         c->rhscap = nc;
     }
     c->rhs[c->nrhs++] = (rhs_entry){index, channel, v};
+    return true;
+}
+
+/* A right-hand side contribution: merged per item in the hash when the hash
+ * is not holding matrix entries, listed directly otherwise. */
+static bool add_rhs(const asm_job *job, asm_chunk *ch, acc *a, int32_t index, int32_t channel,
+                    double v) {
+    if (job->matrix) return push_rhs(ch, index, channel, v);
+    acc_add_key(a, index, channel, v);
+    return !a->failed;
+}
+
+static bool flush_rhs(asm_chunk *ch, acc *a) {
+    for (int32_t i = 0; i < a->n; i++)
+        if (!push_rhs(ch, (int32_t)(a->ekey[i] >> 32), (int32_t)(a->ekey[i] & 0xffffffffu), a->eval[i]))
+            return false;
     return true;
 }
 
@@ -880,7 +900,7 @@ static bool side_terms(const asm_job *job, asm_chunk *ch, acc *a, const sc_seam_
             double g = 0;
             for (int x = 0; x < 3; x++)
                 for (int y = 0; y < 3; y++) g += cb.c[k][x] * e[y] * G3[x][y];
-            if (g != 0 && !push_rhs(ch, cb.id[k], c, wlerp * h * g)) return false;
+            if (g != 0 && !add_rhs(job, ch, a, cb.id[k], c, wlerp * h * g)) return false;
         }
     }
     return true;
@@ -889,7 +909,7 @@ static bool side_terms(const asm_job *job, asm_chunk *ch, acc *a, const sc_seam_
 /* The residual of the seam and C1 terms at p0: -(wm int m_k (m . p0) +
  * wd int d_k (d . p0)), with m . p0 and d . p0 formed first (a difference of
  * two reconstructions), so a seam-free p0 gives an exact zero. */
-static bool pair_residual(const asm_job *job, asm_chunk *ch, const combo *m, const combo *d,
+static bool pair_residual(const asm_job *job, asm_chunk *ch, acc *a, const combo *m, const combo *d,
                           const int32_t *texel, double wm, double wd) {
     const sc_seam_terms *t = job->terms;
     for (int32_t c = 0; c < job->channels; c++) {
@@ -904,7 +924,7 @@ static bool pair_residual(const asm_job *job, asm_chunk *ch, const combo *m, con
             if (wd != 0)
                 for (int x = 0; x < 2; x++)
                     for (int y = 0; y < 2; y++) v += wd * d->c[k][x] * pd[y] * G2[x][y];
-            if (v != 0 && !push_rhs(ch, m->id[k], c, -v)) return false;
+            if (v != 0 && !add_rhs(job, ch, a, m->id[k], c, -v)) return false;
         }
     }
     return true;
@@ -1006,7 +1026,7 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
                     break;
                 }
                 if (job->matrix) add_gram2(&a, &m1, &d1, wseam * h, c1_ok ? wc1 * h : 0);
-                if (t->rhs && !pair_residual(job, ch, &m1, &d1, texel, wseam * h, c1_ok ? wc1 * h : 0)) {
+                if (t->rhs && !pair_residual(job, ch, &a, &m1, &d1, texel, wseam * h, c1_ok ? wc1 * h : 0)) {
                     rc = SC_ENOMEM;
                     break;
                 }
@@ -1031,7 +1051,8 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
             }
         }
         if (a.failed) rc = SC_ENOMEM;
-        if (rc == SC_OK) acc_emit(&a, &ch->trip);
+        if (rc == SC_OK && job->matrix) acc_emit(&a, &ch->trip);
+        if (rc == SC_OK && !job->matrix && !flush_rhs(ch, &a)) rc = SC_ENOMEM;
         if (ch->trip.failed) rc = SC_ENOMEM;
     }
     free(la), free(lb), free(w.gm);

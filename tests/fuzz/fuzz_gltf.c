@@ -10,11 +10,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-/* The reader is compiled into this file so that it gets the fuzzer's coverage
- * instrumentation (the library itself is built without it); the linker then
- * takes these definitions and not the library's copies. */
-#include "sc_gltf.c"
-#include "sc_obj.c"
+#include "sc_gltf.h"
+#include "sc_obj.h"
 
 static int no_files(void *ud, const char *path, sc_buf *out, sc_error *err) {
     (void)ud, (void)out;

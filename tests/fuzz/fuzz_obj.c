@@ -9,10 +9,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-/* The reader is compiled into this file so that it gets the fuzzer's coverage
- * instrumentation (the library itself is built without it); the linker then
- * takes these definitions and not the library's copies. */
-#include "sc_obj.c"
+#include "sc_obj.h"
 
 typedef struct input {
     const uint8_t *data;
