@@ -1,10 +1,16 @@
--- lod_chain.lua: the main job. Cooks one textured asset into what every level
--- of detail shares.
+-- lod_chain.lua: the main job. Cooks one textured asset into a chain of levels
+-- of detail that all share one seam-free texture set.
 --
 --   seamcook run graphs/lod_chain.lua                       (the procedural asset)
 --   seamcook run graphs/lod_chain.lua --set mesh=assets/cow.obj [--set texture=assets/cow.png]
 --
--- With no mesh, the asset is the procedural one, so the graph runs anywhere.
+-- load -> erase_seams -> decimate (seam-aware) -> share_textures -> save, render
+local function numbers(text)   -- "0.5,0.1" -> {0.5, 0.1}
+  local list = {}
+  for item in text:gmatch("[^,%s]+") do list[#list + 1] = tonumber(item) end
+  return list
+end
+
 local mesh = param("mesh", "")
 local asset
 if mesh == "" then
@@ -14,7 +20,16 @@ if mesh == "" then
     texture_size = param("texture_size", 512),
   }
 else
-  asset = load_atlas{ name = "asset", path = mesh, texture = param("texture", "") }
+  asset = load_atlas{ name = "asset", path = mesh, texture = param("texture", ""),
+                      slots = param("slots", "all") }
 end
 
-save{ name = "save_input", atlas = asset, file = param("file", "asset") }
+-- Seam-free textures: float for the chain, and in the input's own format.
+local erased = erase_seams{ name = "erased", atlas = asset, preset = param("preset", "local") }
+save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr" }
+
+-- Levels of detail from the mesh alone: new texture bytes never re-decimate.
+local lods = decimate{ name = "lods", mesh = erased.atlas_native,
+                       ratio = numbers(param("ratios", "0.5,0.1,0.01")) }
+local chain = share_textures{ name = "chain", lods = lods, atlas = erased.atlas_native }
+save{ name = "save", atlas = erased.atlas_native, lods = chain, file = param("file", "asset") }

@@ -54,11 +54,13 @@
  * tolerances (1e-9) plus what the storage precision of the input's uv
  * explains: OBJ files store uv as decimal text (blub: 6 significant digits),
  * so seams straightened before export are straight only to half a unit in
- * the last digit. uv_precision (detected: decimal digits, float32 or double)
- * bounds that rounding; a point within 2 steps of the chord of its
- * neighbours, or lengths within the matching slack, are taken as straight or
- * equal. On exact data (the procedural asset, double precision) this adds
- * ~1e-16: silhouettes stay exact.
+ * the last digit. The storage (significant decimal digits, float32 or
+ * double) is detected once; each Z keeps the step of its coordinates
+ * (zstep; a merged or slid point the coarsest step it came from), and a
+ * point within 2 steps of the chord of its neighbours, or lengths within the
+ * matching slack, are taken as straight or equal. On exact data (the
+ * procedural asset, double precision) this adds ~1e-16: silhouettes stay
+ * exact.
  *
  * Validity, tested when an edge comes off the queue: the link condition on
  * the surface (with one virtual vertex joined to all borders, §5.2) and on
@@ -150,6 +152,7 @@ typedef struct half_plan {
     int32_t keep, gone;
     int uv_mode;
     double line0[2], line1[2];   /* UV_SLIDE: the segment w must stay on (uv units) */
+    int32_t end0, end1;          /* UV_SLIDE: the Z at the segment's ends */
     double fixed[2];             /* UV_FIXED */
     double w[2];                 /* the placement */
 } half_plan;
@@ -169,7 +172,10 @@ typedef struct state {
     /* parameters */
     int mode, weights;
     double uv_scale, collinear_tol, ratio_tol;
-    double uv_precision;         /* how finely the input's uv are stored */
+    double uv_precision;         /* the coarsest storage step of the input's uv (a metric) */
+    int uv_digits;               /* uv stored with this many significant decimals, or 0 */
+    int uv_mantissa;             /* else binary: 23 (float32) or 52 (double) mantissa bits */
+    double uv_step_given;        /* the uv_precision parameter when >= 0 */
     double normal_cos;           /* a face's normal may turn by less than this angle's cosine */
     /* surface vertices */
     int32_t nv;
@@ -195,6 +201,7 @@ typedef struct state {
     double *zuv;
     uint8_t *zflags;
     double *zq, *zgeo, *znormal, *zweight;
+    double *zstep;               /* storage step of the Z's uv (the coarsest it was merged with) */
     uint32_t *zmark;
     uint32_t zstamp;
     /* queue */
@@ -368,8 +375,9 @@ static int edge_faces(const state *st, int32_t a, int32_t b, int32_t out[3]) {
  * chord p-q is at most collinear_tol |q - p| plus what the storage precision
  * of the three points explains (each coordinate rounded by up to half a
  * step moves a point by up to 0.71 steps; 2 steps bound the chord's
- * distance from a straight line through the unrounded points). */
-static bool collinear_through(const state *st, const double *p, const double *mid, const double *q) {
+ * distance from a straight line through the unrounded points). step is
+ * the storage step of the three points (zstep). */
+static bool collinear_through(const state *st, const double *p, const double *mid, const double *q, double step) {
     double chord[2] = {q[0] - p[0], q[1] - p[1]}, d[2] = {mid[0] - p[0], mid[1] - p[1]};
     double len2 = chord[0] * chord[0] + chord[1] * chord[1];
     if (!(len2 > 0)) return false;
@@ -377,14 +385,14 @@ static bool collinear_through(const state *st, const double *p, const double *mi
     double along = d[0] * chord[0] + d[1] * chord[1];
     if (!(along > 0) || !(along < len2)) return false;
     double distance = fabs(d[0] * chord[1] - d[1] * chord[0]) / len;
-    return distance <= st->collinear_tol * len + 2.0 * st->uv_precision;
+    return distance <= st->collinear_tol * len + 2.0 * step;
 }
 
 /* |e0| / |d0| = |e1| / |d1| (as e0 d1 = e1 d0), to ratio_tol relative plus
  * the effect of the storage precision on the four lengths (each off by up
  * to 1.42 steps). */
-static bool ratios_equal(const state *st, double e0, double d0, double e1, double d1) {
-    double lhs = e0 * d1, rhs = e1 * d0, q = st->uv_precision;
+static bool ratios_equal(const state *st, double e0, double d0, double e1, double d1, double q) {
+    double lhs = e0 * d1, rhs = e1 * d0;
     double slack = st->ratio_tol * (lhs > rhs ? lhs : rhs) + 2.0 * q * (e0 + d0 + e1 + d1) + 8.0 * q * q;
     return fabs(lhs - rhs) <= slack;
 }
@@ -414,15 +422,19 @@ static block_reason unify_at(state *st, int nhalf, int32_t at, const int32_t *z_
     int nfl = edge_faces(st, at, c, fl);
     if (nfl != (seam ? 2 : 1)) return corner;
     block_reason not_collinear = seam ? BLOCK_SEAM_NOT_COLLINEAR : BLOCK_BOUNDARY_NOT_COLLINEAR;
-    for (int i = 0; i < nhalf; i++)
-        if (!collinear_through(st, st->zuv + 2 * far[i], st->zuv + 2 * z_at[i], st->zuv + 2 * z_other[i]))
+    double step = 0;
+    for (int i = 0; i < nhalf; i++) {
+        double si = fmax(st->zstep[far[i]], fmax(st->zstep[z_at[i]], st->zstep[z_other[i]]));
+        if (!collinear_through(st, st->zuv + 2 * far[i], st->zuv + 2 * z_at[i], st->zuv + 2 * z_other[i], si))
             return not_collinear;
+        step = fmax(step, si);
+    }
     if (seam) {
         double d0 = dist2d(st->zuv + 2 * far[0], st->zuv + 2 * z_at[0]);
         double e0 = dist2d(st->zuv + 2 * z_at[0], st->zuv + 2 * z_other[0]);
         double d1 = dist2d(st->zuv + 2 * far[1], st->zuv + 2 * z_at[1]);
         double e1 = dist2d(st->zuv + 2 * z_at[1], st->zuv + 2 * z_other[1]);
-        if (!ratios_equal(st, e0, d0, e1, d1)) return BLOCK_SEAM_LENGTH_RATIO;
+        if (!ratios_equal(st, e0, d0, e1, d1, step)) return BLOCK_SEAM_LENGTH_RATIO;
     }
     return BLOCK_NONE;
 }
@@ -527,6 +539,8 @@ static void plan_edge(state *st, int32_t a, int32_t b, collapse_plan *p) {
             h->uv_mode = UV_SLIDE;
             memcpy(h->line0, st->zuv + 2 * far_a[i], sizeof h->line0);
             memcpy(h->line1, st->zuv + 2 * far_b[i], sizeof h->line1);
+            h->end0 = far_a[i];
+            h->end1 = far_b[i];
         }
         return;
     }
@@ -917,6 +931,7 @@ static void merge_z_attributes(state *st, int32_t keep, const int32_t *gone, int
         for (int i = 0; i < ngone; i++) sc_quadric_add(qk, st->zq + (size_t)gone[i] * QSIZE, QDIM, 1.0);
     }
     for (int i = 0; i < ngone; i++) {
+        st->zstep[keep] = fmax(st->zstep[keep], st->zstep[gone[i]]);
         for (int k = 0; k < 3; k++) st->znormal[3 * (size_t)keep + k] += st->znormal[3 * (size_t)gone[i] + k];
         st->zflags[keep] |= st->zflags[gone[i]];
         st->zv[gone[i]] = -1;
@@ -983,8 +998,11 @@ static bool apply_plan(state *st, const collapse_plan *p) {
         merge_z_attributes(st, p->h[0].keep, gone_z, 2);
     } else {
         for (int i = 0; i < p->nhalf; i++) {
-            memcpy(st->zuv + 2 * p->h[i].keep, p->h[i].w, sizeof p->h[i].w);
-            merge_z_attributes(st, p->h[i].keep, &p->h[i].gone, 1);
+            const half_plan *h = &p->h[i];
+            memcpy(st->zuv + 2 * h->keep, h->w, sizeof h->w);
+            if (h->uv_mode == UV_SLIDE)   /* a point on a chord: as coarse as the chord's ends */
+                st->zstep[h->keep] = fmax(st->zstep[h->keep], fmax(st->zstep[h->end0], st->zstep[h->end1]));
+            merge_z_attributes(st, h->keep, &h->gone, 1);
         }
     }
     /* faces of the gone vertex now use the kept one */
@@ -1230,7 +1248,7 @@ static void state_free(state *st) {
     free(st->vf_off), free(st->vf_len), free(st->vf_cap), free(st->pool);
     free(st->fv), free(st->fz), free(st->fmat), free(st->falive), free(st->input_uv_area);
     free(st->zv), free(st->zuv_index), free(st->zuv), free(st->zflags);
-    free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark);
+    free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
 }
 
@@ -1270,11 +1288,10 @@ static int classify_fan(const int32_t *spokes, int32_t n, int32_t *count, int32_
     return boundary;
 }
 
-/* The step the input's uv coordinates are stored with, at the magnitude of
- * the largest one: 10^(e - k + 1) when every coordinate is written with at
- * most k <= 15 significant digits (OBJ text, whether %g or fixed decimals),
- * the float32 spacing when every one is a float (glTF), else the double
- * spacing. (All uv entries are looked at, used or not.) */
+/* How the input's uv coordinates are stored: with at most k <= 15
+ * significant decimal digits (OBJ text, whether %g or fixed decimals; the
+ * step at a coordinate of magnitude 10^e is then 10^(e - k + 1)), as
+ * float32 (glTF) or as doubles. (All uv entries are looked at.) */
 
 /* Whether x is written with at most k significant decimal digits. */
 static bool fits_digits(double x, int k) {
@@ -1295,12 +1312,7 @@ static int significant_digits(double x) {
     return 16;
 }
 
-static double detect_uv_precision(const sc_mesh *m) {
-    double largest = 0;
-    int64_t corners = (int64_t)m->nf * 3;
-    for (int64_t i = 0; i < corners; i++)
-        for (int c = 0; c < 2; c++) largest = fmax(largest, fabs(m->U[2 * m->FU[i] + c]));
-    if (!(largest > 0)) return 0;
+static void detect_uv_storage(state *st, const sc_mesh *m) {
     int digits = 1;
     for (int32_t i = 0; i < m->nu && digits <= 15; i++)
         for (int c = 0; c < 2; c++) {
@@ -1308,14 +1320,23 @@ static double detect_uv_precision(const sc_mesh *m) {
             int d = significant_digits(m->U[2 * i + c]);
             if (d > digits) digits = d;
         }
-    if (digits <= 15) return pow(10.0, floor(log10(largest)) - digits + 1);
+    st->uv_digits = digits <= 15 ? digits : 0;
     bool floats = true;
     for (int32_t i = 0; i < m->nu && floats; i++)
         for (int c = 0; c < 2; c++) {
             double x = m->U[2 * i + c];
             if ((double)(float)x != x) floats = false;
         }
-    return ldexp(1.0, ilogb(largest) - (floats ? 23 : 52));
+    st->uv_mantissa = floats ? 23 : 52;
+}
+
+/* The storage step of a uv point: half of it is the rounding it may carry. */
+static double storage_step(const state *st, const double *uv) {
+    if (st->uv_step_given >= 0) return st->uv_step_given;
+    double x = fmax(fabs(uv[0]), fabs(uv[1]));
+    if (!(x > 0)) return 0;
+    if (st->uv_digits > 0) return pow(10.0, floor(log10(x)) - st->uv_digits + 1);
+    return ldexp(1.0, ilogb(x) - st->uv_mantissa);
 }
 
 static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
@@ -1404,11 +1425,15 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     st->znormal = sc_calloc_array((size_t)nz * 3, sizeof(double));
     st->zweight = sc_calloc_array((size_t)nz, sizeof(double));
     st->zmark = sc_calloc_array((size_t)nz, sizeof(uint32_t));
-    if (!st->zuv || !st->zflags || !st->zq || !st->zgeo || !st->znormal || !st->zweight || !st->zmark)
+    st->zstep = sc_alloc_array((size_t)nz, sizeof(double));
+    if (!st->zuv || !st->zflags || !st->zq || !st->zgeo || !st->znormal || !st->zweight || !st->zmark || !st->zstep)
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    st->uv_precision = 0;
     for (int32_t z = 0; z < nz; z++) {
         st->zuv[2 * z] = m->U[2 * st->zuv_index[z]];
         st->zuv[2 * z + 1] = m->U[2 * st->zuv_index[z] + 1];
+        st->zstep[z] = storage_step(st, st->zuv + 2 * z);
+        st->uv_precision = fmax(st->uv_precision, st->zstep[z]);
     }
 
     /* vertex -> face lists */
@@ -1844,8 +1869,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     st.collinear_tol = sc_ctx_number(ctx, "collinear_tolerance");
     st.ratio_tol = sc_ctx_number(ctx, "ratio_tolerance");
     st.normal_cos = cos(sc_ctx_number(ctx, "normal_turn") * M_PI / 180.0);
-    double uv_precision = sc_ctx_number(ctx, "uv_precision");
-    st.uv_precision = uv_precision >= 0 ? uv_precision : detect_uv_precision(in);
+    st.uv_step_given = sc_ctx_number(ctx, "uv_precision");
+    detect_uv_storage(&st, in);
     int64_t samples = sc_ctx_integer(ctx, "hausdorff_samples");
     double uv_weight = sc_ctx_number(ctx, "uv_weight");
     int threads = sc_ctx_threads(ctx);
@@ -1973,7 +1998,8 @@ static const sc_param_desc params[] = {
             "(on top of uv_precision)"},
     {.name = "uv_precision", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 0.1,
      .doc = "the step the input's uv coordinates are stored with; rounding by up to half a step is not "
-            "taken as a bend or a length difference; -1: detect it (decimals of OBJ text, float32, double)"},
+            "taken as a bend or a length difference; -1: detect it per coordinate (significant digits of "
+            "OBJ text, float32, double)"},
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
     {.name = "hausdorff_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 0, .max = 1e8,

@@ -34,13 +34,15 @@
  *  - Crack pixels: front faces shaded, back faces pure red, no culling; the
  *    alpha channel tells background (0), front (1) and back faces (1/2)
  *    apart, so a red texture never counts. A closed mesh (no boundary, no
- *    non-manifold edge) shows back faces only through cracks - except on the
- *    silhouette, where a nearly edge-on front face can lose a pixel to the
- *    back face folded under it (seen on the closed procedural sphere: one
- *    pixel in 10 views at 512^2). So back-face pixels are grouped into
- *    8-connected components and a component of at most 3 pixels touching
- *    the background is not counted; a crack along a silhouette still shows
- *    as a longer run, and in the other views. For an open mesh, the
+ *    non-manifold edge) shows back faces only through cracks - and, as
+ *    measured on blub and the procedural sphere (about one pixel in ten
+ *    views), on occluding contours, where the front and back sheets meet at
+ *    sub-pixel distance and rasterisation can let a pixel of the back one
+ *    through (a ray cast there in double precision hits neither sheet). So a
+ *    back-face pixel next to the background or to a farther front face (3 x
+ *    3, from the depth buffer) is not counted: through a crack the back face
+ *    seen lies behind every front face around it. A crack along a contour is
+ *    counted in the views where it is not one. For an open mesh, the
  *    `reference` mesh is drawn from the same views and a back-face pixel
  *    counts only when no back face of the reference lies within 2 pixels of
  *    it (silhouettes of holes move a little between LODs). Without a
@@ -143,7 +145,7 @@ typedef struct renderer {
     uploaded *textures;
     int32_t ntextures;
     uint8_t *rgba, *flags;      /* size*size*4, size*size */
-    int32_t *stack;             /* size*size, for count_cracks */
+    float *depth;               /* size*size */
     double t_render, t_gap;
 } renderer;
 
@@ -402,7 +404,7 @@ static void renderer_free(renderer *R) {
     free(R->textures);
     free(R->rgba);
     free(R->flags);
-    free(R->stack);
+    free(R->depth);
     sc_gl_close(R->gl);
     memset(R, 0, sizeof *R);
 }
@@ -589,7 +591,7 @@ static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, s
     glUniformMatrix4fv(glGetUniformLocation(program, "u_view_proj"), 1, GL_FALSE, v->view_proj);
     glUniform3fv(glGetUniformLocation(program, "u_light"), 1, v->light);
     glUniform3fv(glGetUniformLocation(program, "u_eye_dir"), 1, v->eye);
-    glUniform1f(glGetUniformLocation(program, "u_back_bias"), getenv("SC_BIAS") ? (float)atof(getenv("SC_BIAS")) : 1e-5f);
+    glUniform1f(glGetUniformLocation(program, "u_back_bias"), 1e-5f);
     if (ps->level > 0) {
         glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
         glUniform1i(glGetUniformLocation(program, "u_patch_base"), 0);
@@ -611,7 +613,7 @@ static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, s
 /* Read the picture back and sort its pixels by alpha: 0 background, 1 front
  * face, 2 back face (render_fs.glsl writes alpha 0, 1 and 1/2). */
 static int read_target(renderer *R, sc_error *err) {
-    int rc = sc_gl_target_read(&R->target, R->rgba, err);
+    int rc = sc_gl_target_read(&R->target, R->rgba, R->depth, err);
     if (rc != SC_OK) return rc;
     size_t n = (size_t)R->size * (size_t)R->size;
     for (size_t i = 0; i < n; i++) {
@@ -1185,45 +1187,35 @@ typedef struct job {
 } job;
 
 /* Crack pixels of the picture in R: back-face pixels (not near a back face
- * of the reference, for an open mesh with a reference), grouped into
- * 8-connected components; a component of at most SPECKLE pixels that touches
- * the background is a silhouette speckle and does not count. */
-#define SPECKLE 3
-
-static int64_t count_cracks(renderer *R, const level_gl *L, const job *J, int v) {
+ * of the reference, for an open mesh with a reference) that are not on an
+ * occluding contour. A back-face pixel is on a contour when a neighbour (3 x
+ * 3) shows the background or a front face farther away: there the back
+ * sheet folds under the front one and rasterisation of the two at sub-pixel
+ * distance can expose a pixel of it on a perfectly closed mesh. Through a
+ * crack, the back face seen lies behind all the front faces around it. */
+static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v) {
     int32_t s = J->size;
     size_t n = (size_t)s * (size_t)s;
     const uint8_t *ref = (!L->closed && J->reference) ? J->reference + n * (size_t)v : NULL;
-    uint8_t *f = R->flags;   /* 2: candidate; becomes 3 once visited */
-    if (ref)
-        for (size_t i = 0; i < n; i++)
-            if (f[i] == 2 && ref[i]) f[i] = 1;
+    const uint8_t *f = R->flags;
+    const float *z = R->depth;
     int64_t count = 0;
-    int32_t *stack = R->stack;
-    for (size_t seed = 0; seed < n; seed++) {
-        if (f[seed] != 2) continue;
-        int64_t size = 0;
-        bool touches = false;
-        size_t top = 0;
-        stack[top++] = (int32_t)seed;
-        f[seed] = 3;
-        while (top > 0) {
-            int32_t i = stack[--top], x = i % s, y = i / s;
-            size++;
-            for (int32_t dy = -1; dy <= 1; dy++)
-                for (int32_t dx = -1; dx <= 1; dx++) {
-                    int32_t xx = x + dx, yy = y + dy;
+    for (int32_t y = 0; y < s; y++)
+        for (int32_t x = 0; x < s; x++) {
+            size_t i = (size_t)y * s + x;
+            if (f[i] != 2 || (ref && ref[i])) continue;
+            bool contour = false;
+            for (int32_t yy = y - 1; yy <= y + 1 && !contour; yy++)
+                for (int32_t xx = x - 1; xx <= x + 1; xx++) {
                     if (xx < 0 || yy < 0 || xx >= s || yy >= s) continue;
                     size_t j = (size_t)yy * s + xx;
-                    if (f[j] == 0) touches = true;
-                    else if (f[j] == 2) {
-                        f[j] = 3;
-                        stack[top++] = (int32_t)j;
+                    if (f[j] == 0 || (f[j] == 1 && z[j] > z[i])) {
+                        contour = true;
+                        break;
                     }
                 }
+            if (!contour) count++;
         }
-        if (!(touches && size <= SPECKLE)) count += size;
-    }
     return count;
 }
 
@@ -1455,8 +1447,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc == SC_OK) {
         R.rgba = malloc((size_t)J.size * (size_t)J.size * 4);
         R.flags = malloc((size_t)J.size * (size_t)J.size);
-        R.stack = malloc(sizeof(int32_t) * (size_t)J.size * (size_t)J.size);
-        if (!R.rgba || !R.flags || !R.stack) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        R.depth = malloc(sizeof(float) * (size_t)J.size * (size_t)J.size);
+        if (!R.rgba || !R.flags || !R.depth) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
     if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
     if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);

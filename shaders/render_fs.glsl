@@ -16,15 +16,11 @@ uniform int u_has_color;     // 0: no colour texture, use grey
 uniform vec3 u_light;        // unit vector towards the key light
 uniform vec3 u_eye_dir;      // unit vector towards the viewer (orthographic)
 uniform float u_back_bias;   // depth bias for back faces
-uniform float u_back_slope;  // and its slope-scaled part
-uniform mat4 u_view_proj;
 
 void main() {
     if (!gl_FrontFacing) {
         o_color = vec4(1.0, 0.0, 0.0, 0.5);
-        vec3 zrow = vec3(u_view_proj[0][2], u_view_proj[1][2], u_view_proj[2][2]);
-        float slope = 0.5 * max(abs(dot(zrow, dFdx(v_world))), abs(dot(zrow, dFdy(v_world))));
-        gl_FragDepth = min(gl_FragCoord.z + u_back_bias + u_back_slope * slope, 1.0);
+        gl_FragDepth = min(gl_FragCoord.z + u_back_bias, 1.0);
         return;
     }
     // Shading works on the stored (sRGB) values directly: these pictures are

@@ -360,11 +360,12 @@ void sc_gl_target_destroy(sc_gl_target *t) {
     memset(t, 0, sizeof *t);
 }
 
-int sc_gl_target_read(const sc_gl_target *t, uint8_t *rgba, sc_error *err) {
+int sc_gl_target_read(const sc_gl_target *t, uint8_t *rgba, float *depth, sc_error *err) {
     glBindFramebuffer(GL_READ_FRAMEBUFFER, t->fbo);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
     glReadBuffer(GL_COLOR_ATTACHMENT0);
-    glReadPixels(0, 0, t->width, t->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    if (rgba) glReadPixels(0, 0, t->width, t->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    if (depth) glReadPixels(0, 0, t->width, t->height, GL_DEPTH_COMPONENT, GL_FLOAT, depth);
     return sc_gl_check("reading back a render", err);
 }
 

@@ -57,9 +57,10 @@ typedef struct sc_gl_target {
 
 int sc_gl_target_create(sc_gl_target *t, int32_t width, int32_t height, sc_error *err);
 void sc_gl_target_destroy(sc_gl_target *t);
-/* Read back the colour attachment: width*height*4 bytes, RGBA, bottom row
- * first. */
-int sc_gl_target_read(const sc_gl_target *t, uint8_t *rgba, sc_error *err);
+/* Read back the colour attachment (width*height*4 bytes, RGBA) and the depth
+ * buffer (width*height floats in [0, 1]), bottom row first. Either may be
+ * NULL. */
+int sc_gl_target_read(const sc_gl_target *t, uint8_t *rgba, float *depth, sc_error *err);
 
 /* ---------------------------------------------------------------- textures */
 

@@ -807,11 +807,10 @@ static bool push_rhs(asm_chunk *c, int32_t index, int32_t channel, double v) {
     return true;
 }
 
-/* A right-hand side contribution: merged per item in the hash when the hash
- * is not holding matrix entries, listed directly otherwise. */
+/* A right-hand side contribution, merged per item in its own hash. */
 static bool add_rhs(const asm_job *job, asm_chunk *ch, acc *a, int32_t index, int32_t channel,
                     double v) {
-    if (job->matrix) return push_rhs(ch, index, channel, v);
+    (void)job, (void)ch;
     acc_add_key(a, index, channel, v);
     return !a->failed;
 }
@@ -880,8 +879,9 @@ static void poly_of(const sc_image_data *p0, const combo *cb, const int32_t *tex
 /* E_outside / E_lerp of one side on one piece. The residual -1/2 grad E at
  * p0: E_outside is minimal there (nothing to add); E_lerp adds
  * int q_k (l - B(p0)). */
-static bool side_terms(const asm_job *job, asm_chunk *ch, acc *a, const sc_seam_cellpoly *cp,
-                       double h, double wout, double wlerp, const double *la, const double *lb) {
+static bool side_terms(const asm_job *job, asm_chunk *ch, acc *a, acc *ra,
+                       const sc_seam_cellpoly *cp, double h, double wout, double wlerp,
+                       const double *la, const double *lb) {
     const sc_seam_terms *t = job->terms;
     combo cb = {0};
     for (int k = 0; k < 4; k++) combo_add(&cb, cp->id[k], cp->q[k], 3, 1.0);
@@ -900,7 +900,7 @@ static bool side_terms(const asm_job *job, asm_chunk *ch, acc *a, const sc_seam_
             double g = 0;
             for (int x = 0; x < 3; x++)
                 for (int y = 0; y < 3; y++) g += cb.c[k][x] * e[y] * G3[x][y];
-            if (g != 0 && !add_rhs(job, ch, a, cb.id[k], c, wlerp * h * g)) return false;
+            if (g != 0 && !add_rhs(job, ch, ra, cb.id[k], c, wlerp * h * g)) return false;
         }
     }
     return true;
@@ -940,10 +940,11 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
     const sc_seam_terms *t = job->terms;
     sc_triplets_init(&ch->trip, job->index->count > 0 ? job->index->count : 1);
     ch->bad_texel = -1;
-    acc a;
+    acc a, ra; /* matrix entries; right-hand side entries (index, channel) */
     walk w = {0};
-    if (!acc_init(&a)) {
-        acc_free(&a);
+    bool ok_a = acc_init(&a), ok_ra = acc_init(&ra);
+    if (!ok_a || !ok_ra) {
+        acc_free(&a), acc_free(&ra);
         return ch->rc = SC_ENOMEM;
     }
     int32_t C = job->channels;
@@ -952,7 +953,7 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
         la = sc_alloc_array((size_t)C, sizeof *la);
         lb = sc_alloc_array((size_t)C, sizeof *lb);
         if (!la || !lb) {
-            free(la), free(lb), acc_free(&a);
+            free(la), free(lb), acc_free(&a), acc_free(&ra);
             return ch->rc = SC_ENOMEM;
         }
     }
@@ -996,6 +997,7 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
             break;
         }
         acc_clear(&a);
+        acc_clear(&ra);
         for (int32_t i = 0; i + 1 < n && rc == SC_OK; i++) {
             double ga = w.gm[i], gb = w.gm[i + 1], h = gb - ga;
             if (!(h > 0)) continue;
@@ -1026,7 +1028,7 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
                     break;
                 }
                 if (job->matrix) add_gram2(&a, &m1, &d1, wseam * h, c1_ok ? wc1 * h : 0);
-                if (t->rhs && !pair_residual(job, ch, &a, &m1, &d1, texel, wseam * h, c1_ok ? wc1 * h : 0)) {
+                if (t->rhs && !pair_residual(job, ch, &ra, &m1, &d1, texel, wseam * h, c1_ok ? wc1 * h : 0)) {
                     rc = SC_ENOMEM;
                     break;
                 }
@@ -1043,20 +1045,20 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
                         }
                         pla = la, plb = lb;
                     }
-                    if (!side_terms(job, ch, &a, &cp[q], h, wout, wlerp, pla, plb)) {
+                    if (!side_terms(job, ch, &a, &ra, &cp[q], h, wout, wlerp, pla, plb)) {
                         rc = ch->bad_texel >= 0 ? SC_EINPUT : SC_ENOMEM;
                         break;
                     }
                 }
             }
         }
-        if (a.failed) rc = SC_ENOMEM;
+        if (a.failed || ra.failed) rc = SC_ENOMEM;
         if (rc == SC_OK && job->matrix) acc_emit(&a, &ch->trip);
-        if (rc == SC_OK && !job->matrix && !flush_rhs(ch, &a)) rc = SC_ENOMEM;
+        if (rc == SC_OK && !flush_rhs(ch, &ra)) rc = SC_ENOMEM;
         if (ch->trip.failed) rc = SC_ENOMEM;
     }
     free(la), free(lb), free(w.gm);
-    acc_free(&a);
+    acc_free(&a), acc_free(&ra);
     return ch->rc = rc;
 }
 

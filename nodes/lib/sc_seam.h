@@ -176,8 +176,8 @@ bool sc_seam_inward_normal(const sc_mesh *m, const sc_seam_grid *g, const sc_sea
 int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                         sc_seam_texset *set, sc_error *err);
 
-/* The quadratic terms of Liu et al. §3-4 over the texels of `index`
- * (a texel outside it is an error), for an energy x^T Q x - 2 b^T x per
+/* The terms of Liu et al. §3-4 over the texels of `index` (a texel outside
+ * it is an error), each a quadratic E(x) = x^T Q x + linear + constant per
  * channel:
  *   w_seam    * (1/L) sum_e l_e D(e1, e2)                 (eq. 3-9)
  *   w_c1      * (1/L) sum_e l_e E_C1(e1, e2)              (§4.1)

@@ -804,6 +804,41 @@ SC_TEST(unreachable_target_reports_what_blocks) {
     sc_value_release(atlas);
 }
 
+SC_TEST(nonmanifold_input_is_locked_not_broken) {
+    /* the strip plus a fin: a third face on one interior edge, with its own
+     * vertex and uv */
+    enum { N = 6 };
+    double steps[N];
+    for (int j = 0; j < N; j++) steps[j] = 1.0;
+    sc_value *strip = two_chart_strip(N, steps);
+    const sc_mesh *s0 = strip->as.mesh;
+    sc_mesh *m = sc_mesh_alloc(s0->nv + 1, s0->nu + 1, 0, s0->nf + 1, 1);
+    memcpy(m->V, s0->V, sizeof(double) * 3 * (size_t)s0->nv);
+    memcpy(m->U, s0->U, sizeof(double) * 2 * (size_t)s0->nu);
+    memcpy(m->FV, s0->FV, sizeof(int32_t) * 3 * (size_t)s0->nf);
+    memcpy(m->FU, s0->FU, sizeof(int32_t) * 3 * (size_t)s0->nf);
+    /* face 40's first edge gets a third face */
+    int f = 40;
+    double *apex = m->V + 3 * s0->nv;
+    for (int k = 0; k < 3; k++) apex[k] = 0.5 * (s0->V[3 * s0->FV[3 * f] + k] + s0->V[3 * s0->FV[3 * f + 1] + k]);
+    apex[2] += 0.3;
+    m->U[2 * s0->nu] = 0.99, m->U[2 * s0->nu + 1] = 0.99;
+    m->FV[3 * s0->nf] = s0->FV[3 * f], m->FV[3 * s0->nf + 1] = s0->FV[3 * f + 1], m->FV[3 * s0->nf + 2] = s0->nv;
+    m->FU[3 * s0->nf] = s0->FU[3 * f], m->FU[3 * s0->nf + 1] = s0->FU[3 * f + 1], m->FU[3 * s0->nf + 2] = s0->nu;
+    sc_value *fin = mesh_value(m);
+    node_run r = decimate(fin, "0.2", "aware", NULL, NULL);
+    if (r.rc == SC_OK) {
+        SC_CHECK(metric_of(&r, "locked_vertices") >= 2);
+        const sc_mesh *out = level_mesh(r.out, 0);
+        SC_CHECK(out->nf < m->nf);
+        SC_CHECK_INT(check_degenerate(out), 0);
+        SC_CHECK_INT(check_uv_orientation(fin->as.mesh, out), 0);
+    }
+    run_free(&r);
+    sc_value_release(fin);
+    sc_value_release(strip);
+}
+
 /* ---------------------------------------------------------------- corpus */
 
 static sc_value *load_corpus(const char *rel, const char *texture) {

@@ -400,6 +400,17 @@ SC_TEST(sparse_assembly_and_solve) {
     for (int i = 0; i < n; i++) e = fmax(e, fmax(fabs(b[i] - x[i]), fabs(b[n + i] - 2 * x[i])));
     SC_CHECK(e < 1e-12);
     sc_sparse_chol_free(f);
+    /* sum and principal submatrix */
+    sc_sparse s2, sub;
+    SC_CHECK_INT(sc_sparse_add(&a, 2.0, &a, -1.0, &s2, &err), SC_OK);
+    SC_CHECK_NEAR(sc_sparse_quadform(&s2, x), xy, 1e-12);
+    int32_t keep[50];
+    for (int i = 0; i < n; i++) keep[i] = i % 2 ? -1 : i / 2;
+    SC_CHECK_INT(sc_sparse_submatrix(&a, keep, 25, &sub, &err), SC_OK);
+    SC_CHECK_INT(sub.nnz, 25);
+    SC_CHECK_NEAR(sc_sparse_diag(&sub, 3), sc_sparse_diag(&a, 6), 0);
+    sc_sparse_free(&s2);
+    sc_sparse_free(&sub);
     /* inertia: eigenvalues of 1 + L lie in [1, 5]: none below 0.5, all below 6 */
     int64_t cnt = -1;
     SC_CHECK_INT(sc_sparse_count_eigs_below(&a, 0.5, &cnt, &err), SC_OK);

@@ -27,7 +27,7 @@ extern const sc_node_desc sc_node_render;   /* nodes/render.c */
 enum {
     CUBE_GI_SEAMS = 1,     /* per-chart offset in the geometry image */
     CUBE_DISP_SEAMS = 2,   /* per-chart offset in the displacement */
-    CUBE_SPLIT = 4,        /* face 0 has its own vertices, pulled in by 3% */
+    CUBE_SPLIT = 4,        /* face 0 has its own vertices, slid by 0.08 along y */
     CUBE_OPEN = 8,         /* face 0 removed */
     CUBE_NO_POSITIONS = 16 /* colour texture only */
 };
@@ -121,7 +121,7 @@ static sc_value *cube_atlas(int n, int flags, const cube_textures *tex) {
                 if (f == 0 && (flags & CUBE_SPLIT)) {
                     vi = nv++;
                     cube_point(f, (double)a / n, (double)b / n, mesh->V + 3 * vi);
-                    for (int k = 0; k < 3; k++) mesh->V[3 * vi + k] *= 0.97;
+                    mesh->V[3 * vi + 1] += 0.08;   /* slide along y: a slit opens at y = -1 */
                 } else {
                     if (vertex_of[li] < 0) {
                         vertex_of[li] = nv++;
