@@ -784,7 +784,8 @@ static bool link_uv_ok(state *st, const collapse_plan *p, const half_plan *h) {
             if (c[k] != h->keep && c[k] != h->gone) opposite[nopp++] = c[k];
     }
     bool boundary_edge = nopp == 1;
-    bool sil_k = st->zflags[h->keep] & (Z_SILHOUETTE | Z_PINNED), sil_g = st->zflags[h->gone] & (Z_SILHOUETTE | Z_PINNED);
+    bool sil_k = st->zflags[h->keep] & (Z_SILHOUETTE | Z_PINNED);
+    bool sil_g = st->zflags[h->gone] & (Z_SILHOUETTE | Z_PINNED);
     if (!boundary_edge && sil_k && sil_g) return false;
     uint32_t mark = st->zstamp += 2;
     mark_z_neighbours(st, h->keep, mark);
@@ -871,7 +872,8 @@ static block_reason flips_ok(state *st, const collapse_plan *p) {
             double emax = 0;
             for (int k = 0; k < 3; k++) {
                 const double *q = P[k], *r = P[(k + 1) % 3];
-                double e = (q[0] - r[0]) * (q[0] - r[0]) + (q[1] - r[1]) * (q[1] - r[1]) + (q[2] - r[2]) * (q[2] - r[2]);
+                double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
+                double e = dot3(d, d);
                 if (e > emax) emax = e;
             }
             if (!(l1 > 1e-12 * emax)) return BLOCK_SURFACE_FLIP;
@@ -1761,7 +1763,8 @@ static int read_targets(sc_ctx *ctx, int32_t nf, int64_t **out, int *count, sc_e
         if (nfaces > 0) {
             if (!(x >= 1) || x != floor(x) || x > 2e9) {
                 free(t);
-                return sc_fail(err, SC_EINPUT, "decimate:faces: target %d is %g; face counts are whole numbers >= 1", i, x);
+                return sc_fail(err, SC_EINPUT,
+                               "decimate:faces: target %d is %g; face counts are whole numbers >= 1", i, x);
             }
             t[i] = (int64_t)x;
         } else {

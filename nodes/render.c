@@ -874,39 +874,7 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
         glPatchParameteri(GL_PATCH_VERTICES, 3);
     }
     free(data);
-    /* 7 words a vertex: position, tessellation coordinate, patch */
-    size_t per_patch = 3 * (2 * (size_t)ps->level * (size_t)ps->level + 8);
-    float *out = NULL;
-    GLuint written = 0;
-    for (int attempt = 0; rc == SC_OK && attempt < 4; attempt++) {
-        capture cap;
-        bool overflow = false;
-        rc = capture_begin(&cap, (size_t)npatches * per_patch * 7 * sizeof(float), GL_TRIANGLES, err);
-        for (int32_t mat = 0; rc == SC_OK && mat < m->nmat; mat++) {
-            if (start[mat + 1] == start[mat]) continue;
-            bind_material(&L->materials[mat], program);
-            /* gl_PrimitiveID restarts with every draw: one draw per chunk */
-            int32_t verts = (ps->level + 1) * (ps->level + 2) / 2 + 3 * ps->level;
-            int32_t chunk = 16384 / verts > 1 ? 16384 / verts : 1;
-            for (int32_t p0 = start[mat]; p0 < start[mat + 1]; p0 += chunk) {
-                int32_t n = start[mat + 1] - p0 < chunk ? start[mat + 1] - p0 : chunk;
-                glUniform1i(glGetUniformLocation(program, "u_patch_base"), p0);
-                glDrawArrays(GL_PATCHES, 3 * p0, 3 * n);
-            }
-        }
-        if (rc == SC_OK) rc = capture_end(&cap, (void **)&out, &written, &overflow, err);
-        if (rc != SC_OK || !overflow) break;
-        free(out);
-        out = NULL;
-        per_patch *= 4;
-        if (attempt == 3) rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture overflowed");
-    }
-    if (vao) {
-        glBindVertexArray(0);
-        glDeleteVertexArrays(1, &vao);
-        glDeleteBuffers(1, &vbo);
-    }
-    /* sort the captured vertices onto seam sides */
+    /* which seam sides each patch carries */
     edge_sample *samples = NULL;
     size_t nsamples = 0, cap_samples = 0;
     int32_t *first_side = NULL;   /* patch -> first (edge, side) entry */
@@ -929,33 +897,74 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
             free(fill);
         }
     }
-    size_t nvert = (size_t)written * 3;
-    for (size_t i = 0; rc == SC_OK && i < nvert; i++) {
-        const float *w = out + 7 * i;
-        int32_t patch;
-        memcpy(&patch, w + 6, sizeof patch);
-        if (patch < 0 || patch >= npatches) {
-            rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture gave patch %d of %d", patch, npatches);
-            break;
-        }
-        for (int32_t j = first_side[patch]; j < first_side[patch + 1]; j++) {
-            int32_t e = sides[j] / 2, s = sides[j] % 2;
-            const seam_corner *c = &L->corners[2 * e + s];
-            if (fabsf(w[3 + c->k2]) > EDGE_COORD_EPS) continue;
-            if (nsamples == cap_samples) {
-                size_t ncap = cap_samples ? 2 * cap_samples : 1024;
-                edge_sample *ns = realloc(samples, ncap * sizeof *ns);
-                if (!ns) {
-                    rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    /* One capture per draw of at most ~16k generated vertices (see
+     * draw_patches; gl_PrimitiveID restarts with every draw, hence
+     * u_patch_base). A level-L patch makes 3L^2/2 triangles (L even; fewer
+     * when odd); a capture that overflows anyway is retried larger. Each
+     * vertex is 7 words: position, tessellation coordinate, patch. */
+    int32_t verts = (ps->level + 1) * (ps->level + 2) / 2 + 3 * ps->level;
+    int32_t chunk = 16384 / verts > 1 ? 16384 / verts : 1;
+    size_t tris_per_patch = 3 * (size_t)ps->level * (size_t)ps->level / 2 + 4;
+    for (int32_t mat = 0; rc == SC_OK && mat < m->nmat; mat++) {
+        if (start[mat + 1] == start[mat]) continue;
+        bind_material(&L->materials[mat], program);
+        for (int32_t p0 = start[mat]; rc == SC_OK && p0 < start[mat + 1]; p0 += chunk) {
+            int32_t n = start[mat + 1] - p0 < chunk ? start[mat + 1] - p0 : chunk;
+            float *out = NULL;
+            GLuint written = 0;
+            size_t bytes = (size_t)n * tris_per_patch * 3 * 7 * sizeof(float);
+            for (int attempt = 0; rc == SC_OK; attempt++) {
+                capture cap;
+                bool overflow = false;
+                rc = capture_begin(&cap, bytes, GL_TRIANGLES, err);
+                if (rc == SC_OK) {
+                    glUniform1i(glGetUniformLocation(program, "u_patch_base"), p0);
+                    glDrawArrays(GL_PATCHES, 3 * p0, 3 * n);
+                    rc = capture_end(&cap, (void **)&out, &written, &overflow, err);
+                }
+                if (rc != SC_OK || !overflow) break;
+                free(out);
+                out = NULL;
+                bytes *= 4;
+                if (attempt == 2) rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture overflowed");
+            }
+            /* sort the captured vertices onto seam sides */
+            size_t nvert = rc == SC_OK ? (size_t)written * 3 : 0;
+            for (size_t i = 0; rc == SC_OK && i < nvert; i++) {
+                const float *w = out + 7 * i;
+                int32_t patch;
+                memcpy(&patch, w + 6, sizeof patch);
+                if (patch < p0 || patch >= p0 + n) {
+                    rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture gave patch %d, not in [%d, %d)",
+                                 patch, p0, p0 + n);
                     break;
                 }
-                samples = ns, cap_samples = ncap;
+                for (int32_t j = first_side[patch]; j < first_side[patch + 1]; j++) {
+                    int32_t e = sides[j] / 2, sd = sides[j] % 2;
+                    const seam_corner *c = &L->corners[2 * e + sd];
+                    if (fabsf(w[3 + c->k2]) > EDGE_COORD_EPS) continue;
+                    if (nsamples == cap_samples) {
+                        size_t ncap = cap_samples ? 2 * cap_samples : 1024;
+                        edge_sample *ns = realloc(samples, ncap * sizeof *ns);
+                        if (!ns) {
+                            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                            break;
+                        }
+                        samples = ns, cap_samples = ncap;
+                    }
+                    edge_sample *es = &samples[nsamples++];
+                    es->edge = e, es->side = sd;
+                    es->t = w[3 + c->k1];
+                    memcpy(es->p, w, sizeof es->p);
+                }
             }
-            edge_sample *es = &samples[nsamples++];
-            es->edge = e, es->side = s;
-            es->t = w[3 + c->k1];
-            memcpy(es->p, w, sizeof es->p);
+            free(out);
         }
+    }
+    if (vao) {
+        glBindVertexArray(0);
+        glDeleteVertexArrays(1, &vao);
+        glDeleteBuffers(1, &vbo);
     }
     if (rc == SC_OK && nsamples > 0) {
         qsort(samples, nsamples, sizeof *samples, compare_samples);
@@ -980,7 +989,6 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
     free(samples);
     free(first_side);
     free(sides);
-    free(out);
     free(patch_of);
     free(faces);
     free(start);
@@ -1395,6 +1403,36 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const bool want[
     return rc;
 }
 
+/* The longest vector in any displacement texture (each distinct image once),
+ * so the framing holds displaced geometry too. */
+static double max_displacement(const sc_lods *lods, const sc_atlas *single) {
+    double best = 0;
+    const sc_value *seen[16];
+    int nseen = 0;
+    int32_t nlevels = lods ? lods->count : 1;
+    for (int32_t k = 0; k < nlevels; k++) {
+        const sc_atlas *a = lods ? lods->levels[k]->as.atlas : single;
+        for (int32_t t = 0; t < a->ntex; t++) {
+            if (strcmp(a->textures[t].name, "displacement") != 0) continue;
+            const sc_value *v = a->textures[t].image;
+            bool done = false;
+            for (int i = 0; i < nseen; i++) done |= sc_digest_equal(&seen[i]->digest, &v->digest);
+            if (done) continue;
+            if (nseen < 16) seen[nseen++] = v;
+            const sc_image_data *im = v->as.image;
+            if (im->channels < 3) continue;
+            size_t n = (size_t)im->width * (size_t)im->height;
+            for (size_t i = 0; i < n; i++) {
+                double d[3];
+                for (int c = 0; c < 3; c++) d[c] = sc_image_texel(im, (int32_t)(i % im->width), (int32_t)(i / im->width), c);
+                double l = vlen(d);
+                if (isfinite(l) && l > best) best = l;
+            }
+        }
+    }
+    return best;
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     double t_start = sc_now();
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
@@ -1428,7 +1466,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (!(lo[0] <= hi[0])) return sc_fail(err, SC_EINPUT, "lods: no vertices to render");
     double center[3], ext[3];
     for (int c = 0; c < 3; c++) center[c] = 0.5 * (lo[c] + hi[c]), ext[c] = hi[c] - lo[c];
-    double radius = 0.5 * vlen(ext) * 1.02;
+    double radius = 0.5 * vlen(ext) * 1.02 + max_displacement(lods, single);
     if (!(radius > 0) || !isfinite(radius)) radius = 1;
     view *views = calloc((size_t)J.nviews, sizeof *views);
     if (!views) return sc_fail(err, SC_ENOMEM, "out of memory");

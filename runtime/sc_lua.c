@@ -633,9 +633,10 @@ static void convert_param(lua_State *L, builder *B, const sc_node_desc *d, int p
         size_t len;
         const char *s = lua_tolstring(L, -1, &len);
         if (strlen(s) != len) raise_error(L, "%s:%s: the string holds a zero byte", d->type, pd->name);
-        if (pd->type == SC_PARAM_PATH && len == 0)
+        if (pd->type == SC_PARAM_PATH && len == 0 && pd->required)
             raise_error(L, "%s:%s: the path is empty", d->type, pd->name);
-        v->string = pd->type == SC_PARAM_PATH ? resolve_path(B, s) : sc_strdup(s);
+        /* an empty optional path means "none" and stays empty */
+        v->string = (pd->type == SC_PARAM_PATH && len > 0) ? resolve_path(B, s) : sc_strdup(s);
         if (!v->string)
             raise_error(L, "%s:%s: cannot resolve '%s' (out of memory or no working directory)",
                         d->type, pd->name, s);

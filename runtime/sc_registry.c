@@ -7,6 +7,7 @@
 #include "sc_nodes.h"
 
 static const sc_node_desc *const registry[] = {
+    &sc_node_decimate,
     &sc_node_erase_seams,
     &sc_node_load_atlas,
     &sc_node_procedural,
