@@ -4,8 +4,9 @@
  * Design note.
  *  - Context: one EGL/OpenGL 4.5 core context per run (sc_gl), made current
  *    on the calling worker thread and destroyed before returning, so runs on
- *    several threads never share GL state. Mesa's llvmpipe renders the same
- *    bytes for the same inputs, so the pictures are part of the output value.
+ *    several threads never share GL state (only the EGL display, see
+ *    sc_gl.c). Mesa's llvmpipe renders the same bytes for the same inputs,
+ *    so the pictures are part of the output value.
  *  - Modes (a "pass" is one mode at one tessellation level):
  *      textured        base positions, colour texture, lit;
  *      geometry_image  positions fetched in the vertex stage from the texture
@@ -48,15 +49,24 @@
  *    it (silhouettes of holes move a little between LODs). Without a
  *    reference, every back-face pixel of an open mesh counts.
  *  - Views: orthographic, all framing one bounding sphere (the union of every
- *    level and the reference), so a view is the same camera for every LOD,
+ *    level and the reference, grown by the longest displacement vector), so
+ *    a view is the same camera for every LOD,
  *    mode and the reference. 6 axis views (posx ... negz), then the cube's
  *    corners (obl0 ... obl7), then a Fibonacci sphere. Depth clamping keeps
  *    displaced geometry from being cut open by the near or far plane.
  *  - Output: a REPORT with render/lod<k>_<pass>_<view>.png, one contact sheet
  *    render/lod<k>_sheet.png per LOD (rows: passes in order, columns: views),
+ *    render/lod<k>_uv.png (the colour texture with the level's uv
+ *    silhouettes over it: seams red, boundaries yellow, foldovers magenta;
+ *    lod<k>_uv_<material>.png with several materials),
  *    render/reference_<view>.png when a reference is given, and the
- *    deterministic metrics. Timings are node metrics only (seconds_*), never
- *    part of the value.
+ *    deterministic metrics. Shading works on the stored colour values (no
+ *    sRGB round trip: pow() per pixel is dear on llvmpipe, and the pictures
+ *    are for finding seams). PNGs are encoded (sc_imageio) on up to 4 worker
+ *    threads (sc_ctx_threads) while GL draws the next picture, and go into
+ *    the report in submission order, so the bytes never depend on the thread
+ *    count. Timings are node metrics only (seconds_*), never part of the
+ *    value.
  *  - Limits: max_crack_pixels bounds lod<k>.<pass>.crack_pixels (the sum over
  *    views) and max_seam_gap bounds lod<k>.<pass>.max_seam_gap; the first
  *    pass over a limit fails the node with the LOD, the mode and the view.
@@ -433,13 +443,13 @@ static int bind_slot(renderer *R, const sc_atlas *a, int32_t material, const cha
     return SC_OK;
 }
 
-static int level_upload(renderer *R, const sc_atlas *atlas, int k, level_gl *L, sc_error *err) {
+static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, level_gl *L, sc_error *err) {
     memset(L, 0, sizeof *L);
     L->atlas = atlas;
     const sc_mesh *m = L->mesh = atlas->mesh->as.mesh;
-    if (m->nf < 1) return sc_fail(err, SC_EINPUT, "lods: level %d has no faces", k);
+    if (m->nf < 1) return sc_fail(err, SC_EINPUT, "%s has no faces", who);
     int rc = sc_mesh_check(m, err);
-    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
     bbox_add(m, lo, hi);
     double ext[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
@@ -484,7 +494,7 @@ static int level_upload(renderer *R, const sc_atlas *atlas, int k, level_gl *L, 
     glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)(3 * sizeof(float)));
     glBindVertexArray(0);
     rc = sc_gl_check("uploading a mesh", err);
-    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
 
     for (int32_t i = 0; i < nmat && rc == SC_OK; i++) {
         material_gl *mg = &L->materials[i];
@@ -494,10 +504,10 @@ static int level_upload(renderer *R, const sc_atlas *atlas, int k, level_gl *L, 
         if (rc == SC_OK)
             rc = bind_slot(R, atlas, i, "displacement", &mg->displacement, &mg->displacement_sampler, err);
     }
-    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
 
     rc = sc_seam_find(m, -1, &L->seams, err);
-    if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
     L->closed = L->seams.nboundary == 0 && L->seams.nnonmanifold == 0;
     L->corners = calloc((size_t)L->seams.nseams * 2 + 1, sizeof *L->corners);
     if (!L->corners) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -512,7 +522,7 @@ static int level_upload(renderer *R, const sc_atlas *atlas, int k, level_gl *L, 
                 if (fv[q] == se->v1) c->k1 = q;
             }
             if (c->k0 < 0 || c->k1 < 0 || c->k0 == c->k1)
-                return sc_fail(err, SC_EINPUT, "lods: level %d: seam edge %d-%d is not an edge of face %d", k,
+                return sc_fail(err, SC_EINPUT, "%s: seam edge %d-%d is not an edge of face %d", who,
                                se->v0, se->v1, se->side[s].face);
             c->k2 = 3 - c->k0 - c->k1;
         }
@@ -530,15 +540,15 @@ static bool level_has(const level_gl *L, int pos) {
 }
 
 /* A position texture must have three channels. */
-static int check_position_texture(const level_gl *L, int k, int pos, sc_error *err) {
+static int check_position_texture(const level_gl *L, const char *who, int pos, sc_error *err) {
     const char *slot = pos == POS_GEOMETRY ? "geometry_image" : "displacement";
     for (int32_t g = 0; g < L->ngroups; g++) {
         int i = sc_atlas_find_texture(L->atlas, L->groups[g].material, slot);
         if (i < 0) continue;
         const sc_image_data *im = L->atlas->textures[i].image->as.image;
         if (im->channels < 3)
-            return sc_fail(err, SC_EINPUT, "lods: level %d: texture '%s' has %d channel%s; it holds xyz and "
-                           "needs 3 or 4", k, slot, im->channels, im->channels == 1 ? "" : "s");
+            return sc_fail(err, SC_EINPUT, "%s: texture '%s' has %d channel%s; it holds xyz and "
+                           "needs 3 or 4", who, slot, im->channels, im->channels == 1 ? "" : "s");
     }
     return SC_OK;
 }
@@ -1285,10 +1295,10 @@ static int run_pass(renderer *R, const level_gl *L, int k, const pass *ps, const
 /* Render the reference from every view: masks of back faces, dilated. */
 static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o, sc_error *err) {
     level_gl L;
-    int rc = level_upload(R, ref, 0, &L, err);
+    int rc = level_upload(R, ref, "reference", &L, err);
     if (rc != SC_OK) {
         level_free(&L);
-        return sc_error_prefix(err, "reference");
+        return rc;
     }
     size_t n = (size_t)J->size * (size_t)J->size;
     J->reference = calloc((size_t)J->nviews, n);
@@ -1298,7 +1308,8 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
     }
     pass ps = {MODE_TEXTURED, POS_BASE, 0, "textured"};
     int64_t back = 0;
-    for (int v = 0; v < J->nviews && rc == SC_OK; v++) {
+    int v = 0;
+    for (; v < J->nviews && rc == SC_OK; v++) {
         double t0 = sc_now();
         rc = draw(R, &L, &ps, &J->views[v], err);
         if (rc == SC_OK) rc = read_target(R, err);
@@ -1319,17 +1330,82 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
         char path[64];
         snprintf(path, sizeof path, "render/reference_%s.png", J->views[v].name);
         rc = add_png(o, R, path, R->rgba, s, s, false, err);
+        if (rc != SC_OK) break;
     }
     level_free(&L);
-    if (rc != SC_OK) return sc_error_prefix(err, "reference");
+    if (rc != SC_OK) return sc_error_prefix(err, "reference, view %s", J->views[v].name);
     if (metric(o, "reference.back_pixels", (double)back)) return sc_fail(err, SC_ENOMEM, "out of memory");
     return SC_OK;
 }
 
-static int run_level(renderer *R, const sc_atlas *atlas, int k, const bool want[MODE_COUNT], const int *levels,
-                     int nlevels, const job *J, outcome *o, sc_error *err) {
+/* The colour texture of one material with the level's uv silhouettes drawn
+ * over it: seam sides red, surface boundaries yellow, foldovers magenta,
+ * non-manifold edges cyan. At most UV_PICTURE pixels a side (box-filtered);
+ * grey where the material has no colour texture. */
+#define UV_PICTURE 1024
+
+static void uv_line(uint8_t *rgba, int32_t w, int32_t h, const double *a, const double *b, const uint8_t c[3]) {
+    double x0 = a[0] * w, y0 = (1.0 - a[1]) * h, x1 = b[0] * w, y1 = (1.0 - b[1]) * h;
+    double len = fmax(fabs(x1 - x0), fabs(y1 - y0));
+    if (!(len < 1e6)) return;   /* NaN or absurd uvs */
+    int32_t steps = (int32_t)ceil(len) + 1;
+    for (int32_t i = 0; i <= steps; i++) {
+        double t = (double)i / steps;
+        int32_t x = (int32_t)floor(x0 + t * (x1 - x0)), y = (int32_t)floor(y0 + t * (y1 - y0));
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        uint8_t *p = rgba + 4 * ((size_t)y * (size_t)w + (size_t)x);
+        p[0] = c[0], p[1] = c[1], p[2] = c[2], p[3] = 255;
+    }
+}
+
+static int uv_picture(renderer *R, const level_gl *L, int k, int32_t material, outcome *o, sc_error *err) {
+    int i = sc_atlas_find_texture(L->atlas, material, "color");
+    const sc_image_data *im = i >= 0 ? L->atlas->textures[i].image->as.image : NULL;
+    int32_t tw = im ? im->width : UV_PICTURE, th = im ? im->height : UV_PICTURE;
+    int32_t f = (int32_t)((tw > th ? tw : th) + UV_PICTURE - 1) / UV_PICTURE;
+    int32_t w = tw / f > 0 ? tw / f : 1, h = th / f > 0 ? th / f : 1;
+    uint8_t *rgba = malloc((size_t)w * (size_t)h * 4);
+    if (!rgba) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t y = 0; y < h; y++)   /* top-down */
+        for (int32_t x = 0; x < w; x++) {
+            uint8_t *p = rgba + 4 * ((size_t)y * (size_t)w + (size_t)x);
+            p[3] = 255;
+            if (!im) {
+                p[0] = p[1] = p[2] = 128;
+                continue;
+            }
+            double sum[3] = {0, 0, 0};
+            for (int32_t dy = 0; dy < f; dy++)
+                for (int32_t dx = 0; dx < f; dx++) {
+                    int32_t tx = x * f + dx, ty = th - 1 - (y * f + dy);
+                    for (int c = 0; c < 3; c++)
+                        sum[c] += sc_image_texel(im, tx, ty, im->channels >= 3 ? c : 0);
+                }
+            for (int c = 0; c < 3; c++) {
+                double v = sum[c] / ((double)f * f);
+                p[c] = (uint8_t)lrint(255.0 * (v < 0 ? 0 : v > 1 ? 1 : v));
+            }
+        }
+    static const uint8_t colors[4][3] = {{255, 40, 40}, {255, 220, 0}, {255, 0, 255}, {0, 230, 255}};
+    const sc_mesh *m = L->mesh;
+    for (int32_t s = 0; s < L->seams.nsil; s++) {
+        const sc_seam_silhouette *sil = &L->seams.sil[s];
+        if (m->FM[sil->side.face] != material) continue;
+        int kind = (int)sil->kind >= 0 && (int)sil->kind < 4 ? (int)sil->kind : 0;
+        uv_line(rgba, w, h, m->U + 2 * sil->side.uv0, m->U + 2 * sil->side.uv1, colors[kind]);
+    }
+    char path[64];
+    if (m->nmat == 1) snprintf(path, sizeof path, "render/lod%d_uv.png", k);
+    else snprintf(path, sizeof path, "render/lod%d_uv_%d.png", k, material);
+    int rc = add_png(o, R, path, rgba, w, h, true, err);
+    free(rgba);
+    return rc;
+}
+
+static int run_level(renderer *R, const sc_atlas *atlas, int k, const char *who, const bool want[MODE_COUNT],
+                     const int *levels, int nlevels, const job *J, outcome *o, sc_error *err) {
     level_gl L;
-    int rc = level_upload(R, atlas, k, &L, err);
+    int rc = level_upload(R, atlas, who, &L, err);
     if (rc != SC_OK) {
         level_free(&L);
         return rc;
@@ -1349,7 +1425,7 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const bool want[
             o->skipped++;
             continue;
         }
-        if (m != MODE_TEXTURED) rc = check_position_texture(&L, k, pos_of_mode[m], err);
+        if (m != MODE_TEXTURED) rc = check_position_texture(&L, who, pos_of_mode[m], err);
         pass *p = &passes[npasses++];
         *p = (pass){m, pos_of_mode[m], 0, ""};
         snprintf(p->name, sizeof p->name, "%s", mode_names[m]);
@@ -1360,7 +1436,7 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const bool want[
             rc = metricf(o, 1, "lod%d.tessellated.skipped", k);
             o->skipped++;
         } else {
-            rc = check_position_texture(&L, k, tess_pos, err);
+            rc = check_position_texture(&L, who, tess_pos, err);
             if (rc == SC_OK)
                 rc = metricf(o, tess_pos == POS_GEOMETRY ? 1 : 2, "lod%d.tessellated.source", k);
             for (int i = 0; i < nlevels && rc == SC_OK; i++) {
@@ -1398,6 +1474,7 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const bool want[
         snprintf(path, sizeof path, "render/lod%d_sheet.png", k);
         rc = add_png(o, R, path, sh.rgba, sh.width, sh.height, true, err);
     }
+    for (int32_t g = 0; g < L.ngroups && rc == SC_OK; g++) rc = uv_picture(R, &L, k, L.groups[g].material, o, err);
     free(sh.rgba);
     level_free(&L);
     return rc;
@@ -1490,8 +1567,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
     if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);
-    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
-        rc = run_level(&R, lods ? lods->levels[k]->as.atlas : single, k, want, levels, ntess, &J, &o, err);
+    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
+        char who[48];
+        if (lods) snprintf(who, sizeof who, "lods: level %d", k);
+        else snprintf(who, sizeof who, "atlas");
+        rc = run_level(&R, lods ? lods->levels[k]->as.atlas : single, k, who, want, levels, ntess, &J, &o, err);
+    }
     if (rc == SC_OK &&
         (metric(&o, "levels", nlevels) || metric(&o, "views", J.nviews) || metric(&o, "size", J.size) ||
          metric(&o, "renders", o.renders) || metric(&o, "skipped_modes", o.skipped) ||

@@ -297,9 +297,14 @@ const char *sc_qp_status_name(sc_qp_status s) {
 }
 
 void sc_qp_init(sc_qp *p, int n) {
-    /* rows, H and g are written before use; only the counts need clearing */
+    /* H and g start at zero (callers often set only some entries); rows are
+     * written as they are added */
     p->n = n;
     p->neq = p->nin = 0;
+    if (n > 0 && n <= SC_QP_MAX_N) {
+        memset(p->H, 0, sizeof(double) * (size_t)n * (size_t)n);
+        memset(p->g, 0, sizeof(double) * (size_t)n);
+    }
 }
 
 int sc_qp_add_eq(sc_qp *p, const double *row, double rhs) {

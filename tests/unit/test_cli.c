@@ -119,9 +119,11 @@ static void write_obj_asset(const char *dir, const char *comment) {
 
 /* Make tet.png with the procedural texture of a graph run (any PNG will do). */
 static void write_png(const char *dir, const char *texture_size) {
+    char *g = data("proc_save.lua");
     SC_CHECK_INT(sc_test_system("cd '%s' && '%s' run '%s' --cache pngcache --out pngout "
                                 "--set texture_size=%s -q && cp pngout/asset_default_color.png tet.png",
-                                dir, bin(), data("proc_save.lua"), texture_size), 0);
+                                dir, bin(), g, texture_size), 0);
+    free(g);
 }
 
 /* ---------------------------------------------------------------- tests */

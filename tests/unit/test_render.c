@@ -230,7 +230,9 @@ SC_TEST(seam_free_geometry_image_has_no_gap) {
     SC_CHECK(has_file(&r, "render/lod0_textured_posx.png"));
     SC_CHECK(has_file(&r, "render/lod0_tessellated8_obl3.png"));
     SC_CHECK(has_file(&r, "render/lod0_sheet.png"));
+    SC_CHECK(has_file(&r, "render/lod0_uv.png"));
     SC_CHECK(!has_file(&r, "render/lod0_textured_obl4.png"));
+    SC_CHECK_INT(report_of(&r)->nfiles, 70 + 2);
     sc_ctx_free(r.ctx);
     sc_value_release(cube);
     cube_textures_free(&tex);
@@ -257,14 +259,15 @@ SC_TEST(geometry_image_with_seams_has_gap_and_cracks) {
     cube_textures_free(&tex);
 }
 
+/* The default procedural sphere at 512^2 once showed one back-face pixel on
+ * an occluding contour (view obl3); contours are not cracks. */
 SC_TEST(closed_procedural_textured_has_no_cracks) {
     sc_ctx *p = sc_ctx_new(&sc_node_procedural, NULL, NULL);
     sc_error e;
-    SC_CHECK(sc_ctx_set_param(p, "resolution", "12", &e) == SC_OK);
     SC_CHECK(sc_ctx_set_param(p, "texture_size", "256", &e) == SC_OK);
     SC_CHECK(sc_ctx_run(p, &e) == SC_OK);
     sc_value *atlas = sc_ctx_output(p, 0);
-    run_result r = render(NULL, atlas, NULL, (const char *const[]){"size", "256", NULL});
+    run_result r = render(NULL, atlas, NULL, (const char *const[]){"size", "512", NULL});
     SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
     SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
     SC_CHECK(M(&r, "lod0.textured.max_seam_gap") == 0);
@@ -275,7 +278,7 @@ SC_TEST(closed_procedural_textured_has_no_cracks) {
     SC_CHECK(M(&r, "lod0.tessellated.skipped") == 1);
     SC_CHECK(M(&r, "skipped_modes") == 3);
     SC_CHECK(M(&r, "renders") == 10);
-    SC_CHECK(M(&r, "lod0.seam_edges") == 12 * 12);
+    SC_CHECK(M(&r, "lod0.seam_edges") == 12 * 24);
     sc_ctx_free(r.ctx);
     sc_ctx_free(p);
 }
@@ -390,11 +393,20 @@ typedef struct thread_job {
     sc_value *atlas;
     sc_digest digest;
     int rc;
+    int threads;   /* the node's worker threads (PNG encoding) */
 } thread_job;
 
 static void *thread_render(void *ud) {
     thread_job *j = ud;
-    run_result r = render(NULL, j->atlas, NULL, (const char *const[]){"size", "96", "views", "7", NULL});
+    run_result r = {0};
+    r.ctx = sc_ctx_new(&sc_node_render, NULL, NULL);
+    sc_ctx_set_input(r.ctx, "atlas", j->atlas);
+    sc_ctx_set_threads(r.ctx, j->threads);
+    sc_error e;
+    sc_ctx_set_param(r.ctx, "size", "96", &e);
+    sc_ctx_set_param(r.ctx, "views", "7", &e);
+    r.rc = sc_ctx_run(r.ctx, &r.err);
+    if (r.rc == SC_OK) r.report = sc_ctx_output(r.ctx, 0);
     j->rc = r.rc;
     if (r.rc == SC_OK) j->digest = r.report->digest;
     sc_ctx_free(r.ctx);
@@ -404,13 +416,15 @@ static void *thread_render(void *ud) {
 SC_TEST(rendering_is_deterministic) {
     cube_textures tex = cube_textures_make(CUBE_GI_SEAMS);
     sc_value *cube = cube_atlas(5, 0, &tex);
-    thread_job serial[2] = {{cube, {{0}}, -1}, {cube, {{0}}, -1}};
-    thread_render(&serial[0]);
-    thread_render(&serial[1]);
-    SC_CHECK(serial[0].rc == SC_OK && serial[1].rc == SC_OK);
-    SC_CHECK(sc_digest_equal(&serial[0].digest, &serial[1].digest));
+    /* the same bytes twice, and whatever the number of encoding threads */
+    thread_job serial[3] = {{cube, {{0}}, -1, 1}, {cube, {{0}}, -1, 1}, {cube, {{0}}, -1, 3}};
+    for (int i = 0; i < 3; i++) {
+        thread_render(&serial[i]);
+        SC_CHECK(serial[i].rc == SC_OK);
+        SC_CHECK(sc_digest_equal(&serial[i].digest, &serial[0].digest));
+    }
     /* several renders at once on different threads: each its own context */
-    thread_job jobs[3] = {{cube, {{0}}, -1}, {cube, {{0}}, -1}, {cube, {{0}}, -1}};
+    thread_job jobs[3] = {{cube, {{0}}, -1, 2}, {cube, {{0}}, -1, 1}, {cube, {{0}}, -1, 2}};
     pthread_t th[3];
     for (int i = 0; i < 3; i++) pthread_create(&th[i], NULL, thread_render, &jobs[i]);
     for (int i = 0; i < 3; i++) pthread_join(th[i], NULL);
