@@ -4,7 +4,7 @@
 --   seamcook run graphs/lod_chain.lua                       (the procedural asset)
 --   seamcook run graphs/lod_chain.lua --set mesh=assets/cow.obj [--set texture=assets/cow.png]
 --
--- load -> erase_seams -> decimate (seam-aware) -> share_textures -> save, render
+-- load -> erase_seams -> decimate (seam-aware) -> share_textures -> save, render (crack check)
 local function numbers(text)   -- "0.5,0.1" -> {0.5, 0.1}
   local list = {}
   for item in text:gmatch("[^,%s]+") do list[#list + 1] = tonumber(item) end
@@ -33,3 +33,10 @@ local lods = decimate{ name = "lods", mesh = erased.atlas_native,
                        ratio = numbers(param("ratios", "0.5,0.1,0.01")) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = erased.atlas_native }
 save{ name = "save", atlas = erased.atlas_native, lods = chain, file = param("file", "asset") }
+
+-- The crack check: every level, rendered the way a GPU samples the shared
+-- textures; a crack pixel or a seam gap fails the cook, naming level, mode, view.
+render{ name = "check", lods = chain, reference = erased.atlas_native,
+        size = param("render_size", 512),
+        max_crack_pixels = param("max_crack_pixels", 0),
+        max_seam_gap = param("max_seam_gap", 1e-6) }

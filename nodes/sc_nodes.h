@@ -11,5 +11,6 @@ extern const sc_node_desc sc_node_procedural;    /* nodes/procedural.c */
 extern const sc_node_desc sc_node_erase_seams;   /* nodes/erase_seams.c */
 extern const sc_node_desc sc_node_decimate;      /* nodes/decimate.c */
 extern const sc_node_desc sc_node_share_textures; /* nodes/share_textures.c */
+extern const sc_node_desc sc_node_render;        /* nodes/render.c */
 
 #endif

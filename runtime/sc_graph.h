@@ -30,13 +30,19 @@ typedef struct sc_graph_node {
     int *input_port;        /* per input port: producer's output port index */
 } sc_graph_node;
 
-/* An expectation a graph test file states about a run (seamcook test). */
+/* An expectation a graph test file states about a run (seamcook test):
+ *   op "<", "<=", "==", ">=", ">", "~"  metric compared with value (~: within tolerance)
+ *   op "image"    metric is a file the node wrote; it matches its golden image when at
+ *                 most `tolerance` (a share) of pixels differ by more than `value`
+ *                 (in 1/255 steps of any channel)
+ *   op "metrics"  every metric of the node matches its golden metric file within the
+ *                 relative `tolerance` (metrics named "seconds..." are timings: ignored) */
 typedef struct sc_expect {
     char *node;             /* node name */
-    char *metric;           /* metric name */
-    char *op;               /* "<", "<=", "==", ">=", ">", "~" (within tolerance) */
+    char *metric;           /* metric name, or file path for "image" */
+    char *op;
     double value, tolerance;
-    char *file;
+    char *file;             /* graph file and line that stated it */
     int line;
 } sc_expect;
 

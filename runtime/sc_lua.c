@@ -812,6 +812,36 @@ static bool number_arg(lua_State *L, int idx, double *out) {
     return isfinite(*out);
 }
 
+/* Append one expectation on node h (all strings copied). */
+static void add_expect(lua_State *L, builder *B, handle *h, const char *metric, const char *op,
+                       double value, double tolerance) {
+    position pos;
+    caller_position(L, 1, &pos);
+    charge_memory(L, B, sizeof(sc_expect) + strlen(metric) + strlen(pos.file) + 160,
+                  "the graph's expectations");
+    sc_graph *g = B->graph;
+    sc_expect e = {
+        .node = sc_strdup(g->nodes[h->node].name),
+        .metric = sc_strdup(metric),
+        .op = sc_strdup(op),
+        .value = value,
+        .tolerance = tolerance,
+        .file = sc_strdup(pos.file),
+        .line = pos.line,
+    };
+    sc_expect *grown = sc_realloc_array(g->expects, (size_t)g->nexpect + 1, sizeof *grown);
+    if (grown) g->expects = grown;
+    if (!grown || !e.node || !e.metric || !e.op || !e.file) {
+        free(e.node);
+        free(e.metric);
+        free(e.op);
+        free(e.file);
+        raise_error(L, "expect: out of memory");
+        return;
+    }
+    g->expects[g->nexpect++] = e;
+}
+
 /* expect(node, metric, op, value [, tolerance]) */
 static int graph_expect(lua_State *L) {
     static const char *const ops[] = {"<", "<=", "==", ">=", ">", "~"};
@@ -839,30 +869,52 @@ static int graph_expect(lua_State *L) {
     if (!approx && !lua_isnoneornil(L, 5))
         return raise_error(L, "expect: a tolerance goes only with '~'");
 
-    position pos;
-    caller_position(L, 1, &pos);
-    charge_memory(L, B, sizeof(sc_expect) + strlen(metric) + strlen(pos.file) + 160,
-                  "the graph's expectations");
-    sc_graph *g = B->graph;
-    sc_expect e = {
-        .node = sc_strdup(g->nodes[h->node].name),
-        .metric = sc_strdup(metric),
-        .op = sc_strdup(op),
-        .value = value,
-        .tolerance = tolerance,
-        .file = sc_strdup(pos.file),
-        .line = pos.line,
-    };
-    sc_expect *grown = sc_realloc_array(g->expects, (size_t)g->nexpect + 1, sizeof *grown);
-    if (grown) g->expects = grown;
-    if (!grown || !e.node || !e.metric || !e.op || !e.file) {
-        free(e.node);
-        free(e.metric);
-        free(e.op);
-        free(e.file);
-        return raise_error(L, "expect: out of memory");
+    add_expect(L, B, h, metric, op, value, tolerance);
+    return 0;
+}
+
+/* A number field of an options table, or def. */
+static double option_number(lua_State *L, int table, const char *field, double def, const char *fn) {
+    if (lua_isnoneornil(L, table)) return def;
+    if (!lua_istable(L, table)) {
+        raise_error(L, "%s: options must be a table", fn);
+        return def;
     }
-    g->expects[g->nexpect++] = e;
+    lua_getfield(L, table, field);
+    double v = def;
+    if (!lua_isnil(L, -1) && !number_arg(L, -1, &v))
+        raise_error(L, "%s: option '%s' must be a finite number", fn, field);
+    lua_pop(L, 1);
+    return v;
+}
+
+/* expect_image(node, "render/lod0_textured_posx.png" [, {threshold = 2, max_share = 0.001}]) */
+static int graph_expect_image(lua_State *L) {
+    builder *B = builder_of(L);
+    handle *h = to_handle(L, 1);
+    if (!h || !handle_valid(B, h))
+        return raise_error(L, "expect_image: the first argument must be a node of this graph, got %s",
+                           value_type(L, 1));
+    if (lua_type(L, 2) != LUA_TSTRING || lua_rawlen(L, 2) == 0)
+        return raise_error(L, "expect_image: the second argument must be the path of a PNG the node writes");
+    double threshold = option_number(L, 3, "threshold", 2, "expect_image");
+    double share = option_number(L, 3, "max_share", 0.001, "expect_image");
+    if (threshold < 0 || threshold > 255 || share < 0 || share > 1)
+        return raise_error(L, "expect_image: threshold must be in [0, 255] and max_share in [0, 1]");
+    add_expect(L, B, h, lua_tostring(L, 2), "image", threshold, share);
+    return 0;
+}
+
+/* expect_metrics(node [, {tolerance = 1e-9}]) */
+static int graph_expect_metrics(lua_State *L) {
+    builder *B = builder_of(L);
+    handle *h = to_handle(L, 1);
+    if (!h || !handle_valid(B, h))
+        return raise_error(L, "expect_metrics: the first argument must be a node of this graph, got %s",
+                           value_type(L, 1));
+    double tolerance = option_number(L, 2, "tolerance", 1e-9, "expect_metrics");
+    if (tolerance < 0) return raise_error(L, "expect_metrics: tolerance must be >= 0");
+    add_expect(L, B, h, "*", "metrics", 0, tolerance);
     return 0;
 }
 
@@ -1113,6 +1165,10 @@ static void open_sandbox(lua_State *L, builder *B) {
     lua_setfield(L, G, "param");
     lua_pushcfunction(L, graph_expect);
     lua_setfield(L, G, "expect");
+    lua_pushcfunction(L, graph_expect_image);
+    lua_setfield(L, G, "expect_image");
+    lua_pushcfunction(L, graph_expect_metrics);
+    lua_setfield(L, G, "expect_metrics");
 
     lua_getfield(L, G, LUA_TABLIBNAME);
     lua_getfield(L, -1, "sort");

@@ -2,7 +2,7 @@
  *
  *   seamcook run GRAPH [--set k=v]... [-j N] [--out DIR] [--cache DIR] [-n] [--explain] [--check]
  *   seamcook watch GRAPH [same options]
- *   seamcook test [FILES...] [--cache DIR] [--out DIR] [-j N]
+ *   seamcook test [FILES...] [--update-goldens] [--cache DIR] [--out DIR] [-j N]
  *   seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]
  *   seamcook nodes
  *   seamcook graph GRAPH --dot [--set k=v]...
@@ -26,6 +26,7 @@
 
 #include "sc_cache.h"
 #include "sc_engine.h"
+#include "sc_golden.h"
 #include "sc_lua.h"
 #include "sc_registry.h"
 #include "sc_report.h"
@@ -35,7 +36,7 @@ enum { EXIT_OK = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
 static const char *usage_text =
     "usage: seamcook run GRAPH [--set k=v]... [-j N] [--out DIR] [--cache DIR] [-n] [--explain] [--check]\n"
     "       seamcook watch GRAPH [options of run]\n"
-    "       seamcook test [FILES...] [--cache DIR] [--out DIR] [-j N]\n"
+    "       seamcook test [FILES...] [--update-goldens] [--cache DIR] [--out DIR] [-j N]\n"
     "       seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]\n"
     "       seamcook nodes\n"
     "       seamcook graph GRAPH --dot [--set k=v]...\n";
@@ -50,7 +51,7 @@ typedef struct options {
     int jobs;
     const char *out_dir;
     const char *cache_dir;
-    bool dry_run, explain, check, dot, quiet;
+    bool dry_run, explain, check, dot, quiet, update_goldens;
     int64_t max_size;
     bool max_size_given;
     int max_runs;               /* watch: stop after this many cooks (0: never) */
@@ -137,6 +138,8 @@ static int parse_args(int argc, char **argv, options *o) {
             o->explain = true;
         } else if (strcmp(a, "--check") == 0) {
             o->check = true;
+        } else if (strcmp(a, "--update-goldens") == 0) {
+            o->update_goldens = true;
         } else if (strcmp(a, "--dot") == 0) {
             o->dot = true;
         } else if (strcmp(a, "-q") == 0 || strcmp(a, "--quiet") == 0) {
@@ -193,51 +196,6 @@ static int build_graph(const char *file, const options *o, sc_graph **g) {
     return EXIT_OK;
 }
 
-/* ---------------------------------------------------------------- expectations */
-
-static double metric_of(const sc_run *r, const char *node, const char *metric, bool *found) {
-    *found = false;
-    for (int i = 0; i < r->graph->count; i++) {
-        if (strcmp(r->graph->nodes[i].name, node) != 0) continue;
-        cJSON *m = r->results[i].metrics_json ? cJSON_Parse(r->results[i].metrics_json) : NULL;
-        const cJSON *v = cJSON_GetObjectItemCaseSensitive(m, metric);
-        double x = NAN;
-        if (cJSON_IsNumber(v)) x = v->valuedouble, *found = true;
-        cJSON_Delete(m);
-        return x;
-    }
-    return NAN;
-}
-
-/* Print each expectation's outcome; returns how many failed. */
-static int check_expectations(const sc_run *r, FILE *log) {
-    int failed = 0;
-    for (int k = 0; k < r->graph->nexpect; k++) {
-        const sc_expect *x = &r->graph->expects[k];
-        bool found;
-        double v = metric_of(r, x->node, x->metric, &found);
-        bool ok = false;
-        if (found) {
-            if (!strcmp(x->op, "<")) ok = v < x->value;
-            else if (!strcmp(x->op, "<=")) ok = v <= x->value;
-            else if (!strcmp(x->op, "==")) ok = v == x->value;
-            else if (!strcmp(x->op, ">=")) ok = v >= x->value;
-            else if (!strcmp(x->op, ">")) ok = v > x->value;
-            else if (!strcmp(x->op, "~")) ok = fabs(v - x->value) <= x->tolerance;
-        }
-        if (!ok) {
-            failed++;
-            if (!found)
-                fprintf(log, "%s:%d: expectation failed: %s has no metric '%s'\n", x->file, x->line,
-                        x->node, x->metric);
-            else
-                fprintf(log, "%s:%d: expectation failed: %s.%s = %.17g, expected %s %.17g%s\n", x->file,
-                        x->line, x->node, x->metric, v, x->op, x->value, !strcmp(x->op, "~") ? " (tolerance)" : "");
-        }
-    }
-    return failed;
-}
-
 /* ---------------------------------------------------------------- run */
 
 static int write_text(const char *out_dir, const char *name, char *text) {
@@ -277,7 +235,7 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
         fprintf(stderr, "%s: %d nodes, %d cooked, %d cached, %d failed, %d skipped in %.3f s%s%s\n",
                 file, g->count, run->ran, run->cached, run->failed, run->skipped, run->seconds,
                 (out_dir && !o->dry_run) ? "; report: " : "", (out_dir && !o->dry_run) ? out_dir : "");
-    if (run && status == EXIT_OK && check && !o->dry_run && check_expectations(run, stderr) > 0)
+    if (run && status == EXIT_OK && check && !o->dry_run && sc_golden_check(run, out_dir, false, stderr) > 0)
         status = EXIT_FAIL;
     if (run_out) *run_out = run;
     else sc_run_free(run);
@@ -449,7 +407,7 @@ static int cmd_test(const options *o) {
         sc_run *run = NULL;
         sc_graph *g = NULL;
         int status = out ? cook(file, o, cache, out, false, &run, &g) : EXIT_FAIL;
-        int bad = status == EXIT_OK ? check_expectations(run, stderr) : 1;
+        int bad = status == EXIT_OK ? sc_golden_check(run, out, o->update_goldens, stderr) : 1;
         if (status == EXIT_OK && g->nexpect == 0) {
             fprintf(stderr, "%s: states no expectation\n", file);
             bad = 1;

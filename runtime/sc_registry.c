@@ -11,6 +11,7 @@ static const sc_node_desc *const registry[] = {
     &sc_node_erase_seams,
     &sc_node_load_atlas,
     &sc_node_procedural,
+    &sc_node_render,
     &sc_node_save,
     &sc_node_share_textures,
     NULL,

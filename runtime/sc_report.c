@@ -189,6 +189,23 @@ char *sc_run_report_html(const sc_run *r) {
             char prefix[32];
             snprintf(prefix, sizeof prefix, "lod%d.", k);
             sc_buf_printf(&b, "<div class=\"lod\"><div><h3>LOD %d</h3>\n", k);
+            /* this level's metrics from every node (faces from decimate, cracks from render...) */
+            for (int j = 0; j < g->count; j++) {
+                cJSON *other = j == i ? NULL : (r->results[j].metrics_json ? cJSON_Parse(r->results[j].metrics_json) : NULL);
+                bool has = false;
+                const cJSON *m;
+                cJSON_ArrayForEach(m, other) has |= strncmp(m->string, prefix, strlen(prefix)) == 0;
+                if (has) {
+                    sc_buf_puts(&b, "<small>");
+                    html_text(&b, g->nodes[j].name);
+                    sc_buf_puts(&b, "</small>\n");
+                    html_metrics(&b, other, prefix);
+                }
+                cJSON_Delete(other);
+            }
+            sc_buf_puts(&b, "<small>");
+            html_text(&b, g->nodes[i].name);
+            sc_buf_puts(&b, "</small>\n");
             html_metrics(&b, metrics, prefix);
             sc_buf_puts(&b, "</div><div class=\"pics\">\n");
             for (int f = 0; f < x->nfiles; f++) {

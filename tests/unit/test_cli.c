@@ -408,4 +408,62 @@ SC_TEST(watch_recooks_on_rename_save) {
     free(copy), free(report), free(g), free(dir);
 }
 
+SC_TEST(golden_images_and_metrics) {
+    char *dir = sc_test_tempdir("cli");
+    char *src = data("golden_small.lua");
+    /* a private copy of the graph, so its goldens are made in the temporary folder */
+    SC_CHECK_INT(sc_test_system("cp '%s' '%s/g.lua'", src, dir), 0);
+    SC_CHECK_INT(cook(dir, "test g.lua --cache cache --out out"), 1);   /* no goldens yet */
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "--update-goldens"), "stderr: %s", err ? err : "(nothing)");
+    free(err);
+    SC_CHECK_INT(cook(dir, "test g.lua --cache cache --out out --update-goldens"), 0);
+    SC_CHECK_INT(cook(dir, "test g.lua --cache cache --out out"), 0);
+    char *o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "1 passed, 0 failed"), "stdout: %s", o ? o : "(nothing)");
+    free(o);
+    /* another tint: the picture and a metric no longer match their goldens */
+    SC_CHECK_INT(cook(dir, "test g.lua --cache cache --out out --set tint=0.5"), 1);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "golden image failed: render/lod0_textured_posx.png") && strstr(err, "diff: "),
+                 "stderr: %s", err ? err : "(nothing)");
+    free(err);
+    char *diff = sc_strprintf("%s/out/g/diff/check/render_lod0_textured_posx.png", dir);
+    SC_CHECK_MSG(exists(diff), "no diff picture at %s", diff);
+    free(diff), free(src), free(dir);
+}
+
+SC_TEST(report_html_shows_every_picture_in_chromium) {
+    if (access("/usr/bin/chromium", X_OK) != 0) {
+        printf("  chromium not installed: skipped\n");
+        return;
+    }
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("golden_small.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out -q", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    /* load the page offline and dump the DOM after every image has loaded or failed */
+    SC_CHECK_INT(sc_test_system(
+        "cd '%s' && timeout 120 chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+        "--disable-background-networking --disable-component-update --disable-sync --user-data-dir=$PWD/chrome "
+        "--virtual-time-budget=5000 --run-all-compositor-stages-before-draw "
+        "--dump-dom file://$PWD/out/report.html > dom.html 2>/dev/null", dir), 0);
+    char *dom = slurp(dir, "dom.html");
+    SC_CHECK_MSG(dom && strstr(dom, "lod0_textured_posx.png") && strstr(dom, "<h1>seamcook"), "DOM: %.300s",
+                 dom ? dom : "(nothing)");
+    free(dom);
+    /* every image the page shows must decode: ask the page itself */
+    SC_CHECK_INT(sc_test_system(
+        "cd '%s' && cp out/report.html out/check.html && sed -i 's#</body>#<script>"
+        "addEventListener(\"load\",()=>{const bad=[...document.images].filter(i=>!i.complete||i.naturalWidth==0);"
+        "document.title=\"images:\"+document.images.length+\" broken:\"+bad.length;});</script></body>#' out/check.html && "
+        "timeout 120 chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+        "--disable-background-networking --disable-component-update --disable-sync --user-data-dir=$PWD/chrome2 "
+        "--virtual-time-budget=5000 --dump-dom file://$PWD/out/check.html > dom2.html 2>/dev/null", dir), 0);
+    char *dom2 = slurp(dir, "dom2.html");
+    SC_CHECK_MSG(dom2 && strstr(dom2, "broken:0</title>") && !strstr(dom2, "images:0 "), "page said: %.200s",
+                 dom2 ? strstr(dom2, "<title>") : "(nothing)");
+    free(dom2), free(a), free(g), free(dir);
+}
+
 int main(void) { return sc_test_main(); }

@@ -1,0 +1,27 @@
+-- The main job on the procedural asset, with what must hold at every level:
+-- seams erased, targets reached, uv never flipped, no crack pixel, no seam gap.
+local asset = procedural{ name = "asset", resolution = 16, texture_size = 256 }
+local erased = erase_seams{ name = "erased", atlas = asset }
+local lods = decimate{ name = "lods", mesh = erased.atlas_native, ratio = {0.5, 0.1, 0.02} }
+local chain = share_textures{ name = "chain", lods = lods, atlas = erased.atlas_native }
+local check = render{ name = "check", lods = chain, reference = erased.atlas_native,
+                      size = 128, views = 6, modes = "textured" }
+
+expect(erased, "seam_energy_before", ">", 1e-4)          -- the asset has real seams
+expect(erased, "seam_energy_after", "<", 1e-12)
+expect(erased, "max_seam_gap_after", "<", 1e-6)
+
+-- faces within 1% of each target (3072 input faces)
+expect(lods, "lod0.faces", "~", 1536, 16)
+expect(lods, "lod1.faces", "~", 307, 4)
+expect(lods, "lod2.faces", "~", 61, 1)
+for k = 0, 2 do
+  expect(lods, "lod" .. k .. ".flipped_uv_faces", "==", 0)
+  expect(check, "lod" .. k .. ".textured.crack_pixels", "==", 0)
+  expect(check, "lod" .. k .. ".textured.max_seam_gap", "<=", 1e-6)
+end
+expect(check, "crack_pixels", "==", 0)
+
+-- what it looks like, and every decimation metric, against goldens
+expect_image(check, "render/lod1_textured_posx.png", { threshold = 3, max_share = 0.002 })
+expect_metrics(lods, { tolerance = 1e-6 })
