@@ -812,6 +812,14 @@ static bool number_arg(lua_State *L, int idx, double *out) {
     return isfinite(*out);
 }
 
+/* The node handle a graph function takes first; raises an error otherwise. */
+static handle *node_argument(lua_State *L, builder *B, const char *fn) {
+    handle *h = to_handle(L, 1);
+    if (!h || !handle_valid(B, h))
+        raise_error(L, "%s: the first argument must be a node of this graph, got %s", fn, value_type(L, 1));
+    return h;
+}
+
 /* Append one expectation on node h (all strings copied). */
 static void add_expect(lua_State *L, builder *B, handle *h, const char *metric, const char *op,
                        double value, double tolerance) {
@@ -846,10 +854,7 @@ static void add_expect(lua_State *L, builder *B, handle *h, const char *metric, 
 static int graph_expect(lua_State *L) {
     static const char *const ops[] = {"<", "<=", "==", ">=", ">", "~"};
     builder *B = builder_of(L);
-    handle *h = to_handle(L, 1);
-    if (!h || !handle_valid(B, h))
-        return raise_error(L, "expect: the first argument must be a node of this graph, got %s",
-                           value_type(L, 1));
+    handle *h = node_argument(L, B, "expect");
     if (lua_type(L, 2) != LUA_TSTRING || lua_rawlen(L, 2) == 0)
         return raise_error(L, "expect: the second argument must be a metric name");
     const char *metric = lua_tostring(L, 2);
@@ -891,10 +896,7 @@ static double option_number(lua_State *L, int table, const char *field, double d
 /* expect_image(node, "render/lod0_textured_posx.png" [, {threshold = 2, max_share = 0.001}]) */
 static int graph_expect_image(lua_State *L) {
     builder *B = builder_of(L);
-    handle *h = to_handle(L, 1);
-    if (!h || !handle_valid(B, h))
-        return raise_error(L, "expect_image: the first argument must be a node of this graph, got %s",
-                           value_type(L, 1));
+    handle *h = node_argument(L, B, "expect_image");
     if (lua_type(L, 2) != LUA_TSTRING || lua_rawlen(L, 2) == 0)
         return raise_error(L, "expect_image: the second argument must be the path of a PNG the node writes");
     double threshold = option_number(L, 3, "threshold", 2, "expect_image");
@@ -908,10 +910,7 @@ static int graph_expect_image(lua_State *L) {
 /* expect_metrics(node [, {tolerance = 1e-9}]) */
 static int graph_expect_metrics(lua_State *L) {
     builder *B = builder_of(L);
-    handle *h = to_handle(L, 1);
-    if (!h || !handle_valid(B, h))
-        return raise_error(L, "expect_metrics: the first argument must be a node of this graph, got %s",
-                           value_type(L, 1));
+    handle *h = node_argument(L, B, "expect_metrics");
     double tolerance = option_number(L, 2, "tolerance", 1e-9, "expect_metrics");
     if (tolerance < 0) return raise_error(L, "expect_metrics: tolerance must be >= 0");
     add_expect(L, B, h, "*", "metrics", 0, tolerance);

@@ -214,8 +214,8 @@ static int write_report(const sc_run *run, const char *out_dir) {
     return rc;
 }
 
-/* Cook one graph file; returns the exit status. deps_out (optional) receives
- * the graph's source files for watch. */
+/* Cook one graph file; returns the exit status. run_out and graph_out
+ * (optional) receive the results and the graph, for test and watch. */
 static int cook(const char *file, const options *o, sc_cache *cache, const char *out_dir,
                 bool check, sc_run **run_out, sc_graph **graph_out) {
     sc_graph *g = NULL;
