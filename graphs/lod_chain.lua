@@ -3,8 +3,10 @@
 --
 --   seamcook run graphs/lod_chain.lua                       (the procedural asset)
 --   seamcook run graphs/lod_chain.lua --set mesh=assets/cow.obj [--set texture=assets/cow.png]
+--   seamcook run graphs/lod_chain.lua --set straighten=0       (keep the seams as they are)
 --
--- load -> erase_seams -> decimate (seam-aware) -> share_textures -> save, render (crack check)
+-- load -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
+--      -> bake_displacement (geometry image, displacement per LOD) -> mipmap -> render (every LOD x mip)
 local function numbers(text)   -- "0.5,0.1" -> {0.5, 0.1}
   local list = {}
   for item in text:gmatch("[^,%s]+") do list[#list + 1] = tonumber(item) end
@@ -28,6 +30,14 @@ end
 local erased = erase_seams{ name = "erased", atlas = asset, preset = param("preset", "local") }
 save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr" }
 
+-- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
+-- them; the warped textures are erased again and quantised once.
+if param("straighten", 1) ~= 0 then
+  local straight = straighten{ name = "straight", atlas = erased.atlas,
+                               tolerance = param("straighten_tolerance", 0.01) }
+  erased = erase_seams{ name = "straight_erased", atlas = straight, preset = param("preset", "local") }
+end
+
 -- Levels of detail from the mesh alone: new texture bytes never re-decimate.
 local lods = decimate{ name = "lods", mesh = erased.atlas_native,
                        ratio = numbers(param("ratios", "0.5,0.1,0.01")) }
@@ -37,6 +47,19 @@ save{ name = "save", atlas = erased.atlas_native, lods = chain, file = param("fi
 -- The crack check: every level, rendered the way a GPU samples the shared
 -- textures; a crack pixel or a seam gap fails the cook, naming level, mode, view.
 render{ name = "check", lods = chain, reference = erased.atlas_native,
-        size = param("render_size", 512),
+        size = param("render_size", 512), modes = "textured",
         max_crack_pixels = param("max_crack_pixels", 0),
         max_seam_gap = param("max_seam_gap", 1e-6) }
+
+-- Geometry from maps (Liu §7): a geometry image shared by every level and a
+-- vector displacement map per level, seam-free; then seam-free mip chains of
+-- every map (§9), and the same crack check on every LOD at every mip level,
+-- with positions fetched from the maps and tessellated.
+local baked = bake_displacement{ name = "bake", atlas = erased.atlas_native, lods = chain,
+                                 size = param("bake_size", 1024) }
+local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16) }
+render{ name = "check_maps", lods = mips.levels, reference = erased.atlas_native, folder = "render_maps",
+        size = param("map_render_size", 256), views = param("map_views", 6),
+        modes = "geometry_image,displaced,tessellated",
+        max_crack_pixels = param("max_crack_pixels", 0),
+        max_seam_gap = param("max_map_seam_gap", 1e-5) }

@@ -70,6 +70,13 @@
  *  - Limits: max_crack_pixels bounds lod<k>.<pass>.crack_pixels (the sum over
  *    views) and max_seam_gap bounds lod<k>.<pass>.max_seam_gap; the first
  *    pass over a limit fails the node with the LOD, the mode and the view.
+ *  - Texture seams: lod<k>.seam_energy.<slot> and lod<k>.seam_gap.<slot> are
+ *    every texture's exact seam energy (eq. 9) and sampled gap on the level's
+ *    own seams (sc_seam_energy), so a colour seam that pictures only show is
+ *    also a number an expectation can bound.
+ *  - Mip levels: consecutive entries of `lods` with the same mesh whose
+ *    textures halve (the mipmap node's `levels`) are the mip chain of one
+ *    LOD; they are named lod<k>.mip<m> in metrics and lod<k>_mip<m> in files.
  */
 #include <math.h>
 #include <pthread.h>
@@ -166,9 +173,17 @@ typedef struct outcome {
     sc_ctx *ctx;
     sc_report *report;
     encoder *enc;
+    const char *folder;          /* report files go under it: "render" */
     double crack_total, gap_max, vertex_gap_max;
     int32_t renders, skipped;
 } outcome;
+
+/* How one entry of the lods list is named: "lod1" in metrics and files, or,
+ * for the mip levels of a LOD, "lod1.mip2" in metrics and "lod1_mip2" in file
+ * names; `human` goes into messages. */
+typedef struct level_label {
+    char metric[32], file[32], human[40];
+} level_label;
 
 /* ---------------------------------------------------------------- small helpers */
 
@@ -1237,21 +1252,21 @@ static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, 
     return count;
 }
 
-static int run_pass(renderer *R, const level_gl *L, int k, const pass *ps, const job *J, outcome *o,
+static int run_pass(renderer *R, const level_gl *L, const level_label *k, const pass *ps, const job *J, outcome *o,
                     sheet *sh, int32_t row, gap_result *gap_out, sc_error *err) {
     double t0 = sc_now();
     gap_result gap = {0, 0, -1, 0};
     int rc = ps->level > 0 ? seam_gap_tess(R, L, ps, &gap, err)
                            : seam_gap_points(R, L, ps, J->seam_points, &gap, err);
     R->t_gap += sc_now() - t0;
-    if (rc != SC_OK) return sc_error_prefix(err, "lod %d, mode %s: seam gap", k, ps->name);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s: seam gap", k->human, ps->name);
     if (J->max_gap >= 0 && gap.gap > J->max_gap) {
         const sc_seam_edge *se = &L->seams.seams[gap.edge];
         return sc_fail(err, SC_EINPUT,
-                       "max_seam_gap: lod %d, mode %s, every view: the seam gap is %.3g of the bounding-box "
+                       "max_seam_gap: %s, mode %s, every view: the seam gap is %.3g of the bounding-box "
                        "diagonal, over the limit %.3g (seam edge between vertices %d and %d, faces %d and %d, "
                        "at t = %.3g)",
-                       k, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
+                       k->human, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
                        gap.edge_t);
     }
     int64_t total = 0, worst = -1;
@@ -1261,12 +1276,12 @@ static int run_pass(renderer *R, const level_gl *L, int k, const pass *ps, const
         rc = draw(R, L, ps, &J->views[v], err);
         if (rc == SC_OK) rc = read_target(R, err);
         R->t_render += sc_now() - t0;
-        if (rc != SC_OK) return sc_error_prefix(err, "lod %d, mode %s, view %s", k, ps->name, J->views[v].name);
+        if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s, view %s", k->human, ps->name, J->views[v].name);
         int64_t cracks = count_cracks(R, L, J, v);
         total += cracks;
         if (cracks > worst) worst = cracks, worst_view = v;
-        char path[96];
-        snprintf(path, sizeof path, "render/lod%d_%s_%s.png", k, ps->name, J->views[v].name);
+        char path[200];
+        snprintf(path, sizeof path, "%s/%s_%s_%s.png", o->folder, k->file, ps->name, J->views[v].name);
         rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err);
         if (rc != SC_OK) return rc;
         sheet_put(sh, row, v, R->rgba, J->size);
@@ -1276,15 +1291,15 @@ static int run_pass(renderer *R, const level_gl *L, int k, const pass *ps, const
     o->crack_total += (double)total;
     o->gap_max = fmax(o->gap_max, gap.gap);
     o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
-    if (metricf(o, (double)total, "lod%d.%s.crack_pixels", k, ps->name) ||
-        metricf(o, gap.gap, "lod%d.%s.max_seam_gap", k, ps->name) ||
-        metricf(o, gap.vertex_gap, "lod%d.%s.max_vertex_gap", k, ps->name))
+    if (metricf(o, (double)total, "%s.%s.crack_pixels", k->metric, ps->name) ||
+        metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
+        metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name))
         return sc_fail(err, SC_ENOMEM, "out of memory");
     if (J->max_cracks >= 0 && (double)total > J->max_cracks)
         return sc_fail(err, SC_EINPUT,
-                       "max_crack_pixels: lod %d, mode %s, view %s: %lld crack pixels in this mode (%lld in view "
+                       "max_crack_pixels: %s, mode %s, view %s: %lld crack pixels in this mode (%lld in view "
                        "%s), over the limit %.17g%s",
-                       k, ps->name, J->views[worst_view].name, (long long)total, (long long)worst,
+                       k->human, ps->name, J->views[worst_view].name, (long long)total, (long long)worst,
                        J->views[worst_view].name, J->max_cracks,
                        L->closed ? "" : J->reference ? " (open mesh, compared with the reference)"
                                                      : " (open mesh and no reference connected: every back "
@@ -1327,8 +1342,8 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
                         if (yy >= 0 && yy < s && xx >= 0 && xx < s) mask[(size_t)yy * s + xx] = 1;
                     }
             }
-        char path[64];
-        snprintf(path, sizeof path, "render/reference_%s.png", J->views[v].name);
+        char path[200];
+        snprintf(path, sizeof path, "%s/reference_%s.png", o->folder, J->views[v].name);
         rc = add_png(o, R, path, R->rgba, s, s, false, err);
         if (rc != SC_OK) break;
     }
@@ -1358,7 +1373,41 @@ static void uv_line(uint8_t *rgba, int32_t w, int32_t h, const double *a, const 
     }
 }
 
-static int uv_picture(renderer *R, const level_gl *L, int k, int32_t material, outcome *o, sc_error *err) {
+/* The seam energy (eq. 9) and largest sampled gap of every texture of the
+ * level, on the level's own seams: a seam left in a texture shows here as a
+ * number, whatever the pictures show. Metrics <label>.seam_energy.<slot> and
+ * <label>.seam_gap.<slot> (with _<material> after the slot when there are
+ * several materials). */
+static int texture_seam_metrics(outcome *o, const sc_atlas *a, const level_label *k, sc_error *err) {
+    const sc_mesh *m = a->mesh->as.mesh;
+    int rc = SC_OK;
+    for (int32_t mat = 0; mat < m->nmat && rc == SC_OK; mat++) {
+        bool any = false;
+        for (int32_t t = 0; t < a->ntex; t++) any |= a->textures[t].material == mat;
+        if (!any) continue;
+        sc_seam_set seams;
+        rc = sc_seam_find(m, mat, &seams, err);
+        if (rc != SC_OK) return rc;
+        for (int32_t t = 0; t < a->ntex && rc == SC_OK; t++) {
+            const sc_texture *tex = &a->textures[t];
+            if (tex->material != mat) continue;
+            const sc_image_data *im = tex->image->as.image;
+            sc_seam_grid g = {im->width, im->height, tex->wrap_u, tex->wrap_v};
+            double energy = 0, gap = 0;
+            rc = sc_seam_energy(m, &seams, &g, im, sc_ctx_threads(o->ctx), &energy, &gap, err);
+            if (rc != SC_OK) break;
+            char suffix[24] = "";
+            if (m->nmat > 1) snprintf(suffix, sizeof suffix, "_%d", mat);
+            if (metricf(o, energy, "%s.seam_energy.%s%s", k->metric, tex->name, suffix) ||
+                metricf(o, gap, "%s.seam_gap.%s%s", k->metric, tex->name, suffix))
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        sc_seam_set_free(&seams);
+    }
+    return rc == SC_OK ? rc : sc_error_prefix(err, "%s: texture seams", k->human);
+}
+
+static int uv_picture(renderer *R, const level_gl *L, const level_label *k, int32_t material, outcome *o, sc_error *err) {
     int i = sc_atlas_find_texture(L->atlas, material, "color");
     const sc_image_data *im = i >= 0 ? L->atlas->textures[i].image->as.image : NULL;
     int32_t tw = im ? im->width : UV_PICTURE, th = im ? im->height : UV_PICTURE;
@@ -1394,15 +1443,15 @@ static int uv_picture(renderer *R, const level_gl *L, int k, int32_t material, o
         int kind = (int)sil->kind >= 0 && (int)sil->kind < 4 ? (int)sil->kind : 0;
         uv_line(rgba, w, h, m->U + 2 * sil->side.uv0, m->U + 2 * sil->side.uv1, colors[kind]);
     }
-    char path[64];
-    if (m->nmat == 1) snprintf(path, sizeof path, "render/lod%d_uv.png", k);
-    else snprintf(path, sizeof path, "render/lod%d_uv_%d.png", k, material);
+    char path[200];
+    if (m->nmat == 1) snprintf(path, sizeof path, "%s/%s_uv.png", o->folder, k->file);
+    else snprintf(path, sizeof path, "%s/%s_uv_%d.png", o->folder, k->file, material);
     int rc = add_png(o, R, path, rgba, w, h, true, err);
     free(rgba);
     return rc;
 }
 
-static int run_level(renderer *R, const sc_atlas *atlas, int k, const char *who, const bool want[MODE_COUNT],
+static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, const char *who, const bool want[MODE_COUNT],
                      const int *levels, int nlevels, const job *J, outcome *o, sc_error *err) {
     level_gl L;
     int rc = level_upload(R, atlas, who, &L, err);
@@ -1410,10 +1459,15 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const char *who,
         level_free(&L);
         return rc;
     }
-    if (metricf(o, L.mesh->nf, "lod%d.faces", k) || metricf(o, L.seams.nseams, "lod%d.seam_edges", k) ||
-        metricf(o, L.closed ? 1 : 0, "lod%d.closed", k)) {
+    if (metricf(o, L.mesh->nf, "%s.faces", k->metric) || metricf(o, L.seams.nseams, "%s.seam_edges", k->metric) ||
+        metricf(o, L.closed ? 1 : 0, "%s.closed", k->metric)) {
         level_free(&L);
         return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    rc = texture_seam_metrics(o, atlas, k, err);
+    if (rc != SC_OK) {
+        level_free(&L);
+        return rc;
     }
     pass passes[MAX_PASSES];
     int npasses = 0;
@@ -1421,7 +1475,7 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const char *who,
     for (int m = 0; m < MODE_TESSELLATED && rc == SC_OK; m++) {
         if (!want[m]) continue;
         if (!level_has(&L, pos_of_mode[m])) {
-            rc = metricf(o, 1, "lod%d.%s.skipped", k, mode_names[m]);
+            rc = metricf(o, 1, "%s.%s.skipped", k->metric, mode_names[m]);
             o->skipped++;
             continue;
         }
@@ -1433,12 +1487,12 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const char *who,
     int tess_pos = level_has(&L, POS_GEOMETRY) ? POS_GEOMETRY : level_has(&L, POS_DISPLACED) ? POS_DISPLACED : -1;
     if (rc == SC_OK && want[MODE_TESSELLATED]) {
         if (tess_pos < 0 || nlevels == 0) {
-            rc = metricf(o, 1, "lod%d.tessellated.skipped", k);
+            rc = metricf(o, 1, "%s.tessellated.skipped", k->metric);
             o->skipped++;
         } else {
             rc = check_position_texture(&L, who, tess_pos, err);
             if (rc == SC_OK)
-                rc = metricf(o, tess_pos == POS_GEOMETRY ? 1 : 2, "lod%d.tessellated.source", k);
+                rc = metricf(o, tess_pos == POS_GEOMETRY ? 1 : 2, "%s.tessellated.source", k->metric);
             for (int i = 0; i < nlevels && rc == SC_OK; i++) {
                 pass *p = &passes[npasses++];
                 *p = (pass){MODE_TESSELLATED, tess_pos, levels[i], ""};
@@ -1464,14 +1518,14 @@ static int run_level(renderer *R, const sc_atlas *atlas, int k, const char *who,
         }
     }
     if (rc == SC_OK && tess_pos >= 0 && want[MODE_TESSELLATED] && nlevels > 0) {
-        if (metricf(o, tess_cracks, "lod%d.tessellated.crack_pixels", k) ||
-            metricf(o, tess_gap, "lod%d.tessellated.max_seam_gap", k) ||
-            metricf(o, tess_vgap, "lod%d.tessellated.max_vertex_gap", k))
+        if (metricf(o, tess_cracks, "%s.tessellated.crack_pixels", k->metric) ||
+            metricf(o, tess_gap, "%s.tessellated.max_seam_gap", k->metric) ||
+            metricf(o, tess_vgap, "%s.tessellated.max_vertex_gap", k->metric))
             rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
     if (rc == SC_OK && npasses > 0) {
-        char path[64];
-        snprintf(path, sizeof path, "render/lod%d_sheet.png", k);
+        char path[200];
+        snprintf(path, sizeof path, "%s/%s_sheet.png", o->folder, k->file);
         rc = add_png(o, R, path, sh.rgba, sh.width, sh.height, true, err);
     }
     for (int32_t g = 0; g < L.ngroups && rc == SC_OK; g++) rc = uv_picture(R, &L, k, L.groups[g].material, o, err);
@@ -1510,6 +1564,25 @@ static double max_displacement(const sc_lods *lods, const sc_atlas *single) {
     return best;
 }
 
+/* Entry b is the next mip level of entry a (the mipmap node's `levels`
+ * output lists every LOD's mip chain in order): the same mesh, textures of
+ * the same slots, each half the size (rounded down, at least 1) or, where its
+ * chain has ended, the same size, and at least one of them halved. */
+static bool is_mip_of(const sc_atlas *b, const sc_atlas *a) {
+    if (!sc_digest_equal(&a->mesh->digest, &b->mesh->digest) || a->ntex != b->ntex || a->ntex == 0) return false;
+    bool halved = false;
+    for (int32_t t = 0; t < a->ntex; t++) {
+        const sc_image_data *ia = a->textures[t].image->as.image, *ib = b->textures[t].image->as.image;
+        int32_t w = ia->width / 2 > 0 ? ia->width / 2 : 1, h = ia->height / 2 > 0 ? ia->height / 2 : 1;
+        if (strcmp(a->textures[t].name, b->textures[t].name) != 0) return false;
+        bool half = ib->width == w && ib->height == h && (ia->width > 1 || ia->height > 1);
+        bool same = ib->width == ia->width && ib->height == ia->height;
+        if (!half && !same) return false;
+        halved |= half;
+    }
+    return halved;
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     double t_start = sc_now();
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
@@ -1532,6 +1605,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     J.seam_points = (int)sc_ctx_integer(ctx, "seam_points");
     J.max_cracks = sc_ctx_number(ctx, "max_crack_pixels");
     J.max_gap = sc_ctx_number(ctx, "max_seam_gap");
+    const char *folder = sc_ctx_string(ctx, "folder");
+    size_t folder_len = strlen(folder);
+    if (folder_len == 0 || folder_len > 64 || folder[0] == '/' || strstr(folder, "..") ||
+        strspn(folder, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-/") != folder_len)
+        return sc_fail(err, SC_EINPUT, "folder: '%s' is not a relative folder name of at most 64 letters, digits, "
+                       "'_', '-' and '/'", folder);
 
     /* one framing for every level and the reference */
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
@@ -1552,7 +1631,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     encoder enc;
     encoder_start(&enc, sc_ctx_threads(ctx));
-    outcome o = {.ctx = ctx, .report = sc_report_new(), .enc = &enc};
+    outcome o = {.ctx = ctx, .report = sc_report_new(), .enc = &enc, .folder = sc_ctx_string(ctx, "folder")};
     renderer R = {0};
     R.size = J.size;
     if (!o.report) rc = sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1567,11 +1646,26 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
     if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);
+    int lod = -1, mip = 0;
     for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
+        const sc_atlas *a = lods ? lods->levels[k]->as.atlas : single;
+        if (k > 0 && is_mip_of(a, lods->levels[k - 1]->as.atlas)) mip++;
+        else lod++, mip = 0;
+        bool has_mips = mip > 0 || (k + 1 < nlevels && is_mip_of(lods->levels[k + 1]->as.atlas, a));
+        level_label label;
+        if (has_mips) {
+            snprintf(label.metric, sizeof label.metric, "lod%d.mip%d", lod, mip);
+            snprintf(label.file, sizeof label.file, "lod%d_mip%d", lod, mip);
+            snprintf(label.human, sizeof label.human, "lod %d, mip %d", lod, mip);
+        } else {
+            snprintf(label.metric, sizeof label.metric, "lod%d", lod);
+            snprintf(label.file, sizeof label.file, "lod%d", lod);
+            snprintf(label.human, sizeof label.human, "lod %d", lod);
+        }
         char who[48];
         if (lods) snprintf(who, sizeof who, "lods: level %d", k);
         else snprintf(who, sizeof who, "atlas");
-        rc = run_level(&R, lods ? lods->levels[k]->as.atlas : single, k, who, want, levels, ntess, &J, &o, err);
+        rc = run_level(&R, a, &label, who, want, levels, ntess, &J, &o, err);
     }
     if (rc == SC_OK &&
         (metric(&o, "levels", nlevels) || metric(&o, "views", J.nviews) || metric(&o, "size", J.size) ||
@@ -1618,6 +1712,8 @@ static const sc_param_desc params[] = {
      .doc = "points per seam half-edge in the GPU seam-gap check (untessellated modes)"},
     {.name = "tess_levels", .type = SC_PARAM_NUMBERS, .def_string = "1,2,4,8", .min = 1, .max = 64,
      .doc = "uniform tessellation levels of the tessellated mode"},
+    {.name = "folder", .type = SC_PARAM_STRING, .def_string = "render",
+     .doc = "folder of the report's pictures under --out (two render nodes in one graph need two)"},
     {.name = "max_crack_pixels", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
      .doc = "fail when a LOD and mode shows more crack pixels (summed over views); -1: no limit"},
     {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,

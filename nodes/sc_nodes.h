@@ -12,5 +12,8 @@ extern const sc_node_desc sc_node_erase_seams;   /* nodes/erase_seams.c */
 extern const sc_node_desc sc_node_decimate;      /* nodes/decimate.c */
 extern const sc_node_desc sc_node_share_textures; /* nodes/share_textures.c */
 extern const sc_node_desc sc_node_render;        /* nodes/render.c */
+extern const sc_node_desc sc_node_bake_displacement; /* nodes/bake_displacement.c */
+extern const sc_node_desc sc_node_mipmap;        /* nodes/mipmap.c */
+extern const sc_node_desc sc_node_straighten;    /* nodes/straighten.c */
 
 #endif

@@ -66,11 +66,16 @@ static int check_metric(const sc_run *r, const sc_expect *x, FILE *log) {
     bool found;
     double v = metric_of(result_of(r, x->node), x->metric, &found);
     if (found && compare(v, x->op, x->value, x->tolerance)) return 0;
-    if (!found)
+    if (!found) {
         fprintf(log, "%s:%d: expectation failed: %s has no metric '%s'\n", x->file, x->line, x->node, x->metric);
-    else
-        fprintf(log, "%s:%d: expectation failed: %s.%s = %.17g, expected %s %.17g%s\n", x->file, x->line,
-                x->node, x->metric, v, x->op, x->value, !strcmp(x->op, "~") ? " within the tolerance" : "");
+    } else {
+        char got[32], want[32], tol[32];
+        sc_format_double(v, got);
+        sc_format_double(x->value, want);
+        sc_format_double(x->tolerance, tol);
+        fprintf(log, "%s:%d: expectation failed: %s.%s = %s, expected %s %s%s%s\n", x->file, x->line, x->node,
+                x->metric, got, x->op, want, !strcmp(x->op, "~") ? " within " : "", !strcmp(x->op, "~") ? tol : "");
+    }
     return 1;
 }
 

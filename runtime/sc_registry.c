@@ -7,13 +7,16 @@
 #include "sc_nodes.h"
 
 static const sc_node_desc *const registry[] = {
+    &sc_node_bake_displacement,
     &sc_node_decimate,
     &sc_node_erase_seams,
     &sc_node_load_atlas,
+    &sc_node_mipmap,
     &sc_node_procedural,
     &sc_node_render,
     &sc_node_save,
     &sc_node_share_textures,
+    &sc_node_straighten,
     NULL,
 };
 

@@ -50,6 +50,12 @@ typedef struct sc_hausdorff_result {
 int sc_hausdorff(const sc_hausdorff_mesh *a, const sc_hausdorff_mesh *b, int64_t samples, int threads,
                  sc_hausdorff_result *out, sc_error *err);
 
+/* The same, with a BVH of mesh a built beforehand (sc_hausdorff_bvh_build(a);
+ * NULL: built here), so that several meshes can be measured against a
+ * without rebuilding it. */
+int sc_hausdorff_with_bvh(const sc_hausdorff_mesh *a, const sc_hausdorff_bvh *a_bvh, const sc_hausdorff_mesh *b,
+                          int64_t samples, int threads, sc_hausdorff_result *out, sc_error *err);
+
 /* Diagonal of the bounding box of the vertices faces use (0 when none). */
 double sc_hausdorff_bbox_diagonal(const sc_hausdorff_mesh *m);
 

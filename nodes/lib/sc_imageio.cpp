@@ -249,6 +249,146 @@ int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
     return write_with_oiio("exr", spec, px.data(), out, err);
 }
 
+/* Float samples of one level, top-down, as encode_exr writes them. */
+std::vector<float> exr_pixels(const sc_image_data *im) {
+    const size_t w = (size_t)im->width, h = (size_t)im->height, c = (size_t)im->channels;
+    std::vector<float> px(sample_count(im));
+    const bool linearise = im->colorspace == SC_COLOR_SRGB;
+    for (size_t y = 0; y < h; y++) {
+        const size_t src_row = (h - 1 - y) * w * c;
+        for (size_t k = 0; k < w * c; k++) {
+            float f;
+            if (im->pixel == SC_PIXEL_U8) f = ((const uint8_t *)im->pixels)[src_row + k] * (1.0f / 255.0f);
+            else if (im->pixel == SC_PIXEL_U16) f = ((const uint16_t *)im->pixels)[src_row + k] * (1.0f / 65535.0f);
+            else f = ((const float *)im->pixels)[src_row + k];
+            size_t ch = k % c;
+            bool alpha = (c == 2 && ch == 1) || (c == 4 && ch == 3);
+            if (linearise && !alpha) f = srgb_to_linear(f);
+            px[y * w * c + k] = f;
+        }
+    }
+    return px;
+}
+
+ImageSpec exr_spec(const sc_image_data *im) {
+    const size_t c = (size_t)im->channels;
+    ImageSpec spec(im->width, im->height, im->channels, TypeDesc::FLOAT);
+    static const char *const names[4][4] = {
+        {"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
+    spec.channelnames.clear();
+    for (size_t k = 0; k < c; k++) spec.channelnames.push_back(names[c - 1][k]);
+    spec.alpha_channel = (c == 2 || c == 4) ? (int)c - 1 : -1;
+    spec.attribute("compression", "zip");
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    spec.attribute("DateTime", "");   /* else the writer stamps the time (capDate) */
+    return spec;
+}
+
+/* A tiled, mip-mapped EXR: level k is levels[k], each side floor(previous / 2)
+ * (OpenEXR's ROUND_DOWN), down to 1 x 1 or to the last level given. */
+int encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err) {
+    if (nlevels < 1 || !levels) return sc_fail(err, SC_EINPUT, "mip-mapped EXR: no levels");
+    for (int k = 0; k < nlevels; k++) {
+        if (!check_image(levels[k], "mip-mapped EXR", err)) return err ? err->code : SC_EINPUT;
+        if (levels[k]->channels != levels[0]->channels)
+            return sc_fail(err, SC_EINPUT, "mip-mapped EXR: level %d has %d channels, level 0 has %d", k,
+                           levels[k]->channels, levels[0]->channels);
+        if (k > 0) {
+            int32_t ew = levels[k - 1]->width / 2, eh = levels[k - 1]->height / 2;
+            if (ew < 1) ew = 1;
+            if (eh < 1) eh = 1;
+            if (levels[k]->width != ew || levels[k]->height != eh)
+                return sc_fail(err, SC_EINPUT, "mip-mapped EXR: level %d is %dx%d, expected %dx%d", k,
+                               levels[k]->width, levels[k]->height, ew, eh);
+        }
+    }
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput proxy(bytes);
+    auto writer = ImageOutput::create("memory.exr", &proxy);
+    if (!writer) return sc_fail(err, SC_EIO, "exr writer: %s", global_error().c_str());
+    if (!writer->supports("mipmap") || !writer->supports("tiles"))
+        return sc_fail(err, SC_EIO, "the EXR writer cannot write tiled mip-maps");
+    bool ok = true;
+    for (int k = 0; k < nlevels && ok; k++) {
+        ImageSpec spec = exr_spec(levels[k]);
+        spec.attribute("compression", "zip:1");   /* fastest deflate: a float map barely packs tighter at 6 */
+        spec.tile_width = spec.tile_height = 64;
+        spec.tile_depth = 1;
+        spec.attribute("textureformat", "Plain Texture");   /* what makes OIIO write MIP levels */
+        spec.attribute("openexr:levelmode", 1);   /* MIPMAP_LEVELS */
+        spec.attribute("openexr:roundingmode", 0); /* ROUND_DOWN */
+        std::vector<float> px = exr_pixels(levels[k]);
+        ok = (k == 0 ? writer->open("memory.exr", spec) : writer->open("memory.exr", spec, ImageOutput::AppendMIPLevel)) &&
+             writer->write_image(TypeDesc::FLOAT, px.data());
+    }
+    if (!ok || !writer->close()) {
+        std::string e = tidy(writer->geterror());
+        global_error();
+        return sc_fail(err, SC_EIO, "cannot encode a mip-mapped exr: %s", e.c_str());
+    }
+    writer.reset();
+    sc_buf_append(out, bytes.data(), bytes.size());
+    if (out->failed) return sc_fail(err, SC_ENOMEM, "out of memory for the encoded exr");
+    return SC_OK;
+}
+
+/* Every mip level of an EXR (or of any OIIO-readable file), as f32 images. */
+int decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***out, int *nout,
+                  sc_error *err) {
+    const char *format = sc_imageio_sniff(bytes, size);
+    if (!format || std::strcmp(format, "exr") != 0) return sc_fail(err, SC_EINPUT, "%s: not an OpenEXR file", name);
+    OIIO::Filesystem::IOMemReader proxy(bytes, size);
+    auto in = ImageInput::create(format, false, nullptr, &proxy);
+    if (!in) return sc_fail(err, SC_EIO, "%s: no exr reader: %s", name, global_error().c_str());
+    ImageSpec config, spec;
+    void *proxy_ptr = &proxy;
+    config.attribute("oiio:ioproxy", TypeDesc::PTR, &proxy_ptr);
+    if (!in->open("memory.exr", spec, config)) {
+        std::string e = tidy(in->geterror());
+        global_error();
+        return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated exr: %s", name, e.c_str());
+    }
+    std::vector<sc_image_data *> levels;
+    for (int k = 0; k < 32 && in->seek_subimage(0, k); k++) {
+        ImageSpec s = in->spec();
+        const int64_t w = s.width, h = s.height, c = s.nchannels;
+        if (w < 1 || h < 1 || w > SC_IMAGE_MAX_SIDE || h > SC_IMAGE_MAX_SIDE ||
+            (uint64_t)w * (uint64_t)h > SC_IMAGE_MAX_PIXELS || c < 1 || c > 4) {
+            for (sc_image_data *im : levels) sc_image_free(im);
+            return sc_fail(err, SC_EINPUT, "%s: level %d: %lldx%lldx%lld is not supported", name, k,
+                           (long long)w, (long long)h, (long long)c);
+        }
+        sc_image_data *im = sc_image_alloc((int32_t)w, (int32_t)h, (int32_t)c, SC_PIXEL_F32);
+        if (!im) {
+            for (sc_image_data *l : levels) sc_image_free(l);
+            return sc_fail(err, SC_ENOMEM, "%s: out of memory", name);
+        }
+        const OIIO::stride_t row = (OIIO::stride_t)(w * c * 4);
+        char *last_row = (char *)im->pixels + (size_t)(h - 1) * (size_t)row;
+        if (!in->read_image(0, k, 0, (int)c, TypeDesc::FLOAT, last_row, OIIO::AutoStride, -row)) {
+            std::string e = tidy(in->geterror());
+            global_error();
+            sc_image_free(im);
+            for (sc_image_data *l : levels) sc_image_free(l);
+            return sc_fail(err, SC_EINPUT, "%s: level %d: %s", name, k, e.c_str());
+        }
+        im->colorspace = SC_COLOR_LINEAR;
+        snprintf(im->format, sizeof im->format, "exr");
+        levels.push_back(im);
+    }
+    in->close();
+    global_error();
+    sc_image_data **arr = (sc_image_data **)calloc(levels.size() + 1, sizeof *arr);
+    if (!arr) {
+        for (sc_image_data *l : levels) sc_image_free(l);
+        return sc_fail(err, SC_ENOMEM, "%s: out of memory", name);
+    }
+    for (size_t k = 0; k < levels.size(); k++) arr[k] = levels[k];
+    *out = arr;
+    *nout = (int)levels.size();
+    return SC_OK;
+}
+
 }  // namespace
 
 static int module_decode(const char *name, const void *bytes, size_t size, sc_image_data **out,
@@ -299,9 +439,35 @@ static int module_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err
     }
 }
 
+static int module_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err) {
+    try {
+        return encode_exr_mip(levels, nlevels, out, err);
+    } catch (const std::bad_alloc &) {
+        return sc_fail(err, SC_ENOMEM, "EXR: out of memory");
+    } catch (const std::exception &e) {
+        return sc_fail(err, SC_EIO, "EXR: %s", e.what());
+    } catch (...) {
+        return sc_fail(err, SC_EIO, "EXR: cannot encode (unknown exception)");
+    }
+}
+
+static int module_decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***out,
+                                int *nout, sc_error *err) {
+    *out = NULL;
+    *nout = 0;
+    try {
+        return decode_levels(name, bytes, size, out, nout, err);
+    } catch (const std::exception &e) {
+        return sc_fail(err, SC_EINPUT, "%s: cannot decode: %s", name, e.what());
+    } catch (...) {
+        return sc_fail(err, SC_EINPUT, "%s: cannot decode (unknown exception)", name);
+    }
+}
+
 /* The module's one exported symbol: the table sc_imageio.c loads on first use. */
 static const sc_imageio_codecs codecs = {
     SC_IMAGEIO_ABI, module_decode, module_encode_png, module_encode_jpeg, module_encode_exr,
+    module_encode_exr_mip, module_decode_levels,
 };
 
 extern "C" __attribute__((visibility("default"))) const sc_imageio_codecs *sc_imageio_codecs_get(void) {

@@ -47,6 +47,19 @@ int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error
 int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err);
 int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err);
 
+/* A tiled (64 x 64), mip-mapped OpenEXR holding every level in one file,
+ * float32, zip at level 1 (fast; a float map packs barely tighter at the
+ * default level), channels named as in sc_image_encode_exr. Level k + 1 must be
+ * max(1, floor(level k / 2)) on each side (OpenEXR's round-down rule); the
+ * chain may stop before 1 x 1. */
+int sc_image_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err);
+
+/* Every mip level of an OpenEXR file (one level for a flat file), as f32
+ * images, rows bottom-up. *levels is a malloc'd array of *nlevels images:
+ * free each with sc_image_free, then the array with free(). */
+int sc_image_decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***levels,
+                           int *nlevels, sc_error *err);
+
 /* The format the first bytes of a file announce ("png", "jpg", "tif", "exr",
  * "hdr", "bmp"), or NULL when none. */
 const char *sc_image_sniff(const void *bytes, size_t size);

@@ -22,6 +22,22 @@ for k = 0, 2 do
 end
 expect(check, "crack_pixels", "==", 0)
 
+-- Geometry from maps: the geometry image and each level's displacement map,
+-- in every mode, tessellated too; no crack pixel, no seam gap over 1e-6.
+local baked = bake_displacement{ name = "bake", atlas = erased.atlas_native, lods = chain, size = 256 }
+local maps = render{ name = "maps", lods = baked.lods, reference = erased.atlas_native, folder = "maps",
+                     size = 128, views = 6, modes = "geometry_image,displaced,tessellated" }
+for k = 0, 2 do
+  for _, mode in ipairs({ "geometry_image", "displaced", "tessellated" }) do
+    expect(maps, "lod" .. k .. "." .. mode .. ".crack_pixels", "==", 0)
+    expect(maps, "lod" .. k .. "." .. mode .. ".max_seam_gap", "<=", 1e-6)
+  end
+  expect(maps, "lod" .. k .. ".seam_energy.geometry_image", "<", 1e-8)
+  expect(maps, "lod" .. k .. ".seam_energy.displacement", "<", 1e-8)
+  expect(baked, "lod" .. k .. ".reconstruction_error", "<", 1e-2)
+end
+expect_image(maps, "maps/lod2_sheet.png", { threshold = 3, max_share = 0.002 })
+
 -- what it looks like, and every decimation metric, against goldens
 expect_image(check, "render/lod1_textured_posx.png", { threshold = 3, max_share = 0.002 })
 expect_metrics(lods, { tolerance = 1e-6 })

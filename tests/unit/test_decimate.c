@@ -761,6 +761,49 @@ SC_TEST(area_distortion_weights) {
     sc_value_release(atlas);
 }
 
+SC_TEST(hausdorff_with_a_prebuilt_bvh_is_the_same) {
+    /* the node measures every level against one BVH of its input, and
+     * seeds each query with the previous sample's face: the distances must
+     * be those of a fresh, unseeded measurement, checked here against a
+     * brute-force closest point for the vertices */
+    sc_value *atlas = procedural(8, 32, 0.0);
+    if (!atlas) return;
+    const sc_mesh *in = atlas->as.atlas->mesh->as.mesh;
+    node_run r = decimate(atlas, "0.2", "aware", NULL, NULL);
+    if (r.rc == SC_OK) {
+        const sc_mesh *m = level_mesh(r.out, 0);
+        sc_hausdorff_mesh ma = {in->V, in->nv, in->FV, in->nf}, mb = {m->V, m->nv, m->FV, m->nf};
+        sc_hausdorff_bvh *bvh = sc_hausdorff_bvh_build(&ma);
+        sc_hausdorff_result fresh, pre;
+        sc_error err;
+        SC_CHECK(bvh != NULL);
+        SC_CHECK(sc_hausdorff(&ma, &mb, 5000, 1, &fresh, &err) == SC_OK);
+        SC_CHECK(sc_hausdorff_with_bvh(&ma, bvh, &mb, 5000, 2, &pre, &err) == SC_OK);
+        SC_CHECK(fresh.distance == pre.distance && fresh.mean_a_to_b == pre.mean_a_to_b &&
+                 fresh.mean_b_to_a == pre.mean_b_to_a);
+        /* vertices of the level against the input, brute force */
+        double worst = 0;
+        for (int v = 0; v < m->nv; v++) {
+            double best = INFINITY;
+            for (int f = 0; f < in->nf; f++) {
+                double q[3];
+                const double *p = m->V + 3 * v;
+                sc_hausdorff_closest_on_triangle(p, in->V + 3 * in->FV[3 * f], in->V + 3 * in->FV[3 * f + 1],
+                                                 in->V + 3 * in->FV[3 * f + 2], q);
+                best = fmin(best, (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+                                      (q[2] - p[2]) * (q[2] - p[2]));
+            }
+            double d = sc_hausdorff_bvh_closest(bvh, m->V + 3 * v, NULL, NULL);
+            SC_CHECK_MSG(d == best, "vertex %d: bvh %g, brute force %g", v, d, best);
+            worst = fmax(worst, sqrt(best));
+        }
+        SC_CHECK(worst <= pre.b_to_a);
+        sc_hausdorff_bvh_free(bvh);
+    }
+    run_free(&r);
+    sc_value_release(atlas);
+}
+
 SC_TEST(parameters_are_checked) {
     sc_value *atlas = procedural(4, 32, 0.0);
     if (!atlas) return;

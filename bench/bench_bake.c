@@ -1,0 +1,124 @@
+/* bench_bake.c - bake_displacement and mipmap on the corpus.
+ *
+ *   bench_bake [-j N] [ASSET...]
+ *
+ * For blub (2048^2) and pizza (4096^2) from ../shared/corpus (or $SC_CORPUS):
+ * load, decimate to three levels (0.5, 0.1, 0.01; not timed), then time
+ * bake_displacement (one geometry image + one displacement map per level,
+ * all erased) and mipmap on its levels (every chain, every level erased),
+ * and print the reconstruction errors and the worst seam energy.
+ * Target (issue 6): <= 5 s for blub's 2048^2 geometry image + 3
+ * displacement maps + their mip chains.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_base.h"
+#include "sc_exec.h"
+#include "sc_nodes.h"
+
+extern const sc_node_desc sc_node_bake_displacement;
+extern const sc_node_desc sc_node_mipmap;
+
+typedef struct asset {
+    const char *name, *model, *texture, *size;
+} asset;
+
+static const asset assets[] = {
+    {"blub", "blub/blub.obj", "blub/blub_texture.png", "2048"},
+    {"pizza", "pizza/pizza.obj", "pizza/pizza_gloss_map.jpg", "4096"},
+};
+
+static sc_ctx *run(const sc_node_desc *d, const char *const *params, const char *p0, sc_value *v0, const char *p1,
+                   sc_value *v1, int threads, double *seconds) {
+    sc_ctx *ctx = sc_ctx_new(d, NULL, NULL);
+    sc_error err;
+    for (int i = 0; params && params[i]; i += 2)
+        if (sc_ctx_set_param(ctx, params[i], params[i + 1], &err) != SC_OK) fprintf(stderr, "%s\n", err.message);
+    if (p0 && v0) sc_ctx_set_input(ctx, p0, v0);
+    if (p1 && v1) sc_ctx_set_input(ctx, p1, v1);
+    sc_ctx_set_threads(ctx, threads);
+    double t0 = sc_now();
+    int rc = sc_ctx_run(ctx, &err);
+    if (seconds) *seconds = sc_now() - t0;
+    if (rc != SC_OK) {
+        fprintf(stderr, "%s: %s\n", d->type, err.message);
+        sc_ctx_free(ctx);
+        return NULL;
+    }
+    return ctx;
+}
+
+int main(int argc, char **argv) {
+    int threads = 2;
+    const char *only[8];
+    int nonly = 0;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "-j") == 0 && i + 1 < argc) threads = atoi(argv[++i]);
+        else if (nonly < 8) only[nonly++] = argv[i];
+    }
+    const char *corpus = getenv("SC_CORPUS");
+    char def[4096];
+    if (!corpus) {
+        snprintf(def, sizeof def, "%s/../shared/corpus", SC_SOURCE_DIR);
+        corpus = def;
+    }
+    printf("%-6s %6s %8s %9s %9s %8s %12s %12s\n", "asset", "size", "faces", "bake_s", "mipmap_s", "total_s",
+           "recon_max", "mip_energy");
+    for (size_t a = 0; a < sizeof assets / sizeof assets[0]; a++) {
+        const asset *as = &assets[a];
+        bool want = nonly == 0;
+        for (int i = 0; i < nonly; i++) want |= strcmp(only[i], as->name) == 0;
+        if (!want) continue;
+        char model[8400], tex[8400];
+        snprintf(model, sizeof model, "%s/%s", corpus, as->model);
+        snprintf(tex, sizeof tex, "%s/%s", corpus, as->texture);
+        const char *lp[] = {"path", model, "texture", tex, NULL};
+        sc_ctx *load = run(&sc_node_load_atlas, lp, NULL, NULL, NULL, NULL, threads, NULL);
+        if (!load) {
+            printf("%-6s skipped (corpus absent)\n", as->name);
+            continue;
+        }
+        sc_value *atlas = sc_ctx_output(load, 0);
+        const char *dp[] = {"ratio", "0.5,0.1,0.01", "hausdorff_samples", "0", NULL};
+        sc_ctx *dec = run(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL, threads, NULL);
+        double t_bake = 0, t_mip = 0;
+        const char *bp[] = {"size", as->size, NULL};
+        sc_ctx *bake = dec ? run(&sc_node_bake_displacement, bp, "atlas", atlas, "lods", sc_ctx_output(dec, 0), threads, &t_bake) : NULL;
+        sc_ctx *mip = NULL;
+        if (bake) {
+            /* the maps only: the levels' colour chains are not part of the target */
+            mip = run(&sc_node_mipmap, NULL, "lods", sc_ctx_output(bake, 1), NULL, NULL, threads, &t_mip);
+        }
+        if (bake && mip)
+            printf("%-6s %6s %8d %9.2f %9.2f %8.2f %12.3g %12.3g\n", as->name, as->size, atlas->as.atlas->mesh->as.mesh->nf,
+                   t_bake, t_mip, t_bake + t_mip, sc_ctx_metric_value(bake, "reconstruction_error"),
+                   sc_ctx_metric_value(mip, "seam_energy"));
+        if (bake)
+            printf("       bake: geometry image error %.3g, texels %.0f covered %.0f shared; raster %.2f s, fit %.2f s "
+                   "(sampling %.2f s, solve %.2f s, %.0f iterations), erase %.2f s, metrics %.2f s\n",
+                   sc_ctx_metric_value(bake, "geometry_image_error"), sc_ctx_metric_value(bake, "texels_covered"),
+                   sc_ctx_metric_value(bake, "texels_shared"), sc_ctx_metric_value(bake, "seconds_raster"),
+                   sc_ctx_metric_value(bake, "seconds_fit"), sc_ctx_metric_value(bake, "seconds_fit_sample"),
+                   sc_ctx_metric_value(bake, "seconds_fit_solve"), sc_ctx_metric_value(bake, "fit_iterations"),
+                   sc_ctx_metric_value(bake, "seconds_erase"), sc_ctx_metric_value(bake, "seconds_metrics"));
+        for (int k = 0; bake && k < 3; k++) {
+            char n1[64], n2[64], n3[64];
+            snprintf(n1, sizeof n1, "lod%d.reconstruction_error", k);
+            snprintf(n2, sizeof n2, "lod%d.reconstruction_error_rms", k);
+            snprintf(n3, sizeof n3, "lod%d.samples_missed", k);
+            printf("       lod %d: reconstruction max %.3g rms %.3g (%.0f samples outside the level)\n", k,
+                   sc_ctx_metric_value(bake, n1), sc_ctx_metric_value(bake, n2), sc_ctx_metric_value(bake, n3));
+        }
+        if (mip)
+            printf("       mipmap: erase %.2f s, metrics %.2f s, files %.2f s\n", sc_ctx_metric_value(mip, "seconds_erase"),
+                   sc_ctx_metric_value(mip, "seconds_metrics"), sc_ctx_metric_value(mip, "seconds_files"));
+        if (mip) sc_ctx_free(mip);
+        if (bake) sc_ctx_free(bake);
+        if (dec) sc_ctx_free(dec);
+        sc_ctx_free(load);
+    }
+    return 0;
+}

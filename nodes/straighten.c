@@ -1,0 +1,1149 @@
+/* straighten.c - the node `straighten`: seam straightening (Liu, Ferguson,
+ * Jacobson, Gingold 2017, §6), so that seam-aware decimation (§5) can
+ * collapse seam edges.
+ *
+ * Design note.
+ *
+ * Topology. Surface edges are found by sorting the 3 nf half-edges by their
+ * (min, max) surface vertices: one half-edge is a surface boundary, two that
+ * use different uv indices at an endpoint a seam (design.md), three or more
+ * a non-manifold edge. A uv index used by corners of several surface
+ * vertices has no single surface correspondence.
+ *
+ * Protected vertices (§6, rules 1-4). A surface vertex is protected when
+ *   (1) it has a number of seam edges other than 0 or 2;
+ *   (2) it has seam edges and surface boundary edges;
+ *   (3) one of its corners lies on an "ear": a face with two or more seam or
+ *       boundary half-edges;
+ * and, beyond the paper, when it has a boundary valence other than 0 or 2,
+ * a non-manifold edge, a uv index shared with another surface vertex, or
+ * when the two halves of its seam do not continue through it cleanly (both
+ * sides use the same uv index, or the uv indices of the two seam edges do
+ * not pair up). Protection is kept per surface vertex, so a uv vertex is
+ * protected exactly when its surface vertex is: rule (4), propagation across
+ * the correspondence, holds by construction.
+ *
+ * Components. Seam and boundary edges joined at unprotected vertices form
+ * chains between protected vertices, or closed loops with none. A seam chain
+ * is walked once on the surface, which pairs each half-edge with its copy:
+ * side A starts with the first half-edge of the first edge and continues
+ * through the uv index it reaches; side B is the copy.
+ *
+ * Straightening. Each chain is a polyline: 2D (its uv) for a boundary, 4D
+ * (side A's uv then side B's, vertex by vertex) for a seam. Ramer-Douglas-
+ * Peucker (distance to the segment, ties to the first vertex) keeps the
+ * vertices farther than `tolerance` times the diagonal of the polyline's
+ * bounding box, the scale the authors' implementation (libigl
+ * straighten_seams) gives the tolerance. A closed polyline (a loop, or a
+ * chain returning to the uv point it started from on either side) keeps at
+ * least three edges, adding the farthest vertex while it has fewer. Every
+ * removed vertex moves to t = (arc length from the previous kept vertex) /
+ * (arc length between the kept vertices), measured along the original
+ * polyline (in 4D for seams), on the segment between the kept vertices;
+ * both sides of a seam use the same t, so their length ratios agree to
+ * rounding.
+ *
+ * Interior warp. Every uv vertex on a boundary of the parameter mesh (both
+ * sides of seams, surface borders, non-manifold uv edges) stays where it is
+ * unless straightening moved it. The interior vertices of the parameter-mesh
+ * components that contain a moved vertex follow in `steps` equal steps of
+ * the boundary along straight paths: each step solves the harmonic
+ * displacement K_II d_I = -K_IB d_B with cotangent weights of the current
+ * uv mesh (CHOLMOD through sc_sparse), so the composite map bends with the
+ * mesh as it deforms (§6, after Schneider et al. 2013). Interior vertices of
+ * other components keep their exact coordinates. Degenerate uv faces (twice
+ * the area at most 1e-12 of the longest edge squared) have no usable
+ * cotangents; instead of the paper's constrained Delaunay ambient mesh they
+ * take the cotangents of their 3D triangle (equilateral when that is
+ * degenerate too), and every edge gets a floor weight of 1e-9 so the system
+ * stays definite; degenerate_uv_faces counts them. A face is flipped when
+ * its signed uv area changes sign (or vanishes) against the input, degenerate
+ * input faces excluded; when a run flips faces, it is repeated with four
+ * times the steps (twice at most) and the run with the fewest flips is kept.
+ *
+ * Signals. Every texture of a material with a moved face is re-rendered on
+ * the CPU in f32 (same size, channels, colour space): each face of the
+ * material claims the texel centres (design.md: texel (i, j) at
+ * ((i + 1/2)/W, (j + 1/2)/H), row 0 = v = 0) within `padding` texels of its
+ * new uv triangle, nearest face first (distance 0 inside; ties to the lower
+ * face), so the padding the bilinear stencil reads around charts is filled
+ * too. A texel of a moved face takes its barycentric coordinates in the new
+ * triangle (extended beyond it in the padding), maps them to the old uv and
+ * samples the old texture there bilinearly with its wrap mode (sc_seam); a
+ * texel of an unmoved face or of no face keeps its value. With `erase` (the
+ * default) the erase_seams node then runs on the new atlas (sc_exec), as the
+ * resampling leaves the two sides of each seam slightly different.
+ *
+ * Output. The input's surface mesh, faces, normals and materials unchanged,
+ * U moved, FU unchanged. When no uv coordinate moves (nothing to straighten,
+ * e.g. a mesh without seams whose borders are already straight within the
+ * tolerance) the input atlas itself is the output.
+ *
+ * Metrics. seam_edges; collapsible_seam_edges_before/_after: seam edges that
+ * unify (§5.1) with the neighbouring seam edge at one of their ends: the
+ * neighbour continues both halves through a vertex with exactly two seam
+ * edges, each half is collinear with its continuation (the middle point
+ * strictly between, within 1e-9 of the chord length) and the length ratios
+ * agree (|e1| |d2| = |e2| |d1| within 1e-9 relative), the census decimate
+ * makes without its storage-precision slack, computed the same way on the
+ * input and output uv; protected_vertices, seam_chains, boundary_chains
+ * (straightened), boundary_chains_kept (left by `borders`), skipped_chains
+ * (halves that do not pair up: left as they are), moved_uv_vertices,
+ * flipped_triangles, max_uv_displacement (uv units), degenerate_uv_faces,
+ * warp_steps, textures_rendered; psnr: colour at 15 barycentric points of
+ * every face of every re-rendered texture, old texture at old uv against the
+ * output texture at new uv, peak 1; seconds (report only).
+ */
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_exec.h"
+#include "sc_nodes.h"
+#include "sc_seam.h"
+#include "sc_sparse.h"
+
+#define DEGENERATE_AREA 1e-12      /* twice the area / longest edge^2 */
+#define FLOOR_WEIGHT 1e-9
+#define CENSUS_TOLERANCE 1e-9
+#define MAX_WARP_ATTEMPTS 3
+#define PSNR_GRID 4                /* barycentric grid subdivisions */
+#define ROUNDING (8 * DBL_EPSILON)   /* a move smaller than this (relative) is rounding */
+
+enum { EDGE_INTERIOR = 0, EDGE_SEAM = 1, EDGE_BOUNDARY = 2, EDGE_NONMANIFOLD = 3 };
+
+/* One surface edge: vertices a < b and its (first two) half-edges. A
+ * half-edge h = 3 f + k runs from corner k of face f to corner (k + 1) % 3. */
+typedef struct surface_edge {
+    int32_t a, b;
+    int32_t half[2];
+    int32_t kind;
+} surface_edge;
+
+typedef struct topology {
+    const sc_mesh *mesh;
+    int32_t nedges;
+    surface_edge *edges;
+    int32_t *half_edge;          /* 3 nf: the surface edge of each half-edge */
+    int32_t *seam_degree, *boundary_degree, *nonmanifold_degree;   /* per surface vertex */
+    int32_t (*incident)[2];      /* first two seam or boundary edges per surface vertex */
+    int32_t *uv_vertex;          /* surface vertex of each uv index; -1 unused, -2 several */
+    int32_t nseams;
+} topology;
+
+static void topology_free(topology *t) {
+    free(t->edges), free(t->half_edge), free(t->seam_degree), free(t->boundary_degree);
+    free(t->nonmanifold_degree), free(t->incident), free(t->uv_vertex);
+    memset(t, 0, sizeof *t);
+}
+
+static inline int32_t corner_from(int32_t h) { return h; }
+static inline int32_t corner_to(int32_t h) { return 3 * (h / 3) + (h % 3 + 1) % 3; }
+
+/* The uv index half-edge h uses at surface vertex s (one of its ends). */
+static inline int32_t uv_at(const sc_mesh *m, int32_t h, int32_t s) {
+    return m->FV[corner_from(h)] == s ? m->FU[corner_from(h)] : m->FU[corner_to(h)];
+}
+
+typedef struct edge_key {
+    int32_t lo, hi, half;
+} edge_key;
+
+static int compare_keys(const void *x, const void *y) {
+    const edge_key *p = x, *q = y;
+    if (p->lo != q->lo) return p->lo < q->lo ? -1 : 1;
+    if (p->hi != q->hi) return p->hi < q->hi ? -1 : 1;
+    return (p->half > q->half) - (p->half < q->half);
+}
+
+static int topology_build(const sc_mesh *m, topology *t, sc_error *err) {
+    memset(t, 0, sizeof *t);
+    t->mesh = m;
+    size_t nh = (size_t)m->nf * 3;
+    edge_key *keys = sc_alloc_array(nh, sizeof *keys);
+    t->edges = sc_alloc_array(nh, sizeof *t->edges);
+    t->half_edge = sc_alloc_array(nh, sizeof *t->half_edge);
+    t->seam_degree = sc_calloc_array((size_t)m->nv + 1, sizeof(int32_t));
+    t->boundary_degree = sc_calloc_array((size_t)m->nv + 1, sizeof(int32_t));
+    t->nonmanifold_degree = sc_calloc_array((size_t)m->nv + 1, sizeof(int32_t));
+    t->incident = sc_alloc_array((size_t)m->nv + 1, sizeof *t->incident);
+    t->uv_vertex = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
+    if (!keys || !t->edges || !t->half_edge || !t->seam_degree || !t->boundary_degree ||
+        !t->nonmanifold_degree || !t->incident || !t->uv_vertex) {
+        free(keys);
+        topology_free(t);
+        return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    }
+    for (int32_t h = 0; h < (int32_t)nh; h++) {
+        int32_t a = m->FV[corner_from(h)], b = m->FV[corner_to(h)];
+        keys[h] = (edge_key){a < b ? a : b, a < b ? b : a, h};
+    }
+    qsort(keys, nh, sizeof *keys, compare_keys);
+    for (int32_t v = 0; v < m->nv; v++) t->incident[v][0] = t->incident[v][1] = -1;
+    for (size_t i = 0; i < nh;) {
+        size_t j = i;
+        while (j < nh && keys[j].lo == keys[i].lo && keys[j].hi == keys[i].hi) j++;
+        surface_edge *e = &t->edges[t->nedges];
+        e->a = keys[i].lo, e->b = keys[i].hi;
+        e->half[0] = keys[i].half;
+        e->half[1] = j - i > 1 ? keys[i + 1].half : -1;
+        if (j - i == 1) e->kind = EDGE_BOUNDARY;
+        else if (j - i > 2) e->kind = EDGE_NONMANIFOLD;
+        else if (uv_at(m, e->half[0], e->a) != uv_at(m, e->half[1], e->a) ||
+                 uv_at(m, e->half[0], e->b) != uv_at(m, e->half[1], e->b))
+            e->kind = EDGE_SEAM;
+        else e->kind = EDGE_INTERIOR;
+        for (size_t k = i; k < j; k++) t->half_edge[keys[k].half] = t->nedges;
+        int32_t ends[2] = {e->a, e->b};
+        for (int k = 0; k < 2; k++) {
+            int32_t v = ends[k];
+            if (e->kind == EDGE_SEAM) t->seam_degree[v]++;
+            if (e->kind == EDGE_BOUNDARY) t->boundary_degree[v]++;
+            if (e->kind == EDGE_NONMANIFOLD) t->nonmanifold_degree[v]++;
+            if (e->kind == EDGE_SEAM || e->kind == EDGE_BOUNDARY) {
+                if (t->incident[v][0] < 0) t->incident[v][0] = t->nedges;
+                else if (t->incident[v][1] < 0) t->incident[v][1] = t->nedges;
+            }
+        }
+        if (e->kind == EDGE_SEAM) t->nseams++;
+        t->nedges++;
+        i = j;
+    }
+    free(keys);
+    for (int32_t u = 0; u < m->nu; u++) t->uv_vertex[u] = -1;
+    for (size_t c = 0; c < nh; c++) {
+        int32_t u = m->FU[c], v = m->FV[c];
+        if (t->uv_vertex[u] == -1) t->uv_vertex[u] = v;
+        else if (t->uv_vertex[u] != v) t->uv_vertex[u] = -2;
+    }
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- protection */
+
+static bool is_silhouette(const surface_edge *e) { return e->kind == EDGE_SEAM || e->kind == EDGE_BOUNDARY; }
+
+/* Fills protect[v] for every surface vertex; returns the count. */
+static int32_t protect_vertices(const topology *t, bool *protect) {
+    const sc_mesh *m = t->mesh;
+    for (int32_t v = 0; v < m->nv; v++) {
+        int32_t s = t->seam_degree[v], b = t->boundary_degree[v];
+        protect[v] = (s != 0 && s != 2)          /* rule 1 */
+                     || (s > 0 && b > 0)         /* rule 2 */
+                     || (b != 0 && b != 2) || t->nonmanifold_degree[v] > 0;
+    }
+    /* rule 3: ears */
+    for (int32_t f = 0; f < m->nf; f++) {
+        int count = 0;
+        for (int k = 0; k < 3; k++) count += is_silhouette(&t->edges[t->half_edge[3 * f + k]]);
+        if (count >= 2)
+            for (int k = 0; k < 3; k++) protect[m->FV[3 * f + k]] = true;
+    }
+    /* uv indices shared by several surface vertices */
+    for (size_t c = 0; c < (size_t)m->nf * 3; c++)
+        if (t->uv_vertex[m->FU[c]] == -2) protect[m->FV[c]] = true;
+    /* the halves must continue cleanly through an unprotected vertex */
+    for (int32_t v = 0; v < m->nv; v++) {
+        if (protect[v]) continue;
+        const surface_edge *e1 = t->incident[v][0] >= 0 ? &t->edges[t->incident[v][0]] : NULL;
+        const surface_edge *e2 = t->incident[v][1] >= 0 ? &t->edges[t->incident[v][1]] : NULL;
+        if (t->seam_degree[v] == 2) {
+            int32_t x1 = uv_at(m, e1->half[0], v), x2 = uv_at(m, e1->half[1], v);
+            int32_t y1 = uv_at(m, e2->half[0], v), y2 = uv_at(m, e2->half[1], v);
+            if (x1 == x2 || !((x1 == y1 && x2 == y2) || (x1 == y2 && x2 == y1))) protect[v] = true;
+        } else if (t->boundary_degree[v] == 2) {
+            if (uv_at(m, e1->half[0], v) != uv_at(m, e2->half[0], v)) protect[v] = true;
+        }
+    }
+    int32_t n = 0;
+    for (int32_t v = 0; v < m->nv; v++) n += protect[v];
+    return n;
+}
+
+/* ---------------------------------------------------------------- census (§5.1) */
+
+static double distance2d(const double *p, const double *q) { return hypot(q[0] - p[0], q[1] - p[1]); }
+
+static bool collinear_through(const double *p, const double *mid, const double *q) {
+    double chord[2] = {q[0] - p[0], q[1] - p[1]}, d[2] = {mid[0] - p[0], mid[1] - p[1]};
+    double len2 = chord[0] * chord[0] + chord[1] * chord[1];
+    if (!(len2 > 0)) return false;
+    double along = d[0] * chord[0] + d[1] * chord[1];
+    if (!(along > 0) || !(along < len2)) return false;
+    double len = sqrt(len2);
+    return fabs(d[0] * chord[1] - d[1] * chord[0]) / len <= CENSUS_TOLERANCE * len;
+}
+
+/* Does seam edge e unify with the seam edge continuing it through `at`? */
+static bool unifiable_at(const topology *t, const double *U, int32_t e_index, int32_t at) {
+    const sc_mesh *m = t->mesh;
+    if (t->seam_degree[at] != 2 || t->boundary_degree[at] != 0 || t->nonmanifold_degree[at] != 0) return false;
+    const surface_edge *e = &t->edges[e_index];
+    int32_t d_index = t->incident[at][0] == e_index ? t->incident[at][1] : t->incident[at][0];
+    const surface_edge *d = &t->edges[d_index];
+    int32_t other = e->a == at ? e->b : e->a, far = d->a == at ? d->b : d->a;
+    double len_e[2], len_d[2];
+    int32_t z_at_prev = -1;
+    for (int s = 0; s < 2; s++) {
+        int32_t z_at = uv_at(m, e->half[s], at), z_other = uv_at(m, e->half[s], other);
+        if (z_at == z_at_prev) return false;   /* the tip of a slit */
+        z_at_prev = z_at;
+        int32_t z_far = -1;
+        for (int g = 0; g < 2; g++)
+            if (uv_at(m, d->half[g], at) == z_at) z_far = uv_at(m, d->half[g], far);
+        if (z_far < 0) return false;
+        if (!collinear_through(U + 2 * z_far, U + 2 * z_at, U + 2 * z_other)) return false;
+        len_e[s] = distance2d(U + 2 * z_at, U + 2 * z_other);
+        len_d[s] = distance2d(U + 2 * z_far, U + 2 * z_at);
+    }
+    double lhs = len_e[0] * len_d[1], rhs = len_e[1] * len_d[0];
+    return fabs(lhs - rhs) <= CENSUS_TOLERANCE * fmax(lhs, rhs);
+}
+
+static int64_t count_collapsible(const topology *t, const double *U) {
+    int64_t n = 0;
+    for (int32_t i = 0; i < t->nedges; i++) {
+        const surface_edge *e = &t->edges[i];
+        if (e->kind != EDGE_SEAM) continue;
+        if (unifiable_at(t, U, i, e->a) || unifiable_at(t, U, i, e->b)) n++;
+    }
+    return n;
+}
+
+/* ---------------------------------------------------------------- charts */
+
+static int32_t find_root(int32_t *parent, int32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+}
+
+/* chart[u]: the smallest uv index of u's connected component of the
+ * parameter mesh (faces joined through shared uv indices). */
+static void uv_charts(const sc_mesh *m, int32_t *chart) {
+    for (int32_t u = 0; u < m->nu; u++) chart[u] = u;
+    for (int32_t f = 0; f < m->nf; f++) {
+        int32_t r0 = find_root(chart, m->FU[3 * f]);
+        for (int k = 1; k < 3; k++) {
+            int32_t r = find_root(chart, m->FU[3 * f + k]);
+            if (r < r0) chart[r0] = r, r0 = r;
+            else if (r > r0) chart[r] = r0;
+        }
+    }
+    for (int32_t u = 0; u < m->nu; u++) chart[u] = find_root(chart, u);
+}
+
+/* ---------------------------------------------------------------- chains and RDP */
+
+typedef struct chain_buffers {
+    int32_t cap;
+    int32_t *surface;          /* n + 1 surface vertices */
+    int32_t *uv[2];            /* n + 1 uv indices per side */
+    double *points;            /* (n + 1) x dim */
+    double *arc;               /* n + 1 cumulative arc lengths */
+    bool *kept;
+    int32_t *stack;
+} chain_buffers;
+
+static void chain_buffers_free(chain_buffers *c) {
+    free(c->surface), free(c->uv[0]), free(c->uv[1]), free(c->points), free(c->arc), free(c->kept), free(c->stack);
+    memset(c, 0, sizeof *c);
+}
+
+static bool chain_buffers_reserve(chain_buffers *c, int32_t n) {
+    if (n <= c->cap) return true;
+    int32_t cap = n * 2;
+    int32_t *s = realloc(c->surface, sizeof(int32_t) * (size_t)cap);
+    if (s) c->surface = s;
+    int32_t *u0 = realloc(c->uv[0], sizeof(int32_t) * (size_t)cap);
+    if (u0) c->uv[0] = u0;
+    int32_t *u1 = realloc(c->uv[1], sizeof(int32_t) * (size_t)cap);
+    if (u1) c->uv[1] = u1;
+    double *p = realloc(c->points, sizeof(double) * 4 * (size_t)cap);
+    if (p) c->points = p;
+    double *a = realloc(c->arc, sizeof(double) * (size_t)cap);
+    if (a) c->arc = a;
+    bool *k = realloc(c->kept, sizeof(bool) * (size_t)cap);
+    if (k) c->kept = k;
+    int32_t *st = realloc(c->stack, sizeof(int32_t) * 2 * (size_t)cap);
+    if (st) c->stack = st;
+    if (!s || !u0 || !u1 || !p || !a || !k || !st) return false;
+    c->cap = cap;
+    return true;
+}
+
+/* Distance from point k to the segment i-j (dim coordinates each). */
+static double segment_distance(const double *P, int dim, int32_t i, int32_t j, int32_t k) {
+    const double *a = P + (size_t)dim * i, *b = P + (size_t)dim * j, *p = P + (size_t)dim * k;
+    double dd = 0, wd = 0;
+    for (int c = 0; c < dim; c++) dd += (b[c] - a[c]) * (b[c] - a[c]), wd += (p[c] - a[c]) * (b[c] - a[c]);
+    double t = dd > 0 ? wd / dd : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double r = 0;
+    for (int c = 0; c < dim; c++) {
+        double x = p[c] - a[c] - t * (b[c] - a[c]);
+        r += x * x;
+    }
+    return sqrt(r);
+}
+
+/* The vertex of (i, j) farthest from segment i-j (-1 when none lies between). */
+static int32_t farthest(const double *P, int dim, int32_t i, int32_t j, double *dist) {
+    int32_t best = -1;
+    double dmax = -1;
+    for (int32_t k = i + 1; k < j; k++) {
+        double d = segment_distance(P, dim, i, j, k);
+        if (d > dmax) dmax = d, best = k;
+    }
+    *dist = dmax;
+    return best;
+}
+
+/* Ramer-Douglas-Peucker over points 0..n, keeping at least min_edges edges
+ * where the polyline has the vertices for them. */
+static void simplify(chain_buffers *c, int dim, int32_t n, double tol, int min_edges) {
+    for (int32_t i = 0; i <= n; i++) c->kept[i] = false;
+    c->kept[0] = c->kept[n] = true;
+    int32_t top = 0;
+    c->stack[top++] = 0, c->stack[top++] = n;
+    while (top > 0) {
+        int32_t j = c->stack[--top], i = c->stack[--top];
+        if (j <= i + 1) continue;
+        double d;
+        int32_t k = farthest(c->points, dim, i, j, &d);
+        if (k >= 0 && d > tol) {
+            c->kept[k] = true;
+            c->stack[top++] = i, c->stack[top++] = k;
+            c->stack[top++] = k, c->stack[top++] = j;
+        }
+    }
+    for (;;) {
+        int edges = 0;
+        for (int32_t i = 1; i <= n; i++) edges += c->kept[i];
+        if (edges >= min_edges) break;
+        int32_t best = -1, prev = 0;
+        double best_d = -1;
+        for (int32_t i = 1; i <= n; i++) {
+            if (!c->kept[i]) continue;
+            double d;
+            int32_t k = farthest(c->points, dim, prev, i, &d);
+            if (k >= 0 && d > best_d) best_d = d, best = k;
+            prev = i;
+        }
+        if (best < 0) break;
+        c->kept[best] = true;
+    }
+}
+
+typedef struct straighten_stats {
+    int32_t seam_chains, boundary_chains, skipped_chains, kept_boundary_chains;
+} straighten_stats;
+
+/* Straighten one walked chain of n edges (its buffers filled): write the new
+ * uv of every removed vertex into Unew. */
+static void straighten_chain(chain_buffers *c, const sc_mesh *m, bool seam, bool cycle, int32_t n, double tol,
+                             double *Unew) {
+    int dim = seam ? 4 : 2;
+    int sides = seam ? 2 : 1;
+    for (int32_t i = 0; i <= n; i++)
+        for (int s = 0; s < sides; s++) {
+            c->points[(size_t)dim * i + 2 * s] = m->U[2 * c->uv[s][i]];
+            c->points[(size_t)dim * i + 2 * s + 1] = m->U[2 * c->uv[s][i] + 1];
+        }
+    double lo[4], hi[4];
+    for (int d = 0; d < dim; d++) lo[d] = hi[d] = c->points[d];
+    for (int32_t i = 1; i <= n; i++)
+        for (int d = 0; d < dim; d++) {
+            double x = c->points[(size_t)dim * i + d];
+            lo[d] = fmin(lo[d], x), hi[d] = fmax(hi[d], x);
+        }
+    double diag = 0;
+    for (int d = 0; d < dim; d++) diag += (hi[d] - lo[d]) * (hi[d] - lo[d]);
+    diag = sqrt(diag);
+    bool closed = cycle;
+    for (int s = 0; s < sides; s++) closed = closed || c->uv[s][0] == c->uv[s][n];
+    simplify(c, dim, n, tol * diag, closed ? 3 : 1);
+    c->arc[0] = 0;
+    for (int32_t i = 1; i <= n; i++) {
+        double r = 0;
+        for (int d = 0; d < dim; d++) {
+            double x = c->points[(size_t)dim * i + d] - c->points[(size_t)dim * (i - 1) + d];
+            r += x * x;
+        }
+        c->arc[i] = c->arc[i - 1] + sqrt(r);
+    }
+    int32_t prev = 0;
+    for (int32_t j = 1; j <= n; j++) {
+        if (!c->kept[j]) continue;
+        double span = c->arc[j] - c->arc[prev];
+        for (int32_t k = prev + 1; k < j; k++) {
+            double t = span > 0 ? (c->arc[k] - c->arc[prev]) / span : (double)(k - prev) / (double)(j - prev);
+            double target[2][2];
+            bool changes = false;
+            for (int s = 0; s < sides; s++) {
+                const double *a = m->U + 2 * c->uv[s][prev], *b = m->U + 2 * c->uv[s][j];
+                const double *old = m->U + 2 * c->uv[s][k];
+                for (int d = 0; d < 2; d++) {
+                    target[s][d] = a[d] + t * (b[d] - a[d]);
+                    changes = changes || fabs(target[s][d] - old[d]) > ROUNDING * fmax(1.0, fabs(old[d]));
+                }
+            }
+            /* a vertex already in place (to rounding) keeps its exact coordinates */
+            for (int s = 0; s < sides && changes; s++)
+                memcpy(Unew + 2 * c->uv[s][k], target[s], sizeof target[s]);
+        }
+        prev = j;
+    }
+}
+
+/* Walk every chain and loop of seam or boundary edges and straighten it. */
+static int straighten_all(const topology *t, const bool *protect, const bool *straighten_border, double tol,
+                          double *Unew, straighten_stats *st, sc_error *err) {
+    const sc_mesh *m = t->mesh;
+    memset(st, 0, sizeof *st);
+    bool *visited = sc_calloc_array((size_t)t->nedges + 1, sizeof(bool));
+    chain_buffers c = {0};
+    if (!visited || !chain_buffers_reserve(&c, 16)) {
+        free(visited), chain_buffers_free(&c);
+        return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    }
+    int rc = SC_OK;
+    /* pass 0: chains that start at a protected vertex; pass 1: loops */
+    for (int pass = 0; pass < 2 && rc == SC_OK; pass++) {
+        for (int32_t e0 = 0; e0 < t->nedges && rc == SC_OK; e0++) {
+            const surface_edge *first = &t->edges[e0];
+            if (!is_silhouette(first) || visited[e0]) continue;
+            int32_t start;
+            if (pass == 0) {
+                if (protect[first->a]) start = first->a;
+                else if (protect[first->b]) start = first->b;
+                else continue;
+            } else {
+                start = first->a;
+            }
+            bool seam = first->kind == EDGE_SEAM;
+            int sides = seam ? 2 : 1;
+            int32_t n = 0, e = e0, v = start;
+            bool ok = true;
+            c.surface[0] = start;
+            for (int s = 0; s < sides; s++) c.uv[s][0] = uv_at(m, first->half[s], start);
+            for (;;) {
+                visited[e] = true;
+                const surface_edge *ed = &t->edges[e];
+                if (ed->kind != first->kind) {
+                    ok = false;
+                    break;
+                }
+                int32_t next = ed->a == v ? ed->b : ed->a;
+                if (!chain_buffers_reserve(&c, n + 2)) {
+                    rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+                    break;
+                }
+                /* side s continues through the half-edge using the same uv at v */
+                int32_t used = -1;
+                for (int s = 0; s < sides && ok; s++) {
+                    int32_t h = -1;
+                    for (int g = 0; g < sides; g++)
+                        if (g != used && uv_at(m, ed->half[g], v) == c.uv[s][n]) {
+                            h = ed->half[g];
+                            used = g;
+                            break;
+                        }
+                    if (h < 0) ok = false;
+                    else c.uv[s][n + 1] = uv_at(m, h, next);
+                }
+                n++;
+                c.surface[n] = next;
+                if (!ok || protect[next] || next == start) break;
+                int32_t after = t->incident[next][0] == e ? t->incident[next][1] : t->incident[next][0];
+                if (after < 0 || visited[after] || n > t->nedges) {
+                    ok = false;
+                    break;
+                }
+                v = next;
+                e = after;
+            }
+            if (rc != SC_OK) break;
+            bool cycle = pass == 1;
+            if (ok && cycle)
+                for (int s = 0; s < sides; s++) ok = ok && c.surface[n] == start && c.uv[s][n] == c.uv[s][0];
+            if (!ok) {
+                st->skipped_chains++;
+                continue;
+            }
+            if (!seam && !straighten_border[c.uv[0][0]]) {
+                st->kept_boundary_chains++;
+                continue;
+            }
+            if (seam) st->seam_chains++;
+            else st->boundary_chains++;
+            if (n >= 2) straighten_chain(&c, m, seam, cycle, n, tol, Unew);
+        }
+    }
+    free(visited);
+    chain_buffers_free(&c);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- interior warp */
+
+static double signed_area2(const double *a, const double *b, const double *c) {
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+static bool uv_face_degenerate(const double *U, const int32_t *fu) {
+    const double *p[3] = {U + 2 * fu[0], U + 2 * fu[1], U + 2 * fu[2]};
+    double longest = 0;
+    for (int k = 0; k < 3; k++) {
+        double d = distance2d(p[k], p[(k + 1) % 3]);
+        longest = fmax(longest, d);
+    }
+    return !(fabs(signed_area2(p[0], p[1], p[2])) > DEGENERATE_AREA * longest * longest);
+}
+
+/* cot of the angle at corner k (in dim dimensions) of triangle p; false when degenerate */
+static bool corner_cotangents(const double *const p[3], int dim, double cot[3]) {
+    for (int k = 0; k < 3; k++) {
+        const double *o = p[k], *a = p[(k + 1) % 3], *b = p[(k + 2) % 3];
+        double dot = 0, aa = 0, bb = 0;
+        for (int c = 0; c < dim; c++) {
+            dot += (a[c] - o[c]) * (b[c] - o[c]);
+            aa += (a[c] - o[c]) * (a[c] - o[c]);
+            bb += (b[c] - o[c]) * (b[c] - o[c]);
+        }
+        double cross2 = aa * bb - dot * dot;
+        double longest = fmax(aa, bb);
+        if (!(cross2 > DEGENERATE_AREA * DEGENERATE_AREA * longest * longest)) return false;
+        cot[k] = dot / sqrt(cross2);
+    }
+    return true;
+}
+
+typedef struct warp_problem {
+    const sc_mesh *mesh;
+    int32_t nunknown;
+    int32_t *unknown;       /* per uv index: unknown number, or -1 */
+    bool *affected_face;
+    const bool *moved;
+} warp_problem;
+
+/* One run of `steps` harmonic steps from U to the boundary targets in Unew;
+ * X receives the result. */
+static int warp_run(const warp_problem *w, const double *Unew, int steps, double *X, sc_error *err) {
+    const sc_mesh *m = w->mesh;
+    memcpy(X, m->U, sizeof(double) * 2 * (size_t)m->nu);
+    double *rhs = sc_alloc_array((size_t)w->nunknown * 2 + 1, sizeof(double));
+    if (!rhs) return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    int rc = SC_OK;
+    for (int step = 1; step <= steps && rc == SC_OK; step++) {
+        sc_triplets tr;
+        sc_triplets_init(&tr, w->nunknown);
+        memset(rhs, 0, sizeof(double) * 2 * (size_t)w->nunknown);
+        for (int32_t f = 0; f < m->nf; f++) {
+            if (!w->affected_face[f]) continue;
+            const int32_t *fu = m->FU + 3 * f;
+            const double *p[3] = {X + 2 * fu[0], X + 2 * fu[1], X + 2 * fu[2]};
+            double cot[3];
+            if (uv_face_degenerate(X, fu) || !corner_cotangents(p, 2, cot)) {
+                const double *q[3] = {m->V + 3 * m->FV[3 * f], m->V + 3 * m->FV[3 * f + 1], m->V + 3 * m->FV[3 * f + 2]};
+                if (!corner_cotangents(q, 3, cot)) cot[0] = cot[1] = cot[2] = 1.0 / sqrt(3.0);
+            }
+            for (int k = 0; k < 3; k++) {
+                int32_t i = fu[(k + 1) % 3], j = fu[(k + 2) % 3];
+                double wt = 0.5 * cot[k] + FLOOR_WEIGHT;
+                int32_t ui = w->unknown[i], uj = w->unknown[j];
+                if (ui >= 0) sc_triplets_add(&tr, ui, ui, wt);
+                if (uj >= 0) sc_triplets_add(&tr, uj, uj, wt);
+                if (ui >= 0 && uj >= 0) sc_triplets_add(&tr, ui, uj, -wt);
+                /* a moved fixed vertex moves by (Unew - U) / steps this step */
+                for (int side = 0; side < 2; side++) {
+                    int32_t a = side ? j : i, b = side ? i : j;
+                    int32_t ua = w->unknown[a];
+                    if (ua < 0 || w->unknown[b] >= 0 || !w->moved[b]) continue;
+                    for (int c = 0; c < 2; c++)
+                        rhs[(size_t)c * w->nunknown + ua] += wt * (Unew[2 * b + c] - m->U[2 * b + c]) / steps;
+                }
+            }
+        }
+        if (tr.failed) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+        sc_sparse a = {0};
+        sc_sparse_chol *chol = NULL;
+        if (rc == SC_OK) rc = sc_sparse_from_triplets(&tr, &a, err);
+        sc_triplets_free(&tr);
+        if (rc == SC_OK) rc = sc_sparse_chol_factor(&a, NULL, &chol, err);
+        if (rc == SC_OK) rc = sc_sparse_chol_solve(chol, 2, rhs, err);
+        sc_sparse_chol_free(chol);
+        sc_sparse_free(&a);
+        if (rc != SC_OK) break;
+        for (int32_t u = 0; u < m->nu; u++) {
+            int32_t k = w->unknown[u];
+            if (k >= 0) {
+                X[2 * u] += rhs[k];
+                X[2 * u + 1] += rhs[(size_t)w->nunknown + k];
+            } else if (w->moved[u]) {
+                double s = step == steps ? 1.0 : (double)step / steps;
+                for (int c = 0; c < 2; c++) X[2 * u + c] = m->U[2 * u + c] + s * (Unew[2 * u + c] - m->U[2 * u + c]);
+            }
+        }
+    }
+    if (rc == SC_OK)   /* the straightened boundary exactly */
+        for (int32_t u = 0; u < m->nu; u++)
+            if (w->moved[u]) X[2 * u] = Unew[2 * u], X[2 * u + 1] = Unew[2 * u + 1];
+    free(rhs);
+    if (rc != SC_OK) sc_error_prefix(err, "straighten: interior warp");
+    return rc;
+}
+
+static int64_t count_flips(const sc_mesh *m, const double *X) {
+    int64_t n = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        const int32_t *fu = m->FU + 3 * f;
+        if (uv_face_degenerate(m->U, fu)) continue;
+        double a0 = signed_area2(m->U + 2 * fu[0], m->U + 2 * fu[1], m->U + 2 * fu[2]);
+        double a1 = signed_area2(X + 2 * fu[0], X + 2 * fu[1], X + 2 * fu[2]);
+        if (!(a0 * a1 > 0)) n++;
+    }
+    return n;
+}
+
+typedef struct warp_result {
+    int64_t flips;
+    int steps;
+} warp_result;
+
+/* Warp the interior: U_out gets the final uv of every uv index. */
+static int warp_interior(const sc_mesh *m, const int32_t *chart, const bool *moved, const double *Unew, int steps,
+                         double *Uout, warp_result *res, sc_error *err) {
+    warp_problem w = {.mesh = m, .moved = moved};
+    bool *comp_moved = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
+    bool *fixed = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
+    w.unknown = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
+    w.affected_face = sc_calloc_array((size_t)m->nf + 1, sizeof(bool));
+    edge_key *keys = sc_alloc_array((size_t)m->nf * 3, sizeof *keys);
+    double *X = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
+    int rc = SC_OK;
+    if (!comp_moved || !fixed || !w.unknown || !w.affected_face || !keys || !X)
+        rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    if (rc == SC_OK) {
+        /* boundary of the parameter mesh: uv edges of one face, or of three or more */
+        size_t nh = (size_t)m->nf * 3;
+        for (int32_t h = 0; h < (int32_t)nh; h++) {
+            int32_t a = m->FU[corner_from(h)], b = m->FU[corner_to(h)];
+            keys[h] = (edge_key){a < b ? a : b, a < b ? b : a, h};
+        }
+        qsort(keys, nh, sizeof *keys, compare_keys);
+        for (size_t i = 0; i < nh;) {
+            size_t j = i;
+            while (j < nh && keys[j].lo == keys[i].lo && keys[j].hi == keys[i].hi) j++;
+            if (j - i != 2) fixed[keys[i].lo] = fixed[keys[i].hi] = true;
+            i = j;
+        }
+        for (int32_t u = 0; u < m->nu; u++) fixed[u] = fixed[u] || moved[u];
+        for (int32_t u = 0; u < m->nu; u++)
+            if (moved[u]) comp_moved[chart[u]] = true;
+        for (int32_t u = 0; u < m->nu; u++) w.unknown[u] = -1;
+        for (int32_t f = 0; f < m->nf; f++) {
+            if (!comp_moved[chart[m->FU[3 * f]]]) continue;
+            w.affected_face[f] = true;
+            for (int k = 0; k < 3; k++) {
+                int32_t u = m->FU[3 * f + k];
+                if (!fixed[u] && w.unknown[u] < 0) w.unknown[u] = w.nunknown++;
+            }
+        }
+    }
+    res->flips = -1;
+    res->steps = steps;
+    for (int attempt = 0; attempt < MAX_WARP_ATTEMPTS && rc == SC_OK; attempt++) {
+        int run_steps = steps;
+        for (int i = 0; i < attempt; i++) run_steps *= 4;
+        if (w.nunknown == 0) {
+            memcpy(X, m->U, sizeof(double) * 2 * (size_t)m->nu);
+            for (int32_t u = 0; u < m->nu; u++)
+                if (moved[u]) X[2 * u] = Unew[2 * u], X[2 * u + 1] = Unew[2 * u + 1];
+        } else {
+            rc = warp_run(&w, Unew, run_steps, X, err);
+            if (rc != SC_OK) break;
+        }
+        int64_t flips = count_flips(m, X);
+        if (res->flips < 0 || flips < res->flips) {
+            res->flips = flips;
+            res->steps = run_steps;
+            memcpy(Uout, X, sizeof(double) * 2 * (size_t)m->nu);
+        }
+        if (flips == 0 || w.nunknown == 0) break;
+    }
+    free(comp_moved), free(fixed), free(w.unknown), free(w.affected_face), free(keys), free(X);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- signal warp */
+
+/* Distance in texel space from p to triangle t (0 inside). */
+static double triangle_distance(const double t[3][2], double px, double py) {
+    double p[2] = {px, py};
+    double s0 = signed_area2(t[0], t[1], p), s1 = signed_area2(t[1], t[2], p), s2 = signed_area2(t[2], t[0], p);
+    if ((s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0)) return 0;
+    double best = DBL_MAX;
+    for (int k = 0; k < 3; k++) {
+        const double *a = t[k], *b = t[(k + 1) % 3];
+        double dx = b[0] - a[0], dy = b[1] - a[1], wx = px - a[0], wy = py - a[1];
+        double dd = dx * dx + dy * dy, s = dd > 0 ? (wx * dx + wy * dy) / dd : 0;
+        s = s < 0 ? 0 : s > 1 ? 1 : s;
+        best = fmin(best, hypot(wx - s * dx, wy - s * dy));
+    }
+    return best;
+}
+
+/* Re-render one texture (material `material`) from the old uv U to the new Unew. */
+static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_moved, const sc_texture *tex,
+                        int32_t pad, sc_image_data **out, sc_error *err) {
+    const sc_image_data *src = tex->image->as.image;
+    const int32_t W = src->width, H = src->height, C = src->channels;
+    sc_image_data *old = sc_image_to_f32(src);
+    sc_image_data *dst = sc_image_to_f32(src);
+    size_t npx = (size_t)W * H;
+    float *best = sc_alloc_array(npx, sizeof(float));
+    int32_t *owner = sc_alloc_array(npx, sizeof(int32_t));
+    int32_t *lattice = sc_alloc_array(npx * 2, sizeof(int32_t));
+    if (!old || !dst || !best || !owner || !lattice) {
+        sc_image_free(old), sc_image_free(dst), free(best), free(owner), free(lattice);
+        return sc_fail(err, SC_ENOMEM, "straighten: out of memory for the %s texture", tex->name);
+    }
+    for (size_t i = 0; i < npx; i++) best[i] = FLT_MAX, owner[i] = -1;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != tex->material) continue;
+        const int32_t *fu = m->FU + 3 * f;
+        double t[3][2];
+        double lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+        for (int k = 0; k < 3; k++) {
+            t[k][0] = Unew[2 * fu[k]] * W - 0.5;
+            t[k][1] = Unew[2 * fu[k] + 1] * H - 0.5;
+            for (int c = 0; c < 2; c++) lo[c] = fmin(lo[c], t[k][c]), hi[c] = fmax(hi[c], t[k][c]);
+        }
+        if (!(fabs(signed_area2(t[0], t[1], t[2])) > 0)) continue;
+        if (hi[0] - lo[0] > 2.0 * W + 2 * pad || hi[1] - lo[1] > 2.0 * H + 2 * pad) continue;
+        int64_t i0 = (int64_t)ceil(lo[0] - pad), i1 = (int64_t)floor(hi[0] + pad);
+        int64_t j0 = (int64_t)ceil(lo[1] - pad), j1 = (int64_t)floor(hi[1] + pad);
+        for (int64_t j = j0; j <= j1; j++) {
+            int32_t jj;
+            if (tex->wrap_v == SC_WRAP_CLAMP) {
+                if (j < 0 || j >= H) continue;
+                jj = (int32_t)j;
+            } else {
+                jj = sc_seam_wrap(j, H, tex->wrap_v);
+            }
+            for (int64_t i = i0; i <= i1; i++) {
+                int32_t ii;
+                if (tex->wrap_u == SC_WRAP_CLAMP) {
+                    if (i < 0 || i >= W) continue;
+                    ii = (int32_t)i;
+                } else {
+                    ii = sc_seam_wrap(i, W, tex->wrap_u);
+                }
+                double d = triangle_distance(t, (double)i, (double)j);
+                if (d > pad) continue;
+                size_t id = (size_t)jj * W + ii;
+                if ((float)d < best[id]) {
+                    best[id] = (float)d;
+                    owner[id] = f;
+                    lattice[2 * id] = (int32_t)i;
+                    lattice[2 * id + 1] = (int32_t)j;
+                }
+            }
+        }
+    }
+    const sc_seam_grid grid = {W, H, tex->wrap_u, tex->wrap_v};
+    float *op = old->pixels, *dp = dst->pixels;
+    double sample[4];
+    for (size_t id = 0; id < npx; id++) {
+        int32_t f = owner[id];
+        if (f < 0 || !face_moved[f]) continue;
+        const int32_t *fu = m->FU + 3 * f;
+        double u = (lattice[2 * id] + 0.5) / W, v = (lattice[2 * id + 1] + 0.5) / H;
+        const double *a = Unew + 2 * fu[0], *b = Unew + 2 * fu[1], *c = Unew + 2 * fu[2];
+        double p[2] = {u, v};
+        double area = signed_area2(a, b, c);
+        double l0 = signed_area2(b, c, p) / area, l1 = signed_area2(c, a, p) / area, l2 = 1.0 - l0 - l1;
+        double ou = l0 * m->U[2 * fu[0]] + l1 * m->U[2 * fu[1]] + l2 * m->U[2 * fu[2]];
+        double ov = l0 * m->U[2 * fu[0] + 1] + l1 * m->U[2 * fu[1] + 1] + l2 * m->U[2 * fu[2] + 1];
+        sc_seam_sample(&grid, op, C, ou, ov, sample);
+        for (int32_t k = 0; k < C; k++) dp[id * C + k] = (float)sample[k];
+    }
+    sc_image_free(old), free(best), free(owner), free(lattice);
+    *out = dst;
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- atlas assembly */
+
+static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
+    sc_mesh *m = sc_mesh_alloc(in->nv, in->nu, in->nn, in->nf, in->nmat);
+    if (!m) return NULL;
+    memcpy(m->V, in->V, sizeof(double) * 3 * (size_t)in->nv);
+    memcpy(m->U, U, sizeof(double) * 2 * (size_t)in->nu);
+    memcpy(m->FV, in->FV, sizeof(int32_t) * 3 * (size_t)in->nf);
+    memcpy(m->FU, in->FU, sizeof(int32_t) * 3 * (size_t)in->nf);
+    memcpy(m->FM, in->FM, sizeof(int32_t) * (size_t)in->nf);
+    if (in->nn > 0) {
+        memcpy(m->N, in->N, sizeof(double) * 3 * (size_t)in->nn);
+        memcpy(m->FN, in->FN, sizeof(int32_t) * 3 * (size_t)in->nf);
+    }
+    for (int32_t k = 0; k < in->nmat; k++)
+        if (!(m->materials[k] = sc_strdup(in->materials[k]))) {
+            sc_mesh_free(m);
+            return NULL;
+        }
+    return m;
+}
+
+static int erase_atlas(sc_value *atlas, int threads, sc_value **out, sc_error *err) {
+    sc_ctx *ctx = sc_ctx_new(&sc_node_erase_seams, NULL, NULL);
+    if (!ctx) return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    int rc = sc_ctx_set_input(ctx, "atlas", atlas);
+    if (rc == SC_OK) rc = sc_ctx_set_param(ctx, "quantize", "none", err);
+    if (rc == SC_OK) sc_ctx_set_threads(ctx, threads);
+    if (rc == SC_OK) rc = sc_ctx_run(ctx, err);
+    if (rc == SC_OK) *out = sc_value_retain(sc_ctx_output(ctx, 0));
+    else sc_error_prefix(err, "straighten: erase_seams");
+    sc_ctx_free(ctx);
+    return rc;
+}
+
+/* Appearance: old texture at old uv against new texture at new uv. */
+static void appearance_error(const sc_mesh *m, const double *Unew, const sc_texture *old_tex,
+                             const sc_image_data *old32, const sc_image_data *new32, double *sum2, double *count) {
+    const sc_seam_grid g_old = {old32->width, old32->height, old_tex->wrap_u, old_tex->wrap_v};
+    const sc_seam_grid g_new = {new32->width, new32->height, old_tex->wrap_u, old_tex->wrap_v};
+    const int32_t C = old32->channels;
+    double a[4], b[4];
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != old_tex->material) continue;
+        const int32_t *fu = m->FU + 3 * f;
+        for (int i = 0; i <= PSNR_GRID; i++)
+            for (int j = 0; i + j <= PSNR_GRID; j++) {
+                double l0 = (double)i / PSNR_GRID, l1 = (double)j / PSNR_GRID, l2 = 1.0 - l0 - l1;
+                double uo = l0 * m->U[2 * fu[0]] + l1 * m->U[2 * fu[1]] + l2 * m->U[2 * fu[2]];
+                double vo = l0 * m->U[2 * fu[0] + 1] + l1 * m->U[2 * fu[1] + 1] + l2 * m->U[2 * fu[2] + 1];
+                double un = l0 * Unew[2 * fu[0]] + l1 * Unew[2 * fu[1]] + l2 * Unew[2 * fu[2]];
+                double vn = l0 * Unew[2 * fu[0] + 1] + l1 * Unew[2 * fu[1] + 1] + l2 * Unew[2 * fu[2] + 1];
+                sc_seam_sample(&g_old, old32->pixels, C, uo, vo, a);
+                sc_seam_sample(&g_new, new32->pixels, C, un, vn, b);
+                for (int32_t c = 0; c < C; c++) *sum2 += (a[c] - b[c]) * (a[c] - b[c]);
+                *count += C;
+            }
+    }
+}
+
+/* ---------------------------------------------------------------- run */
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    double started = sc_now();
+    const sc_value *in_value = sc_ctx_input(ctx, "atlas");
+    const sc_atlas *atlas = sc_ctx_atlas(ctx, "atlas");
+    const sc_mesh *m = atlas->mesh->as.mesh;
+    const double tol = sc_ctx_number(ctx, "tolerance");
+    const int steps = (int)sc_ctx_integer(ctx, "steps");
+    const int32_t pad = (int32_t)sc_ctx_integer(ctx, "padding");
+    const bool erase = sc_ctx_bool(ctx, "erase");
+    const char *borders = sc_ctx_string(ctx, "borders");
+    const int threads = sc_ctx_threads(ctx);
+    int rc = sc_mesh_check(m, err);
+    if (rc != SC_OK) return sc_error_prefix(err, "straighten:atlas");
+    if (m->nf < 1) return sc_fail(err, SC_EINPUT, "straighten:atlas: the mesh has no faces");
+
+    topology t;
+    rc = topology_build(m, &t, err);
+    if (rc != SC_OK) return rc;
+    bool *protect = sc_calloc_array((size_t)m->nv + 1, sizeof(bool));
+    bool *moved = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
+    bool *face_moved = sc_calloc_array((size_t)m->nf + 1, sizeof(bool));
+    int32_t *chart = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
+    bool *straighten_border = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
+    double *Unew = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
+    double *Uout = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
+    sc_value **images = sc_calloc_array((size_t)atlas->ntex + 1, sizeof(sc_value *));
+    sc_value *mesh_value = NULL, *warped = NULL, *result = NULL;
+    if (!protect || !moved || !face_moved || !chart || !straighten_border || !Unew || !Uout || !images)
+        rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+
+    int32_t nprotected = 0;
+    straighten_stats st = {0};
+    int64_t collapsible_before = 0;
+    if (rc == SC_OK) {
+        nprotected = protect_vertices(&t, protect);
+        collapsible_before = count_collapsible(&t, m->U);
+        uv_charts(m, chart);
+        /* which charts may have their surface borders straightened */
+        for (int32_t u = 0; u < m->nu; u++) straighten_border[u] = !strcmp(borders, "always");
+        if (!strcmp(borders, "with_seams")) {
+            for (int32_t h = 0; h < 3 * m->nf; h++)
+                if (t.edges[t.half_edge[h]].kind == EDGE_SEAM) straighten_border[chart[m->FU[h]]] = true;
+            for (int32_t u = 0; u < m->nu; u++) straighten_border[u] = straighten_border[chart[u]];
+        }
+        memcpy(Unew, m->U, sizeof(double) * 2 * (size_t)m->nu);
+        rc = straighten_all(&t, protect, straighten_border, tol, Unew, &st, err);
+    }
+    int64_t nmoved = 0, degenerate = 0;
+    for (int32_t u = 0; rc == SC_OK && u < m->nu; u++) {
+        moved[u] = Unew[2 * u] != m->U[2 * u] || Unew[2 * u + 1] != m->U[2 * u + 1];
+        nmoved += moved[u];
+    }
+    for (int32_t f = 0; rc == SC_OK && f < m->nf; f++) degenerate += uv_face_degenerate(m->U, m->FU + 3 * f);
+    if (rc == SC_OK) {
+        sc_ctx_metric(ctx, "seam_edges", t.nseams);
+        sc_ctx_metric(ctx, "collapsible_seam_edges_before", (double)collapsible_before);
+        sc_ctx_metric(ctx, "protected_vertices", nprotected);
+        sc_ctx_metric(ctx, "seam_chains", st.seam_chains);
+        sc_ctx_metric(ctx, "boundary_chains", st.boundary_chains);
+        sc_ctx_metric(ctx, "skipped_chains", st.skipped_chains);
+        sc_ctx_metric(ctx, "boundary_chains_kept", st.kept_boundary_chains);
+        sc_ctx_metric(ctx, "moved_uv_vertices", (double)nmoved);
+        sc_ctx_metric(ctx, "degenerate_uv_faces", (double)degenerate);
+    }
+    bool finished = rc != SC_OK;   /* failed, or nothing moved */
+    if (rc == SC_OK && nmoved == 0) {
+        /* nothing to straighten: the input itself */
+        sc_ctx_metric(ctx, "collapsible_seam_edges_after", (double)collapsible_before);
+        sc_ctx_metric(ctx, "flipped_triangles", 0);
+        sc_ctx_metric(ctx, "max_uv_displacement", 0);
+        sc_ctx_metric(ctx, "seconds", sc_now() - started);
+        sc_ctx_set_output(ctx, "atlas", sc_value_retain((sc_value *)in_value));
+        finished = true;
+    }
+    if (!finished) {
+        /* interior warp */
+        double t_warp = sc_now();
+        warp_result wr = {0};
+        if (rc == SC_OK) rc = warp_interior(m, chart, moved, Unew, steps, Uout, &wr, err);
+        t_warp = sc_now() - t_warp;
+        double max_disp = 0;
+        if (rc == SC_OK) {
+            for (int32_t u = 0; u < m->nu; u++)
+                max_disp = fmax(max_disp, distance2d(m->U + 2 * u, Uout + 2 * u));
+            for (int32_t f = 0; f < m->nf; f++)
+                for (int k = 0; k < 3; k++) {
+                    int32_t u = m->FU[3 * f + k];
+                    face_moved[f] = face_moved[f] || Uout[2 * u] != m->U[2 * u] || Uout[2 * u + 1] != m->U[2 * u + 1];
+                }
+            sc_ctx_metric(ctx, "collapsible_seam_edges_after", (double)count_collapsible(&t, Uout));
+            sc_ctx_metric(ctx, "flipped_triangles", (double)wr.flips);
+            sc_ctx_metric(ctx, "warp_steps", wr.steps);
+            sc_ctx_metric(ctx, "max_uv_displacement", max_disp);
+            sc_ctx_metric(ctx, "seconds_warp", t_warp);
+        }
+
+        /* signals */
+        double t_render = sc_now();
+        int32_t rendered = 0;
+        for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
+            const sc_texture *tex = &atlas->textures[i];
+            bool touched = false;
+            for (int32_t f = 0; f < m->nf && !touched; f++) touched = face_moved[f] && m->FM[f] == tex->material;
+            for (int32_t j = 0; j < i && touched && !images[i]; j++)   /* the same image in the same material */
+                if (atlas->textures[j].image == tex->image && atlas->textures[j].material == tex->material &&
+                    atlas->textures[j].wrap_u == tex->wrap_u && atlas->textures[j].wrap_v == tex->wrap_v && images[j])
+                    images[i] = sc_value_retain(images[j]);
+            if (!touched || images[i]) continue;
+            sc_image_data *im = NULL;
+            rc = warp_texture(m, Uout, face_moved, tex, pad, &im, err);
+            if (rc == SC_OK && !(images[i] = sc_value_new_image(im)))
+                rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+            rendered++;
+        }
+        t_render = sc_now() - t_render;
+        if (rc == SC_OK) {
+            sc_mesh *nm = mesh_with_uv(m, Uout);
+            mesh_value = nm ? sc_value_new_mesh(nm) : NULL;
+            sc_atlas *na = mesh_value ? sc_atlas_new(sc_value_retain(mesh_value)) : NULL;
+            if (!na) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+            for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
+                const sc_texture *tex = &atlas->textures[i];
+                sc_value *img = sc_value_retain(images[i] ? images[i] : tex->image);
+                if (sc_atlas_add_texture(na, tex->name, tex->material, tex->wrap_u, tex->wrap_v, tex->source, img) != SC_OK)
+                    rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+            }
+            if (rc == SC_OK && !(warped = sc_value_new_atlas(na))) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+            else if (rc != SC_OK) sc_atlas_free(na);
+        }
+        double t_erase = sc_now();
+        if (rc == SC_OK) {
+            if (erase) rc = erase_atlas(warped, threads, &result, err);
+            else result = sc_value_retain(warped);
+        }
+        t_erase = sc_now() - t_erase;
+
+        /* appearance */
+        if (rc == SC_OK) {
+            double sum2 = 0, count = 0;
+            const sc_atlas *ra = result->as.atlas;
+            for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
+                if (!images[i]) continue;
+                const sc_texture *tex = &atlas->textures[i];
+                int k = sc_atlas_find_texture(ra, tex->material, tex->name);
+                if (k < 0) continue;
+                sc_image_data *a = sc_image_to_f32(tex->image->as.image);
+                sc_image_data *b = sc_image_to_f32(ra->textures[k].image->as.image);
+                if (!a || !b) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+                else appearance_error(m, Uout, tex, a, b, &sum2, &count);
+                sc_image_free(a), sc_image_free(b);
+            }
+            if (rc == SC_OK && count > 0)
+                sc_ctx_metric(ctx, "psnr", sum2 > 0 ? 10.0 * log10(count / sum2) : 200.0);
+        }
+        if (rc == SC_OK) {
+            sc_ctx_metric(ctx, "textures_rendered", rendered);
+            sc_ctx_metric(ctx, "seconds_render", t_render);
+            sc_ctx_metric(ctx, "seconds_erase", t_erase);
+            sc_ctx_metric(ctx, "seconds", sc_now() - started);
+            sc_ctx_set_output(ctx, "atlas", result);
+            result = NULL;
+        }
+    }
+    for (int32_t i = 0; images && i < atlas->ntex; i++) sc_value_release(images[i]);
+    free(images);
+    sc_value_release(mesh_value), sc_value_release(warped), sc_value_release(result);
+    free(protect), free(moved), free(face_moved), free(chart), free(straighten_border), free(Unew), free(Uout);
+    topology_free(&t);
+    return rc;
+}
+
+static const char *const border_choices[] = {"with_seams", "always", "never", NULL};
+
+static const sc_param_desc params[] = {
+    {.name = "tolerance", .type = SC_PARAM_NUMBER, .def = 0.01, .min = 0, .max = 1,
+     .doc = "Ramer-Douglas-Peucker tolerance as a fraction of each seam or boundary chain's bounding-box "
+            "diagonal (4D for seams); 0 removes only exactly collinear vertices"},
+    {.name = "borders", .type = SC_PARAM_ENUM, .def_string = "with_seams", .choices = border_choices,
+     .doc = "which surface-boundary chains to straighten: with_seams (those in charts that have a seam), "
+            "always, never"},
+    {.name = "steps", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 1000,
+     .doc = "harmonic steps of the composite interior warp (repeated with 4x and 16x the steps when faces flip)"},
+    {.name = "padding", .type = SC_PARAM_INTEGER, .def = 4, .min = 1, .max = 64,
+     .doc = "texels around each moved chart re-rendered from the linear continuation of its border faces"},
+    {.name = "erase", .type = SC_PARAM_BOOL, .def = 1,
+     .doc = "erase the seams of the re-rendered textures (the erase_seams node, defaults, quantize none)"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the textured mesh"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS,
+     .doc = "the same surface mesh with straightened seams and boundaries in uv and its textures re-rendered "
+            "(f32); the input itself when nothing moves"},
+};
+
+const sc_node_desc sc_node_straighten = {
+    .type = "straighten",
+    .version = 1,
+    .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+};
