@@ -31,22 +31,22 @@ local erased = erase_seams{ name = "erased", atlas = asset, preset = param("pres
 save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr" }
 
 -- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
--- them; the warped textures are erased again and quantised once.
+-- them; straighten re-renders the textures into the new uv and erases their
+-- seams again (in float: save rounds them).
+local shared = erased.atlas_native
 if param("straighten", 1) ~= 0 then
-  local straight = straighten{ name = "straight", atlas = erased.atlas,
-                               tolerance = param("straighten_tolerance", 0.01) }
-  erased = erase_seams{ name = "straight_erased", atlas = straight, preset = param("preset", "local") }
+  shared = straighten{ name = "straight", atlas = erased.atlas, tolerance = param("straighten_tolerance", 0.01) }
 end
 
 -- Levels of detail from the mesh alone: new texture bytes never re-decimate.
-local lods = decimate{ name = "lods", mesh = erased.atlas_native,
+local lods = decimate{ name = "lods", mesh = shared,
                        ratio = numbers(param("ratios", "0.5,0.1,0.01")) }
-local chain = share_textures{ name = "chain", lods = lods, atlas = erased.atlas_native }
-save{ name = "save", atlas = erased.atlas_native, lods = chain, file = param("file", "asset") }
+local chain = share_textures{ name = "chain", lods = lods, atlas = shared }
+save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset") }
 
 -- The crack check: every level, rendered the way a GPU samples the shared
 -- textures; a crack pixel or a seam gap fails the cook, naming level, mode, view.
-render{ name = "check", lods = chain, reference = erased.atlas_native,
+render{ name = "check", lods = chain, reference = shared,
         size = param("render_size", 512), modes = "textured",
         max_crack_pixels = param("max_crack_pixels", 0),
         max_seam_gap = param("max_seam_gap", 1e-6) }
@@ -55,10 +55,14 @@ render{ name = "check", lods = chain, reference = erased.atlas_native,
 -- vector displacement map per level, seam-free; then seam-free mip chains of
 -- every map (§9), and the same crack check on every LOD at every mip level,
 -- with positions fetched from the maps and tessellated.
-local baked = bake_displacement{ name = "bake", atlas = erased.atlas_native, lods = chain,
+local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
                                  size = param("bake_size", 1024) }
-local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16) }
-render{ name = "check_maps", lods = mips.levels, reference = erased.atlas_native, folder = "render_maps",
+-- mip_min: the coarsest mip level made and checked. Below 128^2 the gutters
+-- between the procedural asset's charts (32 texels at 1024^2) shrink under
+-- 4 texels, and geometry fetched from those levels folds at chart borders
+-- (back faces show, though the seams still meet to 1e-6).
+local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 128) }
+render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
         size = param("map_render_size", 256), views = param("map_views", 6),
         modes = "geometry_image,displaced,tessellated",
         max_crack_pixels = param("max_crack_pixels", 0),

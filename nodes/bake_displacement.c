@@ -92,14 +92,6 @@ static void raster_free(raster *r) {
     memset(r, 0, sizeof *r);
 }
 
-static double seg_dist2(double px, double py, double ax, double ay, double bx, double by) {
-    double dx = bx - ax, dy = by - ay, l2 = dx * dx + dy * dy;
-    double t = l2 > 0 ? ((px - ax) * dx + (py - ay) * dy) / l2 : 0;
-    t = t < 0 ? 0 : t > 1 ? 1 : t;
-    double ex = ax + t * dx - px, ey = ay + t * dy - py;
-    return ex * ex + ey * ey;
-}
-
 /* Barycentric coordinates of (px, py) in triangle x[3], y[3] (any point of the
  * plane); false for a degenerate triangle. */
 static bool barycentric(const double x[3], const double y[3], double px, double py, double l[3]) {
@@ -159,9 +151,9 @@ static int raster_band(void *ud, int32_t chunk) {
                 barycentric(x, y, (double)i, (double)j, l);
                 double d2 = 0;
                 if (l[0] < 0 || l[1] < 0 || l[2] < 0)
-                    d2 = fmin(seg_dist2((double)i, (double)j, x[0], y[0], x[1], y[1]),
-                              fmin(seg_dist2((double)i, (double)j, x[1], y[1], x[2], y[2]),
-                                   seg_dist2((double)i, (double)j, x[2], y[2], x[0], y[0])));
+                    d2 = fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[0], y[0], x[1], y[1]),
+                              fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[1], y[1], x[2], y[2]),
+                                   sc_atlas_ops_segment_distance2((double)i, (double)j, x[2], y[2], x[0], y[0])));
                 float d = (float)sqrt(d2);
                 if (d > (float)pad) continue;
                 size_t t = (size_t)jw * W + (size_t)sc_seam_wrap(i, W, g->wrap_u);

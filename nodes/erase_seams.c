@@ -43,7 +43,23 @@
  * every channel of every texture of one material that shares its size and
  * wrap modes; a slot holding an image already erased for this material
  * reuses the result. (An image shared by two materials is erased once per
- * material.)
+ * material.) Right-hand-side columns equal to an earlier one (grey images
+ * stored as RGB) are solved once and copied.
+ *
+ * Where the time goes (pizza: 2.07M unknowns, one connected component of
+ * the matrix graph apart from 40 tiny ones). CHOLMOD's AMD ordering alone is
+ * ~2.5-3 s, the rest of the analysis ~1.4 s (permuted transposes, etree,
+ * column counts), the supernodal factorisation ~3.5 s for only 4e10 flops
+ * (370k small supernodes, first-touch page faults on a ~600 MB factor).
+ * Measured alternatives that lose: METIS (CHOLMOD_METIS: 10x the flops and
+ * 4x the analysis time on these thin texel bands glued by seams and by atlas
+ * neighbours), AMD on a coarsened graph (2x2 texel blocks or heavy-edge
+ * matching: 5-10x the flops), simplicial factorisation (8x slower), larger
+ * relaxed supernodes. The factorisation therefore runs on one thread while
+ * everything that needs only Q and the seams (residuals of the other
+ * textures, M on the seam texels for rounding, the nullity) runs on the
+ * other; both are independent tasks, so results do not depend on the thread
+ * count.
  *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
  * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
@@ -82,7 +98,10 @@
  * that every seam through them constrains.
  *
  * Determinism. Assembly emits triplets in a fixed order for any thread count;
- * the channels of the rounding are independent; CHOLMOD is deterministic.
+ * the channels of the rounding are independent (a channel equal to an
+ * earlier one at every seam texel, floats and bytes, copies its rounding);
+ * the rounding revisits only texels whose gradient changed, which makes the
+ * same choices in the same order as full sweeps; CHOLMOD is deterministic.
  */
 #include <float.h>
 #include <math.h>
@@ -283,18 +302,41 @@ typedef struct round_job {
     const float *x;          /* float solution image */
     uint8_t *bytes;          /* quantised image, changed in place */
     int32_t channels;
+    const int32_t *chan;     /* the channel of each chunk */
 } round_job;
 
+/* Channels c with the same float values and bytes as an earlier channel at
+ * every seam texel round the same way: src[c] names that channel (or -1). */
+static int32_t round_unique_channels(const round_job *job, int32_t *src, int32_t *chan) {
+    int32_t n = job->mf->n, C = job->channels, nu = 0;
+    for (int32_t c = 0; c < C; c++) {
+        src[c] = -1;
+        for (int32_t e = 0; e < c && src[c] < 0; e++) {
+            if (src[e] >= 0) continue;
+            bool same = true;
+            for (int32_t k = 0; k < n && same; k++) {
+                size_t at = (size_t)job->ids[k] * (size_t)C;
+                same = job->x[at + c] == job->x[at + e] && job->bytes[at + c] == job->bytes[at + e];
+            }
+            if (same) src[c] = e;
+        }
+        if (src[c] < 0) chan[nu++] = c;
+    }
+    return nu;
+}
+
 /* Greedy coordinate descent on q^T M q over q_k in {floor(255 x_k), +1}. */
-static int round_channel(void *ud, int32_t c) {
+static int round_channel(void *ud, int32_t chunk) {
     round_job *job = ud;
+    int32_t c = job->chan[chunk];
     const sc_sparse *mf = job->mf;
     int32_t n = mf->n, C = job->channels;
     int32_t *q = sc_alloc_array((size_t)n, sizeof *q), *lo = sc_alloc_array((size_t)n, sizeof *lo);
     int32_t *hi = sc_alloc_array((size_t)n, sizeof *hi);
     double *g = sc_calloc_array((size_t)n, sizeof *g), *dg = sc_alloc_array((size_t)n, sizeof *dg);
-    if (!q || !lo || !hi || !g || !dg) {
-        free(q), free(lo), free(hi), free(g), free(dg);
+    uint8_t *dirty = sc_alloc_array((size_t)n, sizeof *dirty);
+    if (!q || !lo || !hi || !g || !dg || !dirty) {
+        free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
         return SC_ENOMEM;
     }
     for (int32_t k = 0; k < n; k++) {
@@ -316,22 +358,32 @@ static int round_channel(void *ud, int32_t c) {
             if (i == j) dg[j] = mf->val[p];
         }
     }
+    /* a texel is looked at again only when its gradient changed since it was
+     * last looked at (otherwise the test gives the same "stay"): the same
+     * choices, in the same order, as full sweeps */
+    for (int32_t k = 0; k < n; k++) dirty[k] = lo[k] != hi[k];
     for (int sweep = 0; sweep < ROUND_MAX_SWEEPS; sweep++) {
         int64_t moved = 0;
         for (int32_t k = 0; k < n; k++) {
-            if (lo[k] == hi[k]) continue;
+            if (!dirty[k]) continue;
+            dirty[k] = 0;
             int32_t alt = q[k] == lo[k] ? hi[k] : lo[k], d = alt - q[k];
             double de = 2.0 * d * g[k] + (double)d * d * dg[k];
             if (!(de < -1e-13 * dg[k])) continue;
             q[k] = alt;
-            for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) g[mf->rowind[p]] += d * mf->val[p];
+            dirty[k] = 1;
+            for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) {
+                int32_t i = mf->rowind[p];
+                g[i] += d * mf->val[p];
+                dirty[i] = lo[i] != hi[i];
+            }
             moved++;
         }
         if (!moved) break;
     }
     for (int32_t k = 0; k < n; k++)
         job->bytes[(size_t)job->ids[k] * (size_t)C + (size_t)c] = (uint8_t)q[k];
-    free(q), free(lo), free(hi), free(g), free(dg);
+    free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
     return SC_OK;
 }
 
@@ -386,6 +438,152 @@ static bool looks_tangent_space(const sc_image_data *img) {
         for (int c = 0; c < 3; c++) s[c] += sc_seam_texel(img, (int32_t)t, c);
     for (int c = 0; c < 3; c++) s[c] /= (double)(cnt ? cnt : 1);
     return s[2] > 0.7 && fabs(s[0] - 0.5) < 0.15 && fabs(s[1] - 0.5) < 0.15;
+}
+
+/* What the preparation tasks share (read-only). */
+typedef struct prep_ctx {
+    const sc_mesh *m;
+    const sc_seam_set *seams, *seams_only;
+    const sc_seam_grid *g;
+    const sc_atlas *atlas;
+    const group *gr;
+    const options *o;
+    group_work *w;
+    const sc_seam_terms *qterms;
+    double w_pen, w_change_texel;
+} prep_ctx;
+
+typedef struct prep_job {
+    prep_ctx ctx;
+    bool want_round, want_nullity;
+    int rc_factor, rc_side;
+    sc_error err_factor, err_side;
+    double nullity;
+    double seconds_factor, seconds_resid, seconds_nullity, seconds_round_prep;
+} prep_job;
+
+/* Task 0: analyse and factor Q (supernodal where the factor is big,
+ * simplicial where it is tiny). */
+static int prep_factor(prep_job *pj) {
+    double t0 = sc_now();
+    sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+    pj->rc_factor = sc_sparse_chol_factor(&pj->ctx.w->q, &sopt, &pj->ctx.w->chol, &pj->err_factor);
+    pj->seconds_factor = sc_now() - t0;
+    return pj->rc_factor;
+}
+
+/* Task 1: the residuals of the other textures, M over the seam texels for
+ * rounding, and the nullity of M. */
+static int prep_side(prep_job *pj) {
+    const prep_ctx *c = &pj->ctx;
+    group_work *w = c->w;
+    sc_error *err = &pj->err_side;
+    const int32_t n = w->unk.count;
+    int rc = SC_OK;
+    double t0 = sc_now();
+    if (pj->want_round && !pj->want_nullity) {
+        /* for rounding, M on the seam texels is Q / w_pen there: the other terms
+         * are ~1e-10 of it and only nudge the greedy choices */
+        int32_t *keep = sc_alloc_array((size_t)n, sizeof *keep);
+        if (!keep) return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t r = 0; r < n; r++) keep[r] = sc_seam_texset_index(&w->seamset, w->ids[r]);
+        rc = sc_sparse_submatrix(&w->q, keep, w->seamset.count, &w->msub, err);
+        free(keep);
+        if (rc) return pj->rc_side = rc;
+        for (int64_t k = 0; k < w->msub.nnz; k++) w->msub.val[k] /= c->w_pen;
+    }
+    double t1 = sc_now();
+
+    /* the residual r = -1/2 grad E at p0 of the other textures; the solve
+     * gives d = x - p0, so texels that need no change keep their exact value */
+    for (int32_t k = 0, col = 0; k < c->gr->ntex; k++) {
+        const sc_image_data *img = c->atlas->textures[c->gr->tex[k]].image->as.image;
+        double *rhs = w->rhs + (size_t)col * n;
+        if (k > 0) {
+            sc_seam_terms rterms = *c->qterms;
+            rterms.p0 = img;
+            rterms.vertex_values = w->vv[k];
+            rterms.rhs = rhs;
+            if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, c->o->threads, NULL, err)))
+                return pj->rc_side = rc;
+        }
+        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs);
+        col += img->channels;
+    }
+    double t2 = sc_now();
+
+    /* M on the seam texels (the texels of cells seam edges pass through) */
+    w->nseam_texels = w->seamset.count;
+    if (sc_seam_texset_members(&w->seamset, &w->seam_ids))
+        return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (pj->want_nullity) {
+        /* M (eq. 9) alone, exactly, over the seam texels */
+        sc_triplets t;
+        sc_triplets_init(&t, w->seamset.count);
+        sc_seam_terms mterms = {.w_seam = 1.0};
+        rc = sc_seam_assemble(c->m, c->seams_only, c->g, &w->seamset, &mterms, c->o->threads, &t, err);
+        if (rc == SC_OK) rc = sc_sparse_from_triplets(&t, &w->msub, err);
+        sc_triplets_free(&t);
+        if (rc) return pj->rc_side = rc;
+    }
+    if (pj->want_nullity && w->msub.n > 0) {
+        /* numerical nullity as numpy's matrix_rank counts it: eigenvalues
+         * below n eps |M| (|M| bounded by the largest row sum) */
+        double tol = sc_sparse_norm_bound(&w->msub) * (double)w->msub.n * DBL_EPSILON;
+        int64_t below = 0;
+        if (sc_sparse_count_eigs_below(&w->msub, tol, &below, NULL) == SC_OK) pj->nullity = (double)below;
+    }
+    double t3 = sc_now();
+    if (pj->want_round && sparse_full(&w->msub, &w->mfull))
+        return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
+    sc_sparse_free(&w->msub);
+    double t4 = sc_now();
+    pj->seconds_resid = t2 - t1;
+    pj->seconds_nullity = t3 - t2;
+    pj->seconds_round_prep = (t1 - t0) + (t4 - t3);
+    return SC_OK;
+}
+
+static int prep_task(void *ud, int32_t chunk) {
+    prep_job *pj = ud;
+    return chunk == 0 ? prep_factor(pj) : prep_side(pj);
+}
+
+/* Solve Q X = B for the columns of rhs (n x ncols, overwritten by X). A
+ * column equal to an earlier one (a grey image stored as RGB, the same image
+ * in two slots) is solved once and copied. */
+static int solve_unique(sc_sparse_chol *chol, int32_t n, int32_t ncols, double *rhs, sc_error *err) {
+    int32_t *src = sc_alloc_array((size_t)ncols, sizeof *src);
+    if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int32_t nu = 0;
+    for (int32_t c = 0; c < ncols; c++) {
+        src[c] = -1;
+        for (int32_t e = 0; e < c && src[c] < 0; e++)
+            if (src[e] < 0 && memcmp(rhs + (size_t)e * n, rhs + (size_t)c * n, (size_t)n * sizeof *rhs) == 0)
+                src[c] = e;
+        if (src[c] < 0) {
+            if (nu != c) memcpy(rhs + (size_t)nu * n, rhs + (size_t)c * n, (size_t)n * sizeof *rhs);
+            nu++;
+        }
+    }
+    int rc = sc_sparse_chol_solve(chol, nu, rhs, err);
+    if (rc == SC_OK && nu < ncols) {
+        /* spread the solved columns back to their places, last first */
+        int32_t *slot = sc_alloc_array((size_t)ncols, sizeof *slot);
+        if (!slot) {
+            free(src);
+            return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        for (int32_t c = 0, u = 0; c < ncols; c++) slot[c] = src[c] < 0 ? u++ : -1;
+        for (int32_t c = ncols - 1; c >= 0; c--)
+            if (src[c] < 0 && slot[c] != c)
+                memcpy(rhs + (size_t)c * n, rhs + (size_t)slot[c] * n, (size_t)n * sizeof *rhs);
+        for (int32_t c = 0; c < ncols; c++)
+            if (src[c] >= 0) memcpy(rhs + (size_t)c * n, rhs + (size_t)src[c] * n, (size_t)n * sizeof *rhs);
+        free(slot);
+    }
+    free(src);
+    return rc;
 }
 
 static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
@@ -472,96 +670,44 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.trip, NULL, NULL);
     if ((rc = sc_sparse_from_triplets(&w.trip, &w.q, err))) goto done;
     sc_triplets_free(&w.trip);
-    double tm0 = sc_now();
     bool want_round = false;
     for (int32_t k = 0; k < gr->ntex; k++)
         want_round |= atlas->textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
                       o->quantize == QUANT_OPTIMAL;
-    bool want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS;
-    if (want_round && !want_nullity) {
-        /* for rounding, M on the seam texels is Q / w_pen there: the other terms
-         * are ~1e-10 of it and only nudge the greedy choices */
-        int32_t *keep = sc_alloc_array((size_t)n, sizeof *keep);
-        if (!keep) {
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            goto done;
-        }
-        for (int32_t r = 0; r < n; r++) keep[r] = sc_seam_texset_index(&w.seamset, w.ids[r]);
-        rc = sc_sparse_submatrix(&w.q, keep, w.seamset.count, &w.msub, err);
-        free(keep);
-        if (rc) goto done;
-        for (int64_t k = 0; k < w.msub.nnz; k++) w.msub.val[k] /= w_pen;
-    }
-    double tm1 = sc_now();
 
-    /* the residual r = -1/2 grad E at p0 of the other textures; the solve
-     * gives d = x - p0, so texels that need no change keep their exact value */
-    for (int32_t k = 0, col = 0; k < gr->ntex; k++) {
-        const sc_image_data *img = atlas->textures[gr->tex[k]].image->as.image;
-        double *rhs = w.rhs + (size_t)col * n;
-        if (k > 0) {
-            sc_seam_terms rterms = qterms;
-            rterms.p0 = img;
-            rterms.vertex_values = w.vv[k];
-            rterms.rhs = rhs;
-            if ((rc = sc_seam_assemble(m, seams, g, &w.unk, &rterms, o->threads, NULL, err))) goto done;
-        }
-        grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, NULL, img, rhs);
-        col += img->channels;
-    }
-    double t1 = sc_now() - (tm1 - tm0);
-
-    /* supernodal where the factor is big, simplicial where it is tiny */
-    sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
-    if ((rc = sc_sparse_chol_factor(&w.q, &sopt, &w.chol, err))) {
+    /* the factorisation and everything else that needs only Q and the seams
+     * (residuals of the other textures, M for rounding, the nullity) run side
+     * by side: two independent tasks, the same results on any thread count */
+    prep_job pj = {.ctx = {m, seams, &seams_only, g, atlas, gr, o, &w, &qterms, w_pen, w_change_texel},
+                   .want_round = want_round,
+                   .want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS,
+                   .nullity = NAN};
+    double tp0 = sc_now();
+    sc_seam_parallel(o->threads >= 2 ? 2 : 1, 2, prep_task, &pj);
+    if ((rc = pj.rc_factor)) {
+        if (err) *err = pj.err_factor;
         sc_error_prefix(err, "material %s", m->materials[gr->material]);
         goto done;
     }
+    if ((rc = pj.rc_side)) {
+        if (err) *err = pj.err_side;
+        goto done;
+    }
     sc_sparse_free(&w.q);
-    double t2 = sc_now();
-    if ((rc = sc_sparse_chol_solve(w.chol, ncols, w.rhs, err))) goto done;
-    double t3 = sc_now();
+    /* stage times: the overlapped side work counts where it belongs */
+    double t1 = tp0 + pj.seconds_resid, t2 = t1 + pj.seconds_factor;
+    double ts = sc_now();
+    if ((rc = solve_unique(w.chol, n, ncols, w.rhs, err))) goto done;
+    double t3 = t2 + (sc_now() - ts);
     sc_sparse_stats stats;
     sc_sparse_chol_stats(w.chol, &stats);
     sc_sparse_chol_free(w.chol);
     w.chol = NULL;
-
-    /* M on the seam texels (the texels of cells seam edges pass through) */
-    double nullity = NAN;
-    double tn0 = sc_now();
-    w.nseam_texels = w.seamset.count;
-    if (sc_seam_texset_members(&w.seamset, &w.seam_ids)) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        goto done;
-    }
-    if (want_nullity) {
-        /* M (eq. 9) alone, exactly, over the seam texels */
-        sc_triplets t;
-        sc_triplets_init(&t, w.seamset.count);
-        sc_seam_terms mterms = {.w_seam = 1.0};
-        rc = sc_seam_assemble(m, &seams_only, g, &w.seamset, &mterms, o->threads, &t, err);
-        if (rc == SC_OK) rc = sc_sparse_from_triplets(&t, &w.msub, err);
-        sc_triplets_free(&t);
-        if (rc) goto done;
-    }
-    if (want_nullity && w.msub.n > 0) {
-        /* numerical nullity as numpy's matrix_rank counts it: eigenvalues
-         * below n eps |M| (|M| bounded by the largest row sum) */
-        double tol = sc_sparse_norm_bound(&w.msub) * (double)w.msub.n * DBL_EPSILON;
-        int64_t below = 0;
-        if (sc_sparse_count_eigs_below(&w.msub, tol, &below, NULL) == SC_OK) nullity = (double)below;
-    }
-    double tn_mid = sc_now();
-    if (want_round && (rc = sparse_full(&w.msub, &w.mfull))) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        goto done;
-    }
-    sc_sparse_free(&w.msub);
-    double tn1 = sc_now();
+    double nullity = pj.nullity;
 
     /* write the solution, measure, quantise */
-    double tq = (tn1 - tn_mid) + (tm1 - tm0);
-    tot->seconds_nullity += tn_mid - tn0;
+    double tq = pj.seconds_round_prep;
+    tot->seconds_nullity += pj.seconds_nullity;
     tot->seam_edges += seams->nseams;
     tot->silhouette_edges += seams->nsil;
     tot->unknowns += n;
@@ -652,10 +798,24 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
                 goto done;
             }
             if (img->pixel == SC_PIXEL_U8 && o->quantize == QUANT_OPTIMAL && w.mfull.n > 0) {
-                round_job rj = {&w.mfull, w.seam_ids, px, nat->pixels, C};
-                if ((rc = sc_seam_parallel(o->threads, C, round_channel, &rj))) {
+                int32_t src[4], chan[4];
+                round_job rj = {&w.mfull, w.seam_ids, px, nat->pixels, C, chan};
+                int32_t nu = C <= 4 ? round_unique_channels(&rj, src, chan) : 0;
+                if (C > 4) {
+                    rc = SC_EINPUT; /* images hold at most 4 channels */
+                } else {
+                    rc = sc_seam_parallel(o->threads, nu, round_channel, &rj);
+                    for (int32_t c = 0; c < C && rc == SC_OK; c++)
+                        if (src[c] >= 0)
+                            for (int32_t s2 = 0; s2 < w.mfull.n; s2++) {
+                                uint8_t *b = (uint8_t *)nat->pixels + (size_t)w.seam_ids[s2] * C;
+                                b[c] = b[src[c]];
+                            }
+                }
+                if (rc) {
                     sc_image_free(nat);
-                    rc = sc_fail(err, rc, "out of memory rounding to 8 bits");
+                    rc = sc_fail(err, rc, rc == SC_ENOMEM ? "out of memory rounding to 8 bits"
+                                                          : "rounding to 8 bits: more than 4 channels");
                     goto done;
                 }
                 if ((rc = sc_seam_energy(m, seams, g, nat, o->threads, &eq_opt, &gq, err))) {
@@ -1051,7 +1211,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 1,
+    .version = 2,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -10,6 +10,16 @@
  *    way erase_seams and a GPU sampling the stored texture see them. A slot
  *    named "normal" (3+ channels) is renormalised after averaging (decoded
  *    as 2 x - 1 unless the image is float DATA with negative values).
+ *  - DATA maps (float, colour space DATA, not "normal": geometry image,
+ *    displacement) hold a band of linear continuation around each chart and
+ *    push-pull fill beyond it. Level 0's valid texels are those within 2
+ *    texels of a face, labelled with the chart of the nearest face (charts:
+ *    faces joined by uv vertices or overlapping texel centres). A texel of
+ *    level m + 1 is the box mean as above, valid only when every texel of its
+ *    box is valid and of one chart; then 2 rings are grown from the valid
+ *    texels (linear continuation 2 v(t + d) - v(t + 2 d) within the chart
+ *    with the most neighbours) and the rest is push-pull filled. Erasure then
+ *    runs as for every map.
  *  - Erasure. Every level (level 0 too, which passes through when its seam
  *    gaps are within `gap_tolerance`) is erased by the erase_seams node, run
  *    through sc_ctx (a pure function), on an atlas made of the mesh and that
@@ -54,6 +64,7 @@ typedef struct chain {
     int32_t count;             /* levels */
     sc_value *native[MAX_MIP]; /* erased, in the input's pixel type */
     sc_value *f32[MAX_MIP];    /* erased, float (what the next level is built from) */
+    int32_t *band;             /* DATA maps: chart of each valid texel of the last level built, else -1 */
 } chain;
 
 /* ---------------------------------------------------------------- images */
@@ -96,6 +107,250 @@ static sc_image_data *box_down(const sc_image_data *src, bool normal) {
             }
         }
     }
+    return dst;
+}
+
+/* ---------------------------------------------------------------- data maps
+ *
+ * A float DATA map (geometry image, displacement) holds, around each chart, a
+ * band of texels that continue the surface linearly; beyond it, push-pull
+ * fill that has nothing to do with the surface. `band` marks the texels that
+ * hold meaningful values (chart and band); a level is built from the valid
+ * texels of the one above only, and its band is then grown again. */
+
+#define DATA_BAND0 2.0   /* level 0: texels within this distance of a face (bake pads >= 2) */
+#define DATA_RINGS 2     /* rings of linear continuation grown at each level */
+
+static bool is_data_map(const sc_texture *t) {
+    const sc_image_data *im = t->image->as.image;
+    return im->pixel == SC_PIXEL_F32 && im->colorspace == SC_COLOR_DATA && strcmp(t->name, "normal") != 0;
+}
+
+/* Face f's uv corners in texel-centre coordinates. */
+static void face_texels(const sc_mesh *m, int32_t f, int32_t W, int32_t H, double x[3], double y[3]) {
+    for (int k = 0; k < 3; k++) {
+        const double *uv = m->U + 2 * (size_t)m->FU[3 * f + k];
+        x[k] = uv[0] * W - 0.5, y[k] = uv[1] * H - 0.5;
+    }
+}
+
+/* Point (px, py) in the closed triangle x, y of signed double area d != 0. */
+static bool inside(const double x[3], const double y[3], double d, double px, double py) {
+    double e0 = (x[1] - px) * (y[2] - py) - (x[2] - px) * (y[1] - py);
+    double e1 = (x[2] - px) * (y[0] - py) - (x[0] - px) * (y[2] - py);
+    double e2 = (x[0] - px) * (y[1] - py) - (x[1] - px) * (y[0] - py);
+    return d > 0 ? (e0 >= 0 && e1 >= 0 && e2 >= 0) : (e0 <= 0 && e1 <= 0 && e2 <= 0);
+}
+
+static int32_t uf_find(int32_t *parent, int32_t a) {
+    while (parent[a] != a) parent[a] = parent[parent[a]], a = parent[a];
+    return a;
+}
+
+/* Level 0's band: every texel whose centre lies within `r` texels of a uv
+ * triangle of the material (through the wrap modes) gets the chart of the
+ * nearest such face (charts: faces joined through shared uv vertices, named
+ * by their first face; ties to the lower face index), the others -1. NULL
+ * when out of memory. */
+static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_t H, sc_wrap wu, sc_wrap wv,
+                           double r) {
+    int32_t *label = malloc((size_t)W * H * sizeof *label);
+    double *best = malloc((size_t)W * H * sizeof *best);
+    int32_t *parent = malloc(((size_t)m->nu + 1) * sizeof *parent);
+    int32_t *chart = malloc(((size_t)m->nu + 1) * sizeof *chart);
+    if (!label || !best || !parent || !chart) {
+        free(label), free(best), free(parent), free(chart);
+        return NULL;
+    }
+    for (int32_t u = 0; u < m->nu; u++) parent[u] = u, chart[u] = -1;
+    for (int32_t f = 0; f < m->nf; f++)
+        if (m->FM[f] == material)
+            for (int k = 1; k < 3; k++) {
+                int32_t a = uf_find(parent, m->FU[3 * f]), b = uf_find(parent, m->FU[3 * f + k]);
+                if (a != b) parent[a > b ? a : b] = a < b ? a : b;
+            }
+    /* copies of one chart (levels of detail in a union) overlap: texel centres
+     * inside faces of two components join them */
+    for (size_t t = 0; t < (size_t)W * H; t++) label[t] = -1;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != material) continue;
+        double x[3], y[3];
+        face_texels(m, f, W, H, x, y);
+        double d = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        double xmin = fmin(x[0], fmin(x[1], x[2])), xmax = fmax(x[0], fmax(x[1], x[2]));
+        double ymin = fmin(y[0], fmin(y[1], y[2])), ymax = fmax(y[0], fmax(y[1], y[2]));
+        if (d == 0 || !(xmax - xmin < 4.0 * W + 8 && ymax - ymin < 4.0 * H + 8)) continue;
+        for (int64_t j = (int64_t)ceil(ymin); j <= (int64_t)floor(ymax); j++)
+            for (int64_t i = (int64_t)ceil(xmin); i <= (int64_t)floor(xmax); i++) {
+                if (!inside(x, y, d, (double)i, (double)j)) continue;
+                size_t t = (size_t)sc_seam_wrap(j, H, wv) * W + sc_seam_wrap(i, W, wu);
+                int32_t a = uf_find(parent, m->FU[3 * f]), b = label[t] >= 0 ? uf_find(parent, label[t]) : a;
+                if (a != b) parent[a > b ? a : b] = a < b ? a : b;
+                label[t] = a < b ? a : b;
+            }
+    }
+    for (int32_t f = 0; f < m->nf; f++) {
+        int32_t root = m->FM[f] == material ? uf_find(parent, m->FU[3 * f]) : -1;
+        if (root >= 0 && chart[root] < 0) chart[root] = f;
+    }
+    for (size_t t = 0; t < (size_t)W * H; t++) label[t] = -1, best[t] = INFINITY;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != material) continue;
+        int32_t id = chart[uf_find(parent, m->FU[3 * f])];
+        double x[3], y[3];
+        face_texels(m, f, W, H, x, y);
+        double xmin = fmin(x[0], fmin(x[1], x[2])) - r, xmax = fmax(x[0], fmax(x[1], x[2])) + r;
+        double ymin = fmin(y[0], fmin(y[1], y[2])) - r, ymax = fmax(y[0], fmax(y[1], y[2])) + r;
+        if (!(xmax - xmin < 4.0 * W + 8 && ymax - ymin < 4.0 * H + 8)) continue;   /* not finite or absurd */
+        double d = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        for (int64_t j = (int64_t)ceil(ymin); j <= (int64_t)floor(ymax); j++)
+            for (int64_t i = (int64_t)ceil(xmin); i <= (int64_t)floor(xmax); i++) {
+                bool in = d != 0 && inside(x, y, d, (double)i, (double)j);
+                double d2 = in ? 0 : fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[0], y[0], x[1], y[1]),
+                                          fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[1], y[1], x[2], y[2]),
+                                               sc_atlas_ops_segment_distance2((double)i, (double)j, x[2], y[2], x[0], y[0])));
+                size_t t = (size_t)sc_seam_wrap(j, H, wv) * W + sc_seam_wrap(i, W, wu);
+                if (d2 <= r * r && d2 < best[t]) best[t] = d2, label[t] = id;   /* faces in order: ties to the lower */
+            }
+    }
+    free(best), free(parent), free(chart);
+    return label;
+}
+
+/* Grow the valid texels (label >= 0: their chart) by `rings` rings. A texel
+ * next to valid ones joins the chart with the most valid neighbours (ties to
+ * the lower label) and takes the mean of that chart's linear continuations
+ * 2 v(t + d) - v(t + 2 d) over the eight directions d where both are valid
+ * texels of it, else the mean of its neighbours in it. Each ring reads the
+ * previous rings only, so the result is independent of the scan order. */
+static int grow_band(float *px, int32_t *label, int32_t W, int32_t H, int32_t C, int rings) {
+    static const int dd[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+    int32_t *next = malloc((size_t)W * H * sizeof *next);
+    if (!next) return SC_ENOMEM;
+    for (int ring = 0; ring < rings; ring++) {
+        memcpy(next, label, (size_t)W * H * sizeof *next);
+        bool grew = false;
+        for (int32_t j = 0; j < H; j++)
+            for (int32_t i = 0; i < W; i++) {
+                size_t t = (size_t)j * W + i;
+                if (label[t] >= 0) continue;
+                int32_t nb[8];
+                for (int k = 0; k < 8; k++) {
+                    int32_t i1 = i + dd[k][0], j1 = j + dd[k][1];
+                    nb[k] = i1 < 0 || j1 < 0 || i1 >= W || j1 >= H ? -1 : label[(size_t)j1 * W + i1];
+                }
+                int32_t pick = -1;
+                int best = 0;
+                for (int k = 0; k < 8; k++) {
+                    if (nb[k] < 0) continue;
+                    int n = 0;
+                    for (int q = 0; q < 8; q++) n += nb[q] == nb[k];
+                    if (n > best || (n == best && nb[k] < pick)) best = n, pick = nb[k];
+                }
+                if (pick < 0) continue;
+                double lin[4] = {0, 0, 0, 0}, near[4] = {0, 0, 0, 0};
+                int nlin = 0, nnear = 0;
+                for (int k = 0; k < 8; k++) {
+                    if (nb[k] != pick) continue;
+                    int32_t i1 = i + dd[k][0], j1 = j + dd[k][1], i2 = i + 2 * dd[k][0], j2 = j + 2 * dd[k][1];
+                    const float *a = px + ((size_t)j1 * W + i1) * C;
+                    for (int32_t c = 0; c < C; c++) near[c] += a[c];
+                    nnear++;
+                    if (i2 < 0 || j2 < 0 || i2 >= W || j2 >= H || label[(size_t)j2 * W + i2] != pick) continue;
+                    const float *b = px + ((size_t)j2 * W + i2) * C;
+                    for (int32_t c = 0; c < C; c++) lin[c] += 2.0 * a[c] - b[c];
+                    nlin++;
+                }
+                float *o = px + t * C;
+                for (int32_t c = 0; c < C; c++) o[c] = (float)(nlin ? lin[c] / nlin : near[c] / nnear);
+                next[t] = pick, grew = true;
+            }
+        memcpy(label, next, (size_t)W * H * sizeof *next);
+        if (!grew) break;
+    }
+    free(next);
+    return SC_OK;
+}
+
+/* Push-pull: texels not valid take the mean of the valid texels of their
+ * block on the coarsest level of a 2 x 2 pyramid that has one. */
+static int push_pull(float *px, const int32_t *label, int32_t W, int32_t H, int32_t C) {
+    if (W <= 1 && H <= 1) return SC_OK;
+    int32_t w2 = (W + 1) / 2, h2 = (H + 1) / 2;
+    float *p2 = calloc((size_t)w2 * h2 * C, sizeof *p2);
+    int32_t *v2 = malloc((size_t)w2 * h2 * sizeof *v2);
+    int rc = p2 && v2 ? SC_OK : SC_ENOMEM;
+    for (size_t t = 0; rc == SC_OK && t < (size_t)w2 * h2; t++) v2[t] = -1;
+    bool any_invalid = false;
+    for (int32_t j = 0; j < h2 && rc == SC_OK; j++)
+        for (int32_t i = 0; i < w2; i++) {
+            double sum[4] = {0, 0, 0, 0};
+            int n = 0;
+            for (int32_t jj = 2 * j; jj < 2 * j + 2 && jj < H; jj++)
+                for (int32_t ii = 2 * i; ii < 2 * i + 2 && ii < W; ii++) {
+                    size_t t = (size_t)jj * W + ii;
+                    if (label[t] < 0) { any_invalid = true; continue; }
+                    for (int32_t c = 0; c < C; c++) sum[c] += px[t * C + c];
+                    n++;
+                }
+            if (n) {
+                for (int32_t c = 0; c < C; c++) p2[((size_t)j * w2 + i) * C + c] = (float)(sum[c] / n);
+                v2[(size_t)j * w2 + i] = 0;
+            }
+        }
+    if (rc == SC_OK && any_invalid) rc = push_pull(p2, v2, w2, h2, C);
+    for (int32_t j = 0; j < H && rc == SC_OK && any_invalid; j++)
+        for (int32_t i = 0; i < W; i++) {
+            size_t t = (size_t)j * W + i;
+            if (label[t] < 0) memcpy(px + t * C, p2 + ((size_t)(j / 2) * w2 + i / 2) * C, (size_t)C * sizeof *px);
+        }
+    free(p2), free(v2);
+    return rc;
+}
+
+/* The next level of a DATA map: each texel the mean of its box (as box_down)
+ * where every texel of the box is valid, then DATA_RINGS rings of linear
+ * continuation from those, then push-pull for the rest. *band_io: in, the
+ * valid texels of src; out, those of the new level. */
+static sc_image_data *data_down(const sc_image_data *src, int32_t **band_io) {
+    int32_t W = src->width, H = src->height, C = src->channels, w2, h2;
+    next_size(W, H, &w2, &h2);
+    sc_image_data *dst = C <= 4 ? sc_image_alloc(w2, h2, C, SC_PIXEL_F32) : NULL;
+    int32_t *band = malloc((size_t)w2 * h2 * sizeof *band);
+    if (!dst || !band) {
+        sc_image_free(dst), free(band);
+        return NULL;
+    }
+    dst->colorspace = src->colorspace;
+    memcpy(dst->format, src->format, sizeof dst->format);
+    const float *s = src->pixels;
+    const int32_t *in = *band_io;
+    float *d = dst->pixels;
+    for (int32_t j = 0; j < h2; j++) {
+        int32_t j0 = H == 1 ? 0 : 2 * j, j1 = H == 1 ? 0 : (j == h2 - 1 ? H - 1 : 2 * j + 1);
+        for (int32_t i = 0; i < w2; i++) {
+            int32_t i0 = W == 1 ? 0 : 2 * i, i1 = W == 1 ? 0 : (i == w2 - 1 ? W - 1 : 2 * i + 1);
+            double sum[4] = {0, 0, 0, 0};
+            int n = 0;
+            int32_t lab = in[(size_t)j0 * W + i0];
+            for (int32_t jj = j0; jj <= j1; jj++)
+                for (int32_t ii = i0; ii <= i1; ii++, n++) {
+                    if (in[(size_t)jj * W + ii] != lab) lab = -1;
+                    for (int32_t c = 0; c < C; c++) sum[c] += s[((size_t)jj * W + ii) * C + c];
+                }
+            float *o = d + ((size_t)j * w2 + i) * C;
+            for (int32_t c = 0; c < C; c++) o[c] = (float)(sum[c] / n);
+            band[(size_t)j * w2 + i] = lab;
+        }
+    }
+    int rc = grow_band(d, band, w2, h2, C, DATA_RINGS);
+    if (rc == SC_OK) rc = push_pull(d, band, w2, h2, C);
+    if (rc != SC_OK) {
+        sc_image_free(dst), free(band);
+        return NULL;
+    }
+    free(*band_io);
+    *band_io = band;
     return dst;
 }
 
@@ -291,8 +546,20 @@ static int run(sc_ctx *ctx, sc_error *err) {
                 chain *ch = &chains[c];
                 if (ch->group != g || m >= ch->count) continue;
                 sc_value *in = NULL;
+                bool data = is_data_map(ch->tex);
                 if (m == 0) {
                     in = sc_value_retain(ch->tex->image);
+                    if (data) {
+                        const sc_image_data *im = ch->tex->image->as.image;
+                        const sc_value *mv = g == nsrc ? union_mesh : src[g]->mesh;
+                        ch->band = data_band0(mv->as.mesh, ch->tex->material, im->width, im->height,
+                                              ch->tex->wrap_u, ch->tex->wrap_v, DATA_BAND0);
+                        if (!ch->band) rc = sc_fail(err, SC_ENOMEM, "out of memory at mip level 0");
+                    }
+                } else if (data) {
+                    sc_image_data *f = data_down(ch->f32[m - 1]->as.image, &ch->band);
+                    in = f ? sc_value_new_image(f) : NULL;
+                    if (!in) rc = sc_fail(err, SC_ENOMEM, "out of memory at mip level %d", m);
                 } else {
                     bool normal = strcmp(ch->tex->name, "normal") == 0;
                     sc_image_data *f = box_down(ch->f32[m - 1]->as.image, normal);
@@ -409,6 +676,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     sc_lods_free(out);
     sc_report_free(report);
+    for (int32_t c = 0; chains && c < nchains; c++) free(chains[c].band);
     for (int32_t c = 0; chains && c < nchains; c++)
         for (int m = 0; m < MAX_MIP; m++) sc_value_release(chains[c].native[m]), sc_value_release(chains[c].f32[m]);
     sc_value_release(union_mesh);
@@ -438,7 +706,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 1,
+    .version = 2,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -37,4 +37,7 @@ int sc_atlas_ops_erase(sc_value *mesh, const sc_atlas_ops_map *maps, int n, doub
                        const char *quantize, const char *const *params, int threads, sc_value **f32_out,
                        sc_value **native_out, sc_error *err);
 
+/* Squared distance of point (px, py) from the segment (ax, ay)-(bx, by). */
+double sc_atlas_ops_segment_distance2(double px, double py, double ax, double ay, double bx, double by);
+
 #endif
