@@ -7,6 +7,8 @@
  * bake_displacement (one geometry image + one displacement map per level,
  * all erased) and mipmap on its levels (every chain, every level erased),
  * and print the reconstruction errors and the worst seam energy.
+ * With SC_BENCH_DIGESTS set, the digests of both nodes' outputs are printed
+ * too (equal digests: equal bytes).
  * Target (issue 6): <= 5 s for blub's 2048^2 geometry image + 3
  * displacement maps + their mip chains.
  */
@@ -98,11 +100,13 @@ int main(int argc, char **argv) {
                    sc_ctx_metric_value(mip, "seam_energy"));
         if (bake)
             printf("       bake: geometry image error %.3g, texels %.0f covered %.0f shared; raster %.2f s, fit %.2f s "
-                   "(sampling %.2f s, solve %.2f s, %.0f iterations), erase %.2f s, metrics %.2f s\n",
+                   "(sampling %.2f s: %.0f samples in %.0f cells, solve %.2f s: %.0f cells, %.0f iterations), erase %.2f s, "
+                   "metrics %.2f s\n",
                    sc_ctx_metric_value(bake, "geometry_image_error"), sc_ctx_metric_value(bake, "texels_covered"),
                    sc_ctx_metric_value(bake, "texels_shared"), sc_ctx_metric_value(bake, "seconds_raster"),
                    sc_ctx_metric_value(bake, "seconds_fit"), sc_ctx_metric_value(bake, "seconds_fit_sample"),
-                   sc_ctx_metric_value(bake, "seconds_fit_solve"), sc_ctx_metric_value(bake, "fit_iterations"),
+                   sc_ctx_metric_value(bake, "fit_samples"), sc_ctx_metric_value(bake, "fit_cells_inexact"),
+                   sc_ctx_metric_value(bake, "seconds_fit_solve"), sc_ctx_metric_value(bake, "fit_cells_solved"), sc_ctx_metric_value(bake, "fit_iterations"),
                    sc_ctx_metric_value(bake, "seconds_erase"), sc_ctx_metric_value(bake, "seconds_metrics"));
         for (int k = 0; bake && k < 3; k++) {
             char n1[64], n2[64], n3[64];
@@ -115,6 +119,17 @@ int main(int argc, char **argv) {
         if (mip)
             printf("       mipmap: erase %.2f s, metrics %.2f s, files %.2f s\n", sc_ctx_metric_value(mip, "seconds_erase"),
                    sc_ctx_metric_value(mip, "seconds_metrics"), sc_ctx_metric_value(mip, "seconds_files"));
+        if (bake && mip && getenv("SC_BENCH_DIGESTS")) {   /* to check that a change keeps the bytes */
+            char h[65];
+            for (int o = 0; o < 2; o++) {
+                sc_digest_hex(&sc_ctx_output(bake, o)->digest, h);
+                printf("       digest bake.%d %s\n", o, h);
+            }
+            for (int o = 0; o < 2; o++) {
+                sc_digest_hex(&sc_ctx_output(mip, o)->digest, h);
+                printf("       digest mipmap.%d %s\n", o, h);
+            }
+        }
         if (mip) sc_ctx_free(mip);
         if (bake) sc_ctx_free(bake);
         if (dec) sc_ctx_free(dec);

@@ -33,8 +33,14 @@
  *    solved for in least squares (mean squared error per cell; exact cells
  *    enter through the bilinear mass matrix), by Jacobi-preconditioned
  *    conjugate gradients. The geometry image gets the same fit (P_k = 0).
- *    Sampling runs in bands of rows, each band summing its own cells in face
- *    order: the same bytes on any thread count.
+ *    Sampling runs in bands of rows, each band visiting (from a per-band
+ *    face list built once per map) the faces that can reach its rows in face
+ *    order, so each cell sums its own samples in the serial order: the same
+ *    bytes on any thread count. A first pass only measures the miss per
+ *    cell; a second pass repeats the same samples in the cells next to a
+ *    solved texel only, summing their Gram matrices and residuals. The
+ *    solver's matrix products gather per unknown in the order a scatter over
+ *    the cells would add, so they split over threads with the same bytes.
  *  - Seams. With `erase` (the default), the node runs the erase_seams node
  *    (sc_atlas_ops_erase; no E_C1 term: the two sides of a seam map uv to the
  *    surface with their own Jacobians, so positions have no reason to be C1
@@ -93,10 +99,13 @@ static void raster_free(raster *r) {
 }
 
 /* Barycentric coordinates of (px, py) in triangle x[3], y[3] (any point of the
- * plane); false for a degenerate triangle. */
-static bool barycentric(const double x[3], const double y[3], double px, double py, double l[3]) {
+ * plane); false (and zeros) for a degenerate triangle. */
+static inline bool barycentric(const double x[3], const double y[3], double px, double py, double l[3]) {
     double d = (y[1] - y[2]) * (x[0] - x[2]) + (x[2] - x[1]) * (y[0] - y[2]);
-    if (!(fabs(d) > 1e-300)) return false;
+    if (!(fabs(d) > 1e-300)) {
+        l[0] = l[1] = l[2] = 0;
+        return false;
+    }
     l[0] = ((y[1] - y[2]) * (px - x[2]) + (x[2] - x[1]) * (py - y[2])) / d;
     l[1] = ((y[2] - y[0]) * (px - x[2]) + (x[0] - x[2]) * (py - y[2])) / d;
     l[2] = 1 - l[0] - l[1];
@@ -379,7 +388,6 @@ typedef struct fit_cell {
     double G[10];   /* upper triangle of the 4 x 4 Gram matrix, row-major */
     double b[4][3];
     double n;       /* samples */
-    double worst;   /* largest |bilinear(x0) - f| of a sample */
 } fit_cell;
 
 static const int gram_index[4][4] = {{0, 1, 2, 3}, {1, 4, 5, 6}, {2, 5, 7, 8}, {3, 6, 8, 9}};
@@ -408,6 +416,11 @@ static bool cell_key(const cellgrid *cg, int64_t cx, int64_t cy, size_t *key) {
 static void cell_corners(const cellgrid *cg, size_t key, int32_t id[4]) {
     int64_t kx = (int64_t)(key % cg->CW), ky = (int64_t)(key / cg->CW);
     int64_t cx = cg->wu == SC_WRAP_REPEAT ? kx : kx - 1, cy = cg->wv == SC_WRAP_REPEAT ? ky : ky - 1;
+    if (cx >= 0 && cy >= 0 && cx + 1 < cg->W && cy + 1 < cg->H) {   /* inside: no wrapping */
+        id[0] = (int32_t)(cy * cg->W + cx), id[1] = id[0] + 1;
+        id[2] = id[0] + cg->W, id[3] = id[2] + 1;
+        return;
+    }
     for (int q = 0; q < 4; q++)
         id[q] = sc_seam_wrap(cy + (q >> 1), cg->H, cg->wv) * cg->W + sc_seam_wrap(cx + (q & 1), cg->W, cg->wu);
 }
@@ -443,14 +456,86 @@ typedef struct sample_job {
     int32_t material;
     const sc_seam_grid *g;
     cellgrid cg;
-    const int32_t *slot;
-    fit_cell *cells;
+    const int32_t *slot;   /* per cell key: its index in `worst` or `cells`, -1 to skip it */
+    fit_cell *cells;       /* NULL: the first pass, the worst miss per cell */
+    double *worst;         /* largest |bilinear(x0) - f| of a sample, per inexact cell */
     const raster *rlev;
     const locator *lev;
     const float *x;
     int32_t band;
+    const int32_t *list_start, *list;   /* per chunk, the faces that may sample its rows, in face order */
     int64_t *samples;   /* per chunk */
 } sample_job;
+
+/* Face f's uv corners in texel-centre coordinates and whether it is sampled
+ * at all (not absurd, not NaN, not flat); *small: under two texels across. */
+static bool sample_face(const sc_mesh *in, int32_t f, int32_t W, int32_t H, double fx[3], double fy[3], bool *small) {
+    for (int c = 0; c < 3; c++) {
+        const double *t = in->U + 2 * in->FU[3 * f + c];
+        fx[c] = t[0] * W - 0.5, fy[c] = t[1] * H - 0.5;
+    }
+    double e = 0, lt[3];
+    for (int c = 0; c < 3; c++) e = fmax(e, hypot(fx[(c + 1) % 3] - fx[c], fy[(c + 1) % 3] - fy[c]));
+    *small = e < 2;
+    return e < 4.0 * (W + H) && barycentric(fx, fy, fx[0], fy[0], lt);
+}
+
+/* The sampling chunks (key rows [c * band, (c + 1) * band)) each face may put
+ * samples in: its cell rows, one more on each side (rounding), through the
+ * wrap mode; every face of the material in face order. A superset of what
+ * sample_band keeps, so the sums are the ones a scan of every face gives. */
+static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg, int32_t band, int32_t nchunks,
+                        int32_t **start_out, int32_t **list_out) {
+    int32_t *start = sc_calloc_array((size_t)nchunks + 1, sizeof(int32_t));
+    int32_t *last = sc_alloc_array((size_t)nchunks + 1, sizeof(int32_t));
+    int32_t *list = NULL, *fill = NULL;
+    if (!start || !last) {
+        free(start), free(last);
+        return SC_ENOMEM;
+    }
+    int64_t total = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (int32_t c = 0; c < nchunks; c++) last[c] = -1;
+        for (int32_t f = 0; f < in->nf; f++) {
+            if (in->FM[f] != material) continue;
+            double fx[3], fy[3];
+            bool small;
+            if (!sample_face(in, f, cg->W, cg->H, fx, fy, &small)) continue;
+            int64_t cy0 = (int64_t)floor(fmin(fy[0], fmin(fy[1], fy[2]))) - 1;
+            int64_t cy1 = (int64_t)floor(fmax(fy[0], fmax(fy[1], fy[2]))) + 1;
+            int64_t r0, r1;   /* key rows, or every row */
+            bool all = false;
+            if (cg->wv == SC_WRAP_REPEAT) {
+                all = cy1 - cy0 + 1 >= cg->H;
+                r0 = cy0, r1 = cy1;
+            } else {
+                r0 = cy0 + 1 < 0 ? 0 : cy0 + 1, r1 = cy1 + 1 > cg->CH - 1 ? cg->CH - 1 : cy1 + 1;
+            }
+            if (all) r0 = 0, r1 = cg->CH - 1;
+            for (int64_t r = r0; r <= r1; r++) {
+                int64_t row = cg->wv == SC_WRAP_REPEAT && !all ? sc_seam_wrap(r, cg->H, SC_WRAP_REPEAT) : r;
+                int32_t c = (int32_t)(row / band);
+                if (c < 0 || c >= nchunks || last[c] == f) continue;
+                last[c] = f;
+                if (pass == 0) start[c + 1]++, total++;
+                else list[fill[c]++] = f;
+            }
+        }
+        if (pass == 0) {
+            for (int32_t c = 0; c < nchunks; c++) start[c + 1] += start[c];
+            list = total < INT32_MAX ? sc_alloc_array((size_t)total + 1, sizeof(int32_t)) : NULL;
+            fill = sc_alloc_array((size_t)nchunks + 1, sizeof(int32_t));
+            if (!list || !fill) {
+                free(start), free(last), free(list), free(fill);
+                return SC_ENOMEM;
+            }
+            memcpy(fill, start, sizeof(int32_t) * (size_t)nchunks);
+        }
+    }
+    free(last), free(fill);
+    *start_out = start, *list_out = list;
+    return SC_OK;
+}
 
 /* Samples of f in the inexact cells of key rows [chunk * band, ...): every
  * face in face order, so each cell sums its samples in the serial order. */
@@ -461,35 +546,47 @@ static int sample_band(void *ud, int32_t chunk) {
     const cellgrid cg = J->cg;
     const int32_t *slot = J->slot;
     fit_cell *cells = J->cells;
+    double *worst = J->worst;
     const raster *rlev = J->rlev;
     const locator *lev = J->lev;
     const float *x = J->x;
     const size_t k0 = (size_t)chunk * J->band, k1 = k0 + (size_t)J->band;
+    int64_t nsamples = 0;
     /* dense samples of f in those cells: 4 x 4 per cell inside a face,
      * and a barycentric grid on faces under two texels across */
-    for (int32_t f = 0; f < in->nf; f++) {
+    for (int32_t lq = J->list_start[chunk]; lq < J->list_start[chunk + 1]; lq++) {
+        const int32_t f = J->list[lq];
         if (in->FM[f] != material) continue;
         const double *t[3], *p[3];
         double fx[3], fy[3];
-        for (int c = 0; c < 3; c++) {
-            t[c] = in->U + 2 * in->FU[3 * f + c], p[c] = in->V + 3 * in->FV[3 * f + c];
-            fx[c] = t[c][0] * W - 0.5, fy[c] = t[c][1] * H - 0.5;
-        }
-        double e = 0, lt[3];
-        for (int c = 0; c < 3; c++) e = fmax(e, hypot(fx[(c + 1) % 3] - fx[c], fy[(c + 1) % 3] - fy[c]));
-        if (!(e < 4.0 * (W + H)) || !barycentric(fx, fy, fx[0], fy[0], lt)) continue;   /* absurd, NaN, flat */
-        bool small = e < 2;
+        bool small;
+        if (!sample_face(in, f, W, H, fx, fy, &small)) continue;   /* absurd, NaN, flat */
+        for (int c = 0; c < 3; c++) t[c] = in->U + 2 * in->FU[3 * f + c], p[c] = in->V + 3 * in->FV[3 * f + c];
         int32_t n = small ? 3 : 0;
         int64_t cx0 = (int64_t)floor(fmin(fx[0], fmin(fx[1], fx[2]))), cx1 = (int64_t)floor(fmax(fx[0], fmax(fx[1], fx[2])));
         int64_t cy0 = (int64_t)floor(fmin(fy[0], fmin(fy[1], fy[2]))), cy1 = (int64_t)floor(fmax(fy[0], fmax(fy[1], fy[2])));
         if (!small && cg.wv != SC_WRAP_REPEAT && (cy1 + 1 < (int64_t)k0 || cy0 + 1 >= (int64_t)k1)) continue;
         if (!small && cg.wv == SC_WRAP_REPEAT && cy1 - cy0 + 1 < H && cy0 >= 0 && cy1 < H && (cy1 < (int64_t)k0 || cy0 >= (int64_t)k1))
             continue;
-        int64_t ncells = small ? 1 : (cx1 - cx0 + 1) * (cy1 - cy0 + 1);
+        /* the cells of the face's box, row by row, on the band's rows only
+         * (the others put no sample in it) */
+        int64_t ry0 = cy0, ry1 = cy1;
+        if (!small && cg.wv != SC_WRAP_REPEAT) {
+            ry0 = cy0 > (int64_t)k0 - 1 ? cy0 : (int64_t)k0 - 1;
+            ry1 = cy1 < (int64_t)k1 - 2 ? cy1 : (int64_t)k1 - 2;
+        } else if (!small && cy0 >= 0 && cy1 < H) {
+            ry0 = cy0 > (int64_t)k0 ? cy0 : (int64_t)k0;
+            ry1 = cy1 < (int64_t)k1 - 1 ? cy1 : (int64_t)k1 - 1;
+        }
+        const int64_t bw = small ? 1 : cx1 - cx0 + 1;
+        int64_t ncells = small ? 1 : ry1 < ry0 ? 0 : bw * (ry1 - ry0 + 1);
         for (int64_t cell = 0; cell < ncells; cell++) {
-            int64_t cx = cx0 + (small ? 0 : cell % (cx1 - cx0 + 1)), cy = cy0 + (small ? 0 : cell / (cx1 - cx0 + 1));
+            int64_t cx = cx0 + cell % bw, cy = (small ? cy0 : ry0) + cell / bw;
             size_t key;
             if (!small && (!cell_key(&cg, cx, cy, &key) || slot[key] < 0 || key / cg.CW < k0 || key / cg.CW >= k1)) continue;
+            const size_t cell_key0 = small ? 0 : key;   /* a big face's samples land in this cell */
+            int32_t cell_id[4];
+            if (!small) cell_corners(&cg, cell_key0, cell_id);
             int32_t npts = small ? (n + 1) * (n + 2) / 2 : 16;
             for (int32_t s = 0; s < npts; s++) {
                 double l[3];
@@ -504,11 +601,18 @@ static int sample_band(void *ud, int32_t chunk) {
                 double u = l[0] * t[0][0] + l[1] * t[1][0] + l[2] * t[2][0];
                 double v = l[0] * t[0][1] + l[1] * t[1][1] + l[2] * t[2][1];
                 double px = u * W - 0.5, py = v * H - 0.5, qx = floor(px), qy = floor(py);
-                if (!cell_key(&cg, (int64_t)qx, (int64_t)qy, &key) || slot[key] < 0 || key / cg.CW < k0 || key / cg.CW >= k1) continue;
+                int32_t id[4];
+                if (!small && (int64_t)qx == cx && (int64_t)qy == cy) {
+                    key = cell_key0;
+                    memcpy(id, cell_id, sizeof id);
+                } else {
+                    if (!cell_key(&cg, (int64_t)qx, (int64_t)qy, &key) || slot[key] < 0 || key / cg.CW < k0 ||
+                        key / cg.CW >= k1)
+                        continue;
+                    cell_corners(&cg, key, id);
+                }
                 double y[3];
                 for (int k = 0; k < 3; k++) y[k] = l[0] * p[0][k] + l[1] * p[1][k] + l[2] * p[2][k];
-                int32_t id[4];
-                cell_corners(&cg, key, id);
                 if (lev) {
                     double q[3];
                     if (!level_at_corners(lev->m, rlev, id, u, v, q) && locate(lev, u, v, q) < 0) continue;
@@ -516,7 +620,6 @@ static int sample_band(void *ud, int32_t chunk) {
                 }
                 double ss = px - qx, tt = py - qy;
                 double w[4] = {(1 - ss) * (1 - tt), ss * (1 - tt), (1 - ss) * tt, ss * tt};
-                fit_cell *C = &cells[slot[key]];
                 double r[3], gap = 0;
                 for (int k = 0; k < 3; k++) {
                     double bx = 0;
@@ -524,15 +627,98 @@ static int sample_band(void *ud, int32_t chunk) {
                     r[k] = y[k] - bx;
                     gap += r[k] * r[k];
                 }
-                C->worst = fmax(C->worst, sqrt(gap));
+                nsamples++;
+                if (!cells) {
+                    worst[slot[key]] = fmax(worst[slot[key]], sqrt(gap));
+                    continue;
+                }
+                fit_cell *C = &cells[slot[key]];
                 for (int i = 0; i < 4; i++) {
                     for (int j = i; j < 4; j++) C->G[gram_index[i][j]] += w[i] * w[j];
                     for (int k = 0; k < 3; k++) C->b[i][k] += w[i] * r[k];
                 }
                 C->n += 1;
-                J->samples[chunk]++;
             }
         }
+    }
+    J->samples[chunk] = nsamples;
+    return SC_OK;
+}
+
+/* Per-cell flags over cells [chunk * CELL_CHUNK, ...): with `rin`, slot[k] =
+ * -1 where x0 is exact (the four corners inside one face of the input and,
+ * with `rlev`, one of the level), else 0; with `var`, touch[k] = whether a
+ * corner is a free texel. */
+#define CELL_CHUNK 65536
+typedef struct cell_job {
+    const cellgrid *cg;
+    const raster *rin, *rlev;
+    const int32_t *var;
+    int32_t *slot;
+    uint8_t *touch;
+    size_t ncell;
+} cell_job;
+
+static int cell_band(void *ud, int32_t chunk) {
+    const cell_job *J = ud;
+    const size_t k0 = (size_t)chunk * CELL_CHUNK, k1 = k0 + CELL_CHUNK < J->ncell ? k0 + CELL_CHUNK : J->ncell;
+    const raster *rin = J->rin, *rlev = J->rlev;
+    for (size_t k = k0; k < k1; k++) {
+        int32_t id[4];
+        cell_corners(J->cg, k, id);
+        if (J->var) {
+            bool any = false;
+            for (int q = 0; q < 4; q++) any |= J->var[id[q]] >= 0;
+            J->touch[k] = any;
+            continue;
+        }
+        bool exact = true;
+        for (int q = 0; q < 4 && exact; q++) {
+            exact = rin->face[id[q]] >= 0 && rin->dist[id[q]] == 0 && rin->face[id[q]] == rin->face[id[0]];
+            if (exact && rlev)
+                exact = rlev->face[id[q]] >= 0 && rlev->dist[id[q]] == 0 && rlev->face[id[q]] == rlev->face[id[0]];
+        }
+        J->slot[k] = exact ? -1 : 0;
+    }
+    return SC_OK;
+}
+
+/* A cell with a free corner: the free texels' indices (-1: fixed), its
+ * (normalised) Gram matrix and residual (NULL: an exact cell). */
+typedef struct active {
+    int32_t var[4];
+    const double *G;
+    const double (*b)[3];
+} active;
+
+/* Ap = (sum P^T G P) p, gathered per unknown: unknown v sums its entries
+ * inc[inc_start[v] .. inc_start[v + 1]) (active cell * 4 + corner, cells in
+ * ascending order), the very order a scatter over the cells adds them in, so
+ * any split of the unknowns gives the same bytes. */
+typedef struct apply_job {
+    const active *act;
+    const int64_t *inc_start, *inc;
+    const double *p;
+    double *Ap;
+    int64_t nvar, chunk;
+} apply_job;
+
+static int apply_band(void *ud, int32_t chunk) {
+    const apply_job *J = ud;
+    const int64_t v0 = (int64_t)chunk * J->chunk, v1 = v0 + J->chunk < J->nvar ? v0 + J->chunk : J->nvar;
+    for (int64_t v = v0; v < v1; v++) {
+        double acc[3] = {0, 0, 0};
+        for (int64_t e = J->inc_start[v]; e < J->inc_start[v + 1]; e++) {
+            const active *A = &J->act[J->inc[e] >> 2];
+            const int q = (int)(J->inc[e] & 3);
+            for (int s = 0; s < 4; s++) {
+                int32_t vs = A->var[s];
+                if (vs < 0) continue;
+                double gq = A->G[gram_index[q][s]];
+                for (int c = 0; c < 3; c++) acc[c] += gq * J->p[3 * vs + c];
+            }
+        }
+        for (int c = 0; c < 3; c++) J->Ap[3 * v + c] = acc[c];
     }
     return SC_OK;
 }
@@ -548,55 +734,43 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
     if (!slot) return sc_fail(err, SC_ENOMEM, "out of memory");
     /* 1. the cells where x0 may be inexact */
     int64_t nbad = 0;
-    for (size_t k = 0; k < ncell; k++) {
-        int32_t id[4];
-        cell_corners(&cg, k, id);
-        bool exact = true;
-        for (int q = 0; q < 4 && exact; q++) {
-            exact = rin->face[id[q]] >= 0 && rin->dist[id[q]] == 0 && rin->face[id[q]] == rin->face[id[0]];
-            if (exact && rlev)
-                exact = rlev->face[id[q]] >= 0 && rlev->dist[id[q]] == 0 && rlev->face[id[q]] == rlev->face[id[0]];
-        }
-        slot[k] = exact ? -1 : (int32_t)nbad++;
-        if (nbad >= INT32_MAX) break;
-    }
-    fit_cell *cells = sc_calloc_array((size_t)nbad + 1, sizeof *cells);
-    if (!cells) {
+    cell_job cj = {&cg, rin, rlev, NULL, slot, NULL, ncell};
+    if (sc_seam_parallel(threads, (int32_t)((ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &cj) != SC_OK) {
         free(slot);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (size_t k = 0; k < ncell; k++)
+        if (slot[k] >= 0) slot[k] = nbad < INT32_MAX - 1 ? (int32_t)nbad++ : -1;
+    double *worst = sc_calloc_array((size_t)nbad + 1, sizeof *worst);
+    const int32_t band = 16, nchunks = (cg.CH + band - 1) / band;
+    int64_t *counts = sc_calloc_array((size_t)nchunks, sizeof(int64_t));
+    int32_t *list_start = NULL, *list = NULL;
+    if (!worst || !counts || sample_lists(in, material, &cg, band, nchunks, &list_start, &list) != SC_OK) {
+        free(worst), free(counts), free(slot);
         return sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)nbad);
     }
     double t0 = sc_now();
-    /* 2. dense samples of f in those cells: 4 x 4 per cell inside a face,
-     * and a barycentric grid on faces under two texels across */
-    {
-        int32_t band = 16, nchunks = (cg.CH + band - 1) / band;
-        int64_t *counts = sc_calloc_array((size_t)nchunks, sizeof(int64_t));
-        if (!counts) {
-            free(cells), free(slot);
-            return sc_fail(err, SC_ENOMEM, "out of memory");
-        }
-        sample_job job = {in, material, g, cg, slot, cells, rlev, lev, x, band, counts};
-        int prc = sc_seam_parallel(threads, nchunks, sample_band, &job);
-        for (int32_t c = 0; c < nchunks; c++) st->samples += counts[c];
-        free(counts);
-        if (prc != SC_OK) {
-            free(cells), free(slot);
-            return sc_fail(err, prc, "sampling the surface failed");
-        }
-    }
+    /* 2. dense samples of f in those cells (4 x 4 per cell inside a face, a
+     * barycentric grid on faces under two texels across): first only how far
+     * x0 misses them; the Gram matrices and residuals (step 4) are summed in
+     * a second pass over the same samples, in the cells next to free texels
+     * only */
+    sample_job job = {in, material, g, cg, slot, NULL, worst, rlev, lev, x, band, list_start, list, counts};
+    int rc = sc_seam_parallel(threads, nchunks, sample_band, &job);
+    for (int32_t c = 0; c < nchunks; c++) st->samples += counts[c];
+    if (rc != SC_OK) rc = sc_fail(err, rc, "sampling the surface failed");
     st->seconds_sample += sc_now() - t0;
     t0 = sc_now();
     /* 3. the free texels: corners of the cells x0 misses by more than tol */
-    int32_t *var = sc_alloc_array((size_t)W * H, sizeof(int32_t));
-    int rc = var ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
+    int32_t *var = rc == SC_OK ? sc_alloc_array((size_t)W * H, sizeof(int32_t)) : NULL;
+    if (rc == SC_OK && !var) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     int64_t nvar = 0;
     if (rc == SC_OK) {
         for (size_t t = 0; t < (size_t)W * H; t++) var[t] = -1;
         for (size_t k = 0; k < ncell; k++) {
             if (slot[k] < 0) continue;
-            fit_cell *C = &cells[slot[k]];
             st->cells_inexact++;
-            if (!(C->worst > tol)) continue;
+            if (!(worst[slot[k]] > tol)) continue;
             st->cells_solved++;
             int32_t id[4];
             cell_corners(&cg, k, id);
@@ -605,12 +779,8 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
         }
     }
     /* 4. the cells the free texels sit in: their Gram and residual */
-    typedef struct active {
-        int32_t var[4];
-        const double *G;
-        const double (*b)[3];
-    } active;
     active *act = NULL;
+    int64_t *inc_start = NULL, *inc = NULL;
     int64_t nact = 0;
     double *vec = NULL;
     if (rc == SC_OK && nvar > 0) {
@@ -618,16 +788,39 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
         vec = sc_calloc_array((size_t)nvar * 3 * 6, sizeof(double));
         if (!act || !vec) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
     }
+    uint8_t *touch = NULL;   /* cells with a free corner */
+    int32_t *slot2 = NULL;   /* inexact cells with a free corner: index in `cells` */
+    fit_cell *cells = NULL;
+    if (rc == SC_OK && nvar > 0) {
+        touch = sc_alloc_array(ncell + 1, 1);
+        slot2 = sc_alloc_array(ncell + 1, sizeof(int32_t));
+        cell_job tj = {&cg, NULL, NULL, var, NULL, touch, ncell};
+        if (!touch || !slot2 ||
+            sc_seam_parallel(threads, (int32_t)((ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &tj) != SC_OK)
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    if (rc == SC_OK && nvar > 0) {
+        int64_t ntouched = 0;
+        for (size_t k = 0; k < ncell; k++) slot2[k] = slot[k] >= 0 && touch[k] ? (int32_t)ntouched++ : -1;
+        cells = sc_calloc_array((size_t)ntouched + 1, sizeof *cells);
+        if (!cells) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)ntouched);
+    }
+    if (rc == SC_OK && nvar > 0) {   /* the second pass: each cell sums its samples in the first pass's order */
+        double t1 = sc_now();
+        job.slot = slot2, job.cells = cells, job.worst = NULL;
+        int prc = sc_seam_parallel(threads, nchunks, sample_band, &job);
+        if (prc != SC_OK) rc = sc_fail(err, prc, "sampling the surface failed");
+        st->seconds_sample += sc_now() - t1;
+        t0 += sc_now() - t1;
+    }
     if (rc == SC_OK && nvar > 0) {
         for (size_t k = 0; k < ncell; k++) {
+            if (!touch[k]) continue;
             int32_t id[4];
             cell_corners(&cg, k, id);
-            bool any = false;
-            for (int q = 0; q < 4; q++) any |= var[id[q]] >= 0;
-            if (!any) continue;
             active *A = &act[nact];
             if (slot[k] >= 0) {
-                fit_cell *C = &cells[slot[k]];
+                fit_cell *C = &cells[slot2[k]];
                 if (!(C->n > 0)) continue;
                 for (int i = 0; i < 10; i++) C->G[i] /= C->n;
                 for (int i = 0; i < 4; i++)
@@ -639,6 +832,21 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
             for (int q = 0; q < 4; q++) A->var[q] = var[id[q]];
             nact++;
         }
+        /* each unknown's (cell, corner) entries, cells in ascending order */
+        inc_start = sc_calloc_array((size_t)nvar + 1, sizeof(int64_t));
+        inc = sc_alloc_array((size_t)nact * 4 + 1, sizeof(int64_t));
+        if (!inc_start || !inc) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
+    }
+    if (rc == SC_OK && nvar > 0) {
+        for (int64_t a = 0; a < nact; a++)
+            for (int q = 0; q < 4; q++)
+                if (act[a].var[q] >= 0) inc_start[act[a].var[q] + 1]++;
+        for (int64_t v = 0; v < nvar; v++) inc_start[v + 1] += inc_start[v];
+        for (int64_t a = 0; a < nact; a++)
+            for (int q = 0; q < 4; q++)
+                if (act[a].var[q] >= 0) inc[inc_start[act[a].var[q]]++] = 4 * a + q;
+        for (int64_t v = nvar; v > 0; v--) inc_start[v] = inc_start[v - 1];
+        inc_start[0] = 0;
         /* CG on (sum P^T G P + eps I) d = sum P^T b, three channels at once */
         const double eps = 1e-4;
         double *d = vec, *r = vec + 3 * nvar, *z = vec + 6 * nvar, *pp = vec + 9 * nvar, *Ap = vec + 12 * nvar,
@@ -664,19 +872,11 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
             }
         for (int it = 0; it < 60; it++) {
             double rr = 0, rr0 = r0[0] + r0[1] + r0[2];
-            memset(Ap, 0, sizeof(double) * 3 * (size_t)nvar);
-            for (int64_t a = 0; a < nact; a++) {
-                const active *A = &act[a];
-                for (int q = 0; q < 4; q++) {
-                    int32_t vq = A->var[q];
-                    if (vq < 0) continue;
-                    for (int s = 0; s < 4; s++) {
-                        int32_t vs = A->var[s];
-                        if (vs < 0) continue;
-                        double gq = A->G[gram_index[q][s]];
-                        for (int c = 0; c < 3; c++) Ap[3 * vq + c] += gq * pp[3 * vs + c];
-                    }
-                }
+            apply_job aj = {act, inc_start, inc, pp, Ap, nvar, 4096};
+            int arc = sc_seam_parallel(threads, (int32_t)((nvar + aj.chunk - 1) / aj.chunk), apply_band, &aj);
+            if (arc != SC_OK) {
+                rc = sc_fail(err, arc, "the conjugate gradients failed");
+                break;
             }
             double pAp[3] = {0, 0, 0};
             for (int64_t i = 0; i < nvar; i++)
@@ -702,12 +902,13 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
                 for (int64_t i = 0; i < nvar; i++) pp[3 * i + c] = z[3 * i + c] + beta * pp[3 * i + c];
             }
         }
-        for (size_t t = 0; t < (size_t)W * H; t++)
+        for (size_t t = 0; t < (size_t)W * H && rc == SC_OK; t++)
             if (var[t] >= 0)
                 for (int c = 0; c < 3; c++) x[3 * t + c] = (float)(x[3 * t + c] + d[3 * (size_t)var[t] + c]);
         st->texels_solved += nvar;
     }
     st->seconds_solve += sc_now() - t0;
+    free(inc_start), free(inc), free(touch), free(slot2), free(worst), free(counts), free(list_start), free(list);
     free(act), free(vec), free(var), free(cells), free(slot);
     return rc;
 }
@@ -821,17 +1022,29 @@ typedef struct recon {
 
 /* What the renderer draws, base_level(uv) + bilinear(map)(uv) (only the
  * map when level is NULL), against the input surface at 7 points of every
- * input face of the material; errors over the bounding-box diagonal. */
-static int reconstruction(const sc_mesh *in, int32_t material, const locator *lev, const sc_seam_grid *g,
-                          const sc_image_data *map, double diag, recon *acc, sc_error *err) {
-    for (int32_t f = 0; f < in->nf; f++) {
-        if (in->FM[f] != material) continue;
-        if (acc->count + 7 > acc->cap) {
-            int64_t cap = acc->cap ? 2 * acc->cap : 4096;
-            double *e = realloc(acc->e, sizeof(double) * (size_t)cap);
-            if (!e) return sc_fail(err, SC_ENOMEM, "out of memory");
-            acc->e = e, acc->cap = cap;
-        }
+ * input face of the material; errors over the bounding-box diagonal. Faces
+ * are measured in parallel chunks into slots of their own (-1: the level has
+ * no face there); the errors are then sorted, so the metrics do not depend on
+ * the thread count. */
+typedef struct recon_job {
+    const sc_mesh *in;
+    const int32_t *faces;
+    int64_t nfaces;
+    const locator *lev;
+    const sc_seam_grid *g;
+    const sc_image_data *map;
+    double diag;
+    double *out;   /* 7 per face */
+} recon_job;
+
+#define RECON_CHUNK 1024
+
+static int recon_band(void *ud, int32_t chunk) {
+    const recon_job *J = ud;
+    const sc_mesh *in = J->in;
+    const int64_t q0 = (int64_t)chunk * RECON_CHUNK, q1 = q0 + RECON_CHUNK < J->nfaces ? q0 + RECON_CHUNK : J->nfaces;
+    for (int64_t qf = q0; qf < q1; qf++) {
+        const int32_t f = J->faces[qf];
         for (int s = 0; s < 7; s++) {
             const double *b = sample_bary[s];
             double p[3] = {0, 0, 0}, uv[2] = {0, 0};
@@ -841,16 +1054,46 @@ static int reconstruction(const sc_mesh *in, int32_t material, const locator *le
                 uv[0] += b[c] * tv[0], uv[1] += b[c] * tv[1];
             }
             double q[3] = {0, 0, 0}, s3[4];
-            if (lev && locate(lev, uv[0], uv[1], q) < 0) {
-                acc->missed++;
+            if (J->lev && locate(J->lev, uv[0], uv[1], q) < 0) {
+                J->out[7 * qf + s] = -1;
                 continue;
             }
-            sc_seam_sample(g, map->pixels, map->channels, uv[0], uv[1], s3);
+            sc_seam_sample(J->g, J->map->pixels, J->map->channels, uv[0], uv[1], s3);
             double e2 = 0;
             for (int k = 0; k < 3; k++) e2 += (q[k] + s3[k] - p[k]) * (q[k] + s3[k] - p[k]);
-            acc->e[acc->count++] = sqrt(e2) / diag;
+            J->out[7 * qf + s] = sqrt(e2) / J->diag;
         }
     }
+    return SC_OK;
+}
+
+static int reconstruction(const sc_mesh *in, int32_t material, const locator *lev, const sc_seam_grid *g,
+                          const sc_image_data *map, double diag, int threads, recon *acc, sc_error *err) {
+    int64_t nf = 0;
+    for (int32_t f = 0; f < in->nf; f++) nf += in->FM[f] == material;
+    if (acc->count + 7 * nf > acc->cap) {
+        int64_t cap = acc->count + 7 * nf + 1;
+        double *e = realloc(acc->e, sizeof(double) * (size_t)cap);
+        if (!e) return sc_fail(err, SC_ENOMEM, "out of memory");
+        acc->e = e, acc->cap = cap;
+    }
+    int32_t *faces = sc_alloc_array((size_t)nf + 1, sizeof(int32_t));
+    if (!faces) return sc_fail(err, SC_ENOMEM, "out of memory");
+    nf = 0;
+    for (int32_t f = 0; f < in->nf; f++)
+        if (in->FM[f] == material) faces[nf++] = f;
+    /* the slots are the tail of acc->e, compacted in place below */
+    recon_job job = {in, faces, nf, lev, g, map, diag, acc->e + acc->count};
+    int rc = sc_seam_parallel(threads, (int32_t)((nf + RECON_CHUNK - 1) / RECON_CHUNK), recon_band, &job);
+    free(faces);
+    if (rc != SC_OK) return sc_fail(err, rc, "measuring the reconstruction failed");
+    const double *slots = acc->e + acc->count;
+    int64_t kept = acc->count;
+    for (int64_t i = 0; i < 7 * nf; i++) {
+        if (slots[i] < 0) acc->missed++;
+        else acc->e[kept++] = slots[i];
+    }
+    acc->count = kept;
     return SC_OK;
 }
 
@@ -951,7 +1194,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     t_erase += sc_now() - t0;
     t0 = sc_now();
     for (int32_t m = 0; m < nmat && rc == SC_OK; m++)
-        rc = reconstruction(in, m, NULL, &grids[m], geometry[m]->as.image, diag, &acc, err);
+        rc = reconstruction(in, m, NULL, &grids[m], geometry[m]->as.image, diag, threads, &acc, err);
     if (rc == SC_OK) report_errors(ctx, "geometry_image_error", &acc);
     acc.count = acc.missed = 0;
     t_metrics += sc_now() - t0;
@@ -984,7 +1227,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         t_erase += sc_now() - t0;
         t0 = sc_now();
         for (int32_t m = 0; m < nmat && rc == SC_OK; m++)
-            rc = reconstruction(in, m, &locs[m], &grids[m], disp[(size_t)k * nmat + m]->as.image, diag, &acc, err);
+            rc = reconstruction(in, m, &locs[m], &grids[m], disp[(size_t)k * nmat + m]->as.image, diag, threads,
+                                    &acc, err);
         for (int32_t m = 0; m < nmat; m++) locator_free(&locs[m]);
         if (rc == SC_OK) {
             char name[64];
@@ -995,6 +1239,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
             snprintf(name, sizeof name, "lod%d.texels_fitted", k);
             sc_ctx_metric(ctx, name, (double)sk.texels_solved);
             st.seconds_sample += sk.seconds_sample, st.seconds_solve += sk.seconds_solve, st.iterations += sk.iterations;
+            st.samples += sk.samples, st.cells_inexact += sk.cells_inexact, st.cells_solved += sk.cells_solved;
         }
         acc.count = acc.missed = 0;
         t_metrics += sc_now() - t0;
@@ -1044,6 +1289,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "seconds_fit_sample", st.seconds_sample);
         sc_ctx_metric(ctx, "seconds_fit_solve", st.seconds_solve);
         sc_ctx_metric(ctx, "fit_iterations", (double)st.iterations);
+        sc_ctx_metric(ctx, "fit_samples", (double)st.samples);
+        sc_ctx_metric(ctx, "fit_cells_inexact", (double)st.cells_inexact);
+        sc_ctx_metric(ctx, "fit_cells_solved", (double)st.cells_solved);
         sc_ctx_metric(ctx, "seconds_erase", t_erase);
         sc_ctx_metric(ctx, "seconds_metrics", t_metrics);
     }

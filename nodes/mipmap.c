@@ -14,7 +14,9 @@
  *    displacement) hold a band of linear continuation around each chart and
  *    push-pull fill beyond it. Level 0's valid texels are those within 2
  *    texels of a face, labelled with the chart of the nearest face (charts:
- *    faces joined by uv vertices or overlapping texel centres). A texel of
+ *    faces joined by uv vertices or overlapping texel centres; the nearest
+ *    face is found in bands of rows, faces in order in each, so the labels
+ *    do not depend on the thread count). A texel of
  *    level m + 1 is the box mean as above, valid only when every texel of its
  *    box is valid and of one chart; then 2 rings are grown from the valid
  *    texels (linear continuation 2 v(t + d) - v(t + 2 d) within the chart
@@ -38,6 +40,8 @@
  *    mip/[lod<k>_]<material>_<slot>.exr (float textures: one tiled,
  *    mip-mapped OpenEXR holding every level) and
  *    mip/[lod<k>_]<material>_<slot>_level<m>.png (8/16-bit textures).
+ *    Chains are encoded side by side (sc_ctx_threads; a file depends on its
+ *    chain alone) and added to the report in chain order.
  *  - Metrics: [lod<k>.]level<m>.seam_energy and .max_seam_gap (the largest
  *    over the textures: sc_seam_energy on that LOD's mesh), level<m>.width,
  *    levels, erase runs and timings.
@@ -147,13 +151,62 @@ static int32_t uf_find(int32_t *parent, int32_t a) {
     return a;
 }
 
+/* The nearest-face pass of data_band0 on texel rows [chunk * BAND_ROWS, ...):
+ * every face in face order, so each texel sees the serial sequence of
+ * updates (ties to the lower face) on any thread count. */
+#define BAND_ROWS 32
+typedef struct band_job {
+    const sc_mesh *m;
+    int32_t material, W, H;
+    sc_wrap wu, wv;
+    double r;
+    const int32_t *fid;
+    int32_t *label;
+    double *best;
+} band_job;
+
+static int band_rows(void *ud, int32_t chunk) {
+    const band_job *J = ud;
+    const sc_mesh *m = J->m;
+    const int32_t W = J->W, H = J->H, b0 = chunk * BAND_ROWS, b1 = b0 + BAND_ROWS < H ? b0 + BAND_ROWS : H;
+    const double r = J->r;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != J->material) continue;
+        int32_t id = J->fid[f];
+        double x[3], y[3];
+        face_texels(m, f, W, H, x, y);
+        double xmin = fmin(x[0], fmin(x[1], x[2])) - r, xmax = fmax(x[0], fmax(x[1], x[2])) + r;
+        double ymin = fmin(y[0], fmin(y[1], y[2])) - r, ymax = fmax(y[0], fmax(y[1], y[2])) + r;
+        if (!(xmax - xmin < 4.0 * W + 8 && ymax - ymin < 4.0 * H + 8)) continue;   /* not finite or absurd */
+        int64_t j0 = (int64_t)ceil(ymin), j1 = (int64_t)floor(ymax);
+        if (j0 >= 0 && j1 < H) {   /* no wrapping: the band's rows only */
+            if (j0 < b0) j0 = b0;
+            if (j1 > b1 - 1) j1 = b1 - 1;
+        }
+        double d = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        for (int64_t j = j0; j <= j1; j++) {
+            int32_t jw = sc_seam_wrap(j, H, J->wv);
+            if (jw < b0 || jw >= b1) continue;
+            for (int64_t i = (int64_t)ceil(xmin); i <= (int64_t)floor(xmax); i++) {
+                bool in = d != 0 && inside(x, y, d, (double)i, (double)j);
+                double d2 = in ? 0 : fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[0], y[0], x[1], y[1]),
+                                          fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[1], y[1], x[2], y[2]),
+                                               sc_atlas_ops_segment_distance2((double)i, (double)j, x[2], y[2], x[0], y[0])));
+                size_t t = (size_t)jw * W + sc_seam_wrap(i, W, J->wu);
+                if (d2 <= r * r && d2 < J->best[t]) J->best[t] = d2, J->label[t] = id;   /* faces in order: ties to the lower */
+            }
+        }
+    }
+    return SC_OK;
+}
+
 /* Level 0's band: every texel whose centre lies within `r` texels of a uv
  * triangle of the material (through the wrap modes) gets the chart of the
  * nearest such face (charts: faces joined through shared uv vertices, named
  * by their first face; ties to the lower face index), the others -1. NULL
  * when out of memory. */
 static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_t H, sc_wrap wu, sc_wrap wv,
-                           double r) {
+                           double r, int threads) {
     int32_t *label = malloc((size_t)W * H * sizeof *label);
     double *best = malloc((size_t)W * H * sizeof *best);
     int32_t *parent = malloc(((size_t)m->nu + 1) * sizeof *parent);
@@ -193,27 +246,17 @@ static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_
         int32_t root = m->FM[f] == material ? uf_find(parent, m->FU[3 * f]) : -1;
         if (root >= 0 && chart[root] < 0) chart[root] = f;
     }
-    for (size_t t = 0; t < (size_t)W * H; t++) label[t] = -1, best[t] = INFINITY;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (m->FM[f] != material) continue;
-        int32_t id = chart[uf_find(parent, m->FU[3 * f])];
-        double x[3], y[3];
-        face_texels(m, f, W, H, x, y);
-        double xmin = fmin(x[0], fmin(x[1], x[2])) - r, xmax = fmax(x[0], fmax(x[1], x[2])) + r;
-        double ymin = fmin(y[0], fmin(y[1], y[2])) - r, ymax = fmax(y[0], fmax(y[1], y[2])) + r;
-        if (!(xmax - xmin < 4.0 * W + 8 && ymax - ymin < 4.0 * H + 8)) continue;   /* not finite or absurd */
-        double d = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
-        for (int64_t j = (int64_t)ceil(ymin); j <= (int64_t)floor(ymax); j++)
-            for (int64_t i = (int64_t)ceil(xmin); i <= (int64_t)floor(xmax); i++) {
-                bool in = d != 0 && inside(x, y, d, (double)i, (double)j);
-                double d2 = in ? 0 : fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[0], y[0], x[1], y[1]),
-                                          fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[1], y[1], x[2], y[2]),
-                                               sc_atlas_ops_segment_distance2((double)i, (double)j, x[2], y[2], x[0], y[0])));
-                size_t t = (size_t)sc_seam_wrap(j, H, wv) * W + sc_seam_wrap(i, W, wu);
-                if (d2 <= r * r && d2 < best[t]) best[t] = d2, label[t] = id;   /* faces in order: ties to the lower */
-            }
+    int32_t *fid = malloc(((size_t)m->nf + 1) * sizeof *fid);   /* each face's chart */
+    if (!fid) {
+        free(label), free(best), free(parent), free(chart);
+        return NULL;
     }
-    free(best), free(parent), free(chart);
+    for (int32_t f = 0; f < m->nf; f++) fid[f] = m->FM[f] == material ? chart[uf_find(parent, m->FU[3 * f])] : -1;
+    for (size_t t = 0; t < (size_t)W * H; t++) label[t] = -1, best[t] = INFINITY;
+    band_job job = {m, material, W, H, wu, wv, r, fid, label, best};
+    int rc = sc_seam_parallel(threads, (H + BAND_ROWS - 1) / BAND_ROWS, band_rows, &job);
+    free(best), free(parent), free(chart), free(fid);
+    if (rc != SC_OK) free(label), label = NULL;
     return label;
 }
 
@@ -418,33 +461,78 @@ static int add_copy(sc_report *r, const char *path, const sc_buf *b, sc_error *e
     return SC_OK;
 }
 
-static int add_files(sc_report *r, const chain *ch, const sc_mesh *mesh, sc_error *err) {
+/* The files of one chain, encoded into `files` (one buffer per file, the
+ * paths alongside), apart from the report so that chains encode side by
+ * side. */
+typedef struct chain_files {
+    int n;
+    char path[MAX_MIP][320];
+    sc_buf buf[MAX_MIP];
+    sc_error err;
+    int rc;
+} chain_files;
+
+static int encode_files(const chain *ch, const sc_mesh *mesh, chain_files *out) {
     char mat[96], slot[96], prefix[32] = "";
     clean_name(mesh->materials[ch->tex->material], mat, sizeof mat);
     clean_name(ch->tex->name, slot, sizeof slot);
     if (ch->source >= 0) snprintf(prefix, sizeof prefix, "lod%d_", ch->source);
-    sc_buf b;
-    sc_buf_init(&b);
+    sc_error *err = &out->err;
     int rc = SC_OK;
     const sc_image_data *top = ch->native[0]->as.image;
     if (top->pixel == SC_PIXEL_F32) {
         const sc_image_data *levels[MAX_MIP];
         for (int m = 0; m < ch->count; m++) levels[m] = ch->native[m]->as.image;
-        rc = sc_image_encode_exr_mip(levels, ch->count, &b, err);
-        char path[320];
-        snprintf(path, sizeof path, "mip/%s%s_%s.exr", prefix, mat, slot);
-        if (rc == SC_OK) rc = add_copy(r, path, &b, err);
+        sc_buf_init(&out->buf[0]);
+        out->n = 1;
+        rc = sc_image_encode_exr_mip(levels, ch->count, &out->buf[0], err);
+        snprintf(out->path[0], sizeof out->path[0], "mip/%s%s_%s.exr", prefix, mat, slot);
     } else {
         for (int m = 0; m < ch->count && rc == SC_OK; m++) {
-            sc_buf_reset(&b);
-            rc = sc_image_encode_png(ch->native[m]->as.image, 0, &b, err);
-            char path[320];
-            snprintf(path, sizeof path, "mip/%s%s_%s_level%d.png", prefix, mat, slot, m);
-            if (rc == SC_OK) rc = add_copy(r, path, &b, err);
+            sc_buf_init(&out->buf[m]);
+            out->n = m + 1;
+            rc = sc_image_encode_png(ch->native[m]->as.image, 0, &out->buf[m], err);
+            snprintf(out->path[m], sizeof out->path[m], "mip/%s%s_%s_level%d.png", prefix, mat, slot, m);
         }
     }
-    sc_buf_free(&b);
     if (rc != SC_OK) sc_error_prefix(err, "writing the chain of '%s'", ch->tex->name);
+    return out->rc = rc;
+}
+
+typedef struct files_job {
+    const chain *chains;
+    const sc_atlas *const *src;
+    chain_files *out;
+} files_job;
+
+static int files_one(void *ud, int32_t c) {
+    files_job *J = ud;
+    const chain *ch = &J->chains[c];
+    int32_t k = ch->source >= 0 ? ch->source : 0;
+    return encode_files(ch, J->src[k]->mesh->as.mesh, &J->out[c]);
+}
+
+/* Every chain's files into the report, in chain order (encoded in parallel:
+ * each file's bytes depend on its chain alone). */
+static int add_files(sc_report *r, const chain *chains, int32_t nchains, const sc_atlas *const *src, int threads,
+                     sc_error *err) {
+    chain_files *out = calloc((size_t)nchains + 1, sizeof *out);
+    if (!out) return sc_fail(err, SC_ENOMEM, "out of memory");
+    files_job job = {chains, src, out};
+    int prc = sc_seam_parallel(threads, nchains, files_one, &job);
+    int rc = SC_OK;
+    for (int32_t c = 0; c < nchains; c++) {
+        if (rc == SC_OK && out[c].rc != SC_OK) {
+            if (err) *err = out[c].err;
+            rc = out[c].rc;
+        }
+        for (int i = 0; i < out[c].n; i++) {
+            if (rc == SC_OK) rc = add_copy(r, out[c].path[i], &out[c].buf[i], err);
+            sc_buf_free(&out[c].buf[i]);
+        }
+    }
+    free(out);
+    if (rc == SC_OK && prc != SC_OK) rc = sc_fail(err, prc, "encoding the mip files failed");
     return rc;
 }
 
@@ -553,7 +641,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
                         const sc_image_data *im = ch->tex->image->as.image;
                         const sc_value *mv = g == nsrc ? union_mesh : src[g]->mesh;
                         ch->band = data_band0(mv->as.mesh, ch->tex->material, im->width, im->height,
-                                              ch->tex->wrap_u, ch->tex->wrap_v, DATA_BAND0);
+                                              ch->tex->wrap_u, ch->tex->wrap_v, DATA_BAND0, threads);
                         if (!ch->band) rc = sc_fail(err, SC_ENOMEM, "out of memory at mip level 0");
                     }
                 } else if (data) {
@@ -636,10 +724,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     /* files and the levels */
     t0 = sc_now();
-    for (int32_t c = 0; c < nchains && rc == SC_OK; c++) {
-        int32_t k = chains[c].source >= 0 ? chains[c].source : 0;
-        rc = add_files(report, &chains[c], src[k]->mesh->as.mesh, err);
-    }
+    if (rc == SC_OK) rc = add_files(report, chains, nchains, src, threads, err);
     double t_files = sc_now() - t0;
     sc_lods *out = rc == SC_OK ? sc_lods_new() : NULL;
     if (rc == SC_OK && !out) rc = sc_fail(err, SC_ENOMEM, "out of memory");

@@ -101,11 +101,3 @@ int sc_atlas_ops_erase(sc_value *mesh, const sc_atlas_ops_map *maps, int n, doub
     sc_value_release(av);
     return rc;
 }
-
-double sc_atlas_ops_segment_distance2(double px, double py, double ax, double ay, double bx, double by) {
-    double dx = bx - ax, dy = by - ay, l2 = dx * dx + dy * dy;
-    double t = l2 > 0 ? ((px - ax) * dx + (py - ay) * dy) / l2 : 0;
-    t = t < 0 ? 0 : t > 1 ? 1 : t;
-    double ex = ax + t * dx - px, ey = ay + t * dy - py;
-    return ex * ex + ey * ey;
-}
