@@ -14,6 +14,7 @@
 #include <stdlib.h>
 
 #include "sc_exec.h"
+#include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_test.h"
 
@@ -344,6 +345,62 @@ static sc_value *load_corpus(const char *rel, const char *texture, const char *s
     return out;
 }
 
+/* PSNR (peak 1) between the render node's textured pictures of two atlases
+ * (6 axis views, 256^2), over the pixels where either picture shows the
+ * mesh: the appearance a user sees, before vs after. -1 when rendering
+ * fails. */
+static double render_psnr(sc_value *before, sc_value *after) {
+    static const char *const views[] = {"posx", "negx", "posy", "negy", "posz", "negz"};
+    static const char *const params[] = {"modes", "textured", "views", "6", "size", "256", NULL};
+    sc_value *reports[2] = {NULL, NULL};
+    sc_value *atlases[2] = {before, after};
+    for (int k = 0; k < 2; k++) {
+        sc_ctx *ctx = sc_ctx_new(&sc_node_render, NULL, NULL);
+        sc_error err = {0};
+        int rc = sc_ctx_set_input(ctx, "atlas", atlases[k]);
+        for (int i = 0; params[i] && rc == SC_OK; i += 2) rc = sc_ctx_set_param(ctx, params[i], params[i + 1], &err);
+        if (rc == SC_OK) rc = sc_ctx_run(ctx, &err);
+        if (rc == SC_OK) reports[k] = sc_value_retain(sc_ctx_output(ctx, 0));
+        else printf("     render: %s\n", err.message);
+        sc_ctx_free(ctx);
+    }
+    double sum = 0;
+    int64_t count = 0;
+    bool ok = reports[0] && reports[1];
+    for (int v = 0; v < 6 && ok; v++) {
+        char path[64];
+        snprintf(path, sizeof path, "render/lod0_textured_%s.png", views[v]);
+        sc_image_data *im[2] = {NULL, NULL};
+        for (int k = 0; k < 2 && ok; k++) {
+            const sc_report *rep = reports[k]->as.report;
+            const sc_bytes *png = NULL;
+            for (int32_t f = 0; f < rep->nfiles; f++)
+                if (strcmp(rep->files[f].path, path) == 0) png = rep->files[f].bytes->as.bytes;
+            sc_error err = {0};
+            ok = png && sc_image_decode(path, png->data, png->size, &im[k], &err) == SC_OK;
+        }
+        if (ok && (im[0]->width != im[1]->width || im[0]->height != im[1]->height)) ok = false;
+        for (int32_t y = 0; ok && y < im[0]->height; y++)
+            for (int32_t x = 0; x < im[0]->width; x++) {
+                static const double background[3] = {38 / 255.0, 42 / 255.0, 48 / 255.0};
+                bool mesh = false;
+                double d2 = 0;
+                for (int c = 0; c < 3; c++) {
+                    double a = sc_image_texel(im[0], x, y, c), b = sc_image_texel(im[1], x, y, c);
+                    mesh |= fabs(a - background[c]) > 1e-3 || fabs(b - background[c]) > 1e-3;
+                    d2 += (a - b) * (a - b);
+                }
+                if (mesh) sum += d2 / 3, count++;
+            }
+        sc_image_free(im[0]);
+        sc_image_free(im[1]);
+    }
+    sc_value_release(reports[0]);
+    sc_value_release(reports[1]);
+    if (!ok || count == 0) return -1;
+    return sum > 0 ? 10 * log10((double)count / sum) : INFINITY;
+}
+
 static void corpus_check(const char *rel, const char *texture, const char *slots, bool expect_more_collapsible) {
     if (!sc_test_corpus()) {
         printf("     corpus absent: skipped %s\n", rel);
@@ -374,6 +431,9 @@ static void corpus_check(const char *rel, const char *texture, const char *slots
     double psnr = appearance_psnr(in, out, 3, &compared);
     SC_CHECK_MSG(compared >= 1, "%s: no texture re-rendered", rel);
     SC_CHECK_MSG(psnr >= 35, "%s: psnr %g dB", rel, psnr);
+    double seen = render_psnr(atlas, sc_ctx_output(ctx, 0));
+    SC_CHECK_MSG(seen >= 35, "%s: rendered psnr %g dB", rel, seen);
+    printf("     %s: rendered appearance psnr %.1f dB (6 views)\n", rel, seen);
     double before = sc_ctx_metric_value(ctx, "collapsible_seam_edges_before");
     double after = sc_ctx_metric_value(ctx, "collapsible_seam_edges_after");
     if (expect_more_collapsible) SC_CHECK_MSG(after > before, "%s: collapsible %g -> %g", rel, before, after);
