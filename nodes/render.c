@@ -1378,23 +1378,25 @@ static void uv_line(uint8_t *rgba, int32_t w, int32_t h, const double *a, const 
  * number, whatever the pictures show. Metrics <label>.seam_energy.<slot> and
  * <label>.seam_gap.<slot> (with _<material> after the slot when there are
  * several materials). */
-static int texture_seam_metrics(outcome *o, const sc_atlas *a, const level_label *k, sc_error *err) {
-    const sc_mesh *m = a->mesh->as.mesh;
+static int texture_seam_metrics(outcome *o, const level_gl *L, const level_label *k, sc_error *err) {
+    const sc_atlas *a = L->atlas;
+    const sc_mesh *m = L->mesh;
     int rc = SC_OK;
     for (int32_t mat = 0; mat < m->nmat && rc == SC_OK; mat++) {
         bool any = false;
         for (int32_t t = 0; t < a->ntex; t++) any |= a->textures[t].material == mat;
         if (!any) continue;
-        sc_seam_set seams;
-        rc = sc_seam_find(m, mat, &seams, err);
-        if (rc != SC_OK) return rc;
+        sc_seam_set own = {0};
+        const sc_seam_set *seams = &own;
+        if (m->nmat == 1) seams = &L->seams;   /* one material: the level's seams are its seams */
+        else if ((rc = sc_seam_find(m, mat, &own, err)) != SC_OK) return rc;
         for (int32_t t = 0; t < a->ntex && rc == SC_OK; t++) {
             const sc_texture *tex = &a->textures[t];
             if (tex->material != mat) continue;
             const sc_image_data *im = tex->image->as.image;
             sc_seam_grid g = {im->width, im->height, tex->wrap_u, tex->wrap_v};
             double energy = 0, gap = 0;
-            rc = sc_seam_energy(m, &seams, &g, im, sc_ctx_threads(o->ctx), &energy, &gap, err);
+            rc = sc_seam_energy(m, seams, &g, im, sc_ctx_threads(o->ctx), &energy, &gap, err);
             if (rc != SC_OK) break;
             char suffix[24] = "";
             if (m->nmat > 1) snprintf(suffix, sizeof suffix, "_%d", mat);
@@ -1402,7 +1404,7 @@ static int texture_seam_metrics(outcome *o, const sc_atlas *a, const level_label
                 metricf(o, gap, "%s.seam_gap.%s%s", k->metric, tex->name, suffix))
                 rc = sc_fail(err, SC_ENOMEM, "out of memory");
         }
-        sc_seam_set_free(&seams);
+        if (seams == &own) sc_seam_set_free(&own);
     }
     return rc == SC_OK ? rc : sc_error_prefix(err, "%s: texture seams", k->human);
 }
@@ -1464,7 +1466,7 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
         level_free(&L);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
-    rc = texture_seam_metrics(o, atlas, k, err);
+    rc = texture_seam_metrics(o, &L, k, err);
     if (rc != SC_OK) {
         level_free(&L);
         return rc;

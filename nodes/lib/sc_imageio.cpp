@@ -219,35 +219,6 @@ int encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err
     return write_with_oiio("jpg", spec, px.data(), out, err);
 }
 
-int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
-    if (!check_image(im, "EXR", err)) return err ? err->code : SC_EINPUT;
-    const size_t w = (size_t)im->width, h = (size_t)im->height, c = (size_t)im->channels;
-    std::vector<float> px(sample_count(im));
-    const bool linearise = im->colorspace == SC_COLOR_SRGB;
-    for (size_t y = 0; y < h; y++) {
-        const size_t src_row = (h - 1 - y) * w * c;
-        for (size_t k = 0; k < w * c; k++) {
-            float f;
-            if (im->pixel == SC_PIXEL_U8) f = ((const uint8_t *)im->pixels)[src_row + k] * (1.0f / 255.0f);
-            else if (im->pixel == SC_PIXEL_U16) f = ((const uint16_t *)im->pixels)[src_row + k] * (1.0f / 65535.0f);
-            else f = ((const float *)im->pixels)[src_row + k];
-            size_t ch = k % c;
-            bool alpha = (c == 2 && ch == 1) || (c == 4 && ch == 3);
-            if (linearise && !alpha) f = srgb_to_linear(f);
-            px[y * w * c + k] = f;
-        }
-    }
-    ImageSpec spec(im->width, im->height, im->channels, TypeDesc::FLOAT);
-    static const char *const names[4][4] = {
-        {"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
-    spec.channelnames.clear();
-    for (size_t k = 0; k < c; k++) spec.channelnames.push_back(names[c - 1][k]);
-    spec.alpha_channel = (c == 2 || c == 4) ? (int)c - 1 : -1;
-    spec.attribute("compression", "zip");
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-    spec.attribute("DateTime", "");   /* else the writer stamps the time (capDate) */
-    return write_with_oiio("exr", spec, px.data(), out, err);
-}
 
 /* Float samples of one level, top-down, as encode_exr writes them. */
 std::vector<float> exr_pixels(const sc_image_data *im) {
@@ -282,6 +253,12 @@ ImageSpec exr_spec(const sc_image_data *im) {
     spec.attribute("oiio:UnassociatedAlpha", 1);
     spec.attribute("DateTime", "");   /* else the writer stamps the time (capDate) */
     return spec;
+}
+
+int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
+    if (!check_image(im, "EXR", err)) return err ? err->code : SC_EINPUT;
+    std::vector<float> px = exr_pixels(im);
+    return write_with_oiio("exr", exr_spec(im), px.data(), out, err);
 }
 
 /* A tiled, mip-mapped EXR: level k is levels[k], each side floor(previous / 2)

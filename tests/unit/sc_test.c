@@ -2,6 +2,8 @@
  * constructors; sc_test_main runs them in registration order. */
 #include "sc_test.h"
 
+#include "sc_nodes.h"
+
 #include <stdarg.h>
 #include <stdlib.h>
 #include <unistd.h>
@@ -98,4 +100,53 @@ int sc_test_system(const char *fmt, ...) {
     if (st == -1) return -1;
     if (WIFEXITED(st)) return WEXITSTATUS(st);
     return 128 + (WIFSIGNALED(st) ? WTERMSIG(st) : 0);
+}
+
+sc_test_run sc_test_run_node(const sc_node_desc *d, const char *const *params, const char *port0, sc_value *in0,
+                             const char *port1, sc_value *in1) {
+    sc_test_run r = {0};
+    r.ctx = sc_ctx_new(d, NULL, NULL);
+    if (!r.ctx) {
+        r.rc = SC_ENOMEM;
+        snprintf(r.err.message, sizeof r.err.message, "out of memory");
+        return r;
+    }
+    for (int i = 0; params && params[i] && r.rc == SC_OK; i += 2)
+        r.rc = sc_ctx_set_param(r.ctx, params[i], params[i + 1], &r.err);
+    if (port0 && in0) sc_ctx_set_input(r.ctx, port0, in0);
+    if (port1 && in1) sc_ctx_set_input(r.ctx, port1, in1);
+    sc_ctx_set_threads(r.ctx, 2);
+    if (r.rc == SC_OK) r.rc = sc_ctx_run(r.ctx, &r.err);
+    return r;
+}
+
+sc_value *sc_test_load_corpus(const char *rel, const char *texture, const char *slots) {
+    const char *dir = sc_test_corpus();
+    if (!dir) return NULL;
+    char path[4096], texture_path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, rel);
+    if (texture) snprintf(texture_path, sizeof texture_path, "%s/%s", dir, texture);
+    const char *params[7] = {"path", path, NULL, NULL, NULL, NULL, NULL};
+    int n = 2;
+    if (texture) params[n++] = "texture", params[n++] = texture_path;
+    if (slots) params[n++] = "slots", params[n++] = slots;
+    sc_test_run r = sc_test_run_node(&sc_node_load_atlas, params, NULL, NULL, NULL, NULL);
+    sc_value *out = r.rc == SC_OK ? sc_value_retain(sc_ctx_output(r.ctx, 0)) : NULL;
+    if (r.rc != SC_OK) sc_test_fail(__FILE__, __LINE__, "loading %s: %s", rel, r.err.message);
+    sc_ctx_free(r.ctx);
+    return out;
+}
+
+sc_value *sc_test_lods_without(const sc_value *lods, const char *slot) {
+    sc_lods *out = sc_lods_new();
+    for (int k = 0; k < lods->as.lods->count; k++) {
+        const sc_atlas *a = lods->as.lods->levels[k]->as.atlas;
+        sc_atlas *b = sc_atlas_new(sc_value_retain(a->mesh));
+        for (int t = 0; t < a->ntex; t++)
+            if (strcmp(a->textures[t].name, slot) != 0)
+                sc_atlas_add_texture(b, a->textures[t].name, a->textures[t].material, a->textures[t].wrap_u,
+                                     a->textures[t].wrap_v, a->textures[t].source, sc_value_retain(a->textures[t].image));
+        sc_lods_add(out, sc_value_new_atlas(b));
+    }
+    return sc_value_new_lods(out);
 }

@@ -14,6 +14,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "sc_exec.h"
+
 typedef void (*sc_test_fn)(void);
 void sc_test_register(const char *name, sc_test_fn fn);
 void sc_test_fail(const char *file, int line, const char *fmt, ...)
@@ -28,6 +30,27 @@ char *sc_test_source_path(const char *rel);
 const char *sc_test_corpus(void);
 /* Run a shell command, return its exit status (or -1). */
 int sc_test_system(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* A node run outside any graph (sc_exec): the ctx (free it with sc_ctx_free;
+ * outputs live until then), the status and the error. */
+typedef struct sc_test_run {
+    sc_ctx *ctx;
+    int rc;
+    sc_error err;
+} sc_test_run;
+
+/* Run node d on 2 threads with params (name, value pairs, NULL-terminated;
+ * may be NULL) and up to two inputs (a NULL port or value is skipped). */
+sc_test_run sc_test_run_node(const sc_node_desc *d, const char *const *params, const char *port0, sc_value *in0,
+                             const char *port1, sc_value *in1);
+
+/* load_atlas on corpus files (paths relative to sc_test_corpus(); texture
+ * and slots may be NULL): a new reference, or NULL when the corpus is absent
+ * or the load failed (a failed check then says why). */
+sc_value *sc_test_load_corpus(const char *rel, const char *texture, const char *slots);
+
+/* A copy of a lods value whose levels lack the texture slot `slot`. */
+sc_value *sc_test_lods_without(const sc_value *lods, const char *slot);
 
 #define SC_TEST(name)                                                      \
     static void name(void);                                                \

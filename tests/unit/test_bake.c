@@ -25,27 +25,7 @@ extern const sc_node_desc sc_node_bake_displacement;   /* nodes/bake_displacemen
 
 /* ---------------------------------------------------------------- running nodes */
 
-typedef struct node_run {
-    sc_ctx *ctx;
-    int rc;
-    sc_error err;
-} node_run;
-
-/* params: name, value pairs, NULL-terminated; inputs likewise (port, value). */
-static node_run run_node(const sc_node_desc *d, const char *const *params, const char *port0, sc_value *in0,
-                         const char *port1, sc_value *in1) {
-    node_run r = {0};
-    r.ctx = sc_ctx_new(d, NULL, NULL);
-    r.rc = SC_OK;
-    for (int i = 0; params && params[i] && r.rc == SC_OK; i += 2) r.rc = sc_ctx_set_param(r.ctx, params[i], params[i + 1], &r.err);
-    if (port0 && in0) sc_ctx_set_input(r.ctx, port0, in0);
-    if (port1 && in1) sc_ctx_set_input(r.ctx, port1, in1);
-    sc_ctx_set_threads(r.ctx, 2);
-    if (r.rc == SC_OK) r.rc = sc_ctx_run(r.ctx, &r.err);
-    return r;
-}
-
-static sc_value *out_of(node_run *r, int port) { return r->rc == SC_OK ? sc_ctx_output(r->ctx, port) : NULL; }
+static sc_value *out_of(sc_test_run *r, int port) { return r->rc == SC_OK ? sc_ctx_output(r->ctx, port) : NULL; }
 
 /* ---------------------------------------------------------------- independent sampling */
 
@@ -139,7 +119,7 @@ static sc_value *procedural_asset(int resolution) {
     char res[16];
     snprintf(res, sizeof res, "%d", resolution);
     const char *params[] = {"resolution", res, "texture_size", "64", NULL};
-    node_run r = run_node(&sc_node_procedural, params, NULL, NULL, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_procedural, params, NULL, NULL, NULL, NULL);
     SC_CHECK_MSG(r.rc == SC_OK, "procedural: %s", r.err.message);
     sc_value *v = out_of(&r, 0) ? sc_value_retain(out_of(&r, 0)) : NULL;
     sc_ctx_free(r.ctx);
@@ -148,7 +128,7 @@ static sc_value *procedural_asset(int resolution) {
 
 static sc_value *decimated(sc_value *atlas, const char *ratios) {
     const char *params[] = {"ratio", ratios, "hausdorff_samples", "0", NULL};
-    node_run r = run_node(&sc_node_decimate, params, "mesh", atlas, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_decimate, params, "mesh", atlas, NULL, NULL);
     SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
     sc_value *v = out_of(&r, 0) ? sc_value_retain(out_of(&r, 0)) : NULL;
     sc_ctx_free(r.ctx);
@@ -159,7 +139,7 @@ static sc_value *decimated(sc_value *atlas, const char *ratios) {
 static int render_check(sc_value *lods, sc_value *reference, const char *modes, double *cracks, double *gap,
                         char *msg, size_t msg_size) {
     const char *params[] = {"modes", modes, "views", "6", "size", "128", "tess_levels", "1,3", NULL};
-    node_run r = run_node(&sc_node_render, params, "lods", lods, "reference", reference);
+    sc_test_run r = sc_test_run_node(&sc_node_render, params, "lods", lods, "reference", reference);
     *cracks = sc_ctx_metric_value(r.ctx, "crack_pixels");
     *gap = sc_ctx_metric_value(r.ctx, "max_seam_gap");
     snprintf(msg, msg_size, "%s", r.rc == SC_OK ? "" : r.err.message);
@@ -168,29 +148,13 @@ static int render_check(sc_value *lods, sc_value *reference, const char *modes, 
     return rc;
 }
 
-/* A copy of each level without the geometry image: tessellated then uses the
- * displacement. */
-static sc_value *without_geometry(const sc_value *lods) {
-    sc_lods *out = sc_lods_new();
-    for (int k = 0; k < lods->as.lods->count; k++) {
-        const sc_atlas *a = lods->as.lods->levels[k]->as.atlas;
-        sc_atlas *b = sc_atlas_new(sc_value_retain(a->mesh));
-        for (int t = 0; t < a->ntex; t++)
-            if (strcmp(a->textures[t].name, "geometry_image") != 0)
-                sc_atlas_add_texture(b, a->textures[t].name, a->textures[t].material, a->textures[t].wrap_u,
-                                     a->textures[t].wrap_v, a->textures[t].source, sc_value_retain(a->textures[t].image));
-        sc_lods_add(out, sc_value_new_atlas(b));
-    }
-    return sc_value_new_lods(out);
-}
-
 /* ---------------------------------------------------------------- tests */
 
 /* Bake on the procedural sphere and its levels; check everything. */
 static void check_bake(sc_value *atlas, sc_value *lods, const char *size, double recon_bar, bool render,
                        const char *what) {
     const char *params[] = {"size", size, NULL};
-    node_run b = run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
+    sc_test_run b = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
     SC_CHECK_MSG(b.rc == SC_OK, "%s: bake: %s", what, b.err.message);
     if (b.rc != SC_OK) {
         sc_ctx_free(b.ctx);
@@ -229,7 +193,7 @@ static void check_bake(sc_value *atlas, sc_value *lods, const char *size, double
         SC_CHECK_MSG(rc == SC_OK, "%s: render: %s", what, msg);
         printf("     %s render: %.0f crack pixels, max seam gap %.3g\n", what, cracks, rgap);
         SC_CHECK_MSG(cracks == 0 && rgap <= 1e-5, "%s: %g crack pixels, seam gap %g", what, cracks, rgap);
-        sc_value *disp_only = without_geometry(out_lods);
+        sc_value *disp_only = sc_test_lods_without(out_lods, "geometry_image");
         rc = render_check(disp_only, atlas, "tessellated", &cracks, &rgap, msg, sizeof msg);
         SC_CHECK_MSG(rc == SC_OK, "%s: render: %s", what, msg);
         printf("     %s tessellated with displacement: %.0f crack pixels, max seam gap %.3g\n", what, cracks, rgap);
@@ -253,10 +217,10 @@ SC_TEST(unerased_displacement_cracks) {
     sc_value *lods = atlas ? decimated(atlas, "0.1") : NULL;
     if (!atlas || !lods) goto done;
     const char *params[] = {"size", "128", "erase", "false", NULL};
-    node_run b = run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
+    sc_test_run b = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
     SC_CHECK_MSG(b.rc == SC_OK, "bake: %s", b.err.message);
     if (b.rc == SC_OK) {
-        sc_value *disp_only = without_geometry(out_of(&b, 1));
+        sc_value *disp_only = sc_test_lods_without(out_of(&b, 1), "geometry_image");
         double cracks, gap;
         char msg[1100];
         int rc = render_check(disp_only, atlas, "displaced,tessellated", &cracks, &gap, msg, sizeof msg);
@@ -306,19 +270,6 @@ static void error_stats(const sc_mesh *in, const sc_atlas *level, int stride, do
     free(e);
 }
 
-static sc_value *load_corpus(const char *rel) {
-    const char *dir = sc_test_corpus();
-    if (!dir) return NULL;
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, rel);
-    const char *params[] = {"path", path, NULL};
-    node_run r = run_node(&sc_node_load_atlas, params, NULL, NULL, NULL, NULL);
-    SC_CHECK_MSG(r.rc == SC_OK, "loading %s: %s", rel, r.err.message);
-    sc_value *v = out_of(&r, 0) ? sc_value_retain(out_of(&r, 0)) : NULL;
-    sc_ctx_free(r.ctx);
-    return v;
-}
-
 /* Bounds per level (levels 0.5 and 0.1 of the faces) at 1024^2: max, RMS,
  * p99 of the error over the bounding-box diagonal. The maxima are above
  * 1e-3 on the corpus for a measured reason: both assets have charts whose
@@ -337,11 +288,11 @@ static void corpus_bake(const char *rel, const corpus_bar bars[2]) {
         printf("     corpus absent: skipped %s\n", rel);
         return;
     }
-    sc_value *atlas = load_corpus(rel);
+    sc_value *atlas = sc_test_load_corpus(rel, NULL, NULL);
     sc_value *lods = atlas ? decimated(atlas, "0.5,0.1") : NULL;
     if (!lods) goto done;
     const char *params[] = {"size", "1024", NULL};
-    node_run b = run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
+    sc_test_run b = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
     SC_CHECK_MSG(b.rc == SC_OK, "%s: bake: %s", rel, b.err.message);
     if (b.rc == SC_OK) {
         const sc_mesh *in = atlas->as.atlas->mesh->as.mesh;

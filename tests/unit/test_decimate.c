@@ -888,27 +888,12 @@ SC_TEST(nonmanifold_input_is_locked_not_broken) {
 
 /* ---------------------------------------------------------------- corpus */
 
-static sc_value *load_corpus(const char *rel, const char *texture) {
-    const char *dir = sc_test_corpus();
-    if (!dir) return NULL;
-    char path[4096], tex[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, rel);
-    snprintf(tex, sizeof tex, "%s/%s", dir, texture ? texture : "");
-    const char *params[] = {"path", path, "texture", tex, NULL};
-    if (!texture) params[2] = NULL;
-    node_run r = run_node(&sc_node_load_atlas, params, NULL, NULL);
-    SC_CHECK_MSG(r.rc == SC_OK, "loading %s: %s", rel, r.err.message);
-    sc_value *v = r.out ? sc_value_retain(r.out) : NULL;
-    run_free(&r);
-    return v;
-}
-
 SC_TEST(corpus_blub_one_percent) {
     if (!sc_test_corpus()) {
         printf("     corpus absent: skipped\n");
         return;
     }
-    sc_value *atlas = load_corpus("blub/blub.obj", "blub/blub_texture.png");
+    sc_value *atlas = sc_test_load_corpus("blub/blub.obj", "blub/blub_texture.png", NULL);
     if (!atlas) return;
     SC_CHECK_INT(atlas->as.atlas->ntex, 1);
     if (atlas->as.atlas->ntex < 1) {
@@ -962,7 +947,7 @@ SC_TEST(corpus_blub_one_percent) {
  * 1e-8 of the input's seam energy before erasure (without straightening the
  * 6-digit uv of the OBJ leave 1.4e-8 to 4.2e-8, see corpus_blub_one_percent). */
 static void straightened_chain(const char *name, const char *model, const char *texture) {
-    sc_value *atlas = load_corpus(model, texture);
+    sc_value *atlas = sc_test_load_corpus(model, texture, NULL);
     if (!atlas) return;
     if (atlas->as.atlas->ntex < 1) {
         SC_CHECK_MSG(0, "%s: no texture", name);

@@ -1050,37 +1050,13 @@ SC_TEST(node_several_textures_and_params) {
 
 /* ================================================================ corpus */
 
-static sc_value *load_corpus_tex(const char *rel, const char *texture) {
-    const char *dir = sc_test_corpus();
-    if (!dir) return NULL;
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, rel);
-    sc_ctx *ctx = sc_ctx_new(&sc_node_load_atlas, NULL, NULL);
-    sc_ctx_set_threads(ctx, 2);
-    sc_error err = {0};
-    sc_value *out = NULL;
-    int rc = sc_ctx_set_param(ctx, "path", path, &err);
-    if (rc == SC_OK && texture) {
-        snprintf(path, sizeof path, "%s/%s", dir, texture);
-        rc = sc_ctx_set_param(ctx, "texture", path, &err);
-    }
-    if (rc == SC_OK && sc_ctx_run(ctx, &err) == SC_OK)
-        out = sc_value_retain(sc_ctx_output(ctx, 0));
-    else
-        sc_test_fail(__FILE__, __LINE__, "loading %s: %s", rel, err.message);
-    sc_ctx_free(ctx);
-    return out;
-}
-
-static sc_value *load_corpus(const char *rel) { return load_corpus_tex(rel, NULL); }
-
 /* erase, then check every texture with the reference sampler */
 static void corpus_check(const char *rel, const char *texture, const char *slots, bool expect_clean) {
     if (!sc_test_corpus()) {
         printf("     corpus absent: skipped %s\n", rel);
         return;
     }
-    sc_value *atlas = load_corpus_tex(rel, texture);
+    sc_value *atlas = sc_test_load_corpus(rel, texture, NULL);
     if (!atlas) return;
     const char *kv[] = {"textures", slots, NULL};
     sc_error err = {0};
@@ -1127,7 +1103,7 @@ SC_TEST(corpus_suzanne_unchanged) {
         printf("     corpus absent: skipped\n");
         return;
     }
-    sc_value *atlas = load_corpus("Suzanne/Suzanne_welded.obj");
+    sc_value *atlas = sc_test_load_corpus("Suzanne/Suzanne_welded.obj", NULL, NULL);
     if (!atlas) return;
     sc_error err = {0};
     sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);
@@ -1145,7 +1121,7 @@ SC_TEST(corpus_duck_shared_texels) {
         printf("     corpus absent: skipped\n");
         return;
     }
-    sc_value *atlas = load_corpus("Duck/Duck_welded.obj");
+    sc_value *atlas = sc_test_load_corpus("Duck/Duck_welded.obj", NULL, NULL);
     if (!atlas) return;
     sc_error err = {0};
     sc_ctx *ctx = run_erase(atlas, NULL, 2, &err);

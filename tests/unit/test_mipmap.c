@@ -22,25 +22,7 @@
 extern const sc_node_desc sc_node_bake_displacement;   /* nodes/bake_displacement.c */
 extern const sc_node_desc sc_node_mipmap;              /* nodes/mipmap.c */
 
-typedef struct node_run {
-    sc_ctx *ctx;
-    int rc;
-    sc_error err;
-} node_run;
-
-static node_run run_node(const sc_node_desc *d, const char *const *params, const char *port0, sc_value *in0,
-                         const char *port1, sc_value *in1) {
-    node_run r = {0};
-    r.ctx = sc_ctx_new(d, NULL, NULL);
-    for (int i = 0; params && params[i] && r.rc == SC_OK; i += 2) r.rc = sc_ctx_set_param(r.ctx, params[i], params[i + 1], &r.err);
-    if (port0 && in0) sc_ctx_set_input(r.ctx, port0, in0);
-    if (port1 && in1) sc_ctx_set_input(r.ctx, port1, in1);
-    sc_ctx_set_threads(r.ctx, 2);
-    if (r.rc == SC_OK) r.rc = sc_ctx_run(r.ctx, &r.err);
-    return r;
-}
-
-static sc_value *take(node_run *r, int port, const char *what) {
+static sc_value *take(sc_test_run *r, int port, const char *what) {
     SC_CHECK_MSG(r->rc == SC_OK, "%s: %s", what, r->err.message);
     sc_value *v = r->rc == SC_OK && sc_ctx_output(r->ctx, port) ? sc_value_retain(sc_ctx_output(r->ctx, port)) : NULL;
     sc_ctx_free(r->ctx);
@@ -50,14 +32,14 @@ static sc_value *take(node_run *r, int port, const char *what) {
 /* The procedural sphere, two levels of detail, and the baked maps. */
 static sc_value *baked_lods(sc_value **atlas_out, sc_value **baked_atlas) {
     const char *pp[] = {"resolution", "16", "texture_size", "64", NULL};
-    node_run r = run_node(&sc_node_procedural, pp, NULL, NULL, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_procedural, pp, NULL, NULL, NULL, NULL);
     sc_value *atlas = take(&r, 0, "procedural");
     if (!atlas) return NULL;
     const char *dp[] = {"ratio", "0.5,0.1", "hausdorff_samples", "0", NULL};
-    r = run_node(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL);
+    r = sc_test_run_node(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL);
     sc_value *lods = take(&r, 0, "decimate");
     const char *bp[] = {"size", "128", "padding", "16", NULL};
-    r = run_node(&sc_node_bake_displacement, bp, "atlas", atlas, "lods", lods);
+    r = sc_test_run_node(&sc_node_bake_displacement, bp, "atlas", atlas, "lods", lods);
     sc_value *baked = NULL;
     if (lods && r.rc == SC_OK) {
         if (baked_atlas) *baked_atlas = sc_value_retain(sc_ctx_output(r.ctx, 0));
@@ -81,7 +63,7 @@ static const sc_report_file *find_file(const sc_report *r, const char *path) {
 static int render_check(sc_value *lods, sc_value *reference, const char *modes, double *cracks, double *gap,
                         char *msg, size_t msg_size, double *per_level) {
     const char *params[] = {"modes", modes, "views", "6", "size", "96", "tess_levels", "2", NULL};
-    node_run r = run_node(&sc_node_render, params, "lods", lods, "reference", reference);
+    sc_test_run r = sc_test_run_node(&sc_node_render, params, "lods", lods, "reference", reference);
     *cracks = sc_ctx_metric_value(r.ctx, "crack_pixels");
     for (int i = 0; i < sc_ctx_nmetrics(r.ctx); i++) {
         const sc_metric *mt = &sc_ctx_metrics(r.ctx)[i];
@@ -99,20 +81,6 @@ static int render_check(sc_value *lods, sc_value *reference, const char *modes, 
     return rc;
 }
 
-static sc_value *without_geometry(const sc_value *lods) {
-    sc_lods *out = sc_lods_new();
-    for (int k = 0; k < lods->as.lods->count; k++) {
-        const sc_atlas *a = lods->as.lods->levels[k]->as.atlas;
-        sc_atlas *b = sc_atlas_new(sc_value_retain(a->mesh));
-        for (int t = 0; t < a->ntex; t++)
-            if (strcmp(a->textures[t].name, "geometry_image") != 0)
-                sc_atlas_add_texture(b, a->textures[t].name, a->textures[t].material, a->textures[t].wrap_u,
-                                     a->textures[t].wrap_v, a->textures[t].source, sc_value_retain(a->textures[t].image));
-        sc_lods_add(out, sc_value_new_atlas(b));
-    }
-    return sc_value_new_lods(out);
-}
-
 SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
     sc_value *atlas = NULL;
     sc_value *lods = baked_lods(&atlas, NULL);
@@ -121,7 +89,7 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
         return;
     }
     const char *mp[] = {"min_size", "16", NULL};
-    node_run r = run_node(&sc_node_mipmap, mp, "lods", lods, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_mipmap, mp, "lods", lods, NULL, NULL);
     SC_CHECK_MSG(r.rc == SC_OK, "mipmap: %s", r.err.message);
     if (r.rc != SC_OK) goto done;
     sc_value *levels = sc_ctx_output(r.ctx, 0), *report = sc_ctx_output(r.ctx, 1);
@@ -173,7 +141,7 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
         for (int m = 0; m < nmip; m++)
             if (k == 0 || (128 >> m) >= 32)
                 SC_CHECK_MSG(per_level[k * 8 + m] == 0, "lod %d mip %d: %g crack pixels", k, m, per_level[k * 8 + m]);
-    sc_value *disp_only = without_geometry(levels);
+    sc_value *disp_only = sc_test_lods_without(levels, "geometry_image");
     rc = render_check(disp_only, atlas, "tessellated", &cracks, &gap, msg, sizeof msg, NULL);
     SC_CHECK_MSG(rc == SC_OK, "render: %s", msg);
     printf("     tessellated with displacement: %.0f crack pixels, max seam gap %.3g\n", cracks, gap);
@@ -232,7 +200,7 @@ SC_TEST(single_atlas_chain_to_one_texel_with_8bit_colour) {
     sc_value *atlas = NULL, *baked_atlas = NULL;
     sc_value *lods = baked_lods(&atlas, &baked_atlas);
     if (!lods || !baked_atlas) goto done;
-    node_run r = run_node(&sc_node_mipmap, NULL, "atlas", baked_atlas, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_mipmap, NULL, "atlas", baked_atlas, NULL, NULL);
     SC_CHECK_MSG(r.rc == SC_OK, "mipmap: %s", r.err.message);
     if (r.rc == SC_OK) {
         sc_value *levels = sc_ctx_output(r.ctx, 0);
@@ -266,7 +234,7 @@ SC_TEST(single_atlas_chain_to_one_texel_with_8bit_colour) {
         SC_CHECK_INT(pngs, 7);
     }
     sc_ctx_free(r.ctx);
-    r = run_node(&sc_node_mipmap, NULL, NULL, NULL, NULL, NULL);
+    r = sc_test_run_node(&sc_node_mipmap, NULL, NULL, NULL, NULL, NULL);
     SC_CHECK(r.rc == SC_EINPUT);
     sc_ctx_free(r.ctx);
 done:

@@ -324,27 +324,6 @@ SC_TEST(bad_tolerance_is_named) {
 
 /* ================================================================ corpus */
 
-static sc_value *load_corpus(const char *rel, const char *texture, const char *slots) {
-    const char *dir = sc_test_corpus();
-    if (!dir) return NULL;
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, rel);
-    sc_ctx *ctx = sc_ctx_new(&sc_node_load_atlas, NULL, NULL);
-    sc_ctx_set_threads(ctx, 2);
-    sc_error err = {0};
-    sc_value *out = NULL;
-    int rc = sc_ctx_set_param(ctx, "path", path, &err);
-    if (rc == SC_OK && texture) {
-        snprintf(path, sizeof path, "%s/%s", dir, texture);
-        rc = sc_ctx_set_param(ctx, "texture", path, &err);
-    }
-    if (rc == SC_OK && slots) rc = sc_ctx_set_param(ctx, "slots", slots, &err);
-    if (rc == SC_OK && sc_ctx_run(ctx, &err) == SC_OK) out = sc_value_retain(sc_ctx_output(ctx, 0));
-    else sc_test_fail(__FILE__, __LINE__, "loading %s: %s", rel, err.message);
-    sc_ctx_free(ctx);
-    return out;
-}
-
 /* PSNR (peak 1) between the render node's textured pictures of two atlases
  * (6 axis views, 256^2), over the pixels where either picture shows the
  * mesh: the appearance a user sees, before vs after. -1 when rendering
@@ -406,7 +385,7 @@ static void corpus_check(const char *rel, const char *texture, const char *slots
         printf("     corpus absent: skipped %s\n", rel);
         return;
     }
-    sc_value *atlas = load_corpus(rel, texture, slots);
+    sc_value *atlas = sc_test_load_corpus(rel, texture, slots);
     if (!atlas) return;
     sc_error err = {0};
     double t0 = sc_now();
@@ -461,7 +440,7 @@ SC_TEST(corpus_suzanne_unchanged) {
         printf("     corpus absent: skipped\n");
         return;
     }
-    sc_value *atlas = load_corpus("Suzanne/Suzanne_welded.obj", NULL, NULL);
+    sc_value *atlas = sc_test_load_corpus("Suzanne/Suzanne_welded.obj", NULL, NULL);
     if (!atlas) return;
     sc_error err = {0};
     sc_ctx *ctx = run_straighten(atlas, NULL, &err);
@@ -484,7 +463,7 @@ SC_TEST(corpus_suzanne_borders_always) {
         printf("     corpus absent: skipped\n");
         return;
     }
-    sc_value *atlas = load_corpus("Suzanne/Suzanne_welded.obj", NULL, NULL);
+    sc_value *atlas = sc_test_load_corpus("Suzanne/Suzanne_welded.obj", NULL, NULL);
     if (!atlas) return;
     sc_error err = {0};
     sc_ctx *ctx = run_straighten(atlas, (const char *const[]){"borders", "always", NULL}, &err);
@@ -515,7 +494,7 @@ SC_TEST(corpus_waterbottle_degenerate_reported) {
         printf("     corpus absent: skipped\n");
         return;
     }
-    sc_value *atlas = load_corpus("WaterBottle/WaterBottle_welded.obj", NULL, "color");
+    sc_value *atlas = sc_test_load_corpus("WaterBottle/WaterBottle_welded.obj", NULL, "color");
     if (!atlas) return;
     sc_error err = {0};
     sc_ctx *ctx = run_straighten(atlas, (const char *const[]){"erase", "false", NULL}, &err);
