@@ -20,6 +20,11 @@
  *               input seam edges minus level seam edges)
  *   ms          wall time of the simplification alone (no metrics), best of
  *               three runs for the faster methods
+ * Methods: aware, fixed and free on the erased atlas; "straight" is aware
+ * after the straighten node (the path graphs/lod_chain.lua takes), its
+ * seam energy measured with the straightened texture and its uv offset
+ * against the straightened uv boundary (3D is unchanged, so Hausdorff is
+ * against the input).
  * Decimate runs one target at a time from the input so times compare with the
  * peer's. meshopt_simplify gets the glTF-style vertex buffer (one vertex per
  * distinct position/uv pair), target_error = FLT_MAX so only the face count
@@ -322,6 +327,9 @@ int main(int argc, char **argv) {
         const sc_atlas *erased = erase ? sc_ctx_output(erase, 0)->as.atlas : NULL;
         double e0 = seam_energy(in, atlas->as.atlas);
         double floor_e = erased ? seam_energy(in, erased) : NAN;
+        /* the pipeline's own path: erase_seams -> straighten -> decimate */
+        sc_ctx *straight = erase ? run(&sc_node_straighten, NULL, "atlas", sc_ctx_output(erase, 0), &err) : NULL;
+        sc_value *straight_atlas = straight ? sc_ctx_output(straight, 0) : NULL;
         int64_t seams_in = count_seams(in);
         printf("\n%s: %d faces, %lld seam edges, texture %d; seam energy %.3g, erased %.3g (floor %.3g relative; "
                "erase_seams %.1f s%s%s)\n",
@@ -367,6 +375,21 @@ int main(int argc, char **argv) {
                 }
                 sc_ctx_free(best);
             }
+            if (straight_atlas) {
+                const char *kv[] = {"faces", faces, "seam_mode", "aware", "hausdorff_samples", "0", NULL};
+                t0 = sc_now();
+                sc_ctx *ctx = run(&sc_node_decimate, kv, "mesh", straight_atlas, &err);
+                double s = sc_now() - t0;
+                if (ctx) {
+                    const sc_atlas *sa = straight_atlas->as.atlas;
+                    const sc_mesh *lod = sc_ctx_output(ctx, 0)->as.lods->levels[0]->as.atlas->mesh->as.mesh;
+                    row("straight", sa->mesh->as.mesh, lod, sa, e0, side,
+                        sc_ctx_metric_value(ctx, "lod0.seam_edges_collapsed"), s);
+                    sc_ctx_free(ctx);
+                } else {
+                    printf("  %-10s failed: %s\n", "straight", err.message);
+                }
+            }
 #ifdef SC_HAVE_MESHOPT
             double seconds;
             sc_mesh *mo_lod = meshopt_level(in, target, &seconds);
@@ -374,6 +397,7 @@ int main(int argc, char **argv) {
             sc_mesh_free(mo_lod);
 #endif
         }
+        sc_ctx_free(straight);
         sc_ctx_free(erase);
         sc_ctx_free(load);
     }

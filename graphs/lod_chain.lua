@@ -57,11 +57,11 @@ render{ name = "check", lods = chain, reference = shared,
 -- with positions fetched from the maps and tessellated.
 local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
                                  size = param("bake_size", 1024) }
--- mip_min: the coarsest mip level made and checked. Below 128^2 the gutters
--- between the procedural asset's charts (32 texels at 1024^2) shrink under
--- 4 texels, and geometry fetched from those levels folds at chart borders
--- (back faces show, though the seams still meet to 1e-6).
-local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 128) }
+-- mip_min: the coarsest mip level made and checked. Geometry fetched from a
+-- level stays fold-free while the gutters between charts span 2 texels or
+-- more there: the procedural asset pads its charts for 16^2; an asset packed
+-- tighter may need a larger mip_min.
+local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16) }
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
         size = param("map_render_size", 256), views = param("map_views", 6),
         modes = "geometry_image,displaced,tessellated",

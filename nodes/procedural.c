@@ -12,6 +12,14 @@
  * (design.md's convention), padding included, with a small per-chart tint so
  * the seams are visible until erase_seams removes them. Everything is plain
  * arithmetic on the parameters: the same parameters give the same bytes.
+ *
+ * Gutters. Each chart keeps `padding` (a fraction of the texture side) of
+ * empty texture on every side, so neighbouring charts are 2 x padding apart.
+ * A mip level of side S sees that gap as 2 x padding x S texels; below about
+ * 2 texels the charts' bilinear cells share texels, and a geometry image
+ * there pulls each chart's border towards the other chart's positions
+ * (folds that the render check counts, though the seams still meet). The
+ * default, 1/16, keeps charts 2 texels apart down to 16 x 16 mips.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -180,7 +188,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         .bump = sc_ctx_number(ctx, "bumpiness"),
         .size = (int)sc_ctx_integer(ctx, "texture_size"),
     };
-    s.pad = s.size / 64 > 2 ? s.size / 64 : 2;
+    s.pad = (int)lround(sc_ctx_number(ctx, "padding") * s.size);
+    if (s.pad < 2) s.pad = 2;
     int cell = s.size / 3 < s.size / 2 ? s.size / 3 : s.size / 2;
     s.chart_side = cell - 2 * s.pad;
     if (s.chart_side < 4) return sc_fail(err, SC_EINPUT, "texture_size %d is too small for six charts", s.size);
@@ -216,6 +225,9 @@ static const sc_param_desc params[] = {
      .doc = "side of the square colour texture, in texels"},
     {.name = "bumpiness", .type = SC_PARAM_NUMBER, .def = 0.15, .min = 0, .max = 0.5,
      .doc = "height of the bumps relative to the radius"},
+    {.name = "padding", .type = SC_PARAM_NUMBER, .def = 0.0625, .min = 0, .max = 0.15,
+     .doc = "empty border around each chart, as a fraction of the texture side (at least 2 texels); "
+            "1/16 keeps charts apart down to 16 x 16 mip levels"},
     {.name = "chart_tint", .type = SC_PARAM_NUMBER, .def = 0.08, .min = 0, .max = 1,
      .doc = "brightness difference between charts (makes seams visible)"},
 };
@@ -226,7 +238,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_procedural = {
     .type = "procedural",
-    .version = 1,
+    .version = 2,
     .summary = "a closed textured shape with six uv charts and real seams, made from parameters",
     .outputs = outputs,
     .noutputs = SC_COUNT(outputs),

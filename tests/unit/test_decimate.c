@@ -414,7 +414,7 @@ static double sampled_seam_energy(const sc_mesh *m, const sc_image_data *im) {
         if (e[i].lo != e[i + 1].lo || e[i].hi != e[i + 1].hi) continue;
         int32_t lo = e[i].lo, hi = e[i].hi;
         const double *uv[2][2];   /* side, endpoint (lo, hi) */
-        int32_t idx[2][2];
+        int32_t idx[2][2] = {{-1, -1}, {-1, -1}};
         for (int sd = 0; sd < 2; sd++) {
             int f = e[i + sd].face;
             for (int k = 0; k < 3; k++) {
