@@ -219,7 +219,6 @@ int encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err
     return write_with_oiio("jpg", spec, px.data(), out, err);
 }
 
-
 /* Float samples of one level, top-down, as encode_exr writes them. */
 std::vector<float> exr_pixels(const sc_image_data *im) {
     const size_t w = (size_t)im->width, h = (size_t)im->height, c = (size_t)im->channels;

@@ -39,22 +39,10 @@ typedef struct node_run {
     int rc;
 } node_run;
 
-/* Run a node with "name=value" parameter pairs (NULL-terminated list) and an
- * optional input on port `port`. */
+/* sc_test_run_node with one optional input on port `port`, output 0 at hand. */
 static node_run run_node(const sc_node_desc *d, const char *const *params, const char *port, sc_value *input) {
-    node_run r;
-    memset(&r, 0, sizeof r);
-    r.ctx = sc_ctx_new(d, NULL, NULL);
-    for (int i = 0; params && params[i]; i += 2) {
-        int rc = sc_ctx_set_param(r.ctx, params[i], params[i + 1], &r.err);
-        if (rc != SC_OK) {
-            r.rc = rc;
-            return r;
-        }
-    }
-    if (port) sc_ctx_set_input(r.ctx, port, input);
-    r.rc = sc_ctx_run(r.ctx, &r.err);
-    if (r.rc == SC_OK) r.out = sc_ctx_output(r.ctx, 0);
+    sc_test_run t = sc_test_run_node(d, params, port, input, NULL, NULL);
+    node_run r = {t.ctx, t.rc == SC_OK ? sc_ctx_output(t.ctx, 0) : NULL, t.err, t.rc};
     return r;
 }
 
