@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "sc_base.h"
 #include "sc_exec.h"
@@ -33,8 +34,15 @@ static const asset assets[] = {
     {"pizza", "pizza/pizza.obj", "pizza/pizza_gloss_map.jpg", "4096"},
 };
 
+/* CPU seconds of the whole process (every thread). */
+static double cpu_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 static sc_ctx *run(const sc_node_desc *d, const char *const *params, const char *p0, sc_value *v0, const char *p1,
-                   sc_value *v1, int threads, double *seconds) {
+                   sc_value *v1, int threads, double *seconds, double *cpu_seconds) {
     sc_ctx *ctx = sc_ctx_new(d, NULL, NULL);
     sc_error err;
     for (int i = 0; params && params[i]; i += 2)
@@ -42,9 +50,10 @@ static sc_ctx *run(const sc_node_desc *d, const char *const *params, const char 
     if (p0 && v0) sc_ctx_set_input(ctx, p0, v0);
     if (p1 && v1) sc_ctx_set_input(ctx, p1, v1);
     sc_ctx_set_threads(ctx, threads);
-    double t0 = sc_now();
+    double t0 = sc_now(), c0 = cpu_now();
     int rc = sc_ctx_run(ctx, &err);
     if (seconds) *seconds = sc_now() - t0;
+    if (cpu_seconds) *cpu_seconds = cpu_now() - c0;
     if (rc != SC_OK) {
         fprintf(stderr, "%s: %s\n", d->type, err.message);
         sc_ctx_free(ctx);
@@ -78,21 +87,21 @@ int main(int argc, char **argv) {
         snprintf(model, sizeof model, "%s/%s", corpus, as->model);
         snprintf(tex, sizeof tex, "%s/%s", corpus, as->texture);
         const char *lp[] = {"path", model, "texture", tex, NULL};
-        sc_ctx *load = run(&sc_node_load_atlas, lp, NULL, NULL, NULL, NULL, threads, NULL);
+        sc_ctx *load = run(&sc_node_load_atlas, lp, NULL, NULL, NULL, NULL, threads, NULL, NULL);
         if (!load) {
             printf("%-6s skipped (corpus absent)\n", as->name);
             continue;
         }
         sc_value *atlas = sc_ctx_output(load, 0);
         const char *dp[] = {"ratio", "0.5,0.1,0.01", "hausdorff_samples", "0", NULL};
-        sc_ctx *dec = run(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL, threads, NULL);
-        double t_bake = 0, t_mip = 0;
+        sc_ctx *dec = run(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL, threads, NULL, NULL);
+        double t_bake = 0, t_mip = 0, c_bake = 0, c_mip = 0;
         const char *bp[] = {"size", as->size, NULL};
-        sc_ctx *bake = dec ? run(&sc_node_bake_displacement, bp, "atlas", atlas, "lods", sc_ctx_output(dec, 0), threads, &t_bake) : NULL;
+        sc_ctx *bake = dec ? run(&sc_node_bake_displacement, bp, "atlas", atlas, "lods", sc_ctx_output(dec, 0), threads, &t_bake, &c_bake) : NULL;
         sc_ctx *mip = NULL;
         if (bake) {
             /* the maps only: the levels' colour chains are not part of the target */
-            mip = run(&sc_node_mipmap, NULL, "lods", sc_ctx_output(bake, 1), NULL, NULL, threads, &t_mip);
+            mip = run(&sc_node_mipmap, NULL, "lods", sc_ctx_output(bake, 1), NULL, NULL, threads, &t_mip, &c_mip);
         }
         if (bake && mip)
             printf("%-6s %6s %8d %9.2f %9.2f %8.2f %12.3g %12.3g\n", as->name, as->size, atlas->as.atlas->mesh->as.mesh->nf,
@@ -109,16 +118,24 @@ int main(int argc, char **argv) {
                    sc_ctx_metric_value(bake, "seconds_fit_solve"), sc_ctx_metric_value(bake, "fit_cells_solved"), sc_ctx_metric_value(bake, "fit_iterations"),
                    sc_ctx_metric_value(bake, "seconds_erase"), sc_ctx_metric_value(bake, "seconds_metrics"));
         for (int k = 0; bake && k < 3; k++) {
-            char n1[64], n2[64], n3[64];
-            snprintf(n1, sizeof n1, "lod%d.reconstruction_error", k);
-            snprintf(n2, sizeof n2, "lod%d.reconstruction_error_rms", k);
-            snprintf(n3, sizeof n3, "lod%d.samples_missed", k);
-            printf("       lod %d: reconstruction max %.3g rms %.3g (%.0f samples outside the level)\n", k,
-                   sc_ctx_metric_value(bake, n1), sc_ctx_metric_value(bake, n2), sc_ctx_metric_value(bake, n3));
+            char n[6][80];
+            const char *suffix[6] = {"reconstruction_error", "reconstruction_error_to_input", "reconstruction_error_from_input",
+                                     "same_uv_error", "same_uv_error_rms", "samples_missed"};
+            for (int i = 0; i < 6; i++) snprintf(n[i], sizeof n[i], "lod%d.%s", k, suffix[i]);
+            printf("       lod %d: surface distance %.3g (to input %.3g, from input %.3g); same-uv error max %.3g rms %.3g "
+                   "(%.0f samples outside the level)\n",
+                   k, sc_ctx_metric_value(bake, n[0]), sc_ctx_metric_value(bake, n[1]), sc_ctx_metric_value(bake, n[2]),
+                   sc_ctx_metric_value(bake, n[3]), sc_ctx_metric_value(bake, n[4]), sc_ctx_metric_value(bake, n[5]));
         }
         if (mip)
-            printf("       mipmap: erase %.2f s, metrics %.2f s, files %.2f s\n", sc_ctx_metric_value(mip, "seconds_erase"),
-                   sc_ctx_metric_value(mip, "seconds_metrics"), sc_ctx_metric_value(mip, "seconds_files"));
+            printf("       mipmap: erase %.2f s (%.0f erase_seams runs, %.0f level-0 maps kept as baked), metrics %.2f s, "
+                   "files %.2f s\n",
+                   sc_ctx_metric_value(mip, "seconds_erase"), sc_ctx_metric_value(mip, "erase_runs"),
+                   sc_ctx_metric_value(mip, "level0_passed"), sc_ctx_metric_value(mip, "seconds_metrics"),
+                   sc_ctx_metric_value(mip, "seconds_files"));
+        if (bake && mip)
+            printf("       cpu: bake %.2f s, mipmap %.2f s, total %.2f s (%d threads)\n", c_bake, c_mip, c_bake + c_mip,
+                   threads);
         if (bake && mip && getenv("SC_BENCH_DIGESTS")) {   /* to check that a change keeps the bytes */
             char h[65];
             for (int o = 0; o < 2; o++) {

@@ -2,8 +2,10 @@
  * meshoptimizer's meshopt_simplify, side by side in one run, on corpus assets
  * at 50%, 10% and 1% of their faces.
  *
- * Usage: bench_decimate [CORPUS_DIR] [asset,asset,...]
- *   CORPUS_DIR defaults to ../shared/corpus next to the source tree.
+ * Usage: bench_decimate [CORPUS_DIR] [asset,asset,...] [key=value ...]
+ *   CORPUS_DIR defaults to ../shared/corpus next to the source tree; each
+ *   key=value is passed to every decimate run (error_weight=0: the quadric
+ *   alone, as before error tracking).
  *
  * Per asset: load it (load_atlas), erase its colour texture's seams
  * (erase_seams, f32 output), then for each target and method report
@@ -297,6 +299,21 @@ static void row(const char *method, const sc_mesh *in, const sc_mesh *lod, const
 int main(int argc, char **argv) {
     const char *corpus = argc > 1 ? argv[1] : SC_SOURCE_DIR "/../shared/corpus";
     const char *only = argc > 2 ? argv[2] : NULL;
+    /* decimate parameters from the command line, after the method's own */
+    enum { MAX_EXTRA = 16 };
+    char *extra[2 * MAX_EXTRA + 1] = {NULL};
+    int nextra = 0;
+    for (int i = 3; i < argc && nextra < 2 * MAX_EXTRA; i++) {
+        char *eq = strchr(argv[i], '=');
+        if (!eq) {
+            fprintf(stderr, "bench_decimate: %s is not key=value\n", argv[i]);
+            return 2;
+        }
+        *eq = 0;
+        extra[nextra++] = argv[i];
+        extra[nextra++] = eq + 1;
+        printf("decimate %s = %s\n", argv[i], eq + 1);
+    }
 #ifdef SC_HAVE_MESHOPT
     printf("decimate vs meshoptimizer %d.%d (meshopt_simplify, options 0)\n", MESHOPTIMIZER_VERSION / 1000,
            MESHOPTIMIZER_VERSION % 1000 / 10);
@@ -349,7 +366,8 @@ int main(int argc, char **argv) {
                 sc_value *source = mo < 3 ? atlas : straight_atlas;
                 if (!source) continue;
                 const sc_atlas *ref = mo < 3 ? erased : straight_atlas->as.atlas;
-                const char *kv[] = {"faces", faces, "seam_mode", modes[mo], "hausdorff_samples", "0", NULL};
+                const char *kv[8 + 2 * MAX_EXTRA + 1] = {"faces", faces, "seam_mode", modes[mo], "hausdorff_samples", "0"};
+                for (int i = 0; i <= nextra; i++) kv[6 + i] = extra[i];
                 sc_ctx *best = NULL;
                 double best_seconds = INFINITY;
                 for (int rep = 0; rep < (in->nf > 20000 ? 1 : 3); rep++) {

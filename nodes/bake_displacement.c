@@ -7,7 +7,8 @@
  *    space DATA) holding the input mesh's positions at texel centres
  *    (design.md: texel (i, j) at ((i + 1/2)/W, (j + 1/2)/H), row 0 = v = 0).
  *    Every face's uv triangle is scanned over its bounding box grown by
- *    `padding` texels; a texel takes the face nearest to its centre (in
+ *    `padding` texels (each row cut to the columns that can lie within it);
+ *    a texel takes the face nearest to its centre (in
  *    texel space; distance 0 inside, ties to the lower face index, so the
  *    result is the same on any machine) and the value of that face's linear
  *    map uv -> position *extended* to the texel centre. Inside a chart this is
@@ -37,8 +38,11 @@
  *    face list built once per map) the faces that can reach its rows in face
  *    order, so each cell sums its own samples in the serial order: the same
  *    bytes on any thread count. A first pass only measures the miss per
- *    cell; a second pass repeats the same samples in the cells next to a
- *    solved texel only, summing their Gram matrices and residuals. The
+ *    cell, and skips the samples of a face in a cell that provably all miss
+ *    by less than the tolerance (cell_within: the map is affine there, so the
+ *    miss is bounded by the corners'), counting them only; a second pass
+ *    repeats the same samples in the cells next to a solved texel only,
+ *    summing their Gram matrices and residuals. The
  *    solver's matrix products gather per unknown in the order a scatter over
  *    the cells would add, so they split over threads with the same bytes.
  *  - Seams. With `erase` (the default), the node runs the erase_seams node
@@ -46,7 +50,11 @@
  *    surface with their own Jacobians, so positions have no reason to be C1
  *    across it): G on the union of the input mesh and every level (disjoint
  *    copies in one mesh, so one geometry image serves every level), each D_k
- *    on level k's own seams. Without `erase` the maps are only fitted and
+ *    on level k's own seams. Each map set's erasure and then its metrics run
+ *    on a worker thread (with more than one thread) as soon as the set is
+ *    fitted (after_fit), so erase_seams's serial stretches overlap the next
+ *    level's raster and fit; each depends on its own set alone. Without
+ *    `erase` the maps are only fitted and
  *    filled, e.g. to feed erase_seams from the graph or to show that unerased
  *    maps crack.
  *  - Limits (measured at 1024^2). Where a chart's uv is squeezed below a
@@ -62,28 +70,43 @@
  *    "displacement" per material: what render's geometry_image, displaced and
  *    tessellated modes look up. The images are f32 DATA values; files are
  *    written by whoever saves them (save, mipmap), not here.
- *  - Metrics: lod<k>.reconstruction_error (max), _rms and _p99: base_k +
- *    bilinear(D_k) against the input surface at 7 points of every input face
- *    (the level's face found exactly, through a bucket grid of its uv faces),
- *    over the bounding-box diagonal; geometry_image_error likewise for G;
+ *  - Metrics, over the bounding-box diagonal, two readings of "level k plus
+ *    its displacement reconstructs the input":
+ *    lod<k>.reconstruction_error: the surface distance, the drawn surface
+ *    (base_k + bilinear(D_k) over the level's faces) against the input
+ *    surface as surfaces, both ways (the larger of the one-sided maxima
+ *    lod<k>.reconstruction_error_to_input and _from_input; surface_distance
+ *    says how: both surfaces sampled by area, vertices and edges included,
+ *    `surface_samples` each; exact distances to the input through a BVH,
+ *    upper bounds by Gauss-Newton to the drawn surface);
+ *    lod<k>.same_uv_error (max), _rms and _p99: base_k + bilinear(D_k)
+ *    against the input point of the same uv, at 7 points inside every input
+ *    face (the level's face found exactly, through a bucket grid of its uv
+ *    faces) - stricter, as a squeezed uv makes a point slide along the
+ *    surface; geometry_image_error (and _rms, _p99): the same-uv error of G;
+ *    reconstruction_error and same_uv_error: the worst level;
  *    texels_covered and texels_shared (sc_seam_coverage, input mesh);
  *    texels fitted and timings per stage.
  */
 #include <float.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "sc_atlas_ops.h"
 #include "sc_exec.h"
+#include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
 
 /* ---------------------------------------------------------------- raster */
 
 /* One rasterisation of a mesh material: per texel the nearest face (or -1),
- * its distance and the position extended to the texel centre. */
+ * its distance and the position extended to the texel centre. raster_build
+ * reuses the arrays of a raster of the same size (first touches of fresh
+ * pages cost more than the work on them). */
 typedef struct raster {
     int32_t width, height;
     float *value;     /* W*H*3 */
@@ -137,7 +160,9 @@ static bool rows_meet(int64_t j0, int64_t j1, int32_t b0, int32_t b1, int32_t H,
 }
 
 /* Rows [band * chunk, ...) of the raster: every face in face order, so a
- * texel's winner (nearest, ties to the lower face) is the serial one. */
+ * texel's winner (nearest, ties to the lower face) is the serial one. A texel
+ * some face holds at distance 0 is final (a later face only ties), so later
+ * faces skip it; columns are cut to those within `pad` (sc_atlas_ops_row_span). */
 static int raster_band(void *ud, int32_t chunk) {
     raster_job *J = ud;
     const sc_seam_grid *g = J->g;
@@ -153,9 +178,15 @@ static int raster_band(void *ud, int32_t chunk) {
         const sc_mesh *m = J->m;
         const double *p[3] = {m->V + 3 * m->FV[3 * F->f], m->V + 3 * m->FV[3 * F->f + 1], m->V + 3 * m->FV[3 * F->f + 2]};
         for (int64_t j = F->j0; j <= F->j1; j++) {
-            int32_t jw = sc_seam_wrap(j, H, g->wrap_v);
+            int32_t jw = sc_atlas_ops_wrap(j, H, g->wrap_v);
             if (jw < b0 || jw >= b1) continue;
-            for (int64_t i = (int64_t)ceil(x0); i <= (int64_t)floor(x1); i++) {
+            int64_t i0, i1;
+            sc_atlas_ops_row_span(x, y, pad, (double)j, &i0, &i1);
+            if (i0 < (int64_t)ceil(x0)) i0 = (int64_t)ceil(x0);
+            if (i1 > (int64_t)floor(x1)) i1 = (int64_t)floor(x1);
+            for (int64_t i = i0; i <= i1; i++) {
+                size_t t = (size_t)jw * W + (size_t)sc_atlas_ops_wrap(i, W, g->wrap_u);
+                if (r->dist[t] == 0) continue;
                 double l[3];
                 barycentric(x, y, (double)i, (double)j, l);
                 double d2 = 0;
@@ -165,7 +196,6 @@ static int raster_band(void *ud, int32_t chunk) {
                                    sc_atlas_ops_segment_distance2((double)i, (double)j, x[2], y[2], x[0], y[0])));
                 float d = (float)sqrt(d2);
                 if (d > (float)pad) continue;
-                size_t t = (size_t)jw * W + (size_t)sc_seam_wrap(i, W, g->wrap_u);
                 if (!(d < r->dist[t])) continue;
                 r->dist[t] = d;
                 r->face[t] = F->f;
@@ -181,10 +211,14 @@ static int raster_build(const sc_mesh *m, int32_t material, const sc_seam_grid *
                         raster *r, sc_error *err) {
     const int32_t W = g->width, H = g->height;
     size_t n = (size_t)W * (size_t)H;
-    r->width = W, r->height = H;
-    r->value = sc_calloc_array(n * 3, sizeof(float));
-    r->dist = sc_alloc_array(n, sizeof(float));
-    r->face = sc_alloc_array(n, sizeof(int32_t));
+    if (!(r->value && r->dist && r->face && r->width == W && r->height == H)) {   /* else its arrays are reused */
+        raster_free(r);
+        r->width = W, r->height = H;
+        r->value = sc_alloc_array(n * 3, sizeof(float));
+        r->dist = sc_alloc_array(n, sizeof(float));
+        r->face = sc_alloc_array(n, sizeof(int32_t));
+    }
+    if (r->value) memset(r->value, 0, n * 3 * sizeof(float));
     rface *faces = sc_alloc_array((size_t)m->nf + 1, sizeof *faces);
     if (!r->value || !r->dist || !r->face || !faces) {
         raster_free(r);
@@ -336,28 +370,33 @@ static int locator_build(const sc_mesh *m, int32_t material, int32_t gw, locator
 
 /* The face that best contains uv (largest smallest barycentric) among the
  * faces near it, and the level's position there (linear in that face,
- * extended a little beyond it); -1 when no face is within reach. */
+ * extended a little beyond it); -1 when no face is within reach. Every face
+ * holding uv has its box in uv's own bucket, so that bucket is searched
+ * first: when a face there holds uv, the 3 x 3 buckets around could only
+ * add faces that do not, and the answer is the same. */
 static int32_t locate(const locator *L, double u, double v, double p[3]) {
     const sc_mesh *m = L->m;
     int32_t bi = bucket_of(u, L->gw), bj = bucket_of(v, L->gw), best = -1;
     double best_min = -HUGE_VAL, bl[3] = {0, 0, 0};
-    for (int32_t j = bj - 1; j <= bj + 1; j++)
-        for (int32_t i = bi - 1; i <= bi + 1; i++) {
-            if (i < 0 || j < 0 || i >= L->gw || j >= L->gw) continue;
-            size_t b = (size_t)j * L->gw + i;
-            for (int32_t q = L->start[b]; q < L->start[b + 1]; q++) {
-                int32_t f = L->faces[q];
-                if (f == best) continue;
-                double fx[3], fy[3], l[3];
-                for (int c = 0; c < 3; c++) {
-                    const double *uv = m->U + 2 * m->FU[3 * f + c];
-                    fx[c] = uv[0], fy[c] = uv[1];
+    for (int32_t ring = 0; ring < 2 && !(best_min >= 0); ring++) {   /* uv's bucket, then the 3 x 3 around it */
+        for (int32_t j = bj - ring; j <= bj + ring; j++)
+            for (int32_t i = bi - ring; i <= bi + ring; i++) {
+                if (i < 0 || j < 0 || i >= L->gw || j >= L->gw) continue;
+                size_t b = (size_t)j * L->gw + i;
+                for (int32_t q = L->start[b]; q < L->start[b + 1]; q++) {
+                    int32_t f = L->faces[q];
+                    if (f == best) continue;
+                    double fx[3], fy[3], l[3];
+                    for (int c = 0; c < 3; c++) {
+                        const double *uv = m->U + 2 * m->FU[3 * f + c];
+                        fx[c] = uv[0], fy[c] = uv[1];
+                    }
+                    if (!barycentric(fx, fy, u, v, l)) continue;
+                    double mn = fmin(l[0], fmin(l[1], l[2]));
+                    if (mn > best_min || (mn == best_min && f < best)) best_min = mn, best = f, memcpy(bl, l, sizeof l);
                 }
-                if (!barycentric(fx, fy, u, v, l)) continue;
-                double mn = fmin(l[0], fmin(l[1], l[2]));
-                if (mn > best_min || (mn == best_min && f < best)) best_min = mn, best = f, memcpy(bl, l, sizeof l);
             }
-        }
+    }
     if (best < 0 || best_min < -0.5) return -1;
     for (int k = 0; k < 3; k++)
         p[k] = bl[0] * m->V[3 * m->FV[3 * best] + k] + bl[1] * m->V[3 * m->FV[3 * best + 1] + k] +
@@ -403,10 +442,10 @@ typedef struct cellgrid {
 
 static bool cell_key(const cellgrid *cg, int64_t cx, int64_t cy, size_t *key) {
     int64_t kx, ky;
-    if (cg->wu == SC_WRAP_REPEAT) kx = sc_seam_wrap(cx, cg->W, SC_WRAP_REPEAT);
+    if (cg->wu == SC_WRAP_REPEAT) kx = sc_atlas_ops_wrap(cx, cg->W, SC_WRAP_REPEAT);
     else if (cx < -1 || cx > cg->W - 1) return false;
     else kx = cx + 1;
-    if (cg->wv == SC_WRAP_REPEAT) ky = sc_seam_wrap(cy, cg->H, SC_WRAP_REPEAT);
+    if (cg->wv == SC_WRAP_REPEAT) ky = sc_atlas_ops_wrap(cy, cg->H, SC_WRAP_REPEAT);
     else if (cy < -1 || cy > cg->H - 1) return false;
     else ky = cy + 1;
     *key = (size_t)ky * cg->CW + (size_t)kx;
@@ -422,7 +461,7 @@ static void cell_corners(const cellgrid *cg, size_t key, int32_t id[4]) {
         return;
     }
     for (int q = 0; q < 4; q++)
-        id[q] = sc_seam_wrap(cy + (q >> 1), cg->H, cg->wv) * cg->W + sc_seam_wrap(cx + (q & 1), cg->W, cg->wu);
+        id[q] = sc_atlas_ops_wrap(cy + (q >> 1), cg->H, cg->wv) * cg->W + sc_atlas_ops_wrap(cx + (q & 1), cg->W, cg->wu);
 }
 
 /* The level's position at uv when one of the faces the raster gives the
@@ -463,6 +502,7 @@ typedef struct sample_job {
     const locator *lev;
     const float *x;
     int32_t band;
+    double tol;            /* pass 1: cells whose samples provably miss by no more skip them (cell_within) */
     const int32_t *list_start, *list;   /* per chunk, the faces that may sample its rows, in face order */
     int64_t *samples;   /* per chunk */
 } sample_job;
@@ -513,7 +553,7 @@ static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg,
             }
             if (all) r0 = 0, r1 = cg->CH - 1;
             for (int64_t r = r0; r <= r1; r++) {
-                int64_t row = cg->wv == SC_WRAP_REPEAT && !all ? sc_seam_wrap(r, cg->H, SC_WRAP_REPEAT) : r;
+                int64_t row = cg->wv == SC_WRAP_REPEAT && !all ? sc_atlas_ops_wrap(r, cg->H, SC_WRAP_REPEAT) : r;
                 int32_t c = (int32_t)(row / band);
                 if (c < 0 || c >= nchunks || last[c] == f) continue;
                 last[c] = f;
@@ -535,6 +575,74 @@ static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg,
     free(last), free(fill);
     *start_out = start, *list_out = list;
     return SC_OK;
+}
+
+/* Pass 1 only: whether no sample of big face f (texel coordinates fx, fy,
+ * positions p) in cell (cx, cy) with corner texels id can miss by more than
+ * `tol`, so that its samples need only be counted. Over the cell, f = L_F -
+ * M_G is affine when one level face G holds all four corners (a triangle is
+ * convex, so it then holds the whole cell; no level: M = 0), and bilinear
+ * interpolation reproduces affine maps, so at any point s of the cell
+ *     bilinear(x)(s) - f(s) = sum_q w_q(s) (x_q - f(c_q)),
+ * a convex combination: the miss is at most max_q |x_q - f(c_q)|, and at the
+ * 16 sample points it is that sum with their fixed weights. A margin of
+ * 0.1% of tol covers rounding, so this skips only samples whose miss the
+ * full evaluation would also find within tol: the solved cells are the
+ * same. *nsamples gets the samples the full evaluation would count (those
+ * inside the face; G holds them all). */
+static bool cell_within(const sample_job *J, const double fx[3], const double fy[3], const double *const p[3],
+                        int64_t cx, int64_t cy, const int32_t id[4], double tol, int64_t *nsamples) {
+    double f[4][3];
+    for (int q = 0; q < 4; q++) {
+        double l[3], X = (double)(cx + (q & 1)), Y = (double)(cy + (q >> 1));
+        barycentric(fx, fy, X, Y, l);
+        for (int k = 0; k < 3; k++) f[q][k] = l[0] * p[0][k] + l[1] * p[1][k] + l[2] * p[2][k];
+    }
+    if (J->lev) {
+        const sc_mesh *m = J->lev->m;
+        const raster *rl = J->rlev;
+        const int32_t G = rl->face[id[0]];
+        if (G < 0) return false;
+        for (int q = 0; q < 4; q++)
+            if (rl->face[id[q]] != G || rl->dist[id[q]] != 0) return false;
+        double gx[3], gy[3];
+        const double *gp[3];
+        for (int c = 0; c < 3; c++) {
+            const double *uv = m->U + 2 * m->FU[3 * G + c];
+            gx[c] = uv[0] * J->g->width - 0.5, gy[c] = uv[1] * J->g->height - 0.5;
+            gp[c] = m->V + 3 * m->FV[3 * G + c];
+        }
+        for (int q = 0; q < 4; q++) {   /* G holds the corners where the samples are (not a wrapped copy) */
+            double l[3];
+            if (!barycentric(gx, gy, (double)(cx + (q & 1)), (double)(cy + (q >> 1)), l) || l[0] < 0 || l[1] < 0 ||
+                l[2] < 0)
+                return false;
+            for (int k = 0; k < 3; k++) f[q][k] -= l[0] * gp[0][k] + l[1] * gp[1][k] + l[2] * gp[2][k];
+        }
+    }
+    double e[4][3], emax = 0;   /* the corners' errors; their largest bounds every miss */
+    for (int q = 0; q < 4; q++) {
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) e[q][k] = (double)J->x[3 * (size_t)id[q] + k] - f[q][k], d2 += e[q][k] * e[q][k];
+        emax = fmax(emax, d2);
+    }
+    if (sqrt(emax) > 0.999 * tol)   /* else the 16 sample points themselves (in the face or not) */
+        for (int32_t s = 0; s < 16; s++) {
+            const double ss = ((s & 3) + 0.5) / 4, tt = ((s >> 2) + 0.5) / 4;
+            const double w[4] = {(1 - ss) * (1 - tt), ss * (1 - tt), (1 - ss) * tt, ss * tt};
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) {
+                double d = w[0] * e[0][k] + w[1] * e[1][k] + w[2] * e[2][k] + w[3] * e[3][k];
+                d2 += d * d;
+            }
+            if (!(sqrt(d2) <= 0.999 * tol)) return false;
+        }
+    for (int32_t s = 0; s < 16; s++) {
+        double l[3];
+        barycentric(fx, fy, (double)cx + ((s & 3) + 0.5) / 4, (double)cy + ((s >> 2) + 0.5) / 4, l);
+        *nsamples += !(l[0] < 0 || l[1] < 0 || l[2] < 0);
+    }
+    return true;
 }
 
 /* Samples of f in the inexact cells of key rows [chunk * band, ...): every
@@ -587,6 +695,7 @@ static int sample_band(void *ud, int32_t chunk) {
             const size_t cell_key0 = small ? 0 : key;   /* a big face's samples land in this cell */
             int32_t cell_id[4];
             if (!small) cell_corners(&cg, cell_key0, cell_id);
+            if (!small && !cells && cell_within(J, fx, fy, p, cx, cy, cell_id, J->tol, &nsamples)) continue;
             int32_t npts = small ? (n + 1) * (n + 2) / 2 : 16;
             for (int32_t s = 0; s < npts; s++) {
                 double l[3];
@@ -645,17 +754,14 @@ static int sample_band(void *ud, int32_t chunk) {
     return SC_OK;
 }
 
-/* Per-cell flags over cells [chunk * CELL_CHUNK, ...): with `rin`, slot[k] =
- * -1 where x0 is exact (the four corners inside one face of the input and,
- * with `rlev`, one of the level), else 0; with `var`, touch[k] = whether a
- * corner is a free texel. */
+/* Over cells [chunk * CELL_CHUNK, ...): slot[k] = -1 where x0 is exact (the
+ * four corners inside one face of the input and, with `rlev`, one of the
+ * level), else 0. */
 #define CELL_CHUNK 65536
 typedef struct cell_job {
     const cellgrid *cg;
     const raster *rin, *rlev;
-    const int32_t *var;
     int32_t *slot;
-    uint8_t *touch;
     size_t ncell;
 } cell_job;
 
@@ -666,12 +772,6 @@ static int cell_band(void *ud, int32_t chunk) {
     for (size_t k = k0; k < k1; k++) {
         int32_t id[4];
         cell_corners(J->cg, k, id);
-        if (J->var) {
-            bool any = false;
-            for (int q = 0; q < 4; q++) any |= J->var[id[q]] >= 0;
-            J->touch[k] = any;
-            continue;
-        }
         bool exact = true;
         for (int q = 0; q < 4 && exact; q++) {
             exact = rin->face[id[q]] >= 0 && rin->dist[id[q]] == 0 && rin->face[id[q]] == rin->face[id[0]];
@@ -691,13 +791,15 @@ typedef struct active {
     const double (*b)[3];
 } active;
 
-/* Ap = (sum P^T G P) p, gathered per unknown: unknown v sums its entries
- * inc[inc_start[v] .. inc_start[v + 1]) (active cell * 4 + corner, cells in
- * ascending order), the very order a scatter over the cells adds them in, so
- * any split of the unknowns gives the same bytes. */
+/* Ap = (sum P^T G P) p, gathered per unknown: unknown v sums the terms of
+ * its entries (active cell, corner q; cells in ascending order), each over
+ * the cell's free corners s (G[q][s] p_s): the very order a scatter over the
+ * cells adds them in, so any split of the unknowns gives the same bytes.
+ * The terms are laid out once per solve (coefficient, column). */
 typedef struct apply_job {
-    const active *act;
-    const int64_t *inc_start, *inc;
+    const int64_t *row;      /* unknown v's terms: [row[v], row[v + 1]) */
+    const double *coef;      /* each term: coefficient and column */
+    const int32_t *col;
     const double *p;
     double *Ap;
     int64_t nvar, chunk;
@@ -708,45 +810,68 @@ static int apply_band(void *ud, int32_t chunk) {
     const int64_t v0 = (int64_t)chunk * J->chunk, v1 = v0 + J->chunk < J->nvar ? v0 + J->chunk : J->nvar;
     for (int64_t v = v0; v < v1; v++) {
         double acc[3] = {0, 0, 0};
-        for (int64_t e = J->inc_start[v]; e < J->inc_start[v + 1]; e++) {
-            const active *A = &J->act[J->inc[e] >> 2];
-            const int q = (int)(J->inc[e] & 3);
-            for (int s = 0; s < 4; s++) {
-                int32_t vs = A->var[s];
-                if (vs < 0) continue;
-                double gq = A->G[gram_index[q][s]];
-                for (int c = 0; c < 3; c++) acc[c] += gq * J->p[3 * vs + c];
-            }
+        for (int64_t t = J->row[v]; t < J->row[v + 1]; t++) {
+            const double *pv = J->p + 3 * (size_t)J->col[t];
+            for (int c = 0; c < 3; c++) acc[c] += J->coef[t] * pv[c];
         }
         for (int c = 0; c < 3; c++) J->Ap[3 * v + c] = acc[c];
     }
     return SC_OK;
 }
 
+/* fit_map's large work arrays, kept from one map to the next of a bake (a
+ * fresh allocation pays a page fault per 4 KiB on first touch, more than the
+ * work done on most of them). */
+typedef struct fit_scratch {
+    int32_t *slot, *slot2, *var;
+    double *worst;
+    fit_cell *cells;
+    size_t n_slot, n_slot2, n_var, n_worst, n_cells;
+} fit_scratch;
+
+static void fit_scratch_free(fit_scratch *ws) {
+    free(ws->slot), free(ws->slot2), free(ws->var), free(ws->worst), free(ws->cells);
+    memset(ws, 0, sizeof *ws);
+}
+
+/* *p with room for n items of `size` bytes (contents not kept when it grows). */
+static void *scratch(void *p, size_t *have, size_t n, size_t size) {
+    void **pp = p;
+    if (n <= *have) return *pp;
+    free(*pp);
+    *pp = sc_alloc_array(n, size);
+    *have = *pp ? n : 0;
+    return *pp;
+}
+
+static int cmp_size(const void *a, const void *b) {
+    size_t x = *(const size_t *)a, y = *(const size_t *)b;
+    return (x > y) - (x < y);
+}
+
 static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, const raster *rin,
-                   const raster *rlev, const locator *lev, float *x, double tol, int threads, fit_stats *st,
-                   sc_error *err) {
+                   const raster *rlev, const locator *lev, float *x, double tol, int threads, fit_scratch *ws,
+                   fit_stats *st, sc_error *err) {
     const int32_t W = g->width, H = g->height;
     cellgrid cg = {W, H, W + (g->wrap_u == SC_WRAP_REPEAT ? 0 : 1), H + (g->wrap_v == SC_WRAP_REPEAT ? 0 : 1),
                    g->wrap_u, g->wrap_v};
     const size_t ncell = (size_t)cg.CW * cg.CH;
-    int32_t *slot = sc_alloc_array(ncell, sizeof(int32_t));
+    int32_t *slot = scratch(&ws->slot, &ws->n_slot, ncell, sizeof(int32_t));
     if (!slot) return sc_fail(err, SC_ENOMEM, "out of memory");
     /* 1. the cells where x0 may be inexact */
     int64_t nbad = 0;
-    cell_job cj = {&cg, rin, rlev, NULL, slot, NULL, ncell};
-    if (sc_seam_parallel(threads, (int32_t)((ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &cj) != SC_OK) {
-        free(slot);
+    cell_job cj = {&cg, rin, rlev, slot, ncell};
+    if (sc_seam_parallel(threads, (int32_t)((ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &cj) != SC_OK)
         return sc_fail(err, SC_ENOMEM, "out of memory");
-    }
     for (size_t k = 0; k < ncell; k++)
         if (slot[k] >= 0) slot[k] = nbad < INT32_MAX - 1 ? (int32_t)nbad++ : -1;
-    double *worst = sc_calloc_array((size_t)nbad + 1, sizeof *worst);
+    double *worst = scratch(&ws->worst, &ws->n_worst, (size_t)nbad + 1, sizeof *worst);
+    if (worst) memset(worst, 0, ((size_t)nbad + 1) * sizeof *worst);
     const int32_t band = 16, nchunks = (cg.CH + band - 1) / band;
     int64_t *counts = sc_calloc_array((size_t)nchunks, sizeof(int64_t));
     int32_t *list_start = NULL, *list = NULL;
     if (!worst || !counts || sample_lists(in, material, &cg, band, nchunks, &list_start, &list) != SC_OK) {
-        free(worst), free(counts), free(slot);
+        free(counts), free(list_start), free(list);
         return sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)nbad);
     }
     double t0 = sc_now();
@@ -755,16 +880,17 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
      * x0 misses them; the Gram matrices and residuals (step 4) are summed in
      * a second pass over the same samples, in the cells next to free texels
      * only */
-    sample_job job = {in, material, g, cg, slot, NULL, worst, rlev, lev, x, band, list_start, list, counts};
+    sample_job job = {in, material, g, cg, slot, NULL, worst, rlev, lev, x, band, tol, list_start, list, counts};
     int rc = sc_seam_parallel(threads, nchunks, sample_band, &job);
     for (int32_t c = 0; c < nchunks; c++) st->samples += counts[c];
     if (rc != SC_OK) rc = sc_fail(err, rc, "sampling the surface failed");
     st->seconds_sample += sc_now() - t0;
     t0 = sc_now();
     /* 3. the free texels: corners of the cells x0 misses by more than tol */
-    int32_t *var = rc == SC_OK ? sc_alloc_array((size_t)W * H, sizeof(int32_t)) : NULL;
+    int32_t *var = rc == SC_OK ? scratch(&ws->var, &ws->n_var, (size_t)W * H, sizeof(int32_t)) : NULL;
     if (rc == SC_OK && !var) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     int64_t nvar = 0;
+    int32_t *free_texel = NULL;   /* the free texels, in the order of their index in var */
     if (rc == SC_OK) {
         for (size_t t = 0; t < (size_t)W * H; t++) var[t] = -1;
         for (size_t k = 0; k < ncell; k++) {
@@ -772,38 +898,61 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
             st->cells_inexact++;
             if (!(worst[slot[k]] > tol)) continue;
             st->cells_solved++;
+        }
+        free_texel = sc_alloc_array((size_t)st->cells_solved * 4 + 1, sizeof(int32_t));
+        if (!free_texel) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        for (size_t k = 0; k < ncell && rc == SC_OK; k++) {
+            if (slot[k] < 0 || !(worst[slot[k]] > tol)) continue;
             int32_t id[4];
             cell_corners(&cg, k, id);
             for (int q = 0; q < 4; q++)
-                if (var[id[q]] < 0) var[id[q]] = (int32_t)nvar++;
+                if (var[id[q]] < 0) free_texel[nvar] = id[q], var[id[q]] = (int32_t)nvar++;
         }
     }
     /* 4. the cells the free texels sit in: their Gram and residual */
     active *act = NULL;
-    int64_t *inc_start = NULL, *inc = NULL;
+    int64_t *inc_start = NULL, *inc = NULL, *row = NULL;
+    double *coef = NULL;
+    int32_t *col = NULL;
     int64_t nact = 0;
     double *vec = NULL;
     if (rc == SC_OK && nvar > 0) {
-        act = sc_alloc_array(ncell, sizeof *act);
+        act = sc_alloc_array((size_t)nvar * 4 + 1, sizeof *act);
         vec = sc_calloc_array((size_t)nvar * 3 * 6, sizeof(double));
         if (!act || !vec) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
     }
-    uint8_t *touch = NULL;   /* cells with a free corner */
+    /* the cells with a free corner, ascending: those having a free texel
+     * (i, j) as a corner are cells (i - 1 .. i, j - 1 .. j), through the wrap
+     * modes (cell_corners' inverse) */
+    size_t *touched = NULL;
+    int64_t ntouched = 0;
     int32_t *slot2 = NULL;   /* inexact cells with a free corner: index in `cells` */
     fit_cell *cells = NULL;
     if (rc == SC_OK && nvar > 0) {
-        touch = sc_alloc_array(ncell + 1, 1);
-        slot2 = sc_alloc_array(ncell + 1, sizeof(int32_t));
-        cell_job tj = {&cg, NULL, NULL, var, NULL, touch, ncell};
-        if (!touch || !slot2 ||
-            sc_seam_parallel(threads, (int32_t)((ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &tj) != SC_OK)
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        touched = sc_alloc_array((size_t)nvar * 4 + 1, sizeof(size_t));
+        slot2 = scratch(&ws->slot2, &ws->n_slot2, ncell + 1, sizeof(int32_t));
+        if (!touched || !slot2) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
     if (rc == SC_OK && nvar > 0) {
-        int64_t ntouched = 0;
-        for (size_t k = 0; k < ncell; k++) slot2[k] = slot[k] >= 0 && touch[k] ? (int32_t)ntouched++ : -1;
-        cells = sc_calloc_array((size_t)ntouched + 1, sizeof *cells);
-        if (!cells) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)ntouched);
+        for (int64_t v = 0; v < nvar; v++) {
+            const int64_t i = free_texel[v] % W, j = free_texel[v] / W;
+            for (int q = 0; q < 4; q++) {
+                size_t key;
+                if (cell_key(&cg, i - 1 + (q & 1), j - 1 + (q >> 1), &key)) touched[ntouched++] = key;
+            }
+        }
+        qsort(touched, (size_t)ntouched, sizeof *touched, cmp_size);
+        int64_t u = 0;
+        for (int64_t a = 0; a < ntouched; a++)
+            if (u == 0 || touched[a] != touched[u - 1]) touched[u++] = touched[a];
+        ntouched = u;
+        for (size_t k = 0; k < ncell; k++) slot2[k] = -1;
+        int64_t nsampled = 0;
+        for (int64_t a = 0; a < ntouched; a++)
+            if (slot[touched[a]] >= 0) slot2[touched[a]] = (int32_t)nsampled++;
+        cells = scratch(&ws->cells, &ws->n_cells, (size_t)nsampled + 1, sizeof *cells);
+        if (cells) memset(cells, 0, ((size_t)nsampled + 1) * sizeof *cells);
+        if (!cells) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)nsampled);
     }
     if (rc == SC_OK && nvar > 0) {   /* the second pass: each cell sums its samples in the first pass's order */
         double t1 = sc_now();
@@ -814,8 +963,8 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
         t0 += sc_now() - t1;
     }
     if (rc == SC_OK && nvar > 0) {
-        for (size_t k = 0; k < ncell; k++) {
-            if (!touch[k]) continue;
+        for (int64_t a = 0; a < ntouched; a++) {
+            const size_t k = touched[a];
             int32_t id[4];
             cell_corners(&cg, k, id);
             active *A = &act[nact];
@@ -847,6 +996,22 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
                 if (act[a].var[q] >= 0) inc[inc_start[act[a].var[q]]++] = 4 * a + q;
         for (int64_t v = nvar; v > 0; v--) inc_start[v] = inc_start[v - 1];
         inc_start[0] = 0;
+        /* each unknown's terms, in the order of its entries and their corners */
+        row = sc_alloc_array((size_t)nvar + 1, sizeof *row);
+        coef = sc_alloc_array((size_t)nact * 16 + 1, sizeof *coef);
+        col = sc_alloc_array((size_t)nact * 16 + 1, sizeof *col);
+        if (!row || !coef || !col) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
+        int64_t nterm = 0;
+        for (int64_t v = 0; v < nvar && rc == SC_OK; v++) {
+            row[v] = nterm;
+            for (int64_t e = inc_start[v]; e < inc_start[v + 1]; e++) {
+                const active *A = &act[inc[e] >> 2];
+                const int q = (int)(inc[e] & 3);
+                for (int s = 0; s < 4; s++)
+                    if (A->var[s] >= 0) coef[nterm] = A->G[gram_index[q][s]], col[nterm++] = A->var[s];
+            }
+        }
+        if (rc == SC_OK) row[nvar] = nterm;
         /* CG on (sum P^T G P + eps I) d = sum P^T b, three channels at once */
         const double eps = 1e-4;
         double *d = vec, *r = vec + 3 * nvar, *z = vec + 6 * nvar, *pp = vec + 9 * nvar, *Ap = vec + 12 * nvar,
@@ -870,9 +1035,9 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
                 rz[c] += r[3 * i + c] * z[3 * i + c];
                 r0[c] += r[3 * i + c] * r[3 * i + c];
             }
-        for (int it = 0; it < 60; it++) {
+        for (int it = 0; it < 60 && rc == SC_OK; it++) {
             double rr = 0, rr0 = r0[0] + r0[1] + r0[2];
-            apply_job aj = {act, inc_start, inc, pp, Ap, nvar, 4096};
+            apply_job aj = {row, coef, col, pp, Ap, nvar, 4096};
             int arc = sc_seam_parallel(threads, (int32_t)((nvar + aj.chunk - 1) / aj.chunk), apply_band, &aj);
             if (arc != SC_OK) {
                 rc = sc_fail(err, arc, "the conjugate gradients failed");
@@ -908,8 +1073,8 @@ static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, c
         st->texels_solved += nvar;
     }
     st->seconds_solve += sc_now() - t0;
-    free(inc_start), free(inc), free(touch), free(slot2), free(worst), free(counts), free(list_start), free(list);
-    free(act), free(vec), free(var), free(cells), free(slot);
+    free(inc_start), free(inc), free(row), free(coef), free(col), free(touched), free(free_texel), free(counts), free(list_start), free(list);
+    free(act), free(vec);
     return rc;
 }
 
@@ -925,7 +1090,7 @@ static sc_image_data *new_map(int32_t size) {
  * positions) where both rasters define them, the least-squares fit, then
  * push-pull beyond. */
 static int make_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, const raster *rin,
-                    const raster *rlev, const locator *lev, double tol, int threads, fit_stats *st,
+                    const raster *rlev, const locator *lev, double tol, int threads, fit_scratch *ws, fit_stats *st,
                     sc_value **out, sc_error *err) {
     size_t n = (size_t)g->width * g->height;
     uint8_t *valid = malloc(n);
@@ -938,7 +1103,7 @@ static int make_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, 
             for (int c = 0; c < 3; c++)
                 d[3 * t + c] = valid[t] ? rin->value[3 * t + c] - (rlev ? rlev->value[3 * t + c] : 0.0f) : 0.0f;
         }
-        rc = fit_map(in, material, g, rin, rlev, lev, d, tol, threads, st, err);
+        rc = fit_map(in, material, g, rin, rlev, lev, d, tol, threads, ws, st, err);
     }
     if (rc == SC_OK) rc = push_pull(im->pixels, valid, g->width, g->height, 3, err);
     free(valid);
@@ -1016,16 +1181,26 @@ static const double sample_bary[7][3] = {
     {0.45, 0.45, 0.1}, {0.1, 0.45, 0.45}, {0.45, 0.1, 0.45}};
 
 typedef struct recon {
-    double *e;   /* errors / diagonal */
-    int64_t count, cap, missed;
+    double *same;   /* same-uv errors over the diagonal */
+    int64_t nsame, cap_same;
+    double to_input, from_input;   /* the one-sided surface distances' maxima */
+    int64_t missed, surf_missed;
 } recon;
 
-/* What the renderer draws, base_level(uv) + bilinear(map)(uv) (only the
- * map when level is NULL), against the input surface at 7 points of every
- * input face of the material; errors over the bounding-box diagonal. Faces
- * are measured in parallel chunks into slots of their own (-1: the level has
- * no face there); the errors are then sorted, so the metrics do not depend on
- * the thread count. */
+static int recon_grow(double **a, int64_t *cap, int64_t need) {
+    if (need <= *cap) return SC_OK;
+    double *e = realloc(*a, sizeof(double) * (size_t)(need + 1));
+    if (!e) return SC_ENOMEM;
+    *a = e, *cap = need + 1;
+    return SC_OK;
+}
+
+/* Same-uv error: what the renderer draws, base_level(uv) + bilinear(map)(uv)
+ * (only the map when level is NULL), against the input point of the same uv
+ * at 7 points of every input face of the material, over the bounding-box
+ * diagonal. Faces are measured in parallel chunks into slots of their own
+ * (-1: the level has no face there); the errors are then sorted, so the
+ * metrics do not depend on the thread count. */
 typedef struct recon_job {
     const sc_mesh *in;
     const int32_t *faces;
@@ -1067,34 +1242,454 @@ static int recon_band(void *ud, int32_t chunk) {
     return SC_OK;
 }
 
-static int reconstruction(const sc_mesh *in, int32_t material, const locator *lev, const sc_seam_grid *g,
-                          const sc_image_data *map, double diag, int threads, recon *acc, sc_error *err) {
+static int same_uv(const sc_mesh *in, int32_t material, const locator *lev, const sc_seam_grid *g,
+                   const sc_image_data *map, double diag, int threads, recon *acc, sc_error *err) {
     int64_t nf = 0;
     for (int32_t f = 0; f < in->nf; f++) nf += in->FM[f] == material;
-    if (acc->count + 7 * nf > acc->cap) {
-        int64_t cap = acc->count + 7 * nf + 1;
-        double *e = realloc(acc->e, sizeof(double) * (size_t)cap);
-        if (!e) return sc_fail(err, SC_ENOMEM, "out of memory");
-        acc->e = e, acc->cap = cap;
-    }
+    if (recon_grow(&acc->same, &acc->cap_same, acc->nsame + 7 * nf) != SC_OK)
+        return sc_fail(err, SC_ENOMEM, "out of memory");
     int32_t *faces = sc_alloc_array((size_t)nf + 1, sizeof(int32_t));
     if (!faces) return sc_fail(err, SC_ENOMEM, "out of memory");
     nf = 0;
     for (int32_t f = 0; f < in->nf; f++)
         if (in->FM[f] == material) faces[nf++] = f;
-    /* the slots are the tail of acc->e, compacted in place below */
-    recon_job job = {in, faces, nf, lev, g, map, diag, acc->e + acc->count};
+    /* the slots are the tail of acc->same, compacted in place below */
+    recon_job job = {in, faces, nf, lev, g, map, diag, acc->same + acc->nsame};
     int rc = sc_seam_parallel(threads, (int32_t)((nf + RECON_CHUNK - 1) / RECON_CHUNK), recon_band, &job);
     free(faces);
     if (rc != SC_OK) return sc_fail(err, rc, "measuring the reconstruction failed");
-    const double *slots = acc->e + acc->count;
-    int64_t kept = acc->count;
+    const double *slots = acc->same + acc->nsame;
+    int64_t kept = acc->nsame;
     for (int64_t i = 0; i < 7 * nf; i++) {
         if (slots[i] < 0) acc->missed++;
-        else acc->e[kept++] = slots[i];
+        else acc->same[kept++] = slots[i];
     }
-    acc->count = kept;
+    acc->nsame = kept;
     return SC_OK;
+}
+
+/* Grid samples of a mesh's faces of one material, by area, as sc_hausdorff
+ * samples a mesh (see surface_distance). */
+typedef struct grid_samples {
+    int32_t *face, *res;   /* per sampled face: its index and grid resolution r */
+    uint8_t *owns;         /* per sampled face: bit c when it is the first face of corner c's vertex (which
+                            * measures it; the others skip it) */
+    int64_t *start;        /* first sample of each; start[nfaces] = the total */
+    int64_t nfaces;
+} grid_samples;
+
+static void grid_samples_free(grid_samples *gs) {
+    free(gs->face), free(gs->res), free(gs->start), free(gs->owns);
+    memset(gs, 0, sizeof *gs);
+}
+
+static double face_area(const sc_mesh *m, int32_t f) {
+    const double *a = m->V + 3 * m->FV[3 * f], *b = m->V + 3 * m->FV[3 * f + 1], *c = m->V + 3 * m->FV[3 * f + 2];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    double area = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    return isfinite(area) ? area : 0;
+}
+
+static int grid_samples_build(const sc_mesh *m, int32_t material, int64_t target, grid_samples *gs) {
+    int64_t n = 0;
+    double total = 0;
+    for (int32_t f = 0; f < m->nf; f++)
+        if (m->FM[f] == material) n++, total += face_area(m, f);
+    gs->face = sc_alloc_array((size_t)n + 1, sizeof(int32_t));
+    gs->res = sc_alloc_array((size_t)n + 1, sizeof(int32_t));
+    gs->start = sc_alloc_array((size_t)n + 1, sizeof(int64_t));
+    gs->owns = sc_alloc_array((size_t)n + 1, 1);
+    int32_t *first = sc_alloc_array((size_t)m->nv + 1, sizeof(int32_t));   /* each vertex's first face */
+    if (!gs->face || !gs->res || !gs->start || !gs->owns || !first) {
+        grid_samples_free(gs);
+        free(first);
+        return SC_ENOMEM;
+    }
+    for (int32_t v = 0; v < m->nv; v++) first[v] = -1;
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int c = 0; c < 3 && m->FM[f] == material; c++)
+            if (first[m->FV[3 * f + c]] < 0) first[m->FV[3 * f + c]] = f;
+    const double per = total > 0 && target > 0 ? total / (double)target : 0;
+    int64_t q = 0, at = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != material) continue;
+        double r = per > 0 ? ceil(sqrt(face_area(m, f) / per)) : 1;
+        gs->face[q] = f, gs->res[q] = r < 1 ? 1 : r > 64 ? 64 : (int32_t)r, gs->owns[q] = 0;
+        for (int c = 0; c < 3; c++) gs->owns[q] |= (uint8_t)((first[m->FV[3 * f + c]] == f) << c);
+        gs->start[q] = at, at += (int64_t)(gs->res[q] + 1) * (gs->res[q] + 2) / 2;
+        q++;
+    }
+    gs->start[q] = at, gs->nfaces = q;
+    free(first);
+    return SC_OK;
+}
+
+typedef struct surface_job {
+    const sc_mesh *in;
+    const sc_hausdorff_bvh *in_bvh;   /* over the whole input */
+    const locator *lev;               /* its mesh is the level's */
+    const sc_seam_grid *g;
+    const sc_image_data *map;
+    double diag;
+    const grid_samples *gs;
+    /* the coarse drawn surface: its points, their uv and level face, its
+     * triangles and their BVH (NULL while the drawn side is measured) */
+    double *drawn, *drawn_uv;
+    int32_t *drawn_face;
+    const sc_hausdorff_bvh *drawn_bvh;
+    const int32_t *drawn_tri;
+    double *input, *input_uv;   /* the input side's samples: points, uv */
+    double *out;   /* per sample, over the diagonal; -1: the level has no face near it */
+} surface_job;
+
+#define SURFACE_CHUNK 256
+#define COARSE_DRAWN 4    /* the coarse drawn surface has this many times fewer samples */
+#define INSIDE_EPS 1e-9   /* a barycentric coordinate this far below 0 still counts as inside */
+
+/* Face f of the level at uv: the position (linear in the face, extended
+ * beyond it), its derivatives along u and v, and the smallest barycentric
+ * coordinate (>= 0 inside). False for a face flat in uv. */
+static bool face_frame(const sc_mesh *m, int32_t f, double u, double v, double p[3], double pu[3], double pv[3],
+                       double *min_l) {
+    double fx[3], fy[3], l[3];
+    const double *P[3];
+    for (int c = 0; c < 3; c++) {
+        const double *uv = m->U + 2 * m->FU[3 * f + c];
+        fx[c] = uv[0], fy[c] = uv[1], P[c] = m->V + 3 * m->FV[3 * f + c];
+    }
+    if (!barycentric(fx, fy, u, v, l)) return false;
+    double det = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fx[2] - fx[0]) * (fy[1] - fy[0]);
+    double l1u = (fy[2] - fy[0]) / det, l1v = -(fx[2] - fx[0]) / det;   /* d l1 / du, d l1 / dv */
+    double l2u = -(fy[1] - fy[0]) / det, l2v = (fx[1] - fx[0]) / det;
+    for (int k = 0; k < 3; k++) {
+        p[k] = l[0] * P[0][k] + l[1] * P[1][k] + l[2] * P[2][k];
+        pu[k] = l1u * (P[1][k] - P[0][k]) + l2u * (P[2][k] - P[0][k]);
+        pv[k] = l1v * (P[1][k] - P[0][k]) + l2v * (P[2][k] - P[0][k]);
+    }
+    *min_l = fmin(l[0], fmin(l[1], l[2]));
+    return true;
+}
+
+/* The drawn surface at uv when uv lies in a face of the level (*face tried
+ * first, then the faces of uv's locator bucket; *face updated), with its
+ * derivatives along u, v. */
+static bool drawn_at(const surface_job *J, double u, double v, int32_t *face, double r[3], double ru[3],
+                     double rv[3]) {
+    const sc_mesh *m = J->lev->m;
+    double min_l = -1;
+    if (!(*face >= 0 && face_frame(m, *face, u, v, r, ru, rv, &min_l) && min_l >= -INSIDE_EPS)) {
+        /* a face holding uv has its box in uv's bucket: the one that holds it best */
+        const locator *L = J->lev;
+        const size_t b = (size_t)bucket_of(v, L->gw) * L->gw + (size_t)bucket_of(u, L->gw);
+        int32_t best = -1;
+        double best_l = -INSIDE_EPS;
+        for (int32_t q = L->start[b]; q < L->start[b + 1]; q++)
+            if (face_frame(m, L->faces[q], u, v, r, ru, rv, &min_l) && min_l >= best_l) best = L->faces[q], best_l = min_l;
+        if (best < 0 || !face_frame(m, best, u, v, r, ru, rv, &min_l)) return false;
+        *face = best;
+    }
+    int32_t id[4];
+    double w[4];
+    sc_seam_taps(J->g, u, v, id, w);
+    const double s = w[1] + w[3], t = w[2] + w[3], W = J->g->width, H = J->g->height;
+    const float *px = J->map->pixels;
+    const int32_t C = J->map->channels;
+    for (int k = 0; k < 3; k++) {
+        double d[4];
+        for (int q = 0; q < 4; q++) d[q] = px[(size_t)id[q] * C + k];
+        r[k] += w[0] * d[0] + w[1] * d[1] + w[2] * d[2] + w[3] * d[3];
+        ru[k] += W * ((1 - t) * (d[1] - d[0]) + t * (d[3] - d[2]));
+        rv[k] += H * ((1 - s) * (d[2] - d[0]) + s * (d[3] - d[1]));
+    }
+    return true;
+}
+
+static double dist2(const double a[3], const double b[3]) {
+    return (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]);
+}
+
+#define DESCENT_STEPS 32
+#define DESCENT_REACH 8.0   /* texels */
+
+/* Gauss-Newton on |drawn(uv) - p|^2 from a drawn point r (derivatives ru,
+ * rv, in `face`, at uv): the least distance of the points it visits. */
+static double descend(const surface_job *J, const double p[3], double u, double v, int32_t face, double r[3],
+                      double ru[3], double rv[3]) {
+    double d2 = dist2(r, p);
+    const double W = J->g->width, H = J->g->height;
+    for (int it = 0; it < DESCENT_STEPS && d2 > 0; it++) {
+        double e[3] = {p[0] - r[0], p[1] - r[1], p[2] - r[2]};
+        double a = 0, b = 0, c = 0, gu = 0, gv = 0;
+        for (int k = 0; k < 3; k++)
+            a += ru[k] * ru[k], b += ru[k] * rv[k], c += rv[k] * rv[k], gu += ru[k] * e[k], gv += rv[k] * e[k];
+        double det = a * c - b * b;
+        if (!(det > 1e-12 * a * c)) break;
+        double du = (c * gu - b * gv) / det, dv = (a * gv - b * gu) / det;
+        double step = fmax(fabs(du) * W, fabs(dv) * H);   /* texels */
+        if (!(step >= 1e-4)) break;                         /* converged (or not a number) */
+        if (step > DESCENT_REACH) du *= DESCENT_REACH / step, dv *= DESCENT_REACH / step, step = DESCENT_REACH;
+        bool moved = false;
+        for (int h = 0; h < 6 && !moved; h++, du *= 0.5, dv *= 0.5, step *= 0.5) {
+            int32_t f2 = face;
+            double r2[3], ru2[3], rv2[3];
+            if (!drawn_at(J, u + du, v + dv, &f2, r2, ru2, rv2)) continue;
+            double n2 = dist2(r2, p);
+            if (!(n2 < d2)) continue;
+            u += du, v += dv, face = f2, d2 = n2, moved = true;
+            memcpy(r, r2, sizeof r2), memcpy(ru, ru2, sizeof ru2), memcpy(rv, rv2, sizeof rv2);
+        }
+        if (!moved || step < 1e-4) break;
+    }
+    return sqrt(d2);
+}
+
+/* The uv of the point of face f (uv triangle) nearest to (u, v). */
+static void nearest_in_face(const sc_mesh *m, int32_t f, double *u, double *v) {
+    double a[3][3], x[3] = {*u, *v, 0}, c[3];
+    for (int k = 0; k < 3; k++) {
+        const double *uv = m->U + 2 * m->FU[3 * f + k];
+        a[k][0] = uv[0], a[k][1] = uv[1], a[k][2] = 0;
+    }
+    sc_hausdorff_closest_on_triangle(x, a[0], a[1], a[2], c);
+    *u = c[0], *v = c[1];
+}
+
+/* The distance from p to the drawn surface by a descent from p's own uv (or
+ * from the nearest point of the face locate() gives, outside the level), or
+ * -1 when the level has no face near uv. */
+static double from_input_local(const surface_job *J, const double p[3], double u, double v) {
+    int32_t face = -1;
+    double r[3], ru[3], rv[3];
+    if (!drawn_at(J, u, v, &face, r, ru, rv)) {
+        double q[3];
+        face = locate(J->lev, u, v, q);
+        if (face < 0) return -1;
+        nearest_in_face(J->lev->m, face, &u, &v);
+        if (!drawn_at(J, u, v, &face, r, ru, rv)) return -1;
+    }
+    return descend(J, p, u, v, face, r, ru, rv);
+}
+
+/* The same from the uv of the point nearest to p on the coarse drawn surface
+ * (triangles of sample grids on the level's faces, their vertices drawn
+ * points), found through its BVH; HUGE_VAL when that start is not inside
+ * the level. */
+static double from_input_global(const surface_job *J, const double p[3]) {
+    double c[3], r[3], ru[3], rv[3];
+    int32_t t = -1;
+    sc_hausdorff_bvh_closest(J->drawn_bvh, p, c, &t);
+    if (t < 0) return HUGE_VAL;
+    const int32_t *k = J->drawn_tri + 3 * t;   /* c's barycentric coordinates in triangle t, then its uv */
+    const double *P0 = J->drawn + 3 * k[0], *P1 = J->drawn + 3 * k[1], *P2 = J->drawn + 3 * k[2];
+    double e1[3], e2[3], w[3], a = 0, b = 0, cc = 0, d1 = 0, d2 = 0;
+    for (int i = 0; i < 3; i++) e1[i] = P1[i] - P0[i], e2[i] = P2[i] - P0[i], w[i] = c[i] - P0[i];
+    for (int i = 0; i < 3; i++) a += e1[i] * e1[i], b += e1[i] * e2[i], cc += e2[i] * e2[i], d1 += e1[i] * w[i], d2 += e2[i] * w[i];
+    double det = a * cc - b * b, l1 = det > 0 ? (cc * d1 - b * d2) / det : 0, l2 = det > 0 ? (a * d2 - b * d1) / det : 0;
+    const double *t0 = J->drawn_uv + 2 * k[0], *t1 = J->drawn_uv + 2 * k[1], *t2 = J->drawn_uv + 2 * k[2];
+    double u = (1 - l1 - l2) * t0[0] + l1 * t1[0] + l2 * t2[0], v = (1 - l1 - l2) * t0[1] + l1 * t1[1] + l2 * t2[1];
+    int32_t face = J->drawn_face[k[0]];
+    if (!drawn_at(J, u, v, &face, r, ru, rv)) return HUGE_VAL;
+    return descend(J, p, u, v, face, r, ru, rv);
+}
+
+/* Refine candidates [c0, c1) of the input side (indices into its samples):
+ * the global descent, keeping the lesser distance. */
+typedef struct refine_job {
+    const surface_job *S;
+    const int64_t *order;
+    const double *point, *uv;   /* per input sample */
+    double *out;
+    int64_t c0, c1;
+} refine_job;
+
+#define REFINE_BATCH 64
+
+static int refine_band(void *ud, int32_t chunk) {
+    const refine_job *R = ud;
+    const int64_t c0 = R->c0 + (int64_t)chunk * REFINE_BATCH, c1 = c0 + REFINE_BATCH < R->c1 ? c0 + REFINE_BATCH : R->c1;
+    for (int64_t c = c0; c < c1; c++) {
+        const int64_t i = R->order[c];
+        double d = from_input_global(R->S, R->point + 3 * i) / R->S->diag;
+        if (d < R->out[i]) R->out[i] = d;
+    }
+    return SC_OK;
+}
+
+/* One chunk of faces of one side (J->drawn: the drawn side, else the input's). */
+static int surface_band(void *ud, int32_t chunk) {
+    const surface_job *J = ud;
+    const grid_samples *gs = J->gs;
+    const bool drawn_side = J->drawn_bvh == NULL;
+    const sc_mesh *m = drawn_side ? J->lev->m : J->in;
+    const int64_t q0 = (int64_t)chunk * SURFACE_CHUNK, q1 = q0 + SURFACE_CHUNK < gs->nfaces ? q0 + SURFACE_CHUNK : gs->nfaces;
+    for (int64_t q = q0; q < q1; q++) {
+        const int32_t f = gs->face[q], r = gs->res[q];
+        int64_t slot = gs->start[q];
+        for (int32_t i = 0; i <= r; i++)
+            for (int32_t j = 0; j <= r - i; j++, slot++) {
+                const int corner = i == r ? 0 : j == r ? 1 : i == 0 && j == 0 ? 2 : -1;
+                if (J->out && corner >= 0 && !(gs->owns[q] >> corner & 1)) {   /* measured by its first face */
+                    J->out[slot] = NAN;
+                    continue;
+                }
+                const double l[3] = {(double)i / r, (double)j / r, (double)(r - i - j) / r};
+                double p[3] = {0, 0, 0}, uv[2] = {0, 0};
+                for (int c = 0; c < 3; c++) {
+                    const double *pv = m->V + 3 * m->FV[3 * f + c], *tv = m->U + 2 * m->FU[3 * f + c];
+                    for (int k = 0; k < 3; k++) p[k] += l[c] * pv[k];
+                    uv[0] += l[c] * tv[0], uv[1] += l[c] * tv[1];
+                }
+                if (drawn_side) {   /* the drawn point: its distance (out), or it is kept (drawn) */
+                    double d[4];
+                    sc_seam_sample(J->g, J->map->pixels, J->map->channels, uv[0], uv[1], d);
+                    for (int k = 0; k < 3; k++) p[k] += d[k];
+                    if (J->drawn) {
+                        memcpy(J->drawn + 3 * slot, p, sizeof p), memcpy(J->drawn_uv + 2 * slot, uv, sizeof uv);
+                        J->drawn_face[slot] = f;
+                    }
+                    if (J->out) J->out[slot] = sqrt(sc_hausdorff_bvh_closest(J->in_bvh, p, NULL, NULL)) / J->diag;
+                } else {
+                    double d = from_input_local(J, p, uv[0], uv[1]);
+                    J->out[slot] = d < 0 ? -1 : d / J->diag;
+                    memcpy(J->input + 3 * slot, p, sizeof p), memcpy(J->input_uv + 2 * slot, uv, sizeof uv);
+                }
+            }
+    }
+    return SC_OK;
+}
+
+/* Surface distance: the drawn surface (uv over the level's faces, base +
+ * bilinear(map)) against the input surface as surfaces, both ways, over the
+ * diagonal: the largest distance of a sample of either to the other. Each
+ * surface is sampled as sc_hausdorff samples a mesh: face f of the material
+ * gets the barycentric grid (i/r, j/r), i + j <= r, with
+ * r = ceil(sqrt(area_f / area per sample)) (1..64), so vertices and edges
+ * (chart borders, where erasure moves texels) are sampled too; a vertex is
+ * measured once, by the first face using it.
+ *  - To the input: a sample of a level face, moved by bilinear(map) at its
+ *    uv, and its exact distance to the whole input mesh (closest point on a
+ *    triangle, sc_hausdorff's BVH).
+ *  - From the input: a sample p of an input face and its distance to the
+ *    drawn surface, by Gauss-Newton on |drawn(uv) - p|^2 (steps of at most
+ *    DESCENT_REACH texels, halved until the distance falls; only points
+ *    inside faces of the level). Every candidate is a drawn point, so each
+ *    distance is an upper bound of the true one. The descent starts at p's
+ *    own uv; where the drawn surface lies far from there in uv (a large
+ *    displacement, a seam), a second descent starts from the nearest point
+ *    of a coarse drawn surface: the triangles of grids like the drawn side's,
+ *    with COARSE_DRAWN times fewer points (from_input_global). That
+ *    second descent is run on the samples in decreasing order of the first
+ *    one's distance, in fixed batches, until no remaining sample's first
+ *    distance exceeds the largest refined one: the maximum is the one that
+ *    refining every sample would give, at a fraction of the cost.
+ * Samples are measured in parallel chunks into slots of their own, and the
+ * batches are fixed: the same bytes for any thread count. */
+typedef struct ranked {
+    double d;
+    int64_t i;
+} ranked;
+
+static int cmp_ranked_desc(const void *a, const void *b) {
+    const ranked *x = a, *y = b;
+    return x->d > y->d ? -1 : x->d < y->d ? 1 : (x->i > y->i) - (x->i < y->i);
+}
+
+static int surface_distance(const sc_mesh *in, const sc_hausdorff_bvh *in_bvh, int32_t material, const locator *lev,
+                            const sc_seam_grid *g, const sc_image_data *map, double diag, int64_t samples,
+                            int threads, recon *acc, sc_error *err) {
+    grid_samples gd = {0}, gi = {0}, gc = {0};   /* drawn side, input side, the coarse drawn surface */
+    surface_job job = {in, in_bvh, lev, g, map, diag, &gd, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+    int32_t *tri = NULL;
+    int64_t *order = NULL;
+    double *out = NULL;
+    sc_hausdorff_bvh *drawn_bvh = NULL;
+    int rc = SC_OK;
+    if (grid_samples_build(lev->m, material, samples, &gd) != SC_OK ||
+        grid_samples_build(in, material, samples, &gi) != SC_OK ||
+        grid_samples_build(lev->m, material, samples / COARSE_DRAWN, &gc) != SC_OK || gc.start[gc.nfaces] >= INT32_MAX)
+        rc = SC_ENOMEM;
+    const int64_t nd = rc == SC_OK ? gd.start[gd.nfaces] : 0, ni = rc == SC_OK ? gi.start[gi.nfaces] : 0;
+    const int64_t nc_pts = rc == SC_OK ? gc.start[gc.nfaces] : 0;
+    int64_t ntri = 0;
+    for (int64_t q = 0; q < gc.nfaces; q++) ntri += (int64_t)gc.res[q] * gc.res[q];
+    if (rc == SC_OK) {
+        job.drawn = sc_alloc_array((size_t)nc_pts * 3 + 1, sizeof(double));
+        job.drawn_uv = sc_alloc_array((size_t)nc_pts * 2 + 1, sizeof(double));
+        job.drawn_face = sc_alloc_array((size_t)nc_pts + 1, sizeof(int32_t));
+        job.input = sc_alloc_array((size_t)ni * 3 + 1, sizeof(double));
+        job.input_uv = sc_alloc_array((size_t)ni * 2 + 1, sizeof(double));
+        out = sc_alloc_array((size_t)(nd > ni ? nd : ni) + 1, sizeof(double));
+        order = sc_alloc_array((size_t)ni + 1, sizeof(int64_t));
+        tri = ntri < INT32_MAX ? sc_alloc_array((size_t)ntri * 3 + 1, sizeof(int32_t)) : NULL;
+        if (!job.drawn || !job.drawn_uv || !job.drawn_face || !job.input || !job.input_uv || !out || !order || !tri)
+            rc = SC_ENOMEM;
+    }
+    if (rc != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory for the surface samples");
+    /* the drawn side's distances */
+    double *drawn = job.drawn;
+    job.drawn = NULL, job.out = out;
+    if (rc == SC_OK)
+        rc = sc_seam_parallel(threads, (int32_t)((gd.nfaces + SURFACE_CHUNK - 1) / SURFACE_CHUNK), surface_band, &job);
+    for (int64_t i = 0; i < nd && rc == SC_OK; i++) {
+        if (isnan(out[i])) continue;   /* a vertex measured by another face */
+        if (out[i] < 0) acc->surf_missed++;
+        else acc->to_input = fmax(acc->to_input, out[i]);
+    }
+    /* the coarse drawn surface: the points of coarser grids and their triangles */
+    job.gs = &gc, job.drawn = drawn, job.out = NULL;
+    if (rc == SC_OK)
+        rc = sc_seam_parallel(threads, (int32_t)((gc.nfaces + SURFACE_CHUNK - 1) / SURFACE_CHUNK), surface_band, &job);
+    if (rc == SC_OK) {
+        int64_t t = 0;
+        for (int64_t q = 0; q < gc.nfaces; q++) {
+            const int32_t r = gc.res[q];
+            const int64_t s0 = gc.start[q];
+#define GRID_AT(i, j) ((int32_t)(s0 + (int64_t)(i) * (r + 1) - (int64_t)(i) * ((i) - 1) / 2 + (j)))
+            for (int32_t i = 0; i < r; i++)
+                for (int32_t j = 0; j < r - i; j++) {
+                    tri[3 * t] = GRID_AT(i, j), tri[3 * t + 1] = GRID_AT(i + 1, j), tri[3 * t + 2] = GRID_AT(i, j + 1), t++;
+                    if (j + 1 < r - i)
+                        tri[3 * t] = GRID_AT(i + 1, j), tri[3 * t + 1] = GRID_AT(i + 1, j + 1),
+                        tri[3 * t + 2] = GRID_AT(i, j + 1), t++;
+                }
+#undef GRID_AT
+        }
+    }
+    const sc_hausdorff_mesh drawn_mesh = {job.drawn, (int32_t)nc_pts, tri, (int32_t)ntri};
+    if (rc == SC_OK && !(drawn_bvh = sc_hausdorff_bvh_build(&drawn_mesh)))
+        rc = sc_fail(err, SC_ENOMEM, "out of memory for the drawn surface's BVH");
+    /* the input side: the local descents, then the global ones while they can
+     * raise the maximum */
+    if (rc == SC_OK) {
+        job.gs = &gi, job.drawn_bvh = drawn_bvh, job.drawn_tri = tri, job.out = out;
+        rc = sc_seam_parallel(threads, (int32_t)((gi.nfaces + SURFACE_CHUNK - 1) / SURFACE_CHUNK), surface_band, &job);
+    }
+    int64_t nc = 0;
+    ranked *rank = rc == SC_OK ? sc_alloc_array((size_t)ni + 1, sizeof *rank) : NULL;
+    if (rc == SC_OK && !rank) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int64_t i = 0; i < ni && rc == SC_OK; i++) {
+        if (isnan(out[i])) continue;
+        if (out[i] < 0) acc->surf_missed++;
+        else rank[nc++] = (ranked){out[i], i};
+    }
+    if (rc == SC_OK) qsort(rank, (size_t)nc, sizeof *rank, cmp_ranked_desc);
+    for (int64_t c = 0; c < nc; c++) order[c] = rank[c].i;
+    free(rank);
+    double max = 0;
+    for (int64_t c = 0; c < nc && rc == SC_OK && out[order[c]] > max;) {
+        const int64_t c1 = c + 8 * REFINE_BATCH < nc ? c + 8 * REFINE_BATCH : nc;
+        refine_job R = {&job, order, job.input, job.input_uv, out, c, c1};
+        rc = sc_seam_parallel(threads, (int32_t)((c1 - c + REFINE_BATCH - 1) / REFINE_BATCH), refine_band, &R);
+        for (; c < c1; c++) max = fmax(max, out[order[c]]);
+    }
+    if (rc == SC_OK) acc->from_input = fmax(acc->from_input, max);
+    if (rc != SC_OK && rc != SC_ENOMEM) rc = sc_fail(err, rc, "measuring the surface distance failed");
+    sc_hausdorff_bvh_free(drawn_bvh);
+    free(job.drawn), free(job.drawn_uv), free(job.drawn_face), free(job.input), free(job.input_uv), free(tri);
+    free(out), free(order);
+    grid_samples_free(&gd), grid_samples_free(&gi), grid_samples_free(&gc);
+    return rc;
 }
 
 static int cmp_double(const void *a, const void *b) {
@@ -1102,22 +1697,135 @@ static int cmp_double(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
-/* name.max (as `name`), name_rms, name_p99; the errors get sorted. */
-static double report_errors(sc_ctx *ctx, const char *name, recon *acc) {
-    char n[96];
+/* name (the max), name_rms, name_p99 of e[0..n); e gets sorted. */
+static double report_errors(sc_ctx *ctx, const char *name, double *e, int64_t n) {
+    char m[96];
     double sum2 = 0, max = 0, p99 = 0;
-    if (acc->count > 0) {
-        qsort(acc->e, (size_t)acc->count, sizeof(double), cmp_double);
-        for (int64_t i = 0; i < acc->count; i++) sum2 += acc->e[i] * acc->e[i];
-        max = acc->e[acc->count - 1];
-        p99 = acc->e[(int64_t)floor(0.99 * (double)(acc->count - 1))];
+    if (n > 0) {
+        qsort(e, (size_t)n, sizeof(double), cmp_double);
+        for (int64_t i = 0; i < n; i++) sum2 += e[i] * e[i];
+        max = e[n - 1];
+        p99 = e[(int64_t)floor(0.99 * (double)(n - 1))];
     }
     sc_ctx_metric(ctx, name, max);
-    snprintf(n, sizeof n, "%s_rms", name);
-    sc_ctx_metric(ctx, n, acc->count ? sqrt(sum2 / (double)acc->count) : 0);
-    snprintf(n, sizeof n, "%s_p99", name);
-    sc_ctx_metric(ctx, n, p99);
+    snprintf(m, sizeof m, "%s_rms", name);
+    sc_ctx_metric(ctx, m, n ? sqrt(sum2 / (double)n) : 0);
+    snprintf(m, sizeof m, "%s_p99", name);
+    sc_ctx_metric(ctx, m, p99);
     return max;
+}
+
+/* ---------------------------------------------------------------- after the fits */
+
+/* What follows a map set's fit - its erasure, then its metrics - runs on a
+ * worker thread (with more than one thread) as soon as the set is handed
+ * over, so it overlaps the next level's raster and fit (erase_seams has long
+ * serial stretches). Each set's erasure and metrics depend on that set
+ * alone, so the results do not depend on the timing; failures are reported
+ * in hand-over order. */
+typedef struct map_job {
+    sc_value *mesh;       /* erase on it; NULL: no erasure */
+    sc_value **images;    /* nmat maps, replaced by their erased versions */
+    int32_t level;        /* -1: the geometry image */
+    const locator *locs;  /* the level's, per material (NULL for the geometry image) */
+    recon acc;            /* its metrics */
+    int rc;
+    sc_error err;
+} map_job;
+
+typedef struct after_fit {
+    map_job *jobs;
+    int32_t ready, next;   /* jobs[0..ready) handed over; jobs[next] the next to run */
+    bool closed, worker;
+    /* what the jobs read */
+    const sc_mesh *in;
+    const sc_hausdorff_bvh *in_bvh;
+    const sc_seam_grid *grids;
+    int32_t nmat;
+    double gap_tolerance, diag;
+    int64_t surface_samples;
+    int threads;
+    double seconds_erase, seconds_metrics;
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+} after_fit;
+
+static void map_job_run(after_fit *A, map_job *J) {
+    double t0 = sc_now();
+    J->rc = J->mesh ? erase_maps(J->mesh, J->images, A->grids, A->nmat, A->gap_tolerance, A->threads, &J->err) : SC_OK;
+    if (J->rc != SC_OK && J->level < 0) sc_error_prefix(&J->err, "erase_seams on the geometry image");
+    else if (J->rc != SC_OK) sc_error_prefix(&J->err, "lods: level %d: erase_seams on the displacement", J->level);
+    double t1 = sc_now();
+    for (int32_t m = 0; m < A->nmat && J->rc == SC_OK; m++) {
+        const sc_image_data *map = J->images[m]->as.image;
+        const locator *L = J->locs ? &J->locs[m] : NULL;
+        J->rc = same_uv(A->in, m, L, &A->grids[m], map, A->diag, A->threads, &J->acc, &J->err);
+        if (J->rc == SC_OK && L)
+            J->rc = surface_distance(A->in, A->in_bvh, m, L, &A->grids[m], map, A->diag, A->surface_samples,
+                                     A->threads, &J->acc, &J->err);
+    }
+    A->seconds_erase += t1 - t0, A->seconds_metrics += sc_now() - t1;   /* one job at a time */
+}
+
+static void *after_fit_main(void *ud) {
+    after_fit *A = ud;
+    for (;;) {
+        pthread_mutex_lock(&A->mu);
+        while (A->next >= A->ready && !A->closed) pthread_cond_wait(&A->cv, &A->mu);
+        if (A->next >= A->ready) {
+            pthread_mutex_unlock(&A->mu);
+            return NULL;
+        }
+        map_job *J = &A->jobs[A->next++];
+        pthread_mutex_unlock(&A->mu);
+        map_job_run(A, J);
+    }
+}
+
+static bool after_fit_start(after_fit *A, int32_t njobs, int threads) {
+    A->jobs = calloc((size_t)njobs + 1, sizeof *A->jobs);
+    if (!A->jobs) return false;
+    A->threads = threads;
+    pthread_mutex_init(&A->mu, NULL);
+    pthread_cond_init(&A->cv, NULL);
+    A->worker = threads > 1 && pthread_create(&A->thread, NULL, after_fit_main, A) == 0;
+    return true;
+}
+
+/* Erase (mesh not NULL) and measure images[0..nmat): by the worker, else
+ * here and now. */
+static void after_fit_hand(after_fit *A, sc_value *mesh, sc_value **images, int32_t level, const locator *locs) {
+    pthread_mutex_lock(&A->mu);
+    A->jobs[A->ready] = (map_job){.mesh = mesh, .images = images, .level = level, .locs = locs};
+    map_job *J = &A->jobs[A->ready++];
+    if (!A->worker) A->next = A->ready;
+    pthread_cond_broadcast(&A->cv);
+    pthread_mutex_unlock(&A->mu);
+    if (!A->worker) map_job_run(A, J);
+}
+
+/* Wait for every job; the first failure in hand-over order. */
+static int after_fit_finish(after_fit *A, sc_error *err) {
+    pthread_mutex_lock(&A->mu);
+    A->closed = true;
+    pthread_cond_broadcast(&A->cv);
+    pthread_mutex_unlock(&A->mu);
+    if (A->worker) pthread_join(A->thread, NULL);
+    A->worker = false;
+    int rc = SC_OK;
+    for (int32_t j = 0; j < A->ready && rc == SC_OK; j++)
+        if ((rc = A->jobs[j].rc) != SC_OK && err) *err = A->jobs[j].err;
+    return rc;
+}
+
+static void after_fit_free(after_fit *A) {
+    if (!A->jobs) return;
+    for (int32_t j = 0; j < A->ready; j++) free(A->jobs[j].acc.same);
+    pthread_mutex_destroy(&A->mu);
+    pthread_cond_destroy(&A->cv);
+    free(A->jobs);
+    A->jobs = NULL;
 }
 
 /* ---------------------------------------------------------------- run */
@@ -1131,6 +1839,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const bool erase = sc_ctx_bool(ctx, "erase");
     const double gap_tolerance = sc_ctx_number(ctx, "gap_tolerance");
     const double fit_tolerance = sc_ctx_number(ctx, "fit_tolerance");
+    const int64_t surface_samples = sc_ctx_integer(ctx, "surface_samples");
     const int threads = sc_ctx_threads(ctx);
     int rc = sc_mesh_check(in, err);
     if (rc != SC_OK) return sc_error_prefix(err, "atlas");
@@ -1161,7 +1870,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_value *union_mesh = NULL, *out_atlas = NULL;
     sc_lods *out_lods = NULL;
     fit_stats st = {0};
-    recon acc = {0};
+    fit_scratch ws = {0};
     if (!grids || !geometry || !disp || !meshes || !rin) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
         grids[m] = (sc_seam_grid){size, size, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
@@ -1177,76 +1886,92 @@ static int run(sc_ctx *ctx, sc_error *err) {
         rc = raster_build(in, m, &grids[m], pad + 2, threads, &rin[m], err);
         double t1 = sc_now();
         t_raster += t1 - t0;
-        if (rc == SC_OK) rc = make_map(in, m, &grids[m], &rin[m], NULL, NULL, tol, threads, &st, &geometry[m], err);
+        if (rc == SC_OK) rc = make_map(in, m, &grids[m], &rin[m], NULL, NULL, tol, threads, &ws, &st, &geometry[m], err);
         t0 = sc_now();
         t_fit += t0 - t1;
     }
     meshes[0] = in;
     for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
         meshes[k + 1] = lods ? lods->levels[k]->as.atlas->mesh->as.mesh : in;
-    t0 = sc_now();
+    /* erasure and metrics after each fit (after_fit), measured against the input surface */
+    const sc_hausdorff_mesh in_surface = {in->V, in->nv, in->FV, in->nf};
+    sc_hausdorff_bvh *in_bvh = rc == SC_OK ? sc_hausdorff_bvh_build(&in_surface) : NULL;
+    if (rc == SC_OK && !in_bvh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the input's BVH");
+    after_fit af = {.in = in, .in_bvh = in_bvh, .grids = grids, .nmat = nmat, .gap_tolerance = gap_tolerance,
+                    .diag = diag, .surface_samples = surface_samples};
+    bool started = rc == SC_OK && after_fit_start(&af, nlevels + 1, threads);
+    if (rc == SC_OK && !started) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK && erase) {
         union_mesh = sc_atlas_ops_mesh_union(meshes, lods ? nlevels + 1 : 1);
         if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
-        if (rc == SC_OK) rc = erase_maps(union_mesh, geometry, grids, nmat, gap_tolerance, threads, err);
-        if (rc != SC_OK) sc_error_prefix(err, "erase_seams on the geometry image");
     }
-    t_erase += sc_now() - t0;
-    t0 = sc_now();
-    for (int32_t m = 0; m < nmat && rc == SC_OK; m++)
-        rc = reconstruction(in, m, NULL, &grids[m], geometry[m]->as.image, diag, threads, &acc, err);
-    if (rc == SC_OK) report_errors(ctx, "geometry_image_error", &acc);
-    acc.count = acc.missed = 0;
-    t_metrics += sc_now() - t0;
+    if (rc == SC_OK) after_fit_hand(&af, union_mesh, geometry, -1, NULL);
 
-    double worst = 0;
-    locator *locs = calloc((size_t)nmat + 1, sizeof *locs);
-    if (!locs && rc == SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    /* every level's displacement, handed over as it is fitted */
+    locator *locs = calloc((size_t)nmat * nlevels + 1, sizeof *locs);   /* level k, material m: k * nmat + m */
+    int64_t *texels_fitted = calloc((size_t)nlevels + 1, sizeof *texels_fitted);
+    if ((!locs || !texels_fitted) && rc == SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    raster rl = {0};   /* the level's, one material at a time */
     for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
         const sc_mesh *lm = meshes[k + 1];
         fit_stats sk = {0};
         for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
-            raster rl = {0};
             t0 = sc_now();
+            locator *L = &locs[(size_t)k * nmat + m];
             rc = raster_build(lm, m, &grids[m], pad, threads, &rl, err);
-            if (rc == SC_OK) rc = locator_build(lm, m, locator_side(size), &locs[m], err);
+            if (rc == SC_OK) rc = locator_build(lm, m, locator_side(size), L, err);
             double t1 = sc_now();
             t_raster += t1 - t0;
             if (rc == SC_OK)
-                rc = make_map(in, m, &grids[m], &rin[m], &rl, &locs[m], tol, threads, &sk,
-                              &disp[(size_t)k * nmat + m], err);
+                rc = make_map(in, m, &grids[m], &rin[m], &rl, L, tol, threads, &ws, &sk, &disp[(size_t)k * nmat + m],
+                              err);
             t_fit += sc_now() - t1;
-            raster_free(&rl);
         }
-        t0 = sc_now();
-        if (rc == SC_OK && erase) {
-            sc_value *mv = lods ? lods->levels[k]->as.atlas->mesh : atlas->mesh;
-            rc = erase_maps(mv, disp + (size_t)k * nmat, grids, nmat, gap_tolerance, threads, err);
-            if (rc != SC_OK) sc_error_prefix(err, "lods: level %d: erase_seams on the displacement", k);
-        }
-        t_erase += sc_now() - t0;
-        t0 = sc_now();
-        for (int32_t m = 0; m < nmat && rc == SC_OK; m++)
-            rc = reconstruction(in, m, &locs[m], &grids[m], disp[(size_t)k * nmat + m]->as.image, diag, threads,
-                                    &acc, err);
-        for (int32_t m = 0; m < nmat; m++) locator_free(&locs[m]);
-        if (rc == SC_OK) {
-            char name[64];
-            snprintf(name, sizeof name, "lod%d.reconstruction_error", k);
-            worst = fmax(worst, report_errors(ctx, name, &acc));
-            snprintf(name, sizeof name, "lod%d.samples_missed", k);
-            sc_ctx_metric(ctx, name, (double)acc.missed);
-            snprintf(name, sizeof name, "lod%d.texels_fitted", k);
-            sc_ctx_metric(ctx, name, (double)sk.texels_solved);
-            st.seconds_sample += sk.seconds_sample, st.seconds_solve += sk.seconds_solve, st.iterations += sk.iterations;
-            st.samples += sk.samples, st.cells_inexact += sk.cells_inexact, st.cells_solved += sk.cells_solved;
-        }
-        acc.count = acc.missed = 0;
-        t_metrics += sc_now() - t0;
+        if (rc == SC_OK)
+            after_fit_hand(&af, !erase ? NULL : lods ? lods->levels[k]->as.atlas->mesh : atlas->mesh,
+                           disp + (size_t)k * nmat, k, &locs[(size_t)k * nmat]);
+        texels_fitted[k] = sk.texels_solved;
+        st.seconds_sample += sk.seconds_sample, st.seconds_solve += sk.seconds_solve, st.iterations += sk.iterations;
+        st.samples += sk.samples, st.cells_inexact += sk.cells_inexact, st.cells_solved += sk.cells_solved;
     }
+    t0 = sc_now();
+    if (started) {
+        int arc = after_fit_finish(&af, rc == SC_OK ? err : NULL);
+        if (rc == SC_OK) rc = arc;
+        t_erase = af.seconds_erase, t_metrics = af.seconds_metrics;
+    }
+    double t_wait = sc_now() - t0;
+
+    /* the metrics the jobs measured */
+    double worst = 0, worst_same = 0;
+    if (rc == SC_OK) report_errors(ctx, "geometry_image_error", af.jobs[0].acc.same, af.jobs[0].acc.nsame);
+    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
+        recon *acc = &af.jobs[k + 1].acc;
+        char name[64];
+        snprintf(name, sizeof name, "lod%d.same_uv_error", k);
+        worst_same = fmax(worst_same, report_errors(ctx, name, acc->same, acc->nsame));
+        snprintf(name, sizeof name, "lod%d.reconstruction_error", k);
+        sc_ctx_metric(ctx, name, fmax(acc->to_input, acc->from_input));
+        worst = fmax(worst, fmax(acc->to_input, acc->from_input));
+        snprintf(name, sizeof name, "lod%d.surface_samples_missed", k);
+        sc_ctx_metric(ctx, name, (double)acc->surf_missed);
+        snprintf(name, sizeof name, "lod%d.reconstruction_error_to_input", k);
+        sc_ctx_metric(ctx, name, acc->to_input);
+        snprintf(name, sizeof name, "lod%d.reconstruction_error_from_input", k);
+        sc_ctx_metric(ctx, name, acc->from_input);
+        snprintf(name, sizeof name, "lod%d.samples_missed", k);
+        sc_ctx_metric(ctx, name, (double)acc->missed);
+        snprintf(name, sizeof name, "lod%d.texels_fitted", k);
+        sc_ctx_metric(ctx, name, (double)texels_fitted[k]);
+    }
+    if (started) after_fit_free(&af);
+    for (size_t i = 0; locs && i < (size_t)nmat * nlevels; i++) locator_free(&locs[i]);
+    free(texels_fitted);
     free(locs);
-    free(acc.e);
-    if (rc == SC_OK) sc_ctx_metric(ctx, "reconstruction_error", worst);
+    raster_free(&rl);
+    fit_scratch_free(&ws);
+    sc_hausdorff_bvh_free(in_bvh);
+    if (rc == SC_OK) sc_ctx_metric(ctx, "reconstruction_error", worst), sc_ctx_metric(ctx, "same_uv_error", worst_same);
 
     t0 = sc_now();
     double cov = 0, shared = 0;
@@ -1292,7 +2017,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "fit_samples", (double)st.samples);
         sc_ctx_metric(ctx, "fit_cells_inexact", (double)st.cells_inexact);
         sc_ctx_metric(ctx, "fit_cells_solved", (double)st.cells_solved);
-        sc_ctx_metric(ctx, "seconds_erase", t_erase);
+        sc_ctx_metric(ctx, "seconds_erase", t_erase);             /* in erase_seams, beside the fits */
+        sc_ctx_metric(ctx, "seconds_erase_wait", t_wait);         /* left after the last fit */
         sc_ctx_metric(ctx, "seconds_metrics", t_metrics);
     }
     sc_value_release(out_atlas);
@@ -1316,6 +2042,9 @@ static const sc_param_desc params[] = {
             "level at once, each displacement map on its level's seams"},
     {.name = "gap_tolerance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
      .doc = "erase_seams's gap_tolerance: maps whose seam gaps are within it are left as they are"},
+    {.name = "surface_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 100, .max = 100000000,
+     .doc = "samples of each surface (input, and each level as drawn) per material for the surface distance "
+            "(lod<k>.reconstruction_error), spread by area over every face, its edges and vertices too"},
     {.name = "fit_tolerance", .type = SC_PARAM_NUMBER, .def = 5e-5, .min = 0, .max = 1,
      .doc = "texels of cells whose point samples miss the surface by more than this (fraction of the "
             "bounding-box diagonal) are fitted in least squares; 1 fits none"},
@@ -1336,7 +2065,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_bake_displacement = {
     .type = "bake_displacement",
-    .version = 1,
+    .version = 2,
     .summary = "bakes a geometry image and a vector displacement map per level of detail (Liu et al. 2017 §7)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

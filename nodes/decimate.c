@@ -68,8 +68,8 @@
  * face flips or degenerates in uv (orientation compared with the face's
  * current one) or in 3D, where a face's normal may also turn by at most
  * normal_turn degrees (30) per collapse: at extreme ratios this keeps
- * collapses from folding thin features (blub at 1%: 1.8% Hausdorff instead
- * of 3.1%); it is reported as its own blocking reason. An edge that fails is
+ * collapses from folding thin features (blub at 1%, quadric alone: 1.8%
+ * Hausdorff instead of 3.1%); it is reported as its own blocking reason. An edge that fails is
  * dropped and its endpoints are marked; any later collapse next to a marked
  * vertex queues its edges again.
  *
@@ -84,7 +84,9 @@
  * evaluated again; the spokes are classified only after a silhouette one.
  * Cost on blub at 1%: ~73k edge evaluations (21k initial, ~7 per collapse),
  * each a plan and a 5-D solve; Hausdorff sampling is timed apart
- * (hausdorff_seconds), with the input's BVH built once for all levels.
+ * (hausdorff_seconds), with the input's BVH built once for all levels (or
+ * taken over from error tracking). A popped edge whose cost has risen
+ * (see error tracking) goes only when no queued cost is below it.
  *
  * On blub (6-digit uv) this slack is what a seam collapse costs: the
  * level's seam chords sit up to ~6e-7 uv (1/800 texel at 2048) off the
@@ -95,6 +97,76 @@
  * (one parameter t on both sides). A bound on the drift accumulated over
  * collapses (half a storage step) gave 7e-9 but stopped blub at 332 faces
  * instead of 142, so it is not the default: exact seams need exact uv.
+ *
+ * Error tracking. The quadric measures distances to planes. A vertex at the
+ * tip of a thin feature (blub's fins and tail lobes) or on a rounded rim
+ * slides along the feature's own planes for next to nothing, and a face
+ * that bridges a gap can have all its corners on planes it is far from; at
+ * very low face counts quadric-greedy collapses therefore cut features off,
+ * overshoot rims and bridge gaps, and which of them it picks changes with
+ * any small change of the input or the weights. Measured on blub, seam
+ * exact (erase_seams -> straighten -> decimate), targets 130-155 x
+ * uv_weight 0.3-2 (56 runs): Hausdorff 2.1-4.3%, mean 2.72%, every run above
+ * 2%. What did not help (means over smaller sweeps of uv_weight, made
+ * while straighten still protected ears whole, baseline 3.5%): planes along
+ * creases weighted by the dihedral turn (2.7-3.4%), a 3D plane quadric on
+ * top of the 5-D one (3.0-3.4%), probabilistic (isotropic) quadrics (3.0-
+ * 6.7%: they favour removing small features), memoryless quadrics (7.2%),
+ * cost divided by the quadric's area (3.6%), a stronger pull of the
+ * placement to the edge's middle, normal_turn 20-90, and fitting the final
+ * positions to the input by least squares (worse maxima).
+ *   So near each target the cost of a collapse adds
+ *       error_weight x (2 x input area / target) x E,
+ * E the squared distance between the fan the collapse leaves and the input,
+ * tracked both ways. Every surface vertex stands for the input vertices
+ * merged into it (a list per vertex, joined on collapse), and E is the
+ * larger of (a) their distance to the new fan and (b) the distance to the
+ * input surface (its BVH) of points of the new fan: the moved vertex and,
+ * on each face, the middle of its spoke, its centroid and the point 2/3 of
+ * the way from the opposite edge to the moved vertex (the spoke middles
+ * catch most bridges; centroids catch faces that span a hollow, which
+ * spoke middles alone missed on blub). 2 x area / target is the surface a
+ * vertex of the target level stands for, so E counts as if that much
+ * surface were E off: an L-infinity term in the quadric's units that does
+ * not shrink with the feature's area. The quadric still places the vertex
+ * (the paper's constrained optimum) and orders collapses of equal tracked
+ * error; uv, seams and every validity test are untouched.
+ *   Tracking runs from TRACKING_SPAN x target faces, and only below
+ * 1 / TRACKING_START of the input's faces: the worst error of a level is
+ * made in its last collapses, and a tracked collapse costs several times an
+ * untracked one. Measured on the sweep above: mean 1.56%, 2 of 56 runs
+ * above 2% (at most 2.47%); TRACKING_SPAN 2: 1.72%, 8 above; 4: 1.67%, 7
+ * above; error_weight 10/30/100/300: mean 1.67/1.56/1.57/1.61%, 4/2/2/4
+ * above (the picks move with any detail of the order: compare means). At
+ * the default 142 faces 2.28% -> 1.36%, and the aware run on the
+ * unstraightened asset 1.78% -> 1.41%; blub and spot at 10%: 0.37 -> 0.28%
+ * and 1.26 -> 1.16%. The summed quadric cost rises: the maximum is bought
+ * with some of the quadric's L2.
+ *   E is computed lazily: queued costs leave it out, so they are lower
+ * bounds, and the edge at the front gets E added when popped; it goes only
+ * when its full cost is at most the next queued cost, else it is queued
+ * again with it. (A full cost stays queued when a neighbouring collapse
+ * later changes the fan it measured; it is measured again when popped.) E
+ * is a maximum, so a point is let go at the first face (or BVH face) closer
+ * than the maximum so far, the cheap plane test runs over the fan before
+ * the general one, and measuring stops once the cost passes twice the next
+ * queued one: the edge is then queued with that lower bound. The moved
+ * vertex is measured first, before the fan is even built: where a collapse
+ * is far off, it alone says so. An edge that comes back with its full cost
+ * is tested for validity before it is measured again (near a stall most
+ * edges at the front cannot collapse). Blub at 1%: ~2.5k evaluations of E (four
+ * in five stopped early) over its last 213 collapses; with the input's BVH
+ * (~3 ms) tracking costs ~12-16 ms: 38-46 ms best of 3 against 25-30 ms
+ * for the quadric alone on the same (shared, noisy) machine.
+ *   Why the straightened blub did worse than the unstraightened one at equal
+ * faces (2.59% against 1.78% at 142 before tracking): besides chance, 11 of
+ * its 208 seam edges could never collapse. straighten protected every
+ * corner of the "ears" next to seam junctions, so the first vertex of each
+ * seam kept its 6-digit uv and sat off the straightened line by rounding,
+ * which exact collinearity refuses (the unstraightened path accepts it
+ * within the storage slack). straighten version 2 protects only the ear's
+ * apex; all 208 edges are collapsible and the level keeps 26 seam edges
+ * instead of 37.
  *
  * Levels. One continuous decimation; a snapshot is taken each time the face
  * count reaches the next target, so level k is the previous level decimated
@@ -122,6 +194,8 @@
 #define QDIM 5
 #define QSIZE SC_QUADRIC_SIZE(QDIM)
 #define BOUNDARY_PLANE_WEIGHT 1.0
+#define TRACKING_SPAN 3      /* the tracked error counts from TRACKING_SPAN x target faces ... */
+#define TRACKING_START 8     /* ... but only below 1 / TRACKING_START of the input's faces */
 
 enum { MODE_AWARE = 0, MODE_FIXED = 1, MODE_FREE = 2 };
 enum { WEIGHTS_QEM = 0, WEIGHTS_AREA_DISTORTION = 1 };
@@ -164,6 +238,7 @@ enum { UV_FREE = 0, UV_FIXED = 1, UV_SLIDE = 2 };
 typedef struct heap_entry {
     uint64_t key, pair;
     uint32_t va, vb;
+    bool full;                   /* the key holds the tracked error (else it is a lower bound) */
 } heap_entry;
 
 /* One uv half-edge of a collapse: Z `gone` merges into Z `keep`. */
@@ -234,8 +309,21 @@ typedef struct state {
     int32_t *touched, *neighbours;
     int32_t touched_cap, neighbours_cap;
     bool out_of_memory;
+    /* error tracking (see the design note) */
+    double error_weight;         /* 0: off */
+    double input_area;           /* surface area of the input */
+    const sc_hausdorff_mesh *input;   /* the input surface, uncentred */
+    sc_hausdorff_bvh *input_bvh; /* over `input`, built when tracking first starts (shared with the metric) */
+    int32_t *owned_head, *owned_tail;   /* per surface vertex: the input vertices it stands for */
+    int32_t *owned_next;         /* per input vertex: the next one in its owner's list, or -1 */
+    int32_t *near_face;          /* per surface vertex: an input face near it, where queries start */
+    int64_t tracking_from;       /* tracking is on while the face count is at most this */
+    double tracking_scale;       /* error_weight x the mean area per vertex at the current target */
+    struct fan_face *fan;        /* scratch: the new fan of a collapse */
+    double *fan_h2;              /* scratch: a point's squared distance to each fan face's plane */
+    int32_t fan_cap;
     /* statistics */
-    int64_t seam_collapses, collapses, rejected;
+    int64_t seam_collapses, collapses, rejected, tracked_evaluations;
 } state;
 
 /* ---------------------------------------------------------------- small helpers */
@@ -1012,6 +1100,12 @@ static bool apply_plan(state *st, const collapse_plan *p) {
         }
     }
     memcpy(st->pos + 3 * keep, p->xyz, sizeof p->xyz);
+    if (st->owned_head && st->owned_head[gone] >= 0) {   /* keep stands for gone's input vertices too */
+        if (st->owned_head[keep] < 0) st->owned_head[keep] = st->owned_head[gone];
+        else st->owned_next[st->owned_tail[keep]] = st->owned_head[gone];
+        st->owned_tail[keep] = st->owned_tail[gone];
+        st->owned_head[gone] = st->owned_tail[gone] = -1;
+    }
     /* Z merges */
     if (p->nhalf == 2 && p->h[0].keep == p->h[1].keep) {
         int32_t gone_z[2] = {p->h[0].gone, p->h[1].gone};
@@ -1062,6 +1156,7 @@ static heap_entry make_entry(const state *st, double cost, int32_t a, int32_t b)
     e.pair = (uint64_t)(uint32_t)a << 32 | (uint32_t)b;
     e.va = st->version[a];
     e.vb = st->version[b];
+    e.full = false;
     return e;
 }
 
@@ -1163,6 +1258,18 @@ static void heap_compact(state *st) {
             i = best;
         }
         st->heap[i] = moving;
+    }
+}
+
+/* Pop stale entries (a dead endpoint or an older version) off the top, so
+ * that the top is the cheapest live candidate's key. */
+static void heap_drop_stale_top(state *st) {
+    while (st->heap_len > 0) {
+        const heap_entry *e = &st->heap[0];
+        int32_t a = entry_a(e), b = entry_b(e);
+        if ((st->vflags[a] & st->vflags[b] & V_ALIVE) && st->version[a] == e->va && st->version[b] == e->vb) return;
+        heap_entry dropped;
+        heap_pop(st, &dropped);
     }
 }
 
@@ -1306,6 +1413,7 @@ static void state_free(state *st) {
     free(st->zv), free(st->zuv_index), free(st->zuv), free(st->zflags);
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
+    free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
 }
 
 static int32_t find_root(int32_t *parent, int32_t x) {
@@ -1614,6 +1722,22 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         }
     }
     for (int32_t z = 0; z < nz; z++) update_weight(st, z);
+
+    /* error tracking: every input vertex stands for itself */
+    st->input_area = area3;
+    if (st->error_weight > 0) {
+        st->owned_head = sc_alloc_array((size_t)nv, sizeof(int32_t));
+        st->owned_tail = sc_alloc_array((size_t)nv, sizeof(int32_t));
+        st->owned_next = sc_alloc_array((size_t)nv, sizeof(int32_t));
+        st->near_face = sc_alloc_array((size_t)nv, sizeof(int32_t));
+        if (!st->owned_head || !st->owned_tail || !st->owned_next || !st->near_face)
+            return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+        for (int32_t v = 0; v < nv; v++) {
+            st->owned_head[v] = st->owned_tail[v] = v;
+            st->owned_next[v] = -1;
+            st->near_face[v] = st->vf_len[v] > 0 ? st->pool[st->vf_off[v]] : -1;
+        }
+    }
     return SC_OK;
 }
 
@@ -1854,10 +1978,188 @@ static void queue_all_edges(state *st) {
     heap_compact(st);   /* one O(n) heapify instead of n pushes */
 }
 
+/* ---------------------------------------------------------------- error tracking */
+
+/* A face of the fan a collapse would leave, ready for many point queries:
+ * its corners (the moved vertex first), the unit normal, and the dual
+ * vectors whose dot products with q - corner[0] are q's barycentric
+ * coordinates along the two edges from corner[0]. */
+typedef struct fan_face {
+    const double *corner[3];
+    double normal[3], dual0[3], dual1[3];
+    bool flat;                   /* degenerate: the general closest-point test only */
+} fan_face;
+
+static void prepare_face(fan_face *f) {
+    const double *a = f->corner[0], *b = f->corner[1], *c = f->corner[2];
+    double e0[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e1[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double g00 = dot3(e0, e0), g01 = dot3(e0, e1), g11 = dot3(e1, e1), det = g00 * g11 - g01 * g01;
+    cross3(e0, e1, f->normal);
+    double len = sqrt(dot3(f->normal, f->normal));
+    f->flat = !(det > 1e-24 * g00 * g11) || !(len > 0);
+    if (f->flat) return;
+    for (int k = 0; k < 3; k++) {
+        f->normal[k] /= len;
+        f->dual0[k] = (g11 * e0[k] - g01 * e1[k]) / det;
+        f->dual1[k] = (g00 * e1[k] - g01 * e0[k]) / det;
+    }
+}
+
+/* The squared distance from q to the face's plane (a lower bound of its
+ * distance to the face); true when q projects inside the face, where the
+ * two are equal. */
+static bool face_plane_distance2(const fan_face *f, const double *q, double *h2) {
+    const double *a = f->corner[0];
+    if (f->flat) {
+        *h2 = 0;
+        return false;
+    }
+    double w[3] = {q[0] - a[0], q[1] - a[1], q[2] - a[2]};
+    double s = dot3(w, f->dual0), t = dot3(w, f->dual1), h = dot3(w, f->normal);
+    *h2 = h * h;
+    return s >= 0 && t >= 0 && s + t <= 1;
+}
+
+static double face_distance2(const fan_face *f, const double *q) {
+    double r[3];
+    sc_hausdorff_closest_on_triangle(q, f->corner[0], f->corner[1], f->corner[2], r);
+    double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
+    return dot3(d, d);
+}
+
+/* Squared distance from q to the fan, or any value no larger than `enough`
+ * once one face is found that close. The cheap plane test goes first over
+ * all faces (exact where q projects inside); the general test only for the
+ * faces whose plane is closer than the best so far. */
+static double fan_distance2(const fan_face *fan, int32_t nfan, const double *q, double enough, double *h2) {
+    double best = INFINITY;
+    for (int32_t f = 0; f < nfan; f++) {
+        bool inside = face_plane_distance2(&fan[f], q, &h2[f]);
+        if (inside && h2[f] < best) {
+            best = h2[f];
+            if (best <= enough) return best;
+        }
+    }
+    for (int32_t f = 0; f < nfan; f++) {
+        if (!(h2[f] < best)) continue;   /* its plane, a lower bound, is no closer */
+        double d = face_distance2(&fan[f], q);
+        if (d < best) {
+            best = d;
+            if (best <= enough) return best;
+        }
+    }
+    return best;
+}
+
+/* The fan the planned collapse leaves (the surviving faces around keep and
+ * gone, moved vertex at p->xyz) into st->fan; returns its size, -1 out of
+ * memory. */
+static int32_t new_fan(state *st, const collapse_plan *p) {
+    int32_t nk, ng;
+    vfaces(st, p->keep, &nk);
+    vfaces(st, p->gone, &ng);
+    if (nk + ng > st->fan_cap) {
+        int32_t cap = 2 * (nk + ng);
+        fan_face *f = sc_realloc_array(st->fan, (size_t)cap, sizeof *f);
+        if (f) st->fan = f;
+        double *h = sc_realloc_array(st->fan_h2, (size_t)cap, sizeof *h);
+        if (h) st->fan_h2 = h;
+        if (!f || !h) {
+            st->out_of_memory = true;
+            return -1;
+        }
+        st->fan_cap = cap;
+    }
+    int32_t count = 0;
+    for (int side = 0; side < 2; side++) {
+        int32_t v = side ? p->gone : p->keep, n;
+        const int32_t *list = vfaces(st, v, &n);
+        for (int32_t i = 0; i < n; i++) {
+            int32_t f = list[i];
+            if (is_removed(p, f)) continue;
+            const int32_t *c = st->fv + 3 * f;
+            int k = c[0] == v ? 0 : c[1] == v ? 1 : 2;
+            fan_face *ff = &st->fan[count++];
+            ff->corner[0] = p->xyz;
+            ff->corner[1] = st->pos + 3 * c[(k + 1) % 3];
+            ff->corner[2] = st->pos + 3 * c[(k + 2) % 3];
+            prepare_face(ff);
+        }
+    }
+    return count;
+}
+
+/* The tracked error of a planned collapse: the larger squared distance of
+ *   (a) the input vertices keep and gone stand for, to the new fan, and
+ *   (b) points of the new fan, to the input surface: the moved vertex and,
+ *       on each face, the middle of its spoke (where a collapse that
+ *       bridges a gap or cuts off a feature leaves the new surface farthest
+ *       from the input), its centroid and a point nearer the moved vertex
+ *       (faces spanning a hollow).
+ * Only the maximum matters, so a point is let go at the first face closer
+ * than the maximum so far, and the measure stops (*complete false) as soon
+ * as the maximum passes `stop`: it is then a lower bound. *seed carries an
+ * input face near the moved vertex in and out. */
+static double tracked_error(state *st, const collapse_plan *p, int32_t *seed, double stop, bool *complete) {
+    *complete = false;
+    const double *c = st->center;
+    double q[3];
+    /* (b) first for the moved vertex: it needs no fan, and where the
+     * collapse is far off it alone passes `stop` */
+    int32_t face = *seed;
+    for (int k = 0; k < 3; k++) q[k] = p->xyz[k] + c[k];
+    double worst = sc_hausdorff_bvh_closest_above(st->input_bvh, q, 0, face, &face);
+    *seed = face;
+    if (worst > stop) return worst;
+    int32_t nfan = new_fan(st, p);
+    if (nfan < 0) return INFINITY;
+    const fan_face *fan = st->fan;
+    /* (a) */
+    double *h2 = st->fan_h2;   /* scratch for fan_distance2 */
+    for (int side = 0; side < 2; side++)
+        for (int32_t i = st->owned_head[side ? p->gone : p->keep]; i >= 0; i = st->owned_next[i]) {
+            for (int k = 0; k < 3; k++) q[k] = st->input->V[3 * (size_t)i + k] - c[k];
+            double d = fan_distance2(fan, nfan, q, worst, h2);
+            if (d > worst) {
+                worst = d;
+                if (worst > stop) return worst;
+            }
+        }
+    /* (b) on each face: the middle of the spoke to corner 1 (each spoke
+     * once), the centroid, and the point 2/3 of the way from the opposite
+     * edge's middle to the moved vertex */
+    static const double weight[3][3] = {{0.5, 0.5, 0}, {1.0 / 3, 1.0 / 3, 1.0 / 3}, {2.0 / 3, 1.0 / 6, 1.0 / 6}};
+    for (int32_t i = 0; i < nfan; i++)
+        for (int w = 0; w < 3; w++) {
+            for (int k = 0; k < 3; k++)
+                q[k] = weight[w][0] * fan[i].corner[0][k] + weight[w][1] * fan[i].corner[1][k] +
+                       weight[w][2] * fan[i].corner[2][k] + c[k];
+            double d = sc_hausdorff_bvh_closest_above(st->input_bvh, q, worst, face, &face);
+            if (d > worst) {
+                worst = d;
+                if (worst > stop) return worst;
+            }
+        }
+    *complete = true;
+    return worst;
+}
+
+/* Whether the tracked error joins the cost now; builds the input's BVH the
+ * first time. */
+static bool tracking_now(state *st) {
+    if (!(st->error_weight > 0) || st->nf_alive > st->tracking_from) return false;
+    if (!st->input_bvh && !st->out_of_memory && !(st->input_bvh = sc_hausdorff_bvh_build(st->input)))
+        st->out_of_memory = true;
+    return st->input_bvh != NULL;
+}
+
 /* Collapse until the face count is at most target or nothing can collapse.
  * Returns false when stalled. */
 static bool decimate_to(state *st, int64_t target) {
     bool requeued_since_collapse = false;
+    st->tracking_from = TRACKING_SPAN * target;
+    if (st->tracking_from > st->nf / TRACKING_START) st->tracking_from = st->nf / TRACKING_START;
+    st->tracking_scale = st->error_weight * 2.0 * st->input_area / (double)target;
     while (st->nf_alive > target && !st->out_of_memory) {
         /* live edges are at most 3/2 of the faces plus half the border
          * edges (edge_bound); every valid entry is a live edge, so past
@@ -1887,10 +2189,39 @@ static bool decimate_to(state *st, int64_t target) {
             st->vflags[b] |= V_RETRY;
             continue;
         }
+        /* With tracking on, the tracked error joins the cost here, at the
+         * front of the queue: queued costs leave it out, so they are lower
+         * bounds, and a collapse whose full cost is above the next queued
+         * one waits with its full cost (lazy evaluation: the order is the
+         * order of the full costs). */
         double popped = entry_cost(&e);
-        if (p.cost > popped * (1 + 1e-12) + 1e-300) {   /* stale cost: queue it again */
-            heap_push(st, make_entry(st, p.cost, a, b));
+        bool complete = true, tracked = tracking_now(st);
+        int32_t seed = -1;
+        if (tracked && e.full && check_plan(st, &p) != BLOCK_NONE) {
+            /* it was measured and is at the front, but cannot collapse: the
+             * test below would drop it; no need to measure it again first */
+            st->rejected++;
+            st->vflags[a] |= V_RETRY;
+            st->vflags[b] |= V_RETRY;
             continue;
+        }
+        if (tracked) {
+            heap_drop_stale_top(st);
+            /* past twice the next queued cost, measuring stops: the collapse
+             * waits with the part measured, still a lower bound */
+            double next = st->heap_len > 0 ? entry_cost(&st->heap[0]) : INFINITY;
+            double stop = (2 * next - p.cost) / st->tracking_scale;
+            seed = st->near_face[p.keep];
+            p.cost += st->tracking_scale * tracked_error(st, &p, &seed, stop, &complete);
+            st->tracked_evaluations++;
+        }
+        if (!complete || p.cost > popped * (1 + 1e-12) + 1e-300) {   /* it costs more than its queued cost */
+            heap_entry again = make_entry(st, p.cost, a, b);
+            again.full = tracked && complete;
+            if (!complete || (st->heap_len > 0 && entry_less(&st->heap[0], &again))) {
+                heap_push(st, again);
+                continue;
+            }
         }
         block_reason r = check_plan(st, &p);
         if (r != BLOCK_NONE) {
@@ -1903,6 +2234,7 @@ static bool decimate_to(state *st, int64_t target) {
             st->out_of_memory = true;
             break;
         }
+        if (seed >= 0) st->near_face[p.keep] = seed;
         requeued_since_collapse = false;
         requeue_around(st, p.keep, p.kind != EDGE_INTERIOR);
     }
@@ -1930,9 +2262,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     st.normal_cos = cos(sc_ctx_number(ctx, "normal_turn") * M_PI / 180.0);
     st.uv_step_given = sc_ctx_number(ctx, "uv_precision");
     detect_uv_storage(&st, in);
+    st.error_weight = sc_ctx_number(ctx, "error_weight");
     int64_t samples = sc_ctx_integer(ctx, "hausdorff_samples");
     double uv_weight = sc_ctx_number(ctx, "uv_weight");
     int threads = sc_ctx_threads(ctx);
+    sc_hausdorff_mesh input_mesh = {in->V, in->nv, in->FV, in->nf};
+    st.input = &input_mesh;
 
     double started = sc_now();
     sc_lods *lods = NULL;
@@ -1955,9 +2290,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         lods = sc_lods_new();
         if (!lods) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     }
-    sc_hausdorff_mesh input_mesh = {in->V, in->nv, in->FV, in->nf};
     double diagonal = sc_hausdorff_bbox_diagonal(&input_mesh);
-    sc_hausdorff_bvh *input_bvh = NULL;   /* built on the first level that measures */
     double hausdorff_seconds = 0;
     double level_start = started, total_seconds = 0;
     bool stalled = false;
@@ -2002,12 +2335,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
             sc_hausdorff_mesh level_mesh = {mesh->V, mesh->nv, mesh->FV, mesh->nf};
             sc_hausdorff_result hd;
             double measure_start = sc_now();
-            if (!input_bvh && !(input_bvh = sc_hausdorff_bvh_build(&input_mesh))) {
+            if (!st.input_bvh && !(st.input_bvh = sc_hausdorff_bvh_build(&input_mesh))) {
                 sc_mesh_free(mesh);
                 rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
                 break;
             }
-            rc = sc_hausdorff_with_bvh(&input_mesh, input_bvh, &level_mesh, samples, threads, &hd, err);
+            rc = sc_hausdorff_with_bvh(&input_mesh, st.input_bvh, &level_mesh, samples, threads, &hd, err);
             if (rc != SC_OK) {
                 sc_mesh_free(mesh);
                 break;
@@ -2033,6 +2366,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (samples > 0) sc_ctx_metric(ctx, "hausdorff_seconds", hausdorff_seconds);
         sc_ctx_metric(ctx, "collapses", (double)st.collapses);
         sc_ctx_metric(ctx, "rejected_collapses", (double)st.rejected);
+        sc_ctx_metric(ctx, "tracked_evaluations", (double)st.tracked_evaluations);
         sc_ctx_metric(ctx, "levels", ntargets);
         sc_value *out = sc_value_new_lods(lods);
         lods = NULL;
@@ -2040,7 +2374,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         else sc_ctx_set_output(ctx, "lods", out);
     }
     sc_lods_free(lods);
-    sc_hausdorff_bvh_free(input_bvh);
+    sc_hausdorff_bvh_free(st.input_bvh);
     state_free(&st);
     free(targets);
     return rc;
@@ -2072,6 +2406,10 @@ static const sc_param_desc params[] = {
      .doc = "the step the input's uv coordinates are stored with; rounding by up to half a step is not "
             "taken as a bend or a length difference; -1: detect it per coordinate (significant digits of "
             "OBJ text, float32, double)"},
+    {.name = "error_weight", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 1e6,
+     .doc = "weight, near each target, of the tracked distance between the level and the input in the collapse "
+            "cost, relative to the quadric of a vertex's share of the target's surface that far off "
+            "(0: the quadric alone)"},
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
     {.name = "hausdorff_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 0, .max = 1e8,
@@ -2089,7 +2427,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 1,
+    .version = 2,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -22,12 +22,22 @@
  *    texels (linear continuation 2 v(t + d) - v(t + 2 d) within the chart
  *    with the most neighbours) and the rest is push-pull filled. Erasure then
  *    runs as for every map.
- *  - Erasure. Every level (level 0 too, which passes through when its seam
- *    gaps are within `gap_tolerance`) is erased by the erase_seams node, run
- *    through sc_ctx (a pure function), on an atlas made of the mesh and that
- *    level's textures; 8/16-bit textures come back quantised by erase_seams
- *    (`quantize` optimal), float ones as f32. The next level is built from
- *    the erased float values.
+ *  - Erasure. Every level is erased by the erase_seams node, run through
+ *    sc_ctx (a pure function), on an atlas made of the mesh and that level's
+ *    textures (one run per group and level, so one factorisation serves all
+ *    of a group's textures of one size); 8/16-bit textures come back
+ *    quantised by erase_seams (`quantize` optimal), float ones as f32. The
+ *    next level is built from the erased float values.
+ *  - Level 0 already erased. A level-0 texture whose largest seam gap is
+ *    within what its storage holds (`level0_gap` times its largest magnitude
+ *    for float, one step for 8/16-bit; or `gap_tolerance`) is kept as it is:
+ *    it comes erased from upstream (bake_displacement erases every map on
+ *    these seams or more). Erasing it again buys nothing and costs much:
+ *    measured on blub's 2048^2 maps (gaps 2-3e-6 of their magnitude), a second
+ *    run left the gaps within 30% of what they were but moved texels by up to
+ *    1% of the value range (mipmap's erase keeps erase_seams's E_C1 term,
+ *    which the bake leaves out for positions), and took a third of the
+ *    node's erase time.
  *  - Levels of detail. With `lods`, every level of detail gets its own chains,
  *    erased on its own seams, except a texture that is the very same image
  *    (same slot, material and digest) on every level: its chain is built once
@@ -40,13 +50,20 @@
  *    mip/[lod<k>_]<material>_<slot>.exr (float textures: one tiled,
  *    mip-mapped OpenEXR holding every level) and
  *    mip/[lod<k>_]<material>_<slot>_level<m>.png (8/16-bit textures).
- *    Chains are encoded side by side (sc_ctx_threads; a file depends on its
- *    chain alone) and added to the report in chain order.
+ *    Groups are built one after the other (each source's, then the shared
+ *    chains; the order changes no result), and a finished group's chains are
+ *    encoded by a worker thread (with more than one thread) while the next
+ *    groups are erased, the caller joining in at the end: the zlib work of
+ *    the files, the largest part of the node, overlaps the erasure's serial
+ *    stretches. A file depends on its chain alone and the report takes the
+ *    files in chain order. seconds_files is the encoding left after the
+ *    metrics.
  *  - Metrics: [lod<k>.]level<m>.seam_energy and .max_seam_gap (the largest
  *    over the textures: sc_seam_energy on that LOD's mesh), level<m>.width,
- *    levels, erase runs and timings.
+ *    levels, erase runs, level-0 textures kept as they are, and timings.
  */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -153,7 +170,8 @@ static int32_t uf_find(int32_t *parent, int32_t a) {
 
 /* The nearest-face pass of data_band0 on texel rows [chunk * BAND_ROWS, ...):
  * every face in face order, so each texel sees the serial sequence of
- * updates (ties to the lower face) on any thread count. */
+ * updates (ties to the lower face) on any thread count. A texel held at
+ * distance 0 is final; columns are cut to those within r (sc_atlas_ops_row_span). */
 #define BAND_ROWS 32
 typedef struct band_job {
     const sc_mesh *m;
@@ -185,14 +203,19 @@ static int band_rows(void *ud, int32_t chunk) {
         }
         double d = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
         for (int64_t j = j0; j <= j1; j++) {
-            int32_t jw = sc_seam_wrap(j, H, J->wv);
+            int32_t jw = sc_atlas_ops_wrap(j, H, J->wv);
             if (jw < b0 || jw >= b1) continue;
-            for (int64_t i = (int64_t)ceil(xmin); i <= (int64_t)floor(xmax); i++) {
+            int64_t i0, i1;
+            sc_atlas_ops_row_span(x, y, r, (double)j, &i0, &i1);
+            if (i0 < (int64_t)ceil(xmin)) i0 = (int64_t)ceil(xmin);
+            if (i1 > (int64_t)floor(xmax)) i1 = (int64_t)floor(xmax);
+            for (int64_t i = i0; i <= i1; i++) {
+                size_t t = (size_t)jw * W + sc_atlas_ops_wrap(i, W, J->wu);
+                if (J->best[t] == 0) continue;   /* held at distance 0: a later face only ties */
                 bool in = d != 0 && inside(x, y, d, (double)i, (double)j);
                 double d2 = in ? 0 : fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[0], y[0], x[1], y[1]),
                                           fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[1], y[1], x[2], y[2]),
                                                sc_atlas_ops_segment_distance2((double)i, (double)j, x[2], y[2], x[0], y[0])));
-                size_t t = (size_t)jw * W + sc_seam_wrap(i, W, J->wu);
                 if (d2 <= r * r && d2 < J->best[t]) J->best[t] = d2, J->label[t] = id;   /* faces in order: ties to the lower */
             }
         }
@@ -233,14 +256,19 @@ static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_
         double xmin = fmin(x[0], fmin(x[1], x[2])), xmax = fmax(x[0], fmax(x[1], x[2]));
         double ymin = fmin(y[0], fmin(y[1], y[2])), ymax = fmax(y[0], fmax(y[1], y[2]));
         if (d == 0 || !(xmax - xmin < 4.0 * W + 8 && ymax - ymin < 4.0 * H + 8)) continue;
-        for (int64_t j = (int64_t)ceil(ymin); j <= (int64_t)floor(ymax); j++)
-            for (int64_t i = (int64_t)ceil(xmin); i <= (int64_t)floor(xmax); i++) {
+        for (int64_t j = (int64_t)ceil(ymin); j <= (int64_t)floor(ymax); j++) {
+            int64_t i0, i1;   /* the columns that can be inside */
+            sc_atlas_ops_row_span(x, y, 0, (double)j, &i0, &i1);
+            if (i0 < (int64_t)ceil(xmin)) i0 = (int64_t)ceil(xmin);
+            if (i1 > (int64_t)floor(xmax)) i1 = (int64_t)floor(xmax);
+            for (int64_t i = i0; i <= i1; i++) {
                 if (!inside(x, y, d, (double)i, (double)j)) continue;
-                size_t t = (size_t)sc_seam_wrap(j, H, wv) * W + sc_seam_wrap(i, W, wu);
+                size_t t = (size_t)sc_atlas_ops_wrap(j, H, wv) * W + sc_atlas_ops_wrap(i, W, wu);
                 int32_t a = uf_find(parent, m->FU[3 * f]), b = label[t] >= 0 ? uf_find(parent, label[t]) : a;
                 if (a != b) parent[a > b ? a : b] = a < b ? a : b;
                 label[t] = a < b ? a : b;
             }
+        }
     }
     for (int32_t f = 0; f < m->nf; f++) {
         int32_t root = m->FM[f] == material ? uf_find(parent, m->FU[3 * f]) : -1;
@@ -417,25 +445,84 @@ static sc_image_data *to_pixel(const sc_image_data *f, sc_pixel pixel) {
 
 /* ---------------------------------------------------------------- erasing */
 
+/* Whether level 0 of a chain is seam-free already: its largest sampled seam
+ * gap (sc_seam_energy) within `gap_tolerance`, or within what its storage
+ * holds: `level0_gap` times its largest magnitude (float), one step (8/16
+ * bit). level0_gap = 0: never (every level 0 is erased). */
+static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, const sc_texture *tex,
+                             const sc_image_data *im, double gap_tolerance, double level0_gap, int threads,
+                             bool *clean, sc_error *err) {
+    *clean = false;
+    if (!(level0_gap > 0)) return SC_OK;
+    double tol = gap_tolerance;
+    if (im->pixel == SC_PIXEL_F32) {
+        double mag = 0;
+        const float *px = im->pixels;
+        for (size_t t = 0; t < (size_t)im->width * im->height * im->channels; t++) mag = fmax(mag, fabs(px[t]));
+        tol = fmax(tol, level0_gap * mag);
+    } else {
+        tol = fmax(tol, im->pixel == SC_PIXEL_U8 ? 1.0 / 255 : 1.0 / 65535);
+    }
+    if (seams->nseams == 0) {
+        *clean = true;
+        return SC_OK;
+    }
+    sc_seam_grid g = {im->width, im->height, tex->wrap_u, tex->wrap_v};
+    double energy = 0, gap = 0;
+    int rc = sc_seam_energy(mesh, seams, &g, im, threads, &energy, &gap, err);
+    if (rc == SC_OK) *clean = gap <= tol;
+    return rc;
+}
+
 /* Erase level m of the chains of one group on `mesh`: the input images are
- * in[i] (pixel type of the chain); results into the chains' level m. */
+ * in[i] (pixel type of the chain); results into the chains' level m. At
+ * level 0, chains whose seams are closed already (seam_free_already) pass
+ * through as they are; the others are erased in one erase_seams run. */
 static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m, double gap_tolerance,
-                       int threads, int *runs, sc_error *err) {
+                       double level0_gap, int threads, int *runs, int *passed, sc_error *err) {
     sc_atlas_ops_map *maps = calloc((size_t)n + 1, sizeof *maps);
     sc_value **f32 = calloc((size_t)n + 1, sizeof *f32), **native = calloc((size_t)n + 1, sizeof *native);
-    int rc = maps && f32 && native ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
+    int *which = calloc((size_t)n + 1, sizeof *which);   /* erased map i is chain which[i] */
+    int rc = maps && f32 && native && which ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
+    int nerase = 0;
+    sc_seam_set seams = {0};
+    int32_t seams_material = -1;
     for (int i = 0; i < n && rc == SC_OK; i++) {
         const sc_texture *t = chains[i]->tex;
-        maps[i] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
+        bool clean = false;
+        if (m == 0 && level0_gap > 0) {
+            if (seams_material != t->material) {
+                if (seams_material >= 0) sc_seam_set_free(&seams);
+                seams_material = -1;
+                rc = sc_seam_find(mesh->as.mesh, t->material, &seams, err);
+                if (rc == SC_OK) seams_material = t->material;
+            }
+            if (rc == SC_OK)
+                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, gap_tolerance, level0_gap, threads,
+                                       &clean, err);
+        }
+        if (rc == SC_OK && clean) {
+            const sc_image_data *im = in[i]->as.image;
+            sc_image_data *f = im->pixel == SC_PIXEL_F32 ? NULL : sc_image_to_f32(im);
+            sc_value *fv = im->pixel == SC_PIXEL_F32 ? sc_value_retain(in[i]) : f ? sc_value_new_image(f) : NULL;
+            if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            chains[i]->f32[m] = fv, chains[i]->native[m] = fv ? sc_value_retain(in[i]) : NULL;
+            (*passed)++;
+        } else if (rc == SC_OK) {
+            maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
+            which[nerase++] = i;
+        }
     }
-    if (rc == SC_OK) rc = sc_atlas_ops_erase(mesh, maps, n, gap_tolerance, NULL, NULL, threads, f32, native, err);
-    if (rc == SC_OK) {
-        (*runs)++;
-        for (int i = 0; i < n; i++) chains[i]->f32[m] = f32[i], chains[i]->native[m] = native[i];
-    } else {
-        sc_error_prefix(err, "erase_seams at mip level %d", m);
+    if (seams_material >= 0) sc_seam_set_free(&seams);
+    if (rc == SC_OK && nerase > 0) {
+        rc = sc_atlas_ops_erase(mesh, maps, nerase, gap_tolerance, NULL, NULL, threads, f32, native, err);
+        if (rc == SC_OK) {
+            (*runs)++;
+            for (int i = 0; i < nerase; i++) chains[which[i]]->f32[m] = f32[i], chains[which[i]]->native[m] = native[i];
+        }
     }
-    free(maps), free(f32), free(native);
+    if (rc != SC_OK) sc_error_prefix(err, "erase_seams at mip level %d", m);
+    free(maps), free(f32), free(native), free(which);
     return rc;
 }
 
@@ -452,12 +539,13 @@ static void clean_name(const char *in, char *out, size_t size) {
     if (k == 0) snprintf(out, size, "material");
 }
 
-/* The report takes a copy of the buffer's bytes. */
-static int add_copy(sc_report *r, const char *path, const sc_buf *b, sc_error *err) {
-    void *copy = malloc(b->len ? b->len : 1);
-    if (!copy) return sc_fail(err, SC_ENOMEM, "out of memory");
-    memcpy(copy, b->data, b->len);
-    if (sc_report_add_file(r, path, copy, b->len) != SC_OK) return sc_fail(err, SC_ENOMEM, "out of memory");
+/* The report takes the buffer's bytes over (no copy: a mip file is tens of
+ * megabytes); the buffer is left empty. */
+static int add_buffer(sc_report *r, const char *path, sc_buf *b, sc_error *err) {
+    void *data = b->data ? b->data : malloc(1);
+    size_t len = b->len;
+    sc_buf_init(b);
+    if (!data || sc_report_add_file(r, path, data, len) != SC_OK) return sc_fail(err, SC_ENOMEM, "out of memory");
     return SC_OK;
 }
 
@@ -512,27 +600,95 @@ static int files_one(void *ud, int32_t c) {
     return encode_files(ch, J->src[k]->mesh->as.mesh, &J->out[c]);
 }
 
-/* Every chain's files into the report, in chain order (encoded in parallel:
- * each file's bytes depend on its chain alone). */
-static int add_files(sc_report *r, const chain *chains, int32_t nchains, const sc_atlas *const *src, int threads,
-                     sc_error *err) {
-    chain_files *out = calloc((size_t)nchains + 1, sizeof *out);
-    if (!out) return sc_fail(err, SC_ENOMEM, "out of memory");
-    files_job job = {chains, src, out};
-    int prc = sc_seam_parallel(threads, nchains, files_one, &job);
-    int rc = SC_OK;
+/* Encoding runs beside the building: chains are handed to the encoder as
+ * their group is finished, and a worker thread encodes them in that order
+ * while the next groups are erased; when all are handed over the caller
+ * joins in. Each file's bytes depend on its chain alone, and the report
+ * takes them in chain order (collect_files), so neither the order nor the
+ * thread count shows in the results. */
+typedef struct encoder {
+    files_job job;
+    int32_t *order;        /* chains in the order they were handed over */
+    int32_t ready, next;   /* order[0..ready) handed over; order[next] is the next to encode */
+    bool closed;           /* all handed over */
+    bool worker;           /* a worker thread runs */
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+} encoder;
+
+static void encoder_work(encoder *E) {
+    for (;;) {
+        pthread_mutex_lock(&E->mu);
+        while (E->next >= E->ready && !E->closed) pthread_cond_wait(&E->cv, &E->mu);
+        if (E->next >= E->ready) {
+            pthread_mutex_unlock(&E->mu);
+            return;
+        }
+        int32_t c = E->order[E->next++];
+        pthread_mutex_unlock(&E->mu);
+        files_one(&E->job, c);
+    }
+}
+
+static void *encoder_main(void *ud) {
+    encoder_work(ud);
+    return NULL;
+}
+
+/* A worker thread only when threads > 1; false when out of memory. */
+static bool encoder_start(encoder *E, const chain *chains, int32_t nchains, const sc_atlas *const *src, int threads) {
+    memset(E, 0, sizeof *E);
+    E->job = (files_job){chains, src, calloc((size_t)nchains + 1, sizeof(chain_files))};
+    E->order = calloc((size_t)nchains + 1, sizeof *E->order);
+    if (!E->job.out || !E->order) {
+        free(E->job.out), free(E->order);
+        return false;
+    }
+    pthread_mutex_init(&E->mu, NULL);
+    pthread_cond_init(&E->cv, NULL);
+    E->worker = threads > 1 && pthread_create(&E->thread, NULL, encoder_main, E) == 0;
+    return true;
+}
+
+static void encoder_hand(encoder *E, int32_t c) {
+    pthread_mutex_lock(&E->mu);
+    E->order[E->ready++] = c;
+    pthread_cond_broadcast(&E->cv);
+    pthread_mutex_unlock(&E->mu);
+}
+
+/* No more chains: stop taking new ones when `abandon`, else encode the rest
+ * here too; then wait for the worker. */
+static void encoder_finish(encoder *E, bool abandon) {
+    pthread_mutex_lock(&E->mu);
+    E->closed = true;
+    if (abandon) E->ready = E->next;
+    pthread_cond_broadcast(&E->cv);
+    pthread_mutex_unlock(&E->mu);
+    if (!abandon) encoder_work(E);
+    if (E->worker) pthread_join(E->thread, NULL);
+    E->worker = false;
+}
+
+/* Every chain's files into the report, in chain order; frees the encoder. */
+static int collect_files(sc_report *r, encoder *E, int32_t nchains, sc_error *err) {
+    chain_files *out = E->job.out;
+    int rc = r ? SC_OK : SC_ENOMEM;
     for (int32_t c = 0; c < nchains; c++) {
-        if (rc == SC_OK && out[c].rc != SC_OK) {
+        if (rc == SC_OK && E->next == nchains && out[c].rc != SC_OK) {
             if (err) *err = out[c].err;
             rc = out[c].rc;
         }
         for (int i = 0; i < out[c].n; i++) {
-            if (rc == SC_OK) rc = add_copy(r, out[c].path[i], &out[c].buf[i], err);
+            if (rc == SC_OK) rc = add_buffer(r, out[c].path[i], &out[c].buf[i], err);
             sc_buf_free(&out[c].buf[i]);
         }
     }
-    free(out);
-    if (rc == SC_OK && prc != SC_OK) rc = sc_fail(err, prc, "encoding the mip files failed");
+    if (rc == SC_OK && E->next != nchains) rc = sc_fail(err, SC_ENOMEM, "the mip files were not all encoded");
+    pthread_mutex_destroy(&E->mu);
+    pthread_cond_destroy(&E->cv);
+    free(out), free(E->order);
     return rc;
 }
 
@@ -552,6 +708,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (nsrc < 1) return sc_fail(err, SC_EINPUT, "lods: the list is empty");
     const int32_t min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
     const double gap_tolerance = sc_ctx_number(ctx, "gap_tolerance");
+    const double level0_gap = sc_ctx_number(ctx, "level0_gap");
     const int threads = sc_ctx_threads(ctx);
     const sc_atlas **src = calloc((size_t)nsrc, sizeof *src);
     if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -621,14 +778,18 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
     }
 
-    /* build and erase, level by level, one erase_seams run per group and level */
+    /* build and erase, group by group (each source's chains, then the shared
+     * ones) and level by level, one erase_seams run per group and level; a
+     * finished group's chains go to the encoder */
     double t0 = sc_now();
-    int runs = 0;
+    int runs = 0, passed = 0;
     chain **members = calloc((size_t)nchains + 1, sizeof *members);
     sc_value **inputs = calloc((size_t)nchains + 1, sizeof *inputs);
-    if (!members || !inputs) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    for (int32_t m = 0; m < nall && rc == SC_OK; m++)
-        for (int32_t g = 0; g <= nsrc && rc == SC_OK; g++) {
+    encoder enc;
+    bool encoding = rc == SC_OK && encoder_start(&enc, chains, nchains, src, threads);
+    if (!members || !inputs || (rc == SC_OK && !encoding)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t g = 0; g <= nsrc && rc == SC_OK; g++) {
+        for (int32_t m = 0; m < nall && rc == SC_OK; m++) {
             int n = 0;
             for (int32_t c = 0; c < nchains && rc == SC_OK; c++) {
                 chain *ch = &chains[c];
@@ -662,10 +823,14 @@ static int run(sc_ctx *ctx, sc_error *err) {
             }
             if (rc == SC_OK && n > 0) {
                 sc_value *mesh = g == nsrc ? union_mesh : src[g]->mesh;
-                rc = erase_level(mesh, members, inputs, n, m, gap_tolerance, threads, &runs, err);
+                rc = erase_level(mesh, members, inputs, n, m, gap_tolerance, level0_gap, threads, &runs, &passed, err);
             }
             for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
         }
+        for (int32_t c = 0; c < nchains && rc == SC_OK; c++)
+            if (chains[c].group == g) encoder_hand(&enc, c);
+    }
+    if (encoding && rc != SC_OK) encoder_finish(&enc, true);
     double t_erase = sc_now() - t0;
 
     /* metrics: seam energy of every LOD at every mip level */
@@ -714,6 +879,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "levels", nmip);
         sc_ctx_metric(ctx, "chains", nchains);
         sc_ctx_metric(ctx, "erase_runs", runs);
+        sc_ctx_metric(ctx, "level0_passed", passed);
         sc_ctx_metric(ctx, "seam_energy", worst_energy);
         sc_ctx_metric(ctx, "max_seam_gap", worst_gap);
         if (sc_report_metric(report, "levels", nmip) || sc_report_metric(report, "seam_energy", worst_energy) ||
@@ -722,9 +888,13 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     double t_metrics = sc_now() - t0;
 
-    /* files and the levels */
+    /* files (what encoding is left) and the levels */
     t0 = sc_now();
-    if (rc == SC_OK) rc = add_files(report, chains, nchains, src, threads, err);
+    if (encoding) encoder_finish(&enc, rc != SC_OK);   /* a second call after abandoning changes nothing */
+    if (encoding) {
+        int frc = collect_files(report, &enc, nchains, rc == SC_OK ? err : NULL);
+        if (rc == SC_OK) rc = frc;
+    }
     double t_files = sc_now() - t0;
     sc_lods *out = rc == SC_OK ? sc_lods_new() : NULL;
     if (rc == SC_OK && !out) rc = sc_fail(err, SC_ENOMEM, "out of memory");
@@ -774,6 +944,9 @@ static const sc_param_desc params[] = {
      .doc = "the chain stops once both sides are at most this many texels"},
     {.name = "gap_tolerance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
      .doc = "erase_seams's gap_tolerance: a level whose seam gaps are within it is kept as it is"},
+    {.name = "level0_gap", .type = SC_PARAM_NUMBER, .def = 1e-5, .min = 0, .max = 1,
+     .doc = "level 0 of a chain is kept as it is when its largest seam gap is within this fraction of its "
+            "largest magnitude (float) or one step (8/16-bit): seams already erased; 0 erases every level 0"},
 };
 
 static const sc_port_desc inputs[] = {
@@ -791,7 +964,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 2,
+    .version = 3,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

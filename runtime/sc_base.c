@@ -1,4 +1,5 @@
-/* sc_base.c - errors, buffers, digests, files and number formatting.
+/* sc_base.c - errors, buffers, digests, files, number formatting and a
+ * chunked parallel loop.
  *
  * Design note: everything here is small and dependency-free except SHA-256,
  * which comes from OpenSSL's libcrypto (EVP), so it uses the CPU's SHA
@@ -10,7 +11,9 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -438,6 +441,48 @@ double sc_now(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---------------------------------------------------------------- threads */
+
+typedef struct parallel_state {
+    int (*fn)(void *ud, int32_t chunk);
+    void *ud;
+    int32_t nchunks;
+    atomic_int next;
+    int *rcs;
+} parallel_state;
+
+static void *parallel_worker(void *arg) {
+    parallel_state *st = arg;
+    for (;;) {
+        int32_t c = atomic_fetch_add(&st->next, 1);
+        if (c >= st->nchunks) break;
+        st->rcs[c] = st->fn(st->ud, c);
+    }
+    return NULL;
+}
+
+int sc_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud) {
+    if (nchunks <= 0) return SC_OK;
+    int *rcs = sc_calloc_array((size_t)nchunks, sizeof *rcs);
+    if (!rcs) return SC_ENOMEM;
+    parallel_state st = {.fn = fn, .ud = ud, .nchunks = nchunks, .rcs = rcs};
+    atomic_init(&st.next, 0);
+    int nt = threads < 1 ? 1 : threads > 64 ? 64 : threads;
+    if (nt > nchunks) nt = nchunks;
+    pthread_t tid[64];
+    int started = 0;
+    for (int t = 1; t < nt; t++) {
+        if (pthread_create(&tid[started], NULL, parallel_worker, &st) != 0) break;
+        started++;
+    }
+    parallel_worker(&st);
+    for (int t = 0; t < started; t++) pthread_join(tid[t], NULL);
+    int rc = SC_OK;
+    for (int32_t c = 0; c < nchunks && rc == SC_OK; c++) rc = rcs[c];
+    free(rcs);
+    return rc;
 }
 
 void sc_format_double(double v, char out[32]) {

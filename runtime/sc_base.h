@@ -129,6 +129,13 @@ char *sc_path_dirname(const char *path);
 /* Monotonic seconds, for timings that go into reports (never into values). */
 double sc_now(void);
 
+/* Run fn(ud, chunk) for every chunk in [0, nchunks) on up to `threads`
+ * threads (the caller's among them). Chunks are handed out in order; callers
+ * that need the same bytes for any thread count make each chunk's work
+ * independent of which thread runs it. Returns the first non-zero result in
+ * chunk order, SC_OK when every chunk succeeded, or SC_ENOMEM. */
+int sc_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud);
+
 /* Shortest decimal text that reads back to exactly v ("nan"/"inf" never
  * occur: callers reject them first). Integral values print without ".0". */
 void sc_format_double(double v, char out[32]);

@@ -7,9 +7,14 @@
  *    running the erase_seams node (a pure function, through sc_ctx). Each
  *    image gets a slot of its own, so two images of one name and material are
  *    erased side by side.
+ *  - Inline helpers of the per-texel rasterisers (bake_displacement's raster,
+ *    mipmap's chart band): segment distance, wrapping, and the columns of a
+ *    row that can lie within a distance of a triangle.
  */
 #ifndef SC_ATLAS_OPS_H
 #define SC_ATLAS_OPS_H
+
+#include <math.h>
 
 #include "sc_value.h"
 
@@ -46,6 +51,42 @@ static inline double sc_atlas_ops_segment_distance2(double px, double py, double
     t = t < 0 ? 0 : t > 1 ? 1 : t;
     double ex = ax + t * dx - px, ey = ay + t * dy - py;
     return ex * ex + ey * ey;
+}
+
+/* sc_seam_wrap (texel index i through wrap mode w on a side of n texels),
+ * inline for per-texel loops. */
+static inline int32_t sc_atlas_ops_wrap(int64_t i, int32_t n, sc_wrap w) {
+    if (n <= 1) return 0;
+    if (w == SC_WRAP_CLAMP) return i < 0 ? 0 : i >= n ? n - 1 : (int32_t)i;
+    if (w == SC_WRAP_MIRROR) {
+        int64_t p = 2 * (int64_t)n, m = i % p;
+        if (m < 0) m += p;
+        return (int32_t)(m >= n ? p - 1 - m : m);
+    }
+    int64_t m = i % n;
+    return (int32_t)(m < 0 ? m + n : m);
+}
+
+/* The columns [*i0, *i1] of row `row` whose distance to triangle (x, y) may
+ * be within r (all in texel-centre coordinates): the triangle's box grown by
+ * r, cut by its three edge lines pushed out by r (a point farther than r
+ * from an edge's line, on its outer side, is farther than r from the
+ * triangle). The cut keeps a slack of 1e-6 texel, so rounding never drops a
+ * texel that is within r; callers still measure each texel exactly. */
+static inline void sc_atlas_ops_row_span(const double x[3], const double y[3], double r, double row, int64_t *i0,
+                                         int64_t *i1) {
+    double lo = fmin(x[0], fmin(x[1], x[2])) - r, hi = fmax(x[0], fmax(x[1], x[2])) + r;
+    double area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+    for (int k = 0; k < 3 && area != 0; k++) {
+        double ax = x[k], ay = y[k], dx = x[(k + 1) % 3] - ax, dy = y[(k + 1) % 3] - ay, len = hypot(dx, dy);
+        if (!(len > 0)) continue;
+        double ox = (area > 0 ? dy : -dy) / len, oy = (area > 0 ? -dx : dx) / len;   /* outward unit normal */
+        double rest = r + 1e-6 - (row - ay) * oy;   /* within: (i - ax) ox <= rest */
+        if (ox > 1e-12) hi = fmin(hi, ax + rest / ox);
+        else if (ox < -1e-12) lo = fmax(lo, ax + rest / ox);
+        else if (rest < 0) hi = lo - 1;   /* the whole row lies beyond this edge */
+    }
+    *i0 = (int64_t)ceil(lo), *i1 = (int64_t)floor(hi);
 }
 
 #endif

@@ -33,6 +33,15 @@ void sc_hausdorff_bvh_free(sc_hausdorff_bvh *b);
 double sc_hausdorff_bvh_closest(const sc_hausdorff_bvh *b, const double p[3], double closest[3],
                                 int32_t *face);
 
+/* The squared distance from p to the mesh where it exceeds floor2; at or
+ * below floor2 the walk may stop at the first face found that close and
+ * return its distance (<= floor2, not necessarily the least). That is all a
+ * running maximum of distances needs, at a fraction of the cost. seed: a
+ * face near p to start from, or -1; *face (may be NULL) receives the face
+ * whose distance is returned, a good seed for a nearby point. */
+double sc_hausdorff_bvh_closest_above(const sc_hausdorff_bvh *b, const double p[3], double floor2, int32_t seed,
+                                      int32_t *face);
+
 /* Closest point to p on triangle abc (Ericson, Real-Time Collision Detection 5.1.5). */
 void sc_hausdorff_closest_on_triangle(const double p[3], const double a[3], const double b[3],
                                       const double c[3], double out[3]);

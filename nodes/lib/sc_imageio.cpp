@@ -279,6 +279,9 @@ int encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out,
         }
     }
     std::vector<unsigned char> bytes;
+    size_t raw = 65536;   /* room for the uncompressed file: the vector never regrows (untouched room costs nothing) */
+    for (int k = 0; k < nlevels; k++) raw += sample_count(levels[k]) * sizeof(float) + 64;
+    bytes.reserve(raw);
     OIIO::Filesystem::IOVecOutput proxy(bytes);
     auto writer = ImageOutput::create("memory.exr", &proxy);
     if (!writer) return sc_fail(err, SC_EIO, "exr writer: %s", global_error().c_str());
@@ -293,9 +296,17 @@ int encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out,
         spec.attribute("textureformat", "Plain Texture");   /* what makes OIIO write MIP levels */
         spec.attribute("openexr:levelmode", 1);   /* MIPMAP_LEVELS */
         spec.attribute("openexr:roundingmode", 0); /* ROUND_DOWN */
-        std::vector<float> px = exr_pixels(levels[k]);
-        ok = (k == 0 ? writer->open("memory.exr", spec) : writer->open("memory.exr", spec, ImageOutput::AppendMIPLevel)) &&
-             writer->write_image(TypeDesc::FLOAT, px.data());
+        ok = k == 0 ? writer->open("memory.exr", spec) : writer->open("memory.exr", spec, ImageOutput::AppendMIPLevel);
+        const sc_image_data *im = levels[k];
+        if (ok && im->pixel == SC_PIXEL_F32 && im->colorspace != SC_COLOR_SRGB) {
+            /* float written as it is: straight from the bottom-up rows, last row first (a negative row stride) */
+            const OIIO::stride_t row = (OIIO::stride_t)im->width * im->channels * (OIIO::stride_t)sizeof(float);
+            const char *last = (const char *)im->pixels + (size_t)(im->height - 1) * (size_t)row;
+            ok = writer->write_image(TypeDesc::FLOAT, last, OIIO::AutoStride, -row);
+        } else if (ok) {
+            std::vector<float> px = exr_pixels(im);
+            ok = writer->write_image(TypeDesc::FLOAT, px.data());
+        }
     }
     if (!ok || !writer->close()) {
         std::string e = tidy(writer->geterror());

@@ -19,8 +19,6 @@
 #include "sc_seam.h"
 
 #include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -532,44 +530,8 @@ bool sc_seam_inward_normal(const sc_mesh *m, const sc_seam_grid *g, const sc_sea
 
 /* ---------------------------------------------------------------- threads */
 
-typedef struct par_state {
-    int (*fn)(void *ud, int32_t chunk);
-    void *ud;
-    int32_t nchunks;
-    atomic_int next;
-    int *rcs;
-} par_state;
-
-static void *par_worker(void *arg) {
-    par_state *st = arg;
-    for (;;) {
-        int32_t c = atomic_fetch_add(&st->next, 1);
-        if (c >= st->nchunks) break;
-        st->rcs[c] = st->fn(st->ud, c);
-    }
-    return NULL;
-}
-
 int sc_seam_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud) {
-    if (nchunks <= 0) return SC_OK;
-    int *rcs = sc_calloc_array((size_t)nchunks, sizeof *rcs);
-    if (!rcs) return SC_ENOMEM;
-    par_state st = {.fn = fn, .ud = ud, .nchunks = nchunks, .rcs = rcs};
-    atomic_init(&st.next, 0);
-    int nt = threads < 1 ? 1 : threads > 64 ? 64 : threads;
-    if (nt > nchunks) nt = nchunks;
-    pthread_t tid[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++) {
-        if (pthread_create(&tid[started], NULL, par_worker, &st) != 0) break;
-        started++;
-    }
-    par_worker(&st);
-    for (int t = 0; t < started; t++) pthread_join(tid[t], NULL);
-    int rc = SC_OK;
-    for (int32_t c = 0; c < nchunks && rc == SC_OK; c++) rc = rcs[c];
-    free(rcs);
-    return rc;
+    return sc_parallel(threads, nchunks, fn, ud);
 }
 
 /* ---------------------------------------------------------------- piece walks */

@@ -225,8 +225,7 @@ double sc_seam_texel(const sc_image_data *img, int32_t id, int32_t c);
 
 /* ---------------------------------------------------------------- threads */
 
-/* Run fn(ud, chunk) for chunk in [0, nchunks) on up to `threads` threads.
- * Returns the first non-zero fn result (by chunk order). */
+/* sc_parallel (sc_base.h) under its older name. */
 int sc_seam_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud);
 
 #endif

@@ -1,11 +1,14 @@
 /* test_bake.c - the node `bake_displacement`, checked independently of it.
  *
- * Reconstruction: the input surface is sampled at its own vertices and at
- * points inside its faces; each point's uv is located in the level by brute
- * force (every face of the level, barycentric in double), the level's surface
+ * Reconstruction, two ways. Same uv: the input surface is sampled at points
+ * inside its faces; each point's uv is located in the level by brute force
+ * (every face of the level, barycentric in double), the level's surface
  * there plus a bilinear sample of the displacement (written out here, from
  * design.md's texel convention) must land on the input point within a
- * fraction of the bounding-box diagonal. Seams: the exact seam energy
+ * fraction of the bounding-box diagonal. As surfaces: the level is
+ * tessellated here at one texel, displaced the same way, and its symmetric
+ * sampled Hausdorff distance to the input (sc_hausdorff) must be within a
+ * bound, and so must the node's own measure (lod<k>.reconstruction_error). Seams: the exact seam energy
  * (sc_seam_energy) of every map on every level, and the render node's own
  * crack and seam-gap check in geometry_image, displaced and tessellated modes
  * (tessellated is run twice: with the geometry image, and with the
@@ -17,6 +20,7 @@
 #include <string.h>
 
 #include "sc_exec.h"
+#include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
 #include "sc_test.h"
@@ -113,6 +117,72 @@ static double seam_energy(const sc_mesh *m, const sc_image_data *im, double *gap
     return e;
 }
 
+/* The level as drawn with its displacement, tessellated here: every face of
+ * the level split by a barycentric grid whose steps span at most one texel
+ * of the map, each grid vertex at the level's own point there (linear in the
+ * face) plus a bilinear sample of the displacement. Then the symmetric
+ * sampled Hausdorff distance (sc_hausdorff: closest points on triangles,
+ * through a BVH) between that surface and the input mesh, over the input's
+ * diagonal: *from_input, samples of the input to the drawn surface;
+ * *to_input, samples of the drawn surface to the input. */
+static bool drawn_distance(const sc_mesh *in, const sc_atlas *level, int64_t samples, double *to_input,
+                           double *from_input) {
+    const sc_image_data *d = slot(level, "displacement");
+    const sc_mesh *lm = level->mesh->as.mesh;
+    if (!d) return false;
+    int64_t nv = 0, nt = 0;
+    int *steps = malloc(sizeof(int) * (size_t)lm->nf + 1);
+    if (!steps) return false;
+    for (int f = 0; f < lm->nf; f++) {
+        double longest = 0;
+        for (int c = 0; c < 3; c++) {
+            const double *a = lm->U + 2 * lm->FU[3 * f + c], *b = lm->U + 2 * lm->FU[3 * f + (c + 1) % 3];
+            longest = fmax(longest, hypot((b[0] - a[0]) * d->width, (b[1] - a[1]) * d->height));
+        }
+        int n = (int)ceil(longest);
+        steps[f] = n < 1 ? 1 : n > 512 ? 512 : n;
+        nv += (int64_t)(steps[f] + 1) * (steps[f] + 2) / 2, nt += (int64_t)steps[f] * steps[f];
+    }
+    double *V = malloc(sizeof(double) * 3 * (size_t)nv + 1);
+    int32_t *F = malloc(sizeof(int32_t) * 3 * (size_t)nt + 1);
+    bool ok = V && F && nv < INT32_MAX && nt < INT32_MAX;
+    int64_t v0 = 0, t = 0;
+    for (int f = 0; f < lm->nf && ok; f++) {
+        const int n = steps[f];
+        for (int i = 0; i <= n; i++)
+            for (int j = 0; j <= n - i; j++) {
+                double l[3] = {(double)i / n, (double)j / n, (double)(n - i - j) / n}, uv[2] = {0, 0}, dd[3];
+                double *out = V + 3 * (v0 + (int64_t)i * (n + 1) - (int64_t)i * (i - 1) / 2 + j);
+                for (int k = 0; k < 3; k++) out[k] = 0;
+                for (int c = 0; c < 3; c++) {
+                    for (int k = 0; k < 2; k++) uv[k] += l[c] * lm->U[2 * lm->FU[3 * f + c] + k];
+                    for (int k = 0; k < 3; k++) out[k] += l[c] * lm->V[3 * lm->FV[3 * f + c] + k];
+                }
+                bilinear(d, uv[0], uv[1], dd);
+                for (int k = 0; k < 3; k++) out[k] += dd[k];
+            }
+#define GRID(i, j) ((int32_t)(v0 + (int64_t)(i) * (n + 1) - (int64_t)(i) * ((i) - 1) / 2 + (j)))
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n - i; j++) {
+                F[3 * t] = GRID(i, j), F[3 * t + 1] = GRID(i + 1, j), F[3 * t + 2] = GRID(i, j + 1), t++;
+                if (j < n - i - 1)
+                    F[3 * t] = GRID(i + 1, j), F[3 * t + 1] = GRID(i + 1, j + 1), F[3 * t + 2] = GRID(i, j + 1), t++;
+            }
+#undef GRID
+        v0 += (int64_t)(n + 1) * (n + 2) / 2;
+    }
+    if (ok) {
+        sc_hausdorff_mesh input = {in->V, in->nv, in->FV, in->nf}, drawn = {V, (int32_t)nv, F, (int32_t)nt};
+        sc_hausdorff_result r;
+        sc_error err;
+        ok = sc_hausdorff(&input, &drawn, samples, 2, &r, &err) == SC_OK;
+        double diag = diagonal(in);
+        if (ok) *from_input = r.a_to_b / diag, *to_input = r.b_to_a / diag;
+    }
+    free(steps), free(V), free(F);
+    return ok;
+}
+
 /* ---------------------------------------------------------------- assets */
 
 static sc_value *procedural_asset(int resolution) {
@@ -179,9 +249,11 @@ static void check_bake(sc_value *atlas, sc_value *lods, const char *size, double
         if (!d) continue;
         double err = reconstruction_error(in, lv, in->nf > 20000 ? 7 : 1);
         double gd, ed = seam_energy(lm, d, &gd), gg, eg_k = seam_energy(lm, gi, &gg);
-        printf("     %s level %d: %d faces, reconstruction %.3g (node says %.3g), displacement seam energy %.3g "
+        char same_name[64];
+        snprintf(same_name, sizeof same_name, "lod%d.same_uv_error", k);
+        printf("     %s level %d: %d faces, same-uv reconstruction %.3g (node says %.3g), displacement seam energy %.3g "
                "(gap %.3g), geometry image on this level %.3g\n",
-               what, k, lm->nf, err, sc_ctx_metric_value(b.ctx, "reconstruction_error"), ed, gd, eg_k);
+               what, k, lm->nf, err, sc_ctx_metric_value(b.ctx, same_name), ed, gd, eg_k);
         SC_CHECK_MSG(err <= recon_bar, "%s level %d: reconstruction error %g", what, k, err);
         SC_CHECK_MSG(ed <= 1e-8, "%s level %d: displacement seam energy %g", what, k, ed);
         SC_CHECK_MSG(eg_k <= 1e-8, "%s level %d: geometry image seam energy %g", what, k, eg_k);
@@ -270,18 +342,71 @@ static void error_stats(const sc_mesh *in, const sc_atlas *level, int stride, do
     free(e);
 }
 
-/* Bounds per level (levels 0.5 and 0.1 of the faces) at 1024^2: max, RMS,
- * p99 of the error over the bounding-box diagonal. The maxima are above
- * 1e-3 on the corpus for a measured reason: both assets have charts whose
- * uv is squeezed far below a texel per face (blub near texel (313, 124) at
- * 1024: faces of 0.01 texel, a texel spanning ~5% of the diagonal), so no
- * bilinear map can follow the surface there. A lower bound, the RMS residual
- * of the best bilinear fit of each cell on its own, is 1.1e-3 (level 0.5)
- * and 4.3e-3 (level 0.1) on blub; on BoomBox 1.4e-4 and 2.5e-3. Seam
- * erasure near such charts adds the rest. */
+/* Bounds per level (levels 0.5 and 0.1 of the faces) at 1024^2, over the
+ * bounding-box diagonal, for two readings of "base LOD + displacement
+ * reconstructs the input surface":
+ *  - same-uv (error_stats): the drawn point against the input point of the
+ *    same uv. Above 1e-3 on the corpus for a measured reason: both assets
+ *    have charts whose uv is squeezed far below a texel per face (blub near
+ *    texel (313, 124) at 1024: faces of 0.01 texel, a texel spanning ~5% of
+ *    the diagonal), so no bilinear map can follow the surface there. A lower
+ *    bound, the RMS residual of the best bilinear fit of each cell on its
+ *    own, is 1.1e-3 (level 0.5) and 4.3e-3 (level 0.1) on blub; on BoomBox
+ *    1.4e-4 and 2.5e-3. Seam erasure near such charts adds the rest.
+ *  - surface distance: the drawn surface against the input surface as
+ *    surfaces, both ways (drawn_distance here, at a tessellation of one
+ *    texel; the node's lod<k>.reconstruction_error, sampled by area). 1e-3
+ *    holds on blub level 0.5 (6.7e-4) and on the procedural asset (1.9e-4
+ *    at level 0.5, under the tighter bar 5e-4; 3.4-4.3e-4 at level 0.1, with
+ *    the decimation's version). It does not hold on
+ *    blub level 0.1 (4.3e-3: the squeezed charts again, with or without
+ *    erasure) nor on BoomBox (1.7e-3 at level 0.5, 1.1e-2 at level 0.1):
+ *    there the seam erasure of the displacement costs it - baked without
+ *    erasure, BoomBox measures 4.2e-4 and 5.8e-3 - because the levels' seams
+ *    (not straightened here) do not follow the input's, so a watertight map
+ *    must bend both sides to a common curve. Those levels keep the same-uv
+ *    bars, which the surface distance stays under. */
 typedef struct corpus_bar {
-    double max, rms, p99;
+    double max, rms, p99;   /* same-uv error (error_stats) */
+    double surface;         /* surface distance: drawn_distance's and the node's */
 } corpus_bar;
+static void bake_1024(const char *what, sc_value *atlas, const corpus_bar bars[2]) {
+    sc_value *lods = atlas ? decimated(atlas, "0.5,0.1") : NULL;
+    if (!lods) return;
+    const char *params[] = {"size", "1024", NULL};
+    sc_test_run b = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
+    SC_CHECK_MSG(b.rc == SC_OK, "%s: bake: %s", what, b.err.message);
+    if (b.rc == SC_OK) {
+        const sc_mesh *in = atlas->as.atlas->mesh->as.mesh;
+        const sc_lods *out = out_of(&b, 1)->as.lods;
+        for (int k = 0; k < out->count && k < 2; k++) {
+            const sc_atlas *lv = out->levels[k]->as.atlas;
+            double mx, rms, p99, gap, to = NAN, from = NAN;
+            error_stats(in, lv, in->nf > 8000 ? 2 : 1, &mx, &rms, &p99);
+            SC_CHECK_MSG(drawn_distance(in, lv, 200000, &to, &from), "%s level %d: drawn_distance failed", what, k);
+            const sc_image_data *d = slot(lv, "displacement");
+            double ed = seam_energy(lv->mesh->as.mesh, d, &gap);
+            char name[4][64];
+            snprintf(name[0], sizeof name[0], "lod%d.reconstruction_error", k);
+            snprintf(name[1], sizeof name[1], "lod%d.reconstruction_error_to_input", k);
+            snprintf(name[2], sizeof name[2], "lod%d.reconstruction_error_from_input", k);
+            snprintf(name[3], sizeof name[3], "lod%d.same_uv_error", k);
+            double node_surface = sc_ctx_metric_value(b.ctx, name[0]), node_same = sc_ctx_metric_value(b.ctx, name[3]);
+            printf("     %s level %d (%d faces): same-uv max %.3g rms %.3g p99 %.3g (node %.3g); surface distance: "
+                   "drawn here %.3g (to input %.3g, from input %.3g), node %.3g (to %.3g, from %.3g); seam energy %.3g\n",
+                   what, k, lv->mesh->as.mesh->nf, mx, rms, p99, node_same, fmax(to, from), to, from, node_surface,
+                   sc_ctx_metric_value(b.ctx, name[1]), sc_ctx_metric_value(b.ctx, name[2]), ed);
+            SC_CHECK_MSG(mx <= bars[k].max && rms <= bars[k].rms && p99 <= bars[k].p99,
+                         "%s level %d: same-uv max %g rms %g p99 %g", what, k, mx, rms, p99);
+            SC_CHECK_MSG(fmax(to, from) <= bars[k].surface && node_surface <= bars[k].surface,
+                         "%s level %d: surface distance %g (node %g), bar %g", what, k, fmax(to, from), node_surface,
+                         bars[k].surface);
+            SC_CHECK_MSG(ed <= 1e-8, "%s level %d: seam energy %g", what, k, ed);
+        }
+    }
+    sc_ctx_free(b.ctx);
+    sc_value_release(lods);
+}
 
 static void corpus_bake(const char *rel, const corpus_bar bars[2]) {
     if (!sc_test_corpus()) {
@@ -289,40 +414,26 @@ static void corpus_bake(const char *rel, const corpus_bar bars[2]) {
         return;
     }
     sc_value *atlas = sc_test_load_corpus(rel, NULL, NULL);
-    sc_value *lods = atlas ? decimated(atlas, "0.5,0.1") : NULL;
-    if (!lods) goto done;
-    const char *params[] = {"size", "1024", NULL};
-    sc_test_run b = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", lods);
-    SC_CHECK_MSG(b.rc == SC_OK, "%s: bake: %s", rel, b.err.message);
-    if (b.rc == SC_OK) {
-        const sc_mesh *in = atlas->as.atlas->mesh->as.mesh;
-        const sc_lods *out = out_of(&b, 1)->as.lods;
-        for (int k = 0; k < out->count && k < 2; k++) {
-            double mx, rms, p99, gap;
-            error_stats(in, out->levels[k]->as.atlas, in->nf > 8000 ? 2 : 1, &mx, &rms, &p99);
-            const sc_image_data *d = slot(out->levels[k]->as.atlas, "displacement");
-            double ed = seam_energy(out->levels[k]->as.atlas->mesh->as.mesh, d, &gap);
-            printf("     %s level %d (%d faces): reconstruction max %.3g rms %.3g p99 %.3g; seam energy %.3g\n", rel, k,
-                   out->levels[k]->as.atlas->mesh->as.mesh->nf, mx, rms, p99, ed);
-            SC_CHECK_MSG(mx <= bars[k].max && rms <= bars[k].rms && p99 <= bars[k].p99,
-                         "%s level %d: max %g rms %g p99 %g", rel, k, mx, rms, p99);
-            SC_CHECK_MSG(ed <= 1e-8, "%s level %d: seam energy %g", rel, k, ed);
-        }
-    }
-    sc_ctx_free(b.ctx);
-done:
-    sc_value_release(lods);
+    bake_1024(rel, atlas, bars);
     sc_value_release(atlas);
 }
 
 SC_TEST(corpus_blub_1024) {
-    const corpus_bar bars[2] = {{4e-3, 3e-4, 1.5e-3}, {1.5e-2, 1e-3, 5e-3}};
+    const corpus_bar bars[2] = {{4e-3, 3e-4, 1.5e-3, 1e-3}, {1.5e-2, 1e-3, 5e-3, 1.5e-2}};
     corpus_bake("blub/blub.obj", bars);
 }
 
 SC_TEST(corpus_boombox_1024) {
-    const corpus_bar bars[2] = {{2.5e-3, 2e-4, 1e-3}, {2e-2, 4e-4, 1.2e-3}};
+    const corpus_bar bars[2] = {{2.5e-3, 2e-4, 1e-3, 2.5e-3}, {2e-2, 4e-4, 1.2e-3, 2e-2}};
     corpus_bake("BoomBox/BoomBox_welded.obj", bars);
+}
+
+/* The procedural asset (resolution 24) meets 1e-3 both ways at 1024^2. */
+SC_TEST(procedural_1024) {
+    const corpus_bar bars[2] = {{1e-3, 1e-3, 1e-3, 5e-4}, {1e-3, 1e-3, 1e-3, 1e-3}};
+    sc_value *atlas = procedural_asset(24);
+    bake_1024("procedural", atlas, bars);
+    sc_value_release(atlas);
 }
 
 int main(void) { return sc_test_main(); }
