@@ -183,6 +183,7 @@
  * dropped (they no longer match the moved vertices).
  */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -313,7 +314,9 @@ typedef struct state {
     double error_weight;         /* 0: off */
     double input_area;           /* surface area of the input */
     const sc_hausdorff_mesh *input;   /* the input surface, uncentred */
-    sc_hausdorff_bvh *input_bvh; /* over `input`, built when tracking first starts (shared with the metric) */
+    sc_hausdorff_bvh *input_bvh; /* over `input`, for tracking and the Hausdorff metric (input_bvh_take) */
+    pthread_t bvh_thread;        /* with two threads: builds input_bvh while the collapses begin */
+    bool bvh_pending;
     int32_t *owned_head, *owned_tail;   /* per surface vertex: the input vertices it stands for */
     int32_t *owned_next;         /* per input vertex: the next one in its owner's list, or -1 */
     int32_t *near_face;          /* per surface vertex: an input face near it, where queries start */
@@ -2144,13 +2147,35 @@ static double tracked_error(state *st, const collapse_plan *p, int32_t *seed, do
     return worst;
 }
 
-/* Whether the tracked error joins the cost now; builds the input's BVH the
- * first time. */
-static bool tracking_now(state *st) {
-    if (!(st->error_weight > 0) || st->nf_alive > st->tracking_from) return false;
+/* The input's BVH. With two threads it is built beside the first
+ * collapses (input_bvh_start), which do not need it; the tree is the same
+ * either way. */
+static void *input_bvh_worker(void *ud) {
+    state *st = ud;
+    st->input_bvh = sc_hausdorff_bvh_build(st->input);
+    return NULL;
+}
+
+static void input_bvh_start(state *st, int threads) {
+    if (threads >= 2 && pthread_create(&st->bvh_thread, NULL, input_bvh_worker, st) == 0) st->bvh_pending = true;
+}
+
+/* The BVH, once built (NULL out of memory). */
+static sc_hausdorff_bvh *input_bvh_take(state *st) {
+    if (st->bvh_pending) {
+        pthread_join(st->bvh_thread, NULL);
+        st->bvh_pending = false;
+        if (!st->input_bvh) st->out_of_memory = true;
+    }
     if (!st->input_bvh && !st->out_of_memory && !(st->input_bvh = sc_hausdorff_bvh_build(st->input)))
         st->out_of_memory = true;
-    return st->input_bvh != NULL;
+    return st->input_bvh;
+}
+
+/* Whether the tracked error joins the cost now. */
+static bool tracking_now(state *st) {
+    if (!(st->error_weight > 0) || st->nf_alive > st->tracking_from) return false;
+    return input_bvh_take(st) != NULL;
 }
 
 /* Collapse until the face count is at most target or nothing can collapse.
@@ -2271,6 +2296,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     double started = sc_now();
     sc_lods *lods = NULL;
+    if (st.error_weight > 0 || samples > 0) input_bvh_start(&st, threads);
     rc = setup(&st, in, uv_weight, err);
     if (rc == SC_OK) {
         seam_census before;
@@ -2335,7 +2361,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
             sc_hausdorff_mesh level_mesh = {mesh->V, mesh->nv, mesh->FV, mesh->nf};
             sc_hausdorff_result hd;
             double measure_start = sc_now();
-            if (!st.input_bvh && !(st.input_bvh = sc_hausdorff_bvh_build(&input_mesh))) {
+            if (!input_bvh_take(&st)) {
                 sc_mesh_free(mesh);
                 rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
                 break;
@@ -2374,6 +2400,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         else sc_ctx_set_output(ctx, "lods", out);
     }
     sc_lods_free(lods);
+    if (st.bvh_pending) pthread_join(st.bvh_thread, NULL);   /* a build still running */
     sc_hausdorff_bvh_free(st.input_bvh);
     state_free(&st);
     free(targets);
