@@ -310,6 +310,7 @@ typedef struct state {
     int32_t *touched, *neighbours;
     int32_t touched_cap, neighbours_cap;
     bool out_of_memory;
+    int threads;                 /* for the first evaluation of every edge */
     /* error tracking (see the design note) */
     double error_weight;         /* 0: off */
     double input_area;           /* surface area of the input */
@@ -1970,14 +1971,52 @@ static int read_targets(sc_ctx *ctx, int32_t nf, int64_t **out, int *count, sc_e
     return SC_OK;
 }
 
-static void queue_all_edges(state *st) {
-    for (int32_t a = 0; a < st->nv && !st->out_of_memory; a++) {
+/* The edges (a, b > a) of the live vertices a in [a0, a1), appended in
+ * vertex order. Evaluating an edge reads the state and writes only its
+ * scratch (scratch, neighbours, vmark/vstamp) and heap. */
+static void queue_vertex_range(state *st, int32_t a0, int32_t a1) {
+    for (int32_t a = a0; a < a1 && !st->out_of_memory; a++) {
         if (!(st->vflags[a] & V_ALIVE)) continue;
-        st->vflags[a] &= (uint8_t)~V_RETRY;
         int32_t nn = copy_neighbours(st, a);
         for (int32_t i = 0; i < nn; i++)
             if (st->neighbours[i] > a) queue_edge_unordered(st, a, st->neighbours[i]);
     }
+}
+
+/* The first evaluation of every edge, the largest serial stretch of a
+ * decimation: with two threads, the vertices [mid, nv) go to a copy of the
+ * state with scratch and heap of its own, whose entries are then appended
+ * after the caller's, so the heap holds the serial sequence of entries. */
+typedef struct queue_split {
+    state *st, *upper;
+    int32_t mid;
+} queue_split;
+
+static int queue_split_run(void *ud, int32_t chunk) {
+    queue_split *q = ud;
+    if (chunk == 0) queue_vertex_range(q->st, 0, q->mid);
+    else queue_vertex_range(q->upper, q->mid, q->st->nv);
+    return SC_OK;
+}
+
+static void queue_all_edges(state *st, int threads) {
+    for (int32_t a = 0; a < st->nv; a++) st->vflags[a] &= (uint8_t)~V_RETRY;
+    state upper = *st;
+    upper.scratch = NULL, upper.scratch_cap = 0;
+    upper.neighbours = NULL, upper.neighbours_cap = 0;
+    upper.touched = NULL, upper.touched_cap = 0;
+    upper.heap = NULL, upper.heap_len = upper.heap_cap = 0;
+    upper.vstamp = 0;
+    upper.vmark = threads >= 2 ? sc_calloc_array((size_t)st->nv + 1, sizeof *upper.vmark) : NULL;
+    queue_split q = {st, &upper, st->nv / 2};
+    if (!upper.vmark || sc_parallel(2, 2, queue_split_run, &q) != SC_OK) {
+        queue_vertex_range(st, 0, st->nv);   /* one thread */
+    } else {
+        for (int64_t i = 0; i < upper.heap_len && !upper.out_of_memory; i++)
+            if (!heap_append(st, upper.heap[i])) st->out_of_memory = true;
+        st->out_of_memory |= upper.out_of_memory;
+    }
+    free(upper.vmark), free(upper.scratch), free(upper.neighbours), free(upper.touched), free(upper.heap);
     heap_compact(st);   /* one O(n) heapify instead of n pushes */
 }
 
@@ -2197,7 +2236,7 @@ static bool decimate_to(state *st, int64_t target) {
         if (!heap_pop(st, &e)) {
             if (requeued_since_collapse) return false;
             /* a last full pass catches edges a local update missed */
-            queue_all_edges(st);
+            queue_all_edges(st, st->threads);
             requeued_since_collapse = true;
             continue;
         }
@@ -2291,6 +2330,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     int64_t samples = sc_ctx_integer(ctx, "hausdorff_samples");
     double uv_weight = sc_ctx_number(ctx, "uv_weight");
     int threads = sc_ctx_threads(ctx);
+    st.threads = threads;
     sc_hausdorff_mesh input_mesh = {in->V, in->nv, in->FV, in->nf};
     st.input = &input_mesh;
 
@@ -2312,7 +2352,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "uv_scale", st.uv_scale);
         sc_ctx_metric(ctx, "uv_precision", st.uv_precision);
         sc_ctx_metric(ctx, "locked_vertices", (double)locked);
-        queue_all_edges(&st);
+        queue_all_edges(&st, st.threads);
         lods = sc_lods_new();
         if (!lods) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     }
