@@ -588,33 +588,91 @@ static void mark_pieces(const sc_seam_grid *g, const double *a0, const double *a
     }
 }
 
+/* The pieces of edge q of s (seams split as pairs, exactly as the operator
+ * splits them; other silhouettes on their own): its sides into sd, the uv
+ * ends of side 0 (a0, a1) and side 1 (b0, b1, NULL for one side) into ends,
+ * the grid parameters into w->gm. Returns their count, 0 for an edge with
+ * no pieces of its own (a silhouette side of a seam), -1 with err set. */
+static int32_t edge_pieces(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g, int32_t q, walk *w,
+                           const sc_seam_side *sd[2], const double *ends[4], sc_error *err) {
+    sd[0] = sd[1] = NULL;
+    if (q < s->nseams) {
+        sd[0] = &s->seams[q].side[0], sd[1] = &s->seams[q].side[1];
+    } else {
+        const sc_seam_silhouette *x = &s->sil[q - s->nseams];
+        if (x->kind == SC_SEAM_SIDE) return 0;
+        sd[0] = &x->side;
+    }
+    ends[0] = uvp(m, sd[0]->uv0), ends[1] = uvp(m, sd[0]->uv1);
+    ends[2] = sd[1] ? uvp(m, sd[1]->uv0) : NULL, ends[3] = sd[1] ? uvp(m, sd[1]->uv1) : NULL;
+    int32_t n = sc_seam_crossings(g, ends[0], ends[1], ends[2], ends[3], &w->gm, &w->gcap);
+    if (n < 0)
+        sc_fail(err, SC_EINPUT, "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
+                (int)sd[0]->face, SC_SEAM_MAX_CROSSINGS);
+    return n;
+}
+
 int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                         sc_seam_texset *set, sc_error *err) {
     walk w = {0};
-    /* seams split as pairs (exactly as the operator splits them), then the
-     * other silhouettes on their own */
     for (int32_t q = 0; q < s->nseams + s->nsil; q++) {
-        const sc_seam_side *sd[2] = {NULL, NULL};
-        if (q < s->nseams) {
-            sd[0] = &s->seams[q].side[0], sd[1] = &s->seams[q].side[1];
-        } else {
-            const sc_seam_silhouette *x = &s->sil[q - s->nseams];
-            if (x->kind == SC_SEAM_SIDE) continue;
-            sd[0] = &x->side;
-        }
-        const double *a0 = uvp(m, sd[0]->uv0), *a1 = uvp(m, sd[0]->uv1);
-        const double *b0 = sd[1] ? uvp(m, sd[1]->uv0) : NULL, *b1 = sd[1] ? uvp(m, sd[1]->uv1) : NULL;
-        int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w.gm, &w.gcap);
+        const sc_seam_side *sd[2];
+        const double *e[4];
+        int32_t n = edge_pieces(m, s, g, q, &w, sd, e, err);
         if (n < 0) {
             free(w.gm);
-            return sc_fail(err, SC_EINPUT,
-                           "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
-                           (int)sd[0]->face, SC_SEAM_MAX_CROSSINGS);
+            return SC_EINPUT;
         }
-        mark_pieces(g, a0, a1, w.gm, n, set);
-        if (b0) mark_pieces(g, b0, b1, w.gm, n, set);
+        if (n == 0) continue;
+        mark_pieces(g, e[0], e[1], w.gm, n, set);
+        if (e[2]) mark_pieces(g, e[2], e[3], w.gm, n, set);
     }
     free(w.gm);
+    return SC_OK;
+}
+
+/* The walk of sc_seam_mark_texels, recording for each texel of `index` the
+ * first piece that reaches it. */
+int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                         const sc_seam_texset *index, int32_t *group, double *gamma,
+                         int32_t *face, sc_error *err) {
+    const int32_t n = index->count;
+    for (int32_t r = 0; r < n; r++) group[r] = -1, gamma[r] = 0, face[r] = -1;
+    walk w = {0};
+    const int32_t multiple = -2;
+    for (int32_t q = 0; q < s->nseams + s->nsil; q++) {
+        const sc_seam_side *sd[2];
+        const double *e[4];
+        int32_t np = edge_pieces(m, s, g, q, &w, sd, e, err);
+        if (np < 0) {
+            free(w.gm);
+            return SC_EINPUT;
+        }
+        if (np == 0) continue;
+        for (int side = 0; side < (sd[1] ? 2 : 1); side++) {
+            const double *p0 = e[2 * side], *p1 = e[2 * side + 1];
+            for (int32_t i = 0; i + 1 < np; i++) {
+                if (!(w.gm[i + 1] > w.gm[i])) continue;
+                double pa[2], pb[2];
+                lerp2(p0, p1, w.gm[i], pa);
+                lerp2(p0, p1, w.gm[i + 1], pb);
+                sc_seam_cellpoly cp;
+                sc_seam_cellpoly_make(g, pa, pb, NULL, &cp);
+                for (int k = 0; k < 4; k++) {
+                    int32_t r = sc_seam_texset_index(index, cp.id[k]);
+                    if (r < 0) continue;
+                    if (group[r] == -1) {
+                        group[r] = q, gamma[r] = 0.5 * (w.gm[i] + w.gm[i + 1]), face[r] = sd[side]->face;
+                    } else if (group[r] != q) {
+                        group[r] = multiple;
+                    }
+                }
+            }
+        }
+    }
+    free(w.gm);
+    for (int32_t r = 0; r < n; r++)
+        if (group[r] == multiple) group[r] = -1;
     return SC_OK;
 }
 

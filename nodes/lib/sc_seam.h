@@ -176,6 +176,18 @@ bool sc_seam_inward_normal(const sc_mesh *m, const sc_seam_grid *g, const sc_sea
 int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                         sc_seam_texset *set, sc_error *err);
 
+/* Which edge each texel of `index` belongs to, for solvers that eliminate the
+ * texels of one edge together: group[r] is the seam (0..nseams-1) or
+ * nseams + the silhouette whose cells alone reach texel r (-1 when cells of
+ * two or more edges reach it, or none), gamma[r] the edge parameter of the
+ * first piece that reaches it (both sides of a seam share gamma), and
+ * face[r] the face of that piece's side (-1 when none). */
+int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                         const sc_seam_texset *index, int32_t *group, double *gamma,
+                         int32_t *face, sc_error *err);
+
+/* sc_parallel (sc_base.h) under its older name. */
+
 /* The terms of Liu et al. §3-4 over the texels of `index` (a texel outside
  * it is an error), each a quadratic E(x) = x^T Q x + linear + constant per
  * channel:

@@ -265,9 +265,11 @@ int sc_sparse_submatrix(const sc_sparse *a, const int32_t *keep, int32_t count, 
     return SC_OK;
 }
 
-void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) {
+/* y = A x over the columns [j0, j1) of the symmetric A (upper triangle);
+ * y is overwritten. */
+static void symv_columns(const sc_sparse *a, const double *x, double *y, int32_t j0, int32_t j1) {
     memset(y, 0, (size_t)a->n * sizeof *y);
-    for (int32_t j = 0; j < a->n; j++) {
+    for (int32_t j = j0; j < j1; j++) {
         double xj = x[j], acc = 0;
         for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) {
             int32_t i = a->rowind[p];
@@ -282,6 +284,109 @@ void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) {
         y[j] += acc;
     }
 }
+
+void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) { symv_columns(a, x, y, 0, a->n); }
+
+int sc_sparse_full(const sc_sparse *u, sc_sparse *f, sc_error *err) {
+    memset(f, 0, sizeof *f);
+    int32_t n = u->n;
+    int64_t nnz = 0;
+    for (int32_t j = 0; j < n; j++)
+        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) nnz += u->rowind[p] == j ? 1 : 2;
+    if (nnz > INT32_MAX) return sc_fail(err, SC_ENOMEM, "symmetric matrix beyond the 2^31 limit");
+    f->colptr = sc_calloc_array((size_t)n + 1, sizeof *f->colptr);
+    f->rowind = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->rowind);
+    f->val = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->val);
+    int32_t *next = sc_alloc_array((size_t)n + 1, sizeof *next);
+    if (!f->colptr || !f->rowind || !f->val || !next) {
+        free(next);
+        sc_sparse_free(f);
+        return sc_fail(err, SC_ENOMEM, "out of memory for a symmetric matrix");
+    }
+    for (int32_t j = 0; j < n; j++)
+        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) {
+            int32_t i = u->rowind[p];
+            f->colptr[j + 1]++;
+            if (i != j) f->colptr[i + 1]++;
+        }
+    for (int32_t j = 0; j < n; j++) f->colptr[j + 1] += f->colptr[j];
+    memcpy(next, f->colptr, (size_t)n * sizeof *next);
+    /* column c gets its own upper rows (<= c) at j = c, then rows j > c in
+     * increasing j: sorted */
+    for (int32_t j = 0; j < n; j++)
+        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) {
+            int32_t i = u->rowind[p];
+            double v = u->val[p];
+            f->rowind[next[j]] = i, f->val[next[j]++] = v;
+            if (i != j) f->rowind[next[i]] = j, f->val[next[i]++] = v;
+        }
+    f->n = n;
+    f->nnz = nnz;
+    free(next);
+    return SC_OK;
+}
+
+typedef struct full_mul_job {
+    const sc_sparse *a;
+    const double *x;
+    double *y;
+    int32_t rows_per_chunk;
+} full_mul_job;
+
+static int full_mul_chunk(void *ud, int32_t chunk) {
+    const full_mul_job *job = ud;
+    const sc_sparse *a = job->a;
+    int32_t r0 = chunk * job->rows_per_chunk, r1 = r0 + job->rows_per_chunk;
+    if (r1 > a->n) r1 = a->n;
+    for (int32_t r = r0; r < r1; r++) {
+        double s = 0;
+        for (int32_t p = a->colptr[r]; p < a->colptr[r + 1]; p++) s += a->val[p] * job->x[a->rowind[p]];
+        job->y[r] = s;
+    }
+    return SC_OK;
+}
+
+void sc_sparse_full_multiply(const sc_sparse *a, const double *x, double *y, int threads) {
+    if (a->n <= 0) return;
+    full_mul_job job = {a, x, y, 16384};
+    int32_t chunks = (a->n + job.rows_per_chunk - 1) / job.rows_per_chunk;
+    if (threads <= 1 || chunks == 1) {
+        for (int32_t c = 0; c < chunks; c++) full_mul_chunk(&job, c);
+        return;
+    }
+    if (sc_parallel(threads, chunks, full_mul_chunk, &job) != SC_OK)
+        for (int32_t c = 0; c < chunks; c++) full_mul_chunk(&job, c); /* no threads: serially */
+}
+
+typedef struct symv_half {
+    const sc_sparse *a;
+    const double *x;
+    double *y[2];
+    int32_t split;
+} symv_half;
+
+static int symv_half_run(void *ud, int32_t half) {
+    const symv_half *h = ud;
+    symv_columns(h->a, h->x, h->y[half], half ? h->split : 0, half ? h->a->n : h->split);
+    return SC_OK;
+}
+
+void sc_sparse_symv_parallel(const sc_sparse *a, const double *x, double *y, double *second, int threads) {
+    /* the column where half of the entries have been seen */
+    int32_t lo = 0, hi = a->n;
+    while (lo < hi) {
+        int32_t mid = lo + (hi - lo) / 2;
+        if ((int64_t)a->colptr[mid] * 2 < a->nnz) lo = mid + 1;
+        else hi = mid;
+    }
+    symv_half h = {a, x, {y, second}, lo};
+    if (threads < 2 || sc_parallel(2, 2, symv_half_run, &h) != SC_OK) {
+        symv_half_run(&h, 0);
+        symv_half_run(&h, 1);
+    }
+    for (int32_t i = 0; i < a->n; i++) y[i] += second[i];
+}
+
 
 double sc_sparse_quadform(const sc_sparse *a, const double *x) {
     double s = 0;

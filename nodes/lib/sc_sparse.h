@@ -118,4 +118,22 @@ int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count,
 /* An upper bound of the largest |eigenvalue| (largest absolute row sum). */
 double sc_sparse_norm_bound(const sc_sparse *a);
 
+/* The full pattern of a symmetric matrix stored as its upper triangle: both
+ * triangles, rows sorted within each column. Being symmetric, it reads the
+ * same as compressed sparse rows; only the sc_sparse_full_* functions (and
+ * sc_schur) take it. */
+int sc_sparse_full(const sc_sparse *upper, sc_sparse *full, sc_error *err);
+
+/* y = A x for a full-pattern A, rows split over up to `threads` threads (each
+ * row's sum is formed the same way whatever the thread count). */
+void sc_sparse_full_multiply(const sc_sparse *full, const double *x, double *y, int threads);
+
+/* y = A x for the symmetric A (as sc_sparse_symv) on two threads when
+ * `threads` allows: the columns are split in
+ * two halves of equal entries, the second summed into `scratch` (n values),
+ * and the two are added in a fixed order, so the bits do not depend on the
+ * thread count. */
+void sc_sparse_symv_parallel(const sc_sparse *a, const double *x, double *y, double *scratch,
+                             int threads);
+
 #endif

@@ -15,6 +15,7 @@
 
 #include "sc_exec.h"
 #include "sc_nodes.h"
+#include "sc_schur.h"
 #include "sc_seam.h"
 #include "sc_sparse.h"
 #include "sc_test.h"
@@ -419,6 +420,110 @@ SC_TEST(sparse_assembly_and_solve) {
     SC_CHECK_INT(cnt, n);
     sc_sparse_free(&a);
     sc_triplets_free(&t);
+}
+
+/* sc_schur against CHOLMOD on one matrix: chains of unknowns (clusters, as
+ * the texels along an edge) that couple along themselves, a few unknowns
+ * of no cluster joining chains, and weak couplings between chains that
+ * the preconditioner leaves out (conjugate gradients take them in). */
+SC_TEST(schur_clusters_match_direct_solve) {
+    enum { CHAINS = 40, LEN = 30, JOINS = 20 };
+    const int n = CHAINS * LEN + JOINS;
+    int32_t group[CHAINS * LEN + JOINS];
+    double key[CHAINS * LEN + JOINS];
+    sc_triplets ta, tq;
+    sc_triplets_init(&ta, n);
+    sc_triplets_init(&tq, n);
+    rng_state = 777;
+    for (int c = 0; c < CHAINS; c++)
+        for (int k = 0; k < LEN; k++) {
+            int i = c * LEN + k;
+            group[i] = (c * 7) % CHAINS;   /* group ids in any order */
+            key[i] = (double)((k * 11) % LEN);   /* the chain's order is by key, not index */
+            double d = 0.1 + rnd();
+            sc_triplets_add(&ta, i, i, d);
+            /* couple each unknown to the next two by key */
+            for (int step = 1; step <= 2; step++)
+                for (int k2 = 0; k2 < LEN; k2++)
+                    if ((k2 * 11) % LEN == (int)key[i] + step) {
+                        double w = 0.5 + rnd();
+                        int j = c * LEN + k2;
+                        sc_triplets_add(&ta, i, i, w), sc_triplets_add(&ta, j, j, w), sc_triplets_add(&ta, i, j, -w);
+                    }
+        }
+    for (int q = 0; q < JOINS; q++) {   /* interface unknowns tying chain ends together */
+        int i = CHAINS * LEN + q;
+        group[i] = -1, key[i] = 0;
+        sc_triplets_add(&ta, i, i, 1.0);
+        for (int e = 0; e < 4; e++) {
+            int j = ((q * 4 + e) % CHAINS) * LEN + (e * 7) % LEN;
+            double w = 1e3 * (0.5 + rnd());   /* stiff, as the seam penalty */
+            sc_triplets_add(&ta, i, i, w), sc_triplets_add(&ta, j, j, w), sc_triplets_add(&ta, i, j, -w);
+        }
+    }
+    sc_triplets_append(&tq, &ta);
+    for (int c = 0; c + 1 < CHAINS; c++) {   /* weak couplings between neighbouring chains: Q only */
+        int i = c * LEN + 3, j = (c + 1) * LEN + 17;
+        sc_triplets_add(&tq, i, i, 1.0), sc_triplets_add(&tq, j, j, 1.0), sc_triplets_add(&tq, i, j, -1.0);
+    }
+    sc_sparse a, q, af;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_sparse_from_triplets(&ta, &a, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_from_triplets(&tq, &q, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_full(&a, &af, &err), SC_OK);
+    SC_CHECK_INT(af.nnz, 2 * a.nnz - n);
+    double *x = malloc(sizeof(double) * 2 * n), *b = malloc(sizeof(double) * 2 * n);
+    double *y = malloc(sizeof(double) * 2 * n), *yf = malloc(sizeof(double) * n);
+    for (int i = 0; i < 2 * n; i++) x[i] = sin(0.37 * i) + (i % 5 == 0 ? 3.0 : 0.0);
+    /* full-pattern multiply = symmetric multiply */
+    sc_sparse_symv(&a, x, y);
+    sc_sparse_full_multiply(&af, x, yf, 2);
+    double e = 0;
+    for (int i = 0; i < n; i++) e = fmax(e, fabs(y[i] - yf[i]));
+    SC_CHECK_MSG(e < 1e-12, "full multiply off by %g", e);
+    /* the factorisation solves A directly: two columns at once */
+    sc_schur *f = NULL;
+    SC_CHECK_INT(sc_schur_factor(&af, group, key, 2, &f, &err), SC_OK);
+    if (f) {
+        sc_schur_stats st;
+        sc_schur_get_stats(f, &st);
+        SC_CHECK_MSG(st.private_unknowns > CHAINS * LEN / 2 && st.interface_unknowns >= JOINS,
+                     "private %d interface %d", (int)st.private_unknowns, (int)st.interface_unknowns);
+        sc_sparse_symv(&a, x, b), sc_sparse_symv(&a, x + n, b + n);
+        SC_CHECK_INT(sc_schur_solve(f, 2, b, &err), SC_OK);
+        e = 0;
+        for (int i = 0; i < 2 * n; i++) e = fmax(e, fabs(b[i] - x[i]));
+        SC_CHECK_MSG(e < 1e-9, "schur solve off by %g", e);
+        /* conjugate gradients on Q, against CHOLMOD on Q */
+        double scratch[CHAINS * LEN + JOINS];
+        sc_sparse_symv_parallel(&q, x, b, scratch, 2);
+        sc_sparse_symv(&q, x, y);
+        e = 0;
+        for (int i = 0; i < n; i++) e = fmax(e, fabs(b[i] - y[i]));
+        SC_CHECK_MSG(e < 1e-9, "two-thread symmetric multiply off by %g", e);
+        sc_sparse_symv(&q, x + n, b + n);
+        memcpy(y, b, sizeof(double) * 2 * n);
+        sc_schur_pcg_result res;
+        SC_CHECK_INT(sc_schur_pcg(f, &q, 2, b, 1e-13, 200, 2, &res, &err), SC_OK);
+        sc_sparse_chol *direct = NULL;
+        SC_CHECK_INT(sc_sparse_chol_factor(&q, NULL, &direct, &err), SC_OK);
+        SC_CHECK_INT(sc_sparse_chol_solve(direct, 2, y, &err), SC_OK);
+        e = 0;
+        for (int i = 0; i < 2 * n; i++) e = fmax(e, fabs(b[i] - y[i]));
+        printf("     schur: %d private, %d interface; pcg %d iterations, off CHOLMOD by %.3g\n",
+               (int)st.private_unknowns, (int)st.interface_unknowns, (int)res.iterations, e);
+        SC_CHECK_MSG(res.iterations >= 2 && e < 1e-8, "pcg: %d iterations, off by %g", (int)res.iterations, e);
+        sc_sparse_chol_free(direct);
+        /* not positive definite: an error, not a crash */
+        sc_schur_free(f);
+        f = NULL;
+        for (int64_t k = 0; k < af.nnz; k++) af.val[k] = -af.val[k];
+        SC_CHECK(sc_schur_factor(&af, group, key, 2, &f, &err) != SC_OK);
+        sc_schur_free(f);
+    }
+    free(x), free(b), free(y), free(yf);
+    sc_sparse_free(&a), sc_sparse_free(&q), sc_sparse_free(&af);
+    sc_triplets_free(&ta), sc_triplets_free(&tq);
 }
 
 SC_TEST(sparse_not_positive_definite) {
@@ -1051,6 +1156,54 @@ SC_TEST(node_several_textures_and_params) {
 /* ================================================================ corpus */
 
 /* erase, then check every texture with the reference sampler */
+/* solver schur (edge clusters + CHOLMOD on the rest, conjugate gradients on
+ * the whole system) against solver cholmod: both erase, measured by the
+ * reference sampler, and agree texel by texel; the same bytes on any thread
+ * count. BoomBox's charts lie side by side in its atlas, so the couplings
+ * the preconditioner leaves out are many. */
+static void schur_against_cholmod(const char *what, sc_value *atlas, const char *slots) {
+    const char *kv_s[] = {"solver", "schur", "textures", slots, NULL}, *kv_c[] = {"solver", "cholmod", "textures", slots, NULL};
+    sc_error err = {0};
+    sc_ctx *s = run_erase(atlas, kv_s, 2, &err), *c = run_erase(atlas, kv_c, 2, &err), *s1 = run_erase(atlas, kv_s, 1, &err);
+    SC_CHECK_MSG(s && c && s1, "%s: %s", what, err.message);
+    if (s && c && s1) {
+        SC_CHECK_MSG(sc_ctx_metric_value(s, "pcg_iterations") >= 1, "%s: the schur solver did not run", what);
+        SC_CHECK(sc_digest_equal(&sc_ctx_output(s, 0)->digest, &sc_ctx_output(s1, 0)->digest));
+        const sc_atlas *a = atlas->as.atlas;
+        for (int i = 0; i < a->ntex; i++) {
+            if (sc_ctx_output(s, 0)->as.atlas->textures[i].image == a->textures[i].image) continue;
+            double b, af, g;
+            ref_measure(atlas, s, 0, i, &b, &af, &g);
+            const sc_image_data *x = out_image(s, 0, i), *y = out_image(c, 0, i);
+            double diff = 0;
+            size_t count = (size_t)x->width * x->height * x->channels;
+            for (size_t k = 0; k < count; k++)
+                diff = fmax(diff, fabs((double)((const float *)x->pixels)[k] - ((const float *)y->pixels)[k]));
+            printf("     %s %s: schur D %.3g -> %.3g, gap %.3g, %g pcg iterations, largest texel difference to "
+                   "cholmod %.3g\n", what, a->textures[i].name, b, af, g, sc_ctx_metric_value(s, "pcg_iterations"), diff);
+            SC_CHECK_MSG(af <= 1e-6 * b && g <= 1e-4, "%s: D %g -> %g, gap %g", what, b, af, g);
+            SC_CHECK_MSG(diff <= 1e-5, "%s: schur and cholmod differ by %g", what, diff);
+        }
+    }
+    sc_ctx_free(s), sc_ctx_free(c), sc_ctx_free(s1);
+}
+
+SC_TEST(node_schur_solver_synthetic_cube) {
+    sc_value *atlas = one_texture_atlas(cube_mesh(17, true), noise_image(64, 64, 3, SC_PIXEL_F32, -1), SC_WRAP_REPEAT);
+    schur_against_cholmod("cube", atlas, "all");
+    sc_value_release(atlas);
+}
+
+SC_TEST(corpus_boombox_schur_solver) {
+    if (!sc_test_corpus()) {
+        printf("     corpus absent: skipped\n");
+        return;
+    }
+    sc_value *atlas = sc_test_load_corpus("BoomBox/BoomBox_welded.obj", NULL, NULL);
+    if (atlas) schur_against_cholmod("BoomBox", atlas, "color");
+    sc_value_release(atlas);
+}
+
 static void corpus_check(const char *rel, const char *texture, const char *slots, bool expect_clean) {
     if (!sc_test_corpus()) {
         printf("     corpus absent: skipped %s\n", rel);

@@ -1,0 +1,685 @@
+/* sc_schur.c - clusters eliminated on their own, the interface by CHOLMOD,
+ * and conjugate gradients around it.
+ *
+ * Design note.
+ *  - Order. Private unknowns come first, cluster by cluster (clusters in
+ *    increasing group id, unknowns in key order), then the interface in
+ *    index order. A private unknown couples only to its own cluster and to
+ *    the interface, so A is
+ *        [ A_pp  A_pi ]      A_pp block diagonal (one block per cluster),
+ *        [ A_ip  A_ii ]
+ *    and S = A_ii - sum_c A_ic A_cc^-1 A_ci is the interface system.
+ *  - Clusters. In key order a cluster's block is nearly banded (texels along
+ *    an edge couple to texels a cell or two away), so each block is factored
+ *    in its envelope (row k stores columns first[k]..k; the envelope of L is
+ *    that of A, so there is no fill outside it) by row Crout: inner loops are
+ *    dot products of contiguous rows. Its Schur complement Z^T Z, with
+ *    Z = L_c^-1 A_ci, is dense over the interface unknowns the cluster
+ *    touches (a few dozen); forward substitution starts at each column's
+ *    first nonzero, so the unknowns at the far end of a chain cost little.
+ *    Only L_c is kept: a solve recomputes A_ci products from the couplings.
+ *  - Interface. S is assembled from A_ii and every cluster's complement, in
+ *    a fixed order, and factored by CHOLMOD (AMD). It is a small fraction of
+ *    A (pizza: 271k of 2.07M unknowns) and carries what makes the whole
+ *    system hard to order: where chains meet.
+ *  - Solve: y = A_pp^-1 b_p; S x_i = b_i - A_ip y; x_p = y - A_pp^-1 A_pi x_i.
+ *  - Conjugate gradients (sc_schur_pcg) solve (A + E) x = b with this
+ *    factorisation as the preconditioner, for an E that would spoil the
+ *    chain structure (erase_seams: grid couplings between texels of
+ *    different charts that happen to lie side by side in the atlas).
+ *  - Determinism. Work is split into chunks fixed by the sizes alone;
+ *    complements are appended chunk by chunk; dot products are summed per
+ *    fixed chunk of rows and then in chunk order. The bits do not depend on
+ *    the thread count.
+ */
+#include "sc_schur.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define CLUSTER_CHUNKS 256
+#define ROW_CHUNK 16384
+#define PCG_BATCH 4
+
+typedef struct csr {
+    int32_t *ptr, *idx;
+    double *val;
+} csr;
+
+static void csr_free(csr *c) {
+    free(c->ptr), free(c->idx), free(c->val);
+    memset(c, 0, sizeof *c);
+}
+
+struct sc_schur {
+    int32_t n, npriv, nif, nclusters;
+    int32_t *order;     /* position -> unknown */
+    int32_t *position;  /* unknown -> position */
+    int32_t *cstart;    /* nclusters + 1: positions of each cluster */
+    int32_t *first;     /* npriv: first column of each envelope row */
+    int64_t *envptr;    /* npriv + 1 */
+    double *env;        /* envelope rows of the cluster factors */
+    csr b;              /* private row -> (interface index, value) */
+    csr bt;             /* interface index -> (private position, value) */
+    sc_sparse_chol *s;  /* NULL when there is no interface */
+    sc_schur_stats stats;
+    int threads;
+    double *work, *work_if;  /* solve scratch: n and nif values per column, kept */
+    int32_t work_cols;
+};
+
+/* ---------------------------------------------------------------- envelope */
+
+static inline double *env_row(const sc_schur *f, int32_t k) { return f->env + f->envptr[k]; }
+
+/* Row Crout on the envelope rows [k0, k1) (one cluster). */
+static bool envelope_factor(sc_schur *f, int32_t k0, int32_t k1, double *flops) {
+    for (int32_t i = k0; i < k1; i++) {
+        double *ri = env_row(f, i);
+        int32_t fi = f->first[i];
+        for (int32_t j = fi; j <= i; j++) {
+            const double *rj = env_row(f, j);
+            int32_t fj = f->first[j], k = fi > fj ? fi : fj;
+            const double *a = ri + (k - fi), *b = rj + (k - fj);
+            double s = ri[j - fi];
+            for (int32_t t = 0; t < j - k; t++) s -= a[t] * b[t];
+            *flops += 2.0 * (j - k);
+            if (j < i) {
+                ri[j - fi] = s / rj[j - fj];
+            } else {
+                if (!(s > 0)) return false;
+                ri[i - fi] = sqrt(s);
+            }
+        }
+    }
+    return true;
+}
+
+/* Forward substitution L y = x on the rows [k0, k1) of one cluster, from row
+ * `from` on (x is zero above it); x[0] is row k0's entry. Returns the flops. */
+static double envelope_forward(const sc_schur *f, int32_t k0, int32_t k1, int32_t from, double *x) {
+    double flops = 0;
+    for (int32_t i = from; i < k1; i++) {
+        const double *ri = env_row(f, i);
+        int32_t fi = f->first[i], k = fi > from ? fi : from;
+        const double *a = ri + (k - fi), *xx = x + (k - k0);
+        double s = x[i - k0];
+        for (int32_t t = 0; t < i - k; t++) s -= a[t] * xx[t];
+        x[i - k0] = s / ri[i - fi];
+        flops += 2.0 * (i - k) + 1;
+    }
+    return flops;
+}
+
+/* Back substitution L^T y = x on the rows [k0, k1); x[0] is row k0's entry. */
+static void envelope_backward(const sc_schur *f, int32_t k0, int32_t k1, double *x) {
+    for (int32_t i = k1 - 1; i >= k0; i--) {
+        const double *ri = env_row(f, i);
+        int32_t fi = f->first[i];
+        double xi = x[i - k0] / ri[i - fi];
+        x[i - k0] = xi;
+        double *xx = x + (fi - k0);
+        for (int32_t t = 0; t < i - fi; t++) xx[t] -= ri[t] * xi;
+    }
+}
+
+/* ---------------------------------------------------------------- factor */
+
+typedef struct factor_job {
+    sc_schur *f;
+    const sc_sparse *a;
+    int32_t per_chunk;
+    sc_triplets *trip;  /* one list per chunk */
+    double *flops;      /* one per chunk */
+    int32_t *bad;       /* one per chunk: the first cluster that is not positive definite, or -1 */
+} factor_job;
+
+static int cmp_int32(const void *pa, const void *pb) {
+    int32_t a = *(const int32_t *)pa, b = *(const int32_t *)pb;
+    return a < b ? -1 : a > b;
+}
+
+/* Fill, factor and eliminate one cluster; its complement goes to trip. */
+static int factor_cluster(factor_job *job, int32_t c, sc_triplets *trip, double *flops,
+                          int32_t **loc, int32_t *loc_cap, double **z, size_t *z_cap) {
+    sc_schur *f = job->f;
+    const sc_sparse *a = job->a;
+    int32_t k0 = f->cstart[c], k1 = f->cstart[c + 1], np = k1 - k0;
+    for (int32_t k = k0; k < k1; k++) {
+        double *rk = env_row(f, k);
+        int32_t fk = f->first[k];
+        memset(rk, 0, (size_t)(k - fk + 1) * sizeof *rk);
+        int32_t t = f->order[k];
+        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+            int32_t q = f->position[a->rowind[p]];
+            if (q <= k && q >= k0) rk[q - fk] += a->val[p];
+        }
+    }
+    if (!envelope_factor(f, k0, k1, flops)) return 1;
+
+    /* the interface unknowns this cluster touches, sorted and unique */
+    int32_t nb = f->b.ptr[k1] - f->b.ptr[k0];
+    if (nb == 0) return 0;
+    if (nb > *loc_cap) {
+        int32_t *p = realloc(*loc, (size_t)nb * sizeof *p);
+        if (!p) return -1;
+        *loc = p, *loc_cap = nb;
+    }
+    int32_t *ifs = *loc;
+    memcpy(ifs, f->b.idx + f->b.ptr[k0], (size_t)nb * sizeof *ifs);
+    qsort(ifs, (size_t)nb, sizeof *ifs, cmp_int32);
+    int32_t m = 0;
+    for (int32_t q = 0; q < nb; q++)
+        if (m == 0 || ifs[q] != ifs[m - 1]) ifs[m++] = ifs[q];
+
+    /* Z = L^-1 A_ci, one dense column (np long) per interface unknown */
+    size_t need = (size_t)np * (size_t)m;
+    if (need > *z_cap) {
+        double *p = realloc(*z, need * sizeof *p);
+        if (!p) return -1;
+        *z = p, *z_cap = need;
+    }
+    double *zz = *z;
+    memset(zz, 0, need * sizeof *zz);
+    int32_t *start = sc_alloc_array((size_t)m, sizeof *start);
+    if (!start) return -1;
+    for (int32_t q = 0; q < m; q++) start[q] = np;
+    for (int32_t k = k0; k < k1; k++)
+        for (int32_t p = f->b.ptr[k]; p < f->b.ptr[k + 1]; p++) {
+            int32_t lo = 0, hi = m - 1, want = f->b.idx[p];
+            while (lo < hi) {
+                int32_t mid = (lo + hi) / 2;
+                if (ifs[mid] < want) lo = mid + 1;
+                else hi = mid;
+            }
+            zz[(size_t)lo * np + (k - k0)] += f->b.val[p];
+            if (k - k0 < start[lo]) start[lo] = k - k0;
+        }
+    for (int32_t q = 0; q < m; q++) *flops += envelope_forward(f, k0, k1, k0 + start[q], zz + (size_t)q * np);
+    if (!sc_triplets_reserve(trip, (size_t)m * (size_t)(m + 1) / 2)) {
+        free(start);
+        return -1;
+    }
+    for (int32_t qa = 0; qa < m; qa++)
+        for (int32_t qb = qa; qb < m; qb++) {
+            int32_t s0 = start[qa] > start[qb] ? start[qa] : start[qb];
+            const double *za = zz + (size_t)qa * np, *zb = zz + (size_t)qb * np;
+            double s = 0;
+            for (int32_t k = s0; k < np; k++) s += za[k] * zb[k];
+            *flops += 2.0 * (np - s0);
+            if (s != 0) sc_triplets_add(trip, ifs[qa], ifs[qb], -s);
+        }
+    free(start);
+    return 0;
+}
+
+static int factor_chunk(void *ud, int32_t chunk) {
+    factor_job *job = ud;
+    int32_t c0 = chunk * job->per_chunk, c1 = c0 + job->per_chunk;
+    if (c1 > job->f->nclusters) c1 = job->f->nclusters;
+    int32_t *loc = NULL, loc_cap = 0;
+    double *z = NULL;
+    size_t z_cap = 0;
+    int rc = SC_OK;
+    job->bad[chunk] = -1;
+    for (int32_t c = c0; c < c1; c++) {
+        int r = factor_cluster(job, c, &job->trip[chunk], &job->flops[chunk], &loc, &loc_cap, &z, &z_cap);
+        if (r < 0) {
+            rc = SC_ENOMEM;
+            break;
+        }
+        if (r > 0) {
+            job->bad[chunk] = c;
+            break;
+        }
+    }
+    free(loc), free(z);
+    return rc;
+}
+
+typedef struct keyed {
+    double key;
+    int32_t index;
+} keyed;
+
+static int cmp_keyed(const void *pa, const void *pb) {
+    const keyed *a = pa, *b = pb;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    return a->index < b->index ? -1 : a->index > b->index;
+}
+
+/* Which unknowns are private, and where everything goes. */
+static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const double *key,
+                sc_error *err) {
+    const int32_t n = a->n;
+    uint8_t *is_if = sc_alloc_array((size_t)n, 1);
+    int32_t gmax = -1;
+    if (!is_if) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t t = 0; t < n; t++) {
+        int32_t gt = group[t];
+        bool itf = gt < 0;
+        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1] && !itf; p++) {
+            int32_t gu = group[a->rowind[p]];
+            itf = gu >= 0 && gu != gt;
+        }
+        is_if[t] = itf;
+        if (!itf && gt > gmax) gmax = gt;
+    }
+    int32_t *count = sc_calloc_array((size_t)gmax + 2, sizeof *count);
+    f->order = sc_alloc_array((size_t)n, sizeof *f->order);
+    f->position = sc_alloc_array((size_t)n, sizeof *f->position);
+    if (!count || !f->order || !f->position) {
+        free(is_if), free(count);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t t = 0; t < n; t++)
+        if (!is_if[t]) count[group[t] + 1]++;
+    int32_t nclusters = 0;
+    for (int32_t g = 0; g <= gmax; g++) nclusters += count[g + 1] > 0;
+    f->cstart = sc_alloc_array((size_t)nclusters + 1, sizeof *f->cstart);
+    if (!f->cstart) {
+        free(is_if), free(count);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    /* counting sort by group (stable in the unknown's index) */
+    for (int32_t g = 0, c = 0, at = 0; g <= gmax; g++) {
+        int32_t cnt = count[g + 1];
+        count[g + 1] = at;
+        if (cnt > 0) f->cstart[c++] = at;
+        at += cnt;
+    }
+    int32_t npriv = 0;
+    for (int32_t t = 0; t < n; t++)
+        if (!is_if[t]) f->order[count[group[t] + 1]++] = t, npriv++;
+    f->cstart[nclusters] = npriv;
+    f->nclusters = nclusters;
+    f->npriv = npriv;
+    f->nif = n - npriv;
+    for (int32_t t = 0, at = npriv; t < n; t++)
+        if (is_if[t]) f->order[at++] = t;
+    free(count);
+    free(is_if);
+
+    /* key order within each cluster (ties by index) */
+    keyed *tmp = sc_alloc_array(npriv ? (size_t)npriv : 1, sizeof *tmp);
+    if (!tmp) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t k = 0; k < npriv; k++) tmp[k].key = key[f->order[k]], tmp[k].index = f->order[k];
+    for (int32_t c = 0; c < nclusters; c++)
+        qsort(tmp + f->cstart[c], (size_t)(f->cstart[c + 1] - f->cstart[c]), sizeof *tmp, cmp_keyed);
+    for (int32_t k = 0; k < npriv; k++) f->order[k] = tmp[k].index;
+    free(tmp);
+    for (int32_t k = 0; k < n; k++) f->position[f->order[k]] = k;
+    return SC_OK;
+}
+
+/* Envelope rows, and the couplings between private rows and the interface. */
+static int layout(sc_schur *f, const sc_sparse *a, sc_triplets *sii, sc_error *err) {
+    const int32_t npriv = f->npriv, nif = f->nif;
+    f->first = sc_alloc_array(npriv ? (size_t)npriv : 1, sizeof *f->first);
+    f->envptr = sc_alloc_array((size_t)npriv + 1, sizeof *f->envptr);
+    f->b.ptr = sc_calloc_array((size_t)npriv + 1, sizeof *f->b.ptr);
+    f->bt.ptr = sc_calloc_array((size_t)nif + 1, sizeof *f->bt.ptr);
+    if (!f->first || !f->envptr || !f->b.ptr || !f->bt.ptr) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int64_t env = 0, nb = 0, nbt = 0;
+    f->envptr[0] = 0;
+    for (int32_t k = 0; k < npriv; k++) {
+        int32_t t = f->order[k], fk = k;
+        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+            int32_t q = f->position[a->rowind[p]];
+            if (q < npriv) {
+                if (q < fk) fk = q;
+            } else {
+                nb++;
+            }
+        }
+        f->first[k] = fk;
+        env += k - fk + 1;
+        f->envptr[k + 1] = env;
+        f->b.ptr[k + 1] = (int32_t)nb;
+    }
+    for (int32_t i = 0; i < nif; i++) {
+        int32_t t = f->order[npriv + i];
+        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) nbt += f->position[a->rowind[p]] < npriv;
+        f->bt.ptr[i + 1] = (int32_t)nbt;
+    }
+    f->env = sc_alloc_array(env ? (size_t)env : 1, sizeof *f->env);
+    f->b.idx = sc_alloc_array(nb ? (size_t)nb : 1, sizeof *f->b.idx);
+    f->b.val = sc_alloc_array(nb ? (size_t)nb : 1, sizeof *f->b.val);
+    f->bt.idx = sc_alloc_array(nbt ? (size_t)nbt : 1, sizeof *f->bt.idx);
+    f->bt.val = sc_alloc_array(nbt ? (size_t)nbt : 1, sizeof *f->bt.val);
+    if (!f->env || !f->b.idx || !f->b.val || !f->bt.idx || !f->bt.val)
+        return sc_fail(err, SC_ENOMEM, "out of memory for %.0f envelope entries", (double)env);
+    for (int32_t k = 0, w = 0; k < npriv; k++) {
+        int32_t t = f->order[k];
+        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+            int32_t q = f->position[a->rowind[p]];
+            if (q >= npriv) f->b.idx[w] = q - npriv, f->b.val[w++] = a->val[p];
+        }
+    }
+    for (int32_t i = 0, w = 0; i < nif; i++) {
+        int32_t t = f->order[npriv + i];
+        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+            int32_t q = f->position[a->rowind[p]];
+            if (q < npriv) f->bt.idx[w] = q, f->bt.val[w++] = a->val[p];
+            else if (q - npriv >= i) sc_triplets_add(sii, i, q - npriv, a->val[p]);
+        }
+    }
+    if (sii->failed) return sc_fail(err, SC_ENOMEM, "out of memory");
+    f->stats.envelope = (double)env;
+    return SC_OK;
+}
+
+int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
+                    sc_schur **out, sc_error *err) {
+    *out = NULL;
+    if (!a || a->n <= 0) return sc_fail(err, SC_EINPUT, "factorisation of an empty matrix");
+    sc_schur *f = calloc(1, sizeof *f);
+    if (!f) return sc_fail(err, SC_ENOMEM, "out of memory");
+    f->n = a->n;
+    f->threads = threads < 1 ? 1 : threads;
+    double t0 = sc_now();
+    sc_triplets sii;
+    sc_triplets_init(&sii, 1);
+    int rc = plan(f, a, group, key, err);
+    if (rc == SC_OK) {
+        sc_triplets_init(&sii, f->nif > 0 ? f->nif : 1);
+        rc = layout(f, a, &sii, err);
+    }
+
+    /* clusters, in fixed chunks */
+    int32_t nchunks = f->nclusters < CLUSTER_CHUNKS ? f->nclusters : CLUSTER_CHUNKS;
+    factor_job job = {.f = f, .a = a};
+    if (rc == SC_OK && nchunks > 0) {
+        job.per_chunk = (f->nclusters + nchunks - 1) / nchunks;
+        nchunks = (f->nclusters + job.per_chunk - 1) / job.per_chunk;
+        job.trip = sc_calloc_array((size_t)nchunks, sizeof *job.trip);
+        job.flops = sc_calloc_array((size_t)nchunks, sizeof *job.flops);
+        job.bad = sc_calloc_array((size_t)nchunks, sizeof *job.bad);
+        if (!job.trip || !job.flops || !job.bad) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t c = 0; rc == SC_OK && c < nchunks; c++) sc_triplets_init(&job.trip[c], f->nif > 0 ? f->nif : 1);
+        if (rc == SC_OK && sc_parallel(f->threads, nchunks, factor_chunk, &job) != SC_OK)
+            rc = sc_fail(err, SC_ENOMEM, "out of memory factoring %d clusters", (int)f->nclusters);
+        for (int32_t c = 0; rc == SC_OK && c < nchunks; c++) {
+            if (job.bad[c] >= 0) {
+                rc = sc_fail(err, SC_EINPUT,
+                             "sparse factorisation: the matrix is not positive definite "
+                             "(cluster %d of %d)", (int)job.bad[c], (int)f->nclusters);
+                break;
+            }
+            f->stats.cluster_flops += job.flops[c];
+            sc_triplets_append(&sii, &job.trip[c]);
+            sc_triplets_free(&job.trip[c]);
+        }
+    }
+    if (job.trip)
+        for (int32_t c = 0; c < nchunks; c++) sc_triplets_free(&job.trip[c]);
+    free(job.trip), free(job.flops), free(job.bad);
+    double t1 = sc_now();
+
+    /* the interface */
+    if (rc == SC_OK && f->nif > 0) {
+        sc_sparse s;
+        rc = sc_sparse_from_triplets(&sii, &s, err);
+        sc_triplets_free(&sii);
+        if (rc == SC_OK) {
+            f->stats.interface_nnz = (double)s.nnz;
+            sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+            rc = sc_sparse_chol_factor(&s, &opt, &f->s, err);
+            sc_sparse_free(&s);
+        }
+        if (rc == SC_OK) {
+            sc_sparse_stats st;
+            sc_sparse_chol_stats(f->s, &st);
+            f->stats.interface_factor_nnz = st.factor_nnz;
+            f->stats.interface_flops = st.flops;
+            f->stats.peak_bytes = st.peak_bytes;
+        }
+    }
+    sc_triplets_free(&sii);
+    if (rc != SC_OK) {
+        sc_schur_free(f);
+        return rc;
+    }
+    f->stats.clusters = f->nclusters;
+    f->stats.private_unknowns = f->npriv;
+    f->stats.interface_unknowns = f->nif;
+    f->stats.seconds_clusters = t1 - t0;
+    f->stats.seconds_interface = sc_now() - t1;
+    *out = f;
+    return SC_OK;
+}
+
+void sc_schur_get_stats(const sc_schur *f, sc_schur_stats *out) { *out = f->stats; }
+
+void sc_schur_free(sc_schur *f) {
+    if (!f) return;
+    free(f->order), free(f->position), free(f->cstart), free(f->first), free(f->envptr), free(f->env);
+    csr_free(&f->b);
+    csr_free(&f->bt);
+    sc_sparse_chol_free(f->s);
+    free(f->work), free(f->work_if);
+    free(f);
+}
+
+/* ---------------------------------------------------------------- solve */
+
+typedef struct solve_job {
+    const sc_schur *f;
+    double *x;          /* n x nrhs, in positions */
+    int32_t nrhs, per_chunk;
+    int phase;
+} solve_job;
+
+static int solve_chunk(void *ud, int32_t chunk) {
+    const solve_job *job = ud;
+    const sc_schur *f = job->f;
+    const int32_t n = f->n, npriv = f->npriv;
+    if (job->phase == 1 || job->phase == 3) {
+        int32_t c0 = chunk * job->per_chunk, c1 = c0 + job->per_chunk;
+        if (c1 > f->nclusters) c1 = f->nclusters;
+        if (c0 >= c1) return SC_OK;
+        int32_t k0 = f->cstart[c0], k1 = f->cstart[c1];
+        double *w = NULL;
+        if (job->phase == 3) {
+            w = sc_alloc_array((size_t)(k1 - k0), sizeof *w);
+            if (!w) return SC_ENOMEM;
+        }
+        for (int32_t col = 0; col < job->nrhs; col++) {
+            double *x = job->x + (size_t)col * n;
+            if (job->phase == 3) {
+                /* w = A_pi x_i over these rows; x_p -= A_pp^-1 w */
+                for (int32_t k = k0; k < k1; k++) {
+                    double s = 0;
+                    for (int32_t p = f->b.ptr[k]; p < f->b.ptr[k + 1]; p++) s += f->b.val[p] * x[npriv + f->b.idx[p]];
+                    w[k - k0] = s;
+                }
+            }
+            for (int32_t c = c0; c < c1; c++) {
+                int32_t a0 = f->cstart[c], a1 = f->cstart[c + 1];
+                double *v = job->phase == 1 ? x + a0 : w + (a0 - k0);
+                envelope_forward(f, a0, a1, a0, v);
+                envelope_backward(f, a0, a1, v);
+            }
+            if (job->phase == 3)
+                for (int32_t k = k0; k < k1; k++) x[k] -= w[k - k0];
+        }
+        free(w);
+    } else {
+        /* phase 2: b_i -= A_ip y over these interface rows */
+        int32_t i0 = chunk * job->per_chunk, i1 = i0 + job->per_chunk;
+        if (i1 > f->nif) i1 = f->nif;
+        for (int32_t col = 0; col < job->nrhs; col++) {
+            double *x = job->x + (size_t)col * n;
+            for (int32_t i = i0; i < i1; i++) {
+                double s = x[npriv + i];
+                for (int32_t p = f->bt.ptr[i]; p < f->bt.ptr[i + 1]; p++) s -= f->bt.val[p] * x[f->bt.idx[p]];
+                x[npriv + i] = s;
+            }
+        }
+    }
+    return SC_OK;
+}
+
+static int run_phase(solve_job *job, int phase) {
+    const sc_schur *f = job->f;
+    job->phase = phase;
+    int32_t items = phase == 2 ? f->nif : f->nclusters;
+    if (items <= 0) return SC_OK;
+    int32_t chunks = phase == 2 ? (items + ROW_CHUNK - 1) / ROW_CHUNK
+                                : (items < CLUSTER_CHUNKS ? items : CLUSTER_CHUNKS);
+    job->per_chunk = (items + chunks - 1) / chunks;
+    chunks = (items + job->per_chunk - 1) / job->per_chunk;
+    return sc_parallel(f->threads, chunks, solve_chunk, job);
+}
+
+/* x (n x nrhs, positions) <- A^-1 x; f->work_if holds nif x nrhs values. */
+static int solve_positions(sc_schur *f, int32_t nrhs, double *x, sc_error *err) {
+    solve_job job = {.f = f, .x = x, .nrhs = nrhs};
+    if (run_phase(&job, 1) || run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (f->nif > 0) {
+        double *xi = f->work_if;
+        for (int32_t c = 0; c < nrhs; c++)
+            memcpy(xi + (size_t)c * f->nif, x + (size_t)c * f->n + f->npriv, (size_t)f->nif * sizeof *xi);
+        int rc = sc_sparse_chol_solve(f->s, nrhs, xi, err);
+        if (rc) return rc;
+        for (int32_t c = 0; c < nrhs; c++)
+            memcpy(x + (size_t)c * f->n + f->npriv, xi + (size_t)c * f->nif, (size_t)f->nif * sizeof *xi);
+    }
+    if (run_phase(&job, 3)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    return SC_OK;
+}
+
+/* Scratch for nrhs columns, kept between solves (large blocks freed and
+ * allocated again would cost the kernel a page clearing every time). */
+static int reserve_work(sc_schur *f, int32_t nrhs, sc_error *err) {
+    if (nrhs <= f->work_cols) return SC_OK;
+    double *w = sc_realloc_array(f->work, (size_t)f->n * (size_t)nrhs, sizeof *w);
+    if (w) f->work = w;
+    double *wi = w ? sc_realloc_array(f->work_if, (size_t)(f->nif ? f->nif : 1) * (size_t)nrhs, sizeof *wi) : NULL;
+    if (wi) f->work_if = wi;
+    if (!w || !wi) return sc_fail(err, SC_ENOMEM, "out of memory for %d right-hand sides", (int)nrhs);
+    f->work_cols = nrhs;
+    return SC_OK;
+}
+
+int sc_schur_solve(sc_schur *f, int32_t nrhs, double *b, sc_error *err) {
+    if (nrhs <= 0) return SC_OK;
+    int rc = reserve_work(f, nrhs, err);
+    if (rc) return rc;
+    const int32_t n = f->n;
+    double *x = f->work;
+    for (int32_t c = 0; c < nrhs; c++)
+        for (int32_t k = 0; k < n; k++) x[(size_t)c * n + k] = b[(size_t)c * n + f->order[k]];
+    rc = solve_positions(f, nrhs, x, err);
+    if (rc == SC_OK)
+        for (int32_t c = 0; c < nrhs; c++)
+            for (int32_t k = 0; k < n; k++) b[(size_t)c * n + f->order[k]] = x[(size_t)c * n + k];
+    return rc;
+}
+
+/* ---------------------------------------------------------------- conjugate gradients */
+
+/* sum_k a[k] b[k] over n, in fixed chunks of rows summed in order */
+static double dot(const double *a, const double *b, int32_t n) {
+    double total = 0;
+    for (int32_t k0 = 0; k0 < n; k0 += ROW_CHUNK) {
+        int32_t k1 = k0 + ROW_CHUNK < n ? k0 + ROW_CHUNK : n;
+        double s = 0;
+        for (int32_t k = k0; k < k1; k++) s += a[k] * b[k];
+        total += s;
+    }
+    return total;
+}
+
+/* One batch of at most PCG_BATCH columns, all in unknown order. */
+static int pcg_batch(sc_schur *f, const sc_sparse *qm, int32_t nrhs, double *b,
+                     double tol, int32_t max_iter, int threads, sc_schur_pcg_result *res,
+                     sc_error *err) {
+    const int32_t n = f->n;
+    const size_t len = (size_t)n * (size_t)nrhs;
+    double *x = sc_calloc_array(len, sizeof *x), *r = sc_alloc_array(len, sizeof *r);
+    double *z = sc_alloc_array(len, sizeof *z), *p = sc_alloc_array(len, sizeof *p);
+    double *q = sc_alloc_array(len, sizeof *q), *scratch = sc_alloc_array((size_t)n, sizeof *scratch);
+    int rc = SC_OK;
+    if (!x || !r || !z || !p || !q || !scratch) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory for conjugate gradients on %d unknowns", (int)n);
+        goto done;
+    }
+    double rz[PCG_BATCH], rz0[PCG_BATCH];
+    bool active[PCG_BATCH];
+    memcpy(r, b, len * sizeof *r);
+    memcpy(z, r, len * sizeof *z);
+    if ((rc = sc_schur_solve(f, nrhs, z, err))) goto done;
+    int32_t nactive = 0;
+    for (int32_t c = 0; c < nrhs; c++) {
+        rz0[c] = rz[c] = dot(r + (size_t)c * n, z + (size_t)c * n, n);
+        active[c] = rz0[c] > 0;
+        nactive += active[c];
+    }
+    memcpy(p, z, len * sizeof *p);
+    int32_t it = 0;
+    while (nactive > 0) {
+        if (it == max_iter) {
+            double worst = 0;
+            for (int32_t c = 0; c < nrhs; c++)
+                if (active[c] && sqrt(rz[c] / rz0[c]) > worst) worst = sqrt(rz[c] / rz0[c]);
+            rc = sc_fail(err, SC_EINPUT,
+                         "conjugate gradients did not converge in %d iterations "
+                         "(residual ratio %.3g, asked for %.3g)", (int)max_iter, worst, tol);
+            goto done;
+        }
+        it++;
+        for (int32_t c = 0; c < nrhs; c++) {
+            if (!active[c]) continue;
+            double *pc = p + (size_t)c * n, *qc = q + (size_t)c * n;
+            sc_sparse_symv_parallel(qm, pc, qc, scratch, threads);
+            double pq = dot(pc, qc, n);
+            if (!(pq > 0)) { /* p is zero: nothing left to gain */
+                active[c] = false, nactive--;
+                continue;
+            }
+            double alpha = rz[c] / pq;
+            double *xc = x + (size_t)c * n, *rc_ = r + (size_t)c * n;
+            for (int32_t k = 0; k < n; k++) xc[k] += alpha * pc[k], rc_[k] -= alpha * qc[k];
+        }
+        memcpy(z, r, len * sizeof *z);
+        if ((rc = sc_schur_solve(f, nrhs, z, err))) goto done;
+        for (int32_t c = 0; c < nrhs; c++) {
+            if (!active[c]) continue;
+            double rzn = dot(r + (size_t)c * n, z + (size_t)c * n, n);
+            double ratio = rzn > 0 ? sqrt(rzn / rz0[c]) : 0;
+            if (ratio <= tol) {
+                active[c] = false, nactive--;
+                if (ratio > res->relative_residual) res->relative_residual = ratio;
+                continue;
+            }
+            double beta = rzn / rz[c];
+            rz[c] = rzn;
+            double *pc = p + (size_t)c * n, *zc = z + (size_t)c * n;
+            for (int32_t k = 0; k < n; k++) pc[k] = zc[k] + beta * pc[k];
+        }
+    }
+    if (it > res->iterations) res->iterations = it;
+    memcpy(b, x, len * sizeof *b);
+done:
+    free(x), free(r), free(z), free(p), free(q), free(scratch);
+    return rc;
+}
+
+int sc_schur_pcg(sc_schur *f, const sc_sparse *q, int32_t nrhs, double *b, double tol,
+                 int32_t max_iter, int threads, sc_schur_pcg_result *res, sc_error *err) {
+    sc_schur_pcg_result local = {0, 0};
+    if (!res) res = &local;
+    res->iterations = 0;
+    res->relative_residual = 0;
+    if (q->n != f->n)
+        return sc_fail(err, SC_EINPUT, "conjugate gradients: matrix sizes %d and %d differ",
+                       (int)f->n, (int)q->n);
+    for (int32_t c0 = 0; c0 < nrhs; c0 += PCG_BATCH) {
+        int32_t cols = nrhs - c0 < PCG_BATCH ? nrhs - c0 : PCG_BATCH;
+        int rc = pcg_batch(f, q, cols, b + (size_t)c0 * f->n, tol, max_iter, threads, res, err);
+        if (rc) return rc;
+    }
+    return SC_OK;
+}
