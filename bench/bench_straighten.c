@@ -144,6 +144,7 @@ static int run_asset(const char *corpus, const asset *a, curve curves[NTOL]) {
     }
     printf("%-9s %9s %11s %11s %7s %9s %10s | %11s %11s %11s %11s\n", "tolerance", "straight s", "collapsible",
            "(before)", "flips", "decim s", "uncollaps.", "cost@50%", "cost@10%", "cost@5%", "cost@min");
+    printf("(cost@N%%: accumulated quadric cost at the first level with at most N%% of the faces; -: never reached)\n");
     int failed = 0;
     for (int t = 0; t < NTOL; t++) {
         curves[t].n = 0;
@@ -188,11 +189,15 @@ static int run_asset(const char *corpus, const asset *a, curve curves[NTOL]) {
                     break;
                 }
         const curve *c = &curves[t];
-        printf("%-9s %9.2f %11g %11g %7g %9.2f %10g | %11.4g %11.4g %11.4g %11.4g (%g faces)\n", tolerances[t], ts,
+        char at_text[3][32];   /* a fraction the decimation stalled above: "-" */
+        for (int q = 0; q < 3; q++)
+            if (isnan(cost_at[q])) snprintf(at_text[q], sizeof at_text[q], "-");
+            else snprintf(at_text[q], sizeof at_text[q], "%.4g", cost_at[q]);
+        printf("%-9s %9.2f %11g %11g %7g %9.2f %10g | %11s %11s %11s %11.4g (%g faces)\n", tolerances[t], ts,
                sc_ctx_metric_value(st, "collapsible_seam_edges_after"),
                sc_ctx_metric_value(st, "collapsible_seam_edges_before"),
                isnan(sc_ctx_metric_value(st, "flipped_triangles")) ? 0 : sc_ctx_metric_value(st, "flipped_triangles"),
-               td, sc_ctx_metric_value(dec, "input.uncollapsible_seam_edges"), cost_at[0], cost_at[1], cost_at[2],
+               td, sc_ctx_metric_value(dec, "input.uncollapsible_seam_edges"), at_text[0], at_text[1], at_text[2],
                c->cost[c->n - 1], c->faces[c->n - 1]);
         sc_ctx_free(dec);
         sc_ctx_free(st);
