@@ -9,8 +9,8 @@
  * rounding), seconds per stage (build, factor, solve, quantise), CHOLMOD's
  * peak memory and the process's peak resident memory during the erase.
  * Each asset runs in its own child process so peaks do not mix.
- * `--set solver=schur` times the edge-cluster solver instead of one CHOLMOD
- * factorisation (erase_seams.c's design note has both on pizza).
+ * `--set solver=cholmod` (or schur) times one solver whatever the size
+ * (erase_seams.c's design note has both on pizza).
  *
  * Peers: Liu et al. 2017, Table 1: 25 to 431 s per texture (Python/SciPy,
  * 2.6 GHz i7-4720HQ). Their reference code on blub takes 74 s of CPU and

@@ -61,22 +61,24 @@
  * other; both are independent tasks, so results do not depend on the thread
  * count.
  *
- * The edge-cluster solver (`solver` schur, sc_schur.h). The texels that
- * only one edge's cells reach form that edge's cluster, ordered along it;
- * texels shared by two edges' cells, or coupled to another edge's texels,
- * form the interface. The fill above comes from grid couplings between
- * texels of different charts that happen to lie side by side in the atlas:
- * the preconditioner's matrix leaves those terms out whole (so it stays
- * positive definite), eliminates each cluster on its own and factors the
- * interface by CHOLMOD; conjugate gradients on the full Q take them back
- * in, to a preconditioned residual of 1e-12 of the start. Measured on pizza
- * (2.07M unknowns, 19.4k clusters, 271k interface texels): 13 iterations,
- * 1.35e9 flops instead of 4e10, CHOLMOD's peak 165 MB instead of 1.59 GB,
- * the same seam energy and gap; but no faster in all (22.6 s against 22.0
- * s): the extra triplets, compressed and full-pattern copies of the matrix
- * (~4 s), the cluster elimination (~4 s) and the iterations (~3 s) cost
- * what the ordering saved. So `cholmod` stays the default. On BoomBox the
- * two agree to 3e-7 per texel.
+ * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the
+ * default, takes it from 500k unknowns). The texels that only one edge's
+ * cells reach form that edge's cluster, ordered along it; texels shared by
+ * two edges' cells, or coupled to another edge's texels, form the
+ * interface. The fill above comes from grid couplings between texels of
+ * different charts that happen to lie side by side in the atlas: the
+ * preconditioner's matrix is Q less those terms, whole (so it stays
+ * positive definite; grid_terms lists them while it assembles Q), with
+ * each cluster eliminated on its own and the interface factored by
+ * CHOLMOD; conjugate gradients on Q take the terms back in, to a
+ * preconditioned residual of 1e-12 of the start (auto falls back to one
+ * CHOLMOD factorisation should that fail). Measured on pizza (2.07M
+ * unknowns, 19.4k clusters, 271k interface texels), same machine and
+ * session: 13 iterations, 1.35e9 flops instead of 4e10, CHOLMOD's peak
+ * 165 MB instead of 946 MB, factor 6.9 s instead of 13.8 s, 16.1 s in all
+ * instead of 21.2 s, the same seam energy and gap. Below ~500k unknowns one
+ * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7
+ * per texel.
  *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
  * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
@@ -134,11 +136,12 @@
 #define TIKHONOV 1e-8
 #define NULLITY_MAX_TEXELS 100000
 #define ROUND_MAX_SWEEPS 64
+#define SCHUR_MIN_UNKNOWNS 500000  /* solver auto: the edge-cluster solver from this many unknowns */
 #define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
 #define PCG_MAX_ITERATIONS 500
 
 typedef enum quantize_mode { QUANT_NONE = 0, QUANT_NAIVE = 1, QUANT_OPTIMAL = 2 } quantize_mode;
-typedef enum solver_kind { SOLVER_CHOLMOD = 0, SOLVER_SCHUR = 1 } solver_kind;
+typedef enum solver_kind { SOLVER_AUTO = 0, SOLVER_CHOLMOD = 1, SOLVER_SCHUR = 2 } solver_kind;
 
 typedef struct options {
     double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
@@ -176,7 +179,7 @@ typedef struct totals {
     bool nullity_all;
     double seconds_build, seconds_factor, seconds_solve, seconds_quantize, seconds_nullity;
     double solver_peak_mb, factor_nnz, factor_flops;
-    double schur_groups, interface_unknowns, pcg_iterations;
+    double schur_groups, interface_unknowns, pcg_iterations, solver_fallbacks;
     int factorizations, erased, unchanged, tangent;
 } totals;
 
@@ -194,7 +197,8 @@ static void metric(sc_ctx *ctx, const char *prefix, const char *name, double v) 
  * not minimal there. */
 static void grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
                        const sc_seam_texset *covered, const options *o, double w_change_texel,
-                       sc_triplets *trip, const sc_image_data *p0, double *rhs, const int32_t *chart) {
+                       sc_triplets *trip, const sc_image_data *p0, double *rhs, const int32_t *chart,
+                       sc_triplets *apart_out) {
     const int32_t W = g->width, H = g->height, n = unk->count;
     const int32_t C = p0 ? p0->channels : 0;
     static const int di[4] = {1, 0, -1, 0}, dj[4] = {0, 1, 0, -1};
@@ -228,9 +232,10 @@ static void grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const i
             }
             if (w == 0) continue;
             /* with `chart`: a coupling of unknowns of two different charts
-             * (side by side in the atlas) is left out, the whole term */
-            bool apart = chart && r2 >= 0 && chart[r] >= 0 && chart[r2] >= 0 && chart[r] != chart[r2];
-            if (trip && !apart) {
+             * (side by side in the atlas) is also listed in apart_out */
+            if (apart_out && r2 >= 0 && chart[r] >= 0 && chart[r2] >= 0 && chart[r] != chart[r2])
+                sc_triplets_add(apart_out, r, r2, w);
+            if (trip) {
                 sc_triplets_add(trip, r, r, w);
                 if (r2 >= 0) {
                     sc_triplets_add(trip, r2, r2, w);
@@ -394,11 +399,11 @@ typedef struct group_work {
     sc_triplets trip;
     sc_sparse q, msub, mfull;
     sc_sparse_chol *chol;
-    /* the edge-cluster solver (solver schur): Q without the couplings
-     * between charts (atrip), factored by sc_schur as the preconditioner
-     * of conjugate gradients on Q */
-    bool use_schur;
-    sc_triplets atrip;
+    /* the edge-cluster solver (solver schur): Q without the grid couplings
+     * between charts (apart: row, column, weight), factored by sc_schur as
+     * the preconditioner of conjugate gradients on Q */
+    bool use_schur, fallback;   /* fallback: solver auto went to CHOLMOD */
+    sc_triplets apart;
     int32_t *group;
     double *gamma;
     sc_schur *schur;
@@ -417,7 +422,7 @@ static void group_work_free(group_work *w, int32_t ntex) {
     sc_sparse_free(&w->msub);
     sc_sparse_free(&w->mfull);
     sc_sparse_chol_free(w->chol);
-    sc_triplets_free(&w->atrip);
+    sc_triplets_free(&w->apart);
     free(w->group), free(w->gamma);
     sc_schur_free(w->schur);
     free(w->rhs);
@@ -465,21 +470,60 @@ typedef struct prep_job {
 
 /* Task 0: analyse and factor Q (supernodal where the factor is big,
  * simplicial where it is tiny). */
+/* Where row r sits in column c of a full-pattern matrix (rows sorted), -1
+ * when it is not stored. */
+static int64_t full_entry(const sc_sparse *f, int32_t c, int32_t r) {
+    int32_t lo = f->colptr[c], hi = f->colptr[c + 1];
+    while (lo < hi) {
+        int32_t mid = lo + (hi - lo) / 2;
+        if (f->rowind[mid] < r) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < f->colptr[c + 1] && f->rowind[lo] == r ? lo : -1;
+}
+
+/* The preconditioner's matrix, full pattern: Q less each listed coupling
+ * term w (p_r - p_r2)^2 (both diagonals and the pair), the couplings that
+ * end at exactly zero dropped, so that they join no cluster to another. */
+static int preconditioner_matrix(const sc_sparse *q, const sc_triplets *apart, sc_sparse *full, sc_error *err) {
+    int rc = sc_sparse_full(q, full, err);
+    if (rc) return rc;
+    for (size_t k = 0; k < apart->count; k++) {
+        int32_t r = apart->row[k], r2 = apart->col[k];
+        double w = apart->val[k];
+        int64_t at[4] = {full_entry(full, r, r), full_entry(full, r2, r2), full_entry(full, r, r2),
+                         full_entry(full, r2, r)};
+        if (at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) continue;   /* assembled with Q: never */
+        full->val[at[0]] -= w, full->val[at[1]] -= w, full->val[at[2]] += w, full->val[at[3]] += w;
+    }
+    int32_t out = 0;
+    for (int32_t c = 0; c < full->n; c++) {
+        int32_t p0 = full->colptr[c], p1 = full->colptr[c + 1];
+        full->colptr[c] = out;
+        for (int32_t p = p0; p < p1; p++)
+            if (full->rowind[p] == c || full->val[p] != 0)
+                full->rowind[out] = full->rowind[p], full->val[out++] = full->val[p];
+    }
+    full->colptr[full->n] = out;
+    full->nnz = out;
+    return SC_OK;
+}
+
 static int prep_factor(prep_job *pj) {
     double t0 = sc_now();
     group_work *w = pj->ctx.w;
     if (w->use_schur) {
-        sc_sparse upper, full;
-        memset(&full, 0, sizeof full);
-        pj->rc_factor = sc_sparse_from_triplets(&w->atrip, &upper, &pj->err_factor);
-        sc_triplets_free(&w->atrip);
-        if (pj->rc_factor == SC_OK) {
-            pj->rc_factor = sc_sparse_full(&upper, &full, &pj->err_factor);
-            sc_sparse_free(&upper);
-        }
+        sc_sparse full;
+        pj->rc_factor = preconditioner_matrix(&w->q, &w->apart, &full, &pj->err_factor);
+        sc_triplets_free(&w->apart);
         if (pj->rc_factor == SC_OK)
             pj->rc_factor = sc_schur_factor(&full, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
         sc_sparse_free(&full);
+        if (pj->rc_factor != SC_OK && pj->ctx.o->solver == SOLVER_AUTO) {   /* CHOLMOD instead */
+            w->fallback = true;
+            sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+            pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
+        }
     } else {
         sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
         pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
@@ -523,7 +567,7 @@ static int prep_side(prep_job *pj) {
             if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, c->o->threads, NULL, err)))
                 return pj->rc_side = rc;
         }
-        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs, NULL);
+        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs, NULL, NULL);
         col += img->channels;
     }
     double t2 = sc_now();
@@ -581,9 +625,26 @@ static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncol
             nu++;
         }
     }
-    int rc = w->schur ? sc_schur_pcg(w->schur, &w->q, nu, rhs, PCG_TOLERANCE, PCG_MAX_ITERATIONS, o->threads,
-                                     &w->pcg, err)
-                      : sc_sparse_chol_solve(w->chol, nu, rhs, err);
+    int rc = SC_OK;
+    bool direct = w->schur == NULL;
+    if (w->schur) {
+        /* solver auto keeps the right-hand sides, to go to CHOLMOD should
+         * the iterations not converge */
+        double *kept = o->solver == SOLVER_AUTO ? sc_alloc_array((size_t)n * (size_t)nu, sizeof *kept) : NULL;
+        if (kept) memcpy(kept, rhs, (size_t)n * (size_t)nu * sizeof *rhs);
+        rc = sc_schur_pcg(w->schur, &w->q, nu, rhs, PCG_TOLERANCE, PCG_MAX_ITERATIONS, o->threads, &w->pcg, err);
+        if (rc == SC_EINPUT && kept) {
+            sc_schur_free(w->schur);
+            w->schur = NULL;
+            w->fallback = true;
+            memcpy(rhs, kept, (size_t)n * (size_t)nu * sizeof *rhs);
+            sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+            rc = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, err);
+            direct = rc == SC_OK;
+        }
+        free(kept);
+    }
+    if (direct) rc = sc_sparse_chol_solve(w->chol, nu, rhs, err);
     if (rc == SC_OK && nu < ncols) {
         /* spread the solved columns back to their places, last first */
         int32_t *slot = sc_alloc_array((size_t)ncols, sizeof *slot);
@@ -720,17 +781,15 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     first.rhs = w.rhs;
     sc_triplets_init(&w.trip, n);
     if ((rc = sc_seam_assemble(m, seams, g, &w.unk, &first, o->threads, &w.trip, err))) goto done;
-    w.use_schur = o->solver == SOLVER_SCHUR;
+    w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= SCHUR_MIN_UNKNOWNS);
     if (w.use_schur) {
-        /* the preconditioner's matrix: the seam terms as they are, the grid
-         * terms without couplings between charts (chart of the face whose
-         * edge piece first reaches the texel) */
+        /* the couplings between charts (chart of the face whose edge piece
+         * first reaches the texel), which the preconditioner leaves out */
         if ((rc = schur_groups(m, seams, g, &w, err))) goto done;
-        sc_triplets_init(&w.atrip, n);
-        sc_triplets_append(&w.atrip, &w.trip);
-        grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.atrip, NULL, NULL, w.group + n);
+        sc_triplets_init(&w.apart, n);
     }
-    grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.trip, NULL, NULL, NULL);
+    grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.trip, NULL, NULL, w.group ? w.group + n : NULL,
+               w.use_schur ? &w.apart : NULL);
     if ((rc = sc_sparse_from_triplets(&w.trip, &w.q, err))) goto done;
     sc_triplets_free(&w.trip);
     bool want_round = false;
@@ -796,6 +855,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     tot->seconds_factor += t2 - t1;
     tot->seconds_solve += t3 - t2;
     tot->factorizations++;
+    tot->solver_fallbacks += w.fallback;
     tot->factor_nnz += stats.factor_nnz;
     tot->factor_flops += stats.flops;
     if (stats.peak_bytes / 1048576.0 > tot->solver_peak_mb) tot->solver_peak_mb = stats.peak_bytes / 1048576.0;
@@ -1090,6 +1150,7 @@ static void emit_totals(sc_ctx *ctx, const totals *t, bool several) {
     sc_ctx_metric(ctx, "seconds_nullity", t->seconds_nullity);
     sc_ctx_metric(ctx, "solver_peak_mb", t->solver_peak_mb);
     sc_ctx_metric(ctx, "factor_nnz", t->factor_nnz);
+    if (t->solver_fallbacks > 0) sc_ctx_metric(ctx, "solver_fallbacks", t->solver_fallbacks);
     if (t->schur_groups > 0 || t->interface_unknowns > 0) {
         sc_ctx_metric(ctx, "schur_clusters", t->schur_groups);
         sc_ctx_metric(ctx, "interface_unknowns", t->interface_unknowns);
@@ -1122,7 +1183,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const char *qm = sc_ctx_string(ctx, "quantize");
     o.quantize = strcmp(qm, "none") == 0 ? QUANT_NONE : strcmp(qm, "naive") == 0 ? QUANT_NAIVE : QUANT_OPTIMAL;
     const char *sv = sc_ctx_string(ctx, "solver");
-    o.solver = strcmp(sv, "schur") == 0 ? SOLVER_SCHUR : SOLVER_CHOLMOD;
+    o.solver = strcmp(sv, "schur") == 0 ? SOLVER_SCHUR : strcmp(sv, "cholmod") == 0 ? SOLVER_CHOLMOD : SOLVER_AUTO;
     const char *list = sc_ctx_string(ctx, "textures");
     int rc = check_selection(list, a, err);
     if (rc) return rc;
@@ -1251,7 +1312,7 @@ done:
 
 static const char *const preset_choices[] = {"local", "global", NULL};
 static const char *const quantize_choices[] = {"none", "naive", "optimal", NULL};
-static const char *const solver_choices[] = {"cholmod", "schur", NULL};
+static const char *const solver_choices[] = {"auto", "cholmod", "schur", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "preset", .type = SC_PARAM_ENUM, .def_string = "local", .choices = preset_choices,
@@ -1284,10 +1345,11 @@ static const sc_param_desc params[] = {
     {.name = "quantize", .type = SC_PARAM_ENUM, .def_string = "optimal", .choices = quantize_choices,
      .doc = "8/16-bit inputs in atlas_native: none (keep f32), naive (round), optimal (8-bit "
             "rounding that minimises the quantised seam energy)"},
-    {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "cholmod", .choices = solver_choices,
+    {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = solver_choices,
      .doc = "cholmod: one direct factorisation of the whole system; schur: the texels along each "
             "edge eliminated on their own and the rest factored by CHOLMOD, as the preconditioner "
-            "of conjugate gradients on the whole system (to 1e-12; a tenth of the memory on pizza)"},
+            "of conjugate gradients on the whole system (to 1e-12); auto: schur from 500k "
+            "unknowns, falling back to cholmod should it fail"},
 };
 
 static const sc_port_desc inputs[] = {
@@ -1303,7 +1365,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 2,
+    .version = 3,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
