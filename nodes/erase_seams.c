@@ -468,8 +468,6 @@ typedef struct prep_job {
     double seconds_factor, seconds_resid, seconds_nullity, seconds_round_prep;
 } prep_job;
 
-/* Task 0: analyse and factor Q (supernodal where the factor is big,
- * simplicial where it is tiny). */
 /* Where row r sits in column c of a full-pattern matrix (rows sorted), -1
  * when it is not stored. */
 static int64_t full_entry(const sc_sparse *f, int32_t c, int32_t r) {
@@ -509,6 +507,9 @@ static int preconditioner_matrix(const sc_sparse *q, const sc_triplets *apart, s
     return SC_OK;
 }
 
+/* Task 0: analyse and factor Q (supernodal where the factor is big,
+ * simplicial where it is tiny), or, for the edge-cluster solver, its
+ * preconditioner. */
 static int prep_factor(prep_job *pj) {
     double t0 = sc_now();
     group_work *w = pj->ctx.w;
