@@ -29,6 +29,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "sc_base.h"
 #include "sc_exec.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
@@ -207,6 +208,7 @@ static int run_asset(const char *corpus, const asset *a, curve curves[NTOL]) {
 }
 
 int main(int argc, char **argv) {
+    sc_tune_allocator();   /* as the command line runs */
     const char *plot = "bench_straighten.png";
     const char *only[NASSETS];
     int nonly = 0;

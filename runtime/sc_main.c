@@ -341,6 +341,7 @@ static void watch_rebuild(uv_timer_t *timer) {
     sc_graph *g = NULL;
     cook(w->o->files[0], w->o, w->cache, w->out_dir, w->o->check, &run, &g);
     w->runs++;
+    sc_release_memory();   /* a watch waits long between cooks */
     /* the graph file itself plus every file any node read */
     int cap = 1, n = 0;
     if (run)
@@ -531,6 +532,7 @@ int main(int argc, char **argv) {
         free_options(&o);
         return status;
     }
+    sc_tune_allocator();
     /* the thread pool is sized once, at its first use: cooking jobs plus loads */
     char pool[16];
     snprintf(pool, sizeof pool, "%d", o.jobs + 1);
