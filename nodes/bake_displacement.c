@@ -90,7 +90,6 @@
  */
 #include <float.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -178,14 +177,14 @@ static int raster_band(void *ud, int32_t chunk) {
         const sc_mesh *m = J->m;
         const double *p[3] = {m->V + 3 * m->FV[3 * F->f], m->V + 3 * m->FV[3 * F->f + 1], m->V + 3 * m->FV[3 * F->f + 2]};
         for (int64_t j = F->j0; j <= F->j1; j++) {
-            int32_t jw = sc_atlas_ops_wrap(j, H, g->wrap_v);
+            int32_t jw = sc_seam_wrap(j, H, g->wrap_v);
             if (jw < b0 || jw >= b1) continue;
             int64_t i0, i1;
             sc_atlas_ops_row_span(x, y, pad, (double)j, &i0, &i1);
             if (i0 < (int64_t)ceil(x0)) i0 = (int64_t)ceil(x0);
             if (i1 > (int64_t)floor(x1)) i1 = (int64_t)floor(x1);
             for (int64_t i = i0; i <= i1; i++) {
-                size_t t = (size_t)jw * W + (size_t)sc_atlas_ops_wrap(i, W, g->wrap_u);
+                size_t t = (size_t)jw * W + (size_t)sc_seam_wrap(i, W, g->wrap_u);
                 if (r->dist[t] == 0) continue;
                 double l[3];
                 barycentric(x, y, (double)i, (double)j, l);
@@ -442,10 +441,10 @@ typedef struct cellgrid {
 
 static bool cell_key(const cellgrid *cg, int64_t cx, int64_t cy, size_t *key) {
     int64_t kx, ky;
-    if (cg->wu == SC_WRAP_REPEAT) kx = sc_atlas_ops_wrap(cx, cg->W, SC_WRAP_REPEAT);
+    if (cg->wu == SC_WRAP_REPEAT) kx = sc_seam_wrap(cx, cg->W, SC_WRAP_REPEAT);
     else if (cx < -1 || cx > cg->W - 1) return false;
     else kx = cx + 1;
-    if (cg->wv == SC_WRAP_REPEAT) ky = sc_atlas_ops_wrap(cy, cg->H, SC_WRAP_REPEAT);
+    if (cg->wv == SC_WRAP_REPEAT) ky = sc_seam_wrap(cy, cg->H, SC_WRAP_REPEAT);
     else if (cy < -1 || cy > cg->H - 1) return false;
     else ky = cy + 1;
     *key = (size_t)ky * cg->CW + (size_t)kx;
@@ -461,7 +460,7 @@ static void cell_corners(const cellgrid *cg, size_t key, int32_t id[4]) {
         return;
     }
     for (int q = 0; q < 4; q++)
-        id[q] = sc_atlas_ops_wrap(cy + (q >> 1), cg->H, cg->wv) * cg->W + sc_atlas_ops_wrap(cx + (q & 1), cg->W, cg->wu);
+        id[q] = sc_seam_wrap(cy + (q >> 1), cg->H, cg->wv) * cg->W + sc_seam_wrap(cx + (q & 1), cg->W, cg->wu);
 }
 
 /* The level's position at uv when one of the faces the raster gives the
@@ -553,7 +552,7 @@ static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg,
             }
             if (all) r0 = 0, r1 = cg->CH - 1;
             for (int64_t r = r0; r <= r1; r++) {
-                int64_t row = cg->wv == SC_WRAP_REPEAT && !all ? sc_atlas_ops_wrap(r, cg->H, SC_WRAP_REPEAT) : r;
+                int64_t row = cg->wv == SC_WRAP_REPEAT && !all ? sc_seam_wrap(r, cg->H, SC_WRAP_REPEAT) : r;
                 int32_t c = (int32_t)(row / band);
                 if (c < 0 || c >= nchunks || last[c] == f) continue;
                 last[c] = f;
@@ -1735,8 +1734,8 @@ typedef struct map_job {
 
 typedef struct after_fit {
     map_job *jobs;
-    int32_t ready, next;   /* jobs[0..ready) handed over; jobs[next] the next to run */
-    bool closed, worker;
+    int32_t njobs;         /* jobs[0..njobs) handed over */
+    sc_pipe *pipe;         /* runs them (sc_pipe: on a worker thread when there are two) */
     /* what the jobs read */
     const sc_mesh *in;
     const sc_hausdorff_bvh *in_bvh;
@@ -1746,12 +1745,11 @@ typedef struct after_fit {
     int64_t surface_samples;
     int threads;
     double seconds_erase, seconds_metrics;
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
 } after_fit;
 
-static void map_job_run(after_fit *A, map_job *J) {
+static void map_job_run(void *ud, int32_t job) {
+    after_fit *A = ud;
+    map_job *J = &A->jobs[job];
     double t0 = sc_now();
     J->rc = J->mesh ? erase_maps(J->mesh, J->images, A->grids, A->nmat, A->gap_tolerance, A->threads, &J->err) : SC_OK;
     if (J->rc != SC_OK && J->level < 0) sc_error_prefix(&J->err, "erase_seams on the geometry image");
@@ -1768,62 +1766,38 @@ static void map_job_run(after_fit *A, map_job *J) {
     A->seconds_erase += t1 - t0, A->seconds_metrics += sc_now() - t1;   /* one job at a time */
 }
 
-static void *after_fit_main(void *ud) {
-    after_fit *A = ud;
-    for (;;) {
-        pthread_mutex_lock(&A->mu);
-        while (A->next >= A->ready && !A->closed) pthread_cond_wait(&A->cv, &A->mu);
-        if (A->next >= A->ready) {
-            pthread_mutex_unlock(&A->mu);
-            return NULL;
-        }
-        map_job *J = &A->jobs[A->next++];
-        pthread_mutex_unlock(&A->mu);
-        map_job_run(A, J);
-    }
-}
-
 static bool after_fit_start(after_fit *A, int32_t njobs, int threads) {
     A->jobs = calloc((size_t)njobs + 1, sizeof *A->jobs);
-    if (!A->jobs) return false;
+    A->pipe = A->jobs ? sc_pipe_start(threads, njobs, map_job_run, A) : NULL;
+    if (!A->pipe) {
+        free(A->jobs);
+        A->jobs = NULL;
+        return false;
+    }
     A->threads = threads;
-    pthread_mutex_init(&A->mu, NULL);
-    pthread_cond_init(&A->cv, NULL);
-    A->worker = threads > 1 && pthread_create(&A->thread, NULL, after_fit_main, A) == 0;
     return true;
 }
 
 /* Erase (mesh not NULL) and measure images[0..nmat): by the worker, else
  * here and now. */
 static void after_fit_hand(after_fit *A, sc_value *mesh, sc_value **images, int32_t level, const locator *locs) {
-    pthread_mutex_lock(&A->mu);
-    A->jobs[A->ready] = (map_job){.mesh = mesh, .images = images, .level = level, .locs = locs};
-    map_job *J = &A->jobs[A->ready++];
-    if (!A->worker) A->next = A->ready;
-    pthread_cond_broadcast(&A->cv);
-    pthread_mutex_unlock(&A->mu);
-    if (!A->worker) map_job_run(A, J);
+    A->jobs[A->njobs] = (map_job){.mesh = mesh, .images = images, .level = level, .locs = locs};
+    sc_pipe_hand(A->pipe, A->njobs++);
 }
 
 /* Wait for every job; the first failure in hand-over order. */
 static int after_fit_finish(after_fit *A, sc_error *err) {
-    pthread_mutex_lock(&A->mu);
-    A->closed = true;
-    pthread_cond_broadcast(&A->cv);
-    pthread_mutex_unlock(&A->mu);
-    if (A->worker) pthread_join(A->thread, NULL);
-    A->worker = false;
+    sc_pipe_finish(A->pipe, SC_PIPE_WAIT);   /* the jobs share the threads: one at a time */
     int rc = SC_OK;
-    for (int32_t j = 0; j < A->ready && rc == SC_OK; j++)
+    for (int32_t j = 0; j < A->njobs && rc == SC_OK; j++)
         if ((rc = A->jobs[j].rc) != SC_OK && err) *err = A->jobs[j].err;
     return rc;
 }
 
 static void after_fit_free(after_fit *A) {
     if (!A->jobs) return;
-    for (int32_t j = 0; j < A->ready; j++) free(A->jobs[j].acc.same);
-    pthread_mutex_destroy(&A->mu);
-    pthread_cond_destroy(&A->cv);
+    for (int32_t j = 0; j < A->njobs; j++) free(A->jobs[j].acc.same);
+    sc_pipe_free(A->pipe);
     free(A->jobs);
     A->jobs = NULL;
 }

@@ -63,7 +63,6 @@
  *    levels, erase runs, level-0 textures kept as they are, and timings.
  */
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -203,14 +202,14 @@ static int band_rows(void *ud, int32_t chunk) {
         }
         double d = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
         for (int64_t j = j0; j <= j1; j++) {
-            int32_t jw = sc_atlas_ops_wrap(j, H, J->wv);
+            int32_t jw = sc_seam_wrap(j, H, J->wv);
             if (jw < b0 || jw >= b1) continue;
             int64_t i0, i1;
             sc_atlas_ops_row_span(x, y, r, (double)j, &i0, &i1);
             if (i0 < (int64_t)ceil(xmin)) i0 = (int64_t)ceil(xmin);
             if (i1 > (int64_t)floor(xmax)) i1 = (int64_t)floor(xmax);
             for (int64_t i = i0; i <= i1; i++) {
-                size_t t = (size_t)jw * W + sc_atlas_ops_wrap(i, W, J->wu);
+                size_t t = (size_t)jw * W + sc_seam_wrap(i, W, J->wu);
                 if (J->best[t] == 0) continue;   /* held at distance 0: a later face only ties */
                 bool in = d != 0 && inside(x, y, d, (double)i, (double)j);
                 double d2 = in ? 0 : fmin(sc_atlas_ops_segment_distance2((double)i, (double)j, x[0], y[0], x[1], y[1]),
@@ -263,7 +262,7 @@ static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_
             if (i1 > (int64_t)floor(xmax)) i1 = (int64_t)floor(xmax);
             for (int64_t i = i0; i <= i1; i++) {
                 if (!inside(x, y, d, (double)i, (double)j)) continue;
-                size_t t = (size_t)sc_atlas_ops_wrap(j, H, wv) * W + sc_atlas_ops_wrap(i, W, wu);
+                size_t t = (size_t)sc_seam_wrap(j, H, wv) * W + sc_seam_wrap(i, W, wu);
                 int32_t a = uf_find(parent, m->FU[3 * f]), b = label[t] >= 0 ? uf_find(parent, label[t]) : a;
                 if (a != b) parent[a > b ? a : b] = a < b ? a : b;
                 label[t] = a < b ? a : b;
@@ -593,82 +592,43 @@ typedef struct files_job {
     chain_files *out;
 } files_job;
 
-static int files_one(void *ud, int32_t c) {
+static void files_one(void *ud, int32_t c) {
     files_job *J = ud;
     const chain *ch = &J->chains[c];
     int32_t k = ch->source >= 0 ? ch->source : 0;
-    return encode_files(ch, J->src[k]->mesh->as.mesh, &J->out[c]);
+    encode_files(ch, J->src[k]->mesh->as.mesh, &J->out[c]);   /* its result is in J->out[c] */
 }
 
 /* Encoding runs beside the building: chains are handed to the encoder as
- * their group is finished, and a worker thread encodes them in that order
- * while the next groups are erased; when all are handed over the caller
- * joins in. Each file's bytes depend on its chain alone, and the report
+ * their group is finished, and a worker thread (sc_pipe) encodes them in
+ * that order while the next groups are erased; when all are handed over
+ * the caller joins in (one thread: each chain is encoded when handed). Each file's bytes depend on its chain alone, and the report
  * takes them in chain order (collect_files), so neither the order nor the
  * thread count shows in the results. */
 typedef struct encoder {
     files_job job;
-    int32_t *order;        /* chains in the order they were handed over */
-    int32_t ready, next;   /* order[0..ready) handed over; order[next] is the next to encode */
-    bool closed;           /* all handed over */
-    bool worker;           /* a worker thread runs */
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
+    sc_pipe *pipe;         /* encodes the chains handed over (sc_pipe) */
+    int32_t encoded;       /* chains encoded, once finished */
 } encoder;
 
-static void encoder_work(encoder *E) {
-    for (;;) {
-        pthread_mutex_lock(&E->mu);
-        while (E->next >= E->ready && !E->closed) pthread_cond_wait(&E->cv, &E->mu);
-        if (E->next >= E->ready) {
-            pthread_mutex_unlock(&E->mu);
-            return;
-        }
-        int32_t c = E->order[E->next++];
-        pthread_mutex_unlock(&E->mu);
-        files_one(&E->job, c);
-    }
-}
-
-static void *encoder_main(void *ud) {
-    encoder_work(ud);
-    return NULL;
-}
-
-/* A worker thread only when threads > 1; false when out of memory. */
+/* False when out of memory. */
 static bool encoder_start(encoder *E, const chain *chains, int32_t nchains, const sc_atlas *const *src, int threads) {
     memset(E, 0, sizeof *E);
     E->job = (files_job){chains, src, calloc((size_t)nchains + 1, sizeof(chain_files))};
-    E->order = calloc((size_t)nchains + 1, sizeof *E->order);
-    if (!E->job.out || !E->order) {
-        free(E->job.out), free(E->order);
+    E->pipe = E->job.out ? sc_pipe_start(threads, nchains, files_one, &E->job) : NULL;
+    if (!E->pipe) {
+        free(E->job.out);
         return false;
     }
-    pthread_mutex_init(&E->mu, NULL);
-    pthread_cond_init(&E->cv, NULL);
-    E->worker = threads > 1 && pthread_create(&E->thread, NULL, encoder_main, E) == 0;
     return true;
 }
 
-static void encoder_hand(encoder *E, int32_t c) {
-    pthread_mutex_lock(&E->mu);
-    E->order[E->ready++] = c;
-    pthread_cond_broadcast(&E->cv);
-    pthread_mutex_unlock(&E->mu);
-}
+static void encoder_hand(encoder *E, int32_t c) { sc_pipe_hand(E->pipe, c); }
 
 /* No more chains: stop taking new ones when `abandon`, else encode the rest
  * here too; then wait for the worker. */
 static void encoder_finish(encoder *E, bool abandon) {
-    pthread_mutex_lock(&E->mu);
-    E->closed = true;
-    if (abandon) E->ready = E->next;
-    pthread_cond_broadcast(&E->cv);
-    pthread_mutex_unlock(&E->mu);
-    if (!abandon) encoder_work(E);
-    if (E->worker) pthread_join(E->thread, NULL);
-    E->worker = false;
+    E->encoded = sc_pipe_finish(E->pipe, abandon ? SC_PIPE_DROP : SC_PIPE_HELP);
 }
 
 /* Every chain's files into the report, in chain order; frees the encoder. */
@@ -676,7 +636,7 @@ static int collect_files(sc_report *r, encoder *E, int32_t nchains, sc_error *er
     chain_files *out = E->job.out;
     int rc = r ? SC_OK : SC_ENOMEM;
     for (int32_t c = 0; c < nchains; c++) {
-        if (rc == SC_OK && E->next == nchains && out[c].rc != SC_OK) {
+        if (rc == SC_OK && E->encoded == nchains && out[c].rc != SC_OK) {
             if (err) *err = out[c].err;
             rc = out[c].rc;
         }
@@ -685,10 +645,9 @@ static int collect_files(sc_report *r, encoder *E, int32_t nchains, sc_error *er
             sc_buf_free(&out[c].buf[i]);
         }
     }
-    if (rc == SC_OK && E->next != nchains) rc = sc_fail(err, SC_ENOMEM, "the mip files were not all encoded");
-    pthread_mutex_destroy(&E->mu);
-    pthread_cond_destroy(&E->cv);
-    free(out), free(E->order);
+    if (rc == SC_OK && E->encoded != nchains) rc = sc_fail(err, SC_ENOMEM, "the mip files were not all encoded");
+    sc_pipe_free(E->pipe);
+    free(out);
     return rc;
 }
 

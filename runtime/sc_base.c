@@ -504,6 +504,87 @@ int sc_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk)
     return rc;
 }
 
+struct sc_pipe {
+    void (*fn)(void *ud, int32_t item);
+    void *ud;
+    int32_t *items, capacity;
+    int32_t ready, next, done;   /* items[0..ready) handed over; items[next] the next to run; done: finished */
+    bool closed, worker;
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+};
+
+/* Run items until none is handed over and waiting (and, unless `until_closed`
+ * is false, until the pipe is closed). */
+static void pipe_work(sc_pipe *p, bool until_closed) {
+    for (;;) {
+        pthread_mutex_lock(&p->mu);
+        while (until_closed && p->next >= p->ready && !p->closed) pthread_cond_wait(&p->cv, &p->mu);
+        if (p->next >= p->ready) {
+            pthread_mutex_unlock(&p->mu);
+            return;
+        }
+        int32_t item = p->items[p->next++];
+        pthread_mutex_unlock(&p->mu);
+        p->fn(p->ud, item);
+        pthread_mutex_lock(&p->mu);
+        p->done++;
+        pthread_cond_broadcast(&p->cv);
+        pthread_mutex_unlock(&p->mu);
+    }
+}
+
+static void *pipe_main(void *ud) {
+    pipe_work(ud, true);
+    return NULL;
+}
+
+sc_pipe *sc_pipe_start(int threads, int32_t capacity, void (*fn)(void *ud, int32_t item), void *ud) {
+    sc_pipe *p = calloc(1, sizeof *p);
+    if (!p) return NULL;
+    p->items = sc_alloc_array((size_t)capacity + 1, sizeof *p->items);
+    if (!p->items) {
+        free(p);
+        return NULL;
+    }
+    p->fn = fn, p->ud = ud, p->capacity = capacity;
+    pthread_mutex_init(&p->mu, NULL);
+    pthread_cond_init(&p->cv, NULL);
+    p->worker = threads > 1 && pthread_create(&p->thread, NULL, pipe_main, p) == 0;
+    return p;
+}
+
+void sc_pipe_hand(sc_pipe *p, int32_t item) {
+    pthread_mutex_lock(&p->mu);
+    bool taken = !p->closed && p->ready < p->capacity;
+    if (taken) p->items[p->ready++] = item;
+    pthread_cond_broadcast(&p->cv);
+    pthread_mutex_unlock(&p->mu);
+    if (taken && !p->worker) pipe_work(p, false);
+}
+
+int32_t sc_pipe_finish(sc_pipe *p, sc_pipe_end how) {
+    pthread_mutex_lock(&p->mu);
+    p->closed = true;
+    if (how == SC_PIPE_DROP) p->ready = p->next;
+    pthread_cond_broadcast(&p->cv);
+    pthread_mutex_unlock(&p->mu);
+    if (how == SC_PIPE_HELP || !p->worker) pipe_work(p, false);
+    if (p->worker) pthread_join(p->thread, NULL);
+    p->worker = false;
+    return p->done;
+}
+
+void sc_pipe_free(sc_pipe *p) {
+    if (!p) return;
+    sc_pipe_finish(p, SC_PIPE_DROP);
+    pthread_mutex_destroy(&p->mu);
+    pthread_cond_destroy(&p->cv);
+    free(p->items);
+    free(p);
+}
+
 void sc_format_double(double v, char out[32]) {
     if (v == 0) {   /* both zeros print as 0: they compare equal everywhere */
         strcpy(out, "0");

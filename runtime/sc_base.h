@@ -149,6 +149,24 @@ void sc_release_memory(void);
  * chunk order, SC_OK when every chunk succeeded, or SC_ENOMEM. */
 int sc_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud);
 
+/* A worker that runs fn(ud, item) for the items handed over, one at a time
+ * in hand-over order, while the caller goes on: a stage that overlaps the
+ * next one's work. With threads <= 1 (or no thread to be had) there is no
+ * worker and sc_pipe_hand runs the item itself. sc_pipe_start returns NULL
+ * out of memory; capacity bounds the items handed over. */
+typedef struct sc_pipe sc_pipe;
+typedef enum sc_pipe_end {
+    SC_PIPE_WAIT = 0,   /* the worker runs what is left; the caller waits */
+    SC_PIPE_HELP = 1,   /* the caller runs items too until none is left */
+    SC_PIPE_DROP = 2,   /* items not yet started are never run */
+} sc_pipe_end;
+sc_pipe *sc_pipe_start(int threads, int32_t capacity, void (*fn)(void *ud, int32_t item), void *ud);
+void sc_pipe_hand(sc_pipe *p, int32_t item);
+/* No more items; returns when no item is running. Returns how many items
+ * ran in all. A second call changes nothing. */
+int32_t sc_pipe_finish(sc_pipe *p, sc_pipe_end how);
+void sc_pipe_free(sc_pipe *p);
+
 /* Shortest decimal text that reads back to exactly v ("nan"/"inf" never
  * occur: callers reject them first). Integral values print without ".0". */
 void sc_format_double(double v, char out[32]);

@@ -8,8 +8,8 @@
  *    image gets a slot of its own, so two images of one name and material are
  *    erased side by side.
  *  - Inline helpers of the per-texel rasterisers (bake_displacement's raster,
- *    mipmap's chart band): segment distance, wrapping, and the columns of a
- *    row that can lie within a distance of a triangle.
+ *    mipmap's chart band): segment distance and the columns of a row that
+ *    can lie within a distance of a triangle.
  */
 #ifndef SC_ATLAS_OPS_H
 #define SC_ATLAS_OPS_H
@@ -51,20 +51,6 @@ static inline double sc_atlas_ops_segment_distance2(double px, double py, double
     t = t < 0 ? 0 : t > 1 ? 1 : t;
     double ex = ax + t * dx - px, ey = ay + t * dy - py;
     return ex * ex + ey * ey;
-}
-
-/* sc_seam_wrap (texel index i through wrap mode w on a side of n texels),
- * inline for per-texel loops. */
-static inline int32_t sc_atlas_ops_wrap(int64_t i, int32_t n, sc_wrap w) {
-    if (n <= 1) return 0;
-    if (w == SC_WRAP_CLAMP) return i < 0 ? 0 : i >= n ? n - 1 : (int32_t)i;
-    if (w == SC_WRAP_MIRROR) {
-        int64_t p = 2 * (int64_t)n, m = i % p;
-        if (m < 0) m += p;
-        return (int32_t)(m >= n ? p - 1 - m : m);
-    }
-    int64_t m = i % n;
-    return (int32_t)(m < 0 ? m + n : m);
 }
 
 /* The columns [*i0, *i1] of row `row` whose distance to triangle (x, y) may

@@ -29,24 +29,6 @@ static const double G2[2][2] = {{1.0, 1.0 / 2}, {1.0 / 2, 1.0 / 3}};
 
 /* ---------------------------------------------------------------- sampling */
 
-int32_t sc_seam_wrap(int64_t i, int32_t n, sc_wrap w) {
-    if (n <= 1) return 0;
-    switch (w) {
-    case SC_WRAP_CLAMP:
-        return i < 0 ? 0 : i >= n ? n - 1 : (int32_t)i;
-    case SC_WRAP_MIRROR: {
-        int64_t p = 2 * (int64_t)n, m = i % p;
-        if (m < 0) m += p;
-        return (int32_t)(m >= n ? p - 1 - m : m);
-    }
-    default: {
-        int64_t m = i % n;
-        if (m < 0) m += n;
-        return (int32_t)m;
-    }
-    }
-}
-
 /* floor as an integer, kept finite for absurd coordinates */
 static int64_t cell_of(double x) {
     double f = floor(x);
@@ -575,17 +557,24 @@ static void combo_add(combo *cb, int32_t id, const double *poly, int deg, double
 
 /* ---------------------------------------------------------------- marking */
 
+/* The cell of piece i (between grid parameters gm[i] and gm[i + 1]) of
+ * the uv segment a0 a1; false for an empty piece. */
+static bool piece_cell(const sc_seam_grid *g, const double *a0, const double *a1, const double *gm, int32_t i,
+                       sc_seam_cellpoly *cp) {
+    if (!(gm[i + 1] > gm[i])) return false;
+    double pa[2], pb[2];
+    lerp2(a0, a1, gm[i], pa);
+    lerp2(a0, a1, gm[i + 1], pb);
+    sc_seam_cellpoly_make(g, pa, pb, NULL, cp);
+    return true;
+}
+
 static void mark_pieces(const sc_seam_grid *g, const double *a0, const double *a1,
                         const double *gm, int32_t n, sc_seam_texset *set) {
-    for (int32_t i = 0; i + 1 < n; i++) {
-        if (!(gm[i + 1] > gm[i])) continue;
-        double pa[2], pb[2];
-        lerp2(a0, a1, gm[i], pa);
-        lerp2(a0, a1, gm[i + 1], pb);
-        sc_seam_cellpoly cp;
-        sc_seam_cellpoly_make(g, pa, pb, NULL, &cp);
-        for (int k = 0; k < 4; k++) sc_seam_texset_add(set, cp.id[k]);
-    }
+    sc_seam_cellpoly cp;
+    for (int32_t i = 0; i + 1 < n; i++)
+        if (piece_cell(g, a0, a1, gm, i, &cp))
+            for (int k = 0; k < 4; k++) sc_seam_texset_add(set, cp.id[k]);
 }
 
 /* The pieces of edge q of s (seams split as pairs, exactly as the operator
@@ -651,13 +640,9 @@ int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_g
         if (np == 0) continue;
         for (int side = 0; side < (sd[1] ? 2 : 1); side++) {
             const double *p0 = e[2 * side], *p1 = e[2 * side + 1];
+            sc_seam_cellpoly cp;
             for (int32_t i = 0; i + 1 < np; i++) {
-                if (!(w.gm[i + 1] > w.gm[i])) continue;
-                double pa[2], pb[2];
-                lerp2(p0, p1, w.gm[i], pa);
-                lerp2(p0, p1, w.gm[i + 1], pb);
-                sc_seam_cellpoly cp;
-                sc_seam_cellpoly_make(g, pa, pb, NULL, &cp);
+                if (!piece_cell(g, p0, p1, w.gm, i, &cp)) continue;
                 for (int k = 0; k < 4; k++) {
                     int32_t r = sc_seam_texset_index(index, cp.id[k]);
                     if (r < 0) continue;

@@ -34,8 +34,19 @@ typedef struct sc_seam_grid {
     sc_wrap wrap_u, wrap_v;
 } sc_seam_grid;
 
-/* Texel index i (any integer) taken into [0, n) by the wrap mode. */
-int32_t sc_seam_wrap(int64_t i, int32_t n, sc_wrap w);
+/* Texel index i (any integer) taken into [0, n) by the wrap mode (inline:
+ * per-texel loops call it). */
+static inline int32_t sc_seam_wrap(int64_t i, int32_t n, sc_wrap w) {
+    if (n <= 1) return 0;
+    if (w == SC_WRAP_CLAMP) return i < 0 ? 0 : i >= n ? n - 1 : (int32_t)i;
+    if (w == SC_WRAP_MIRROR) {
+        int64_t p = 2 * (int64_t)n, m = i % p;
+        if (m < 0) m += p;
+        return (int32_t)(m >= n ? p - 1 - m : m);
+    }
+    int64_t m = i % n;
+    return (int32_t)(m < 0 ? m + n : m);
+}
 
 /* The four bilinear taps of uv: texel ids (j * W + i) and weights, in the
  * order (cx, cy), (cx+1, cy), (cx, cy+1), (cx+1, cy+1). Ids may repeat (clamp,
