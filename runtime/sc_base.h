@@ -129,17 +129,24 @@ char *sc_path_dirname(const char *path);
 /* Monotonic seconds, for timings that go into reports (never into values). */
 double sc_now(void);
 
-/* For a process that cooks (the command line, the benchmarks): keep the
- * memory freed by one stage for the next instead of handing it back to the
- * system and faulting fresh zeroed pages in again (glibc: mmap threshold
- * fixed at its 32 MB ceiling, no trimming). Large maps are allocated and
- * freed stage after stage; on this project's 2-core machine page faults
- * were 13% of blub's bake and mip chains in a profile (bench_bake, three
- * alternating runs each way: 8.5-8.9 s -> 7.6-8.4 s). Maps above 32 MB
- * (pizza's) are still mapped and unmapped each time. Nothing on other C
- * libraries. sc_release_memory hands the retained memory back (watch mode,
- * between cooks). */
-void sc_tune_allocator(void);
+/* For a process that cooks (the command line, the benchmarks), called
+ * first thing in main with main's argv:
+ *  - Huge pages. Unless GLIBC_TUNABLES already names glibc.malloc.hugetlb
+ *    (set it to 0 to opt out), the program runs itself again
+ *    (/proc/self/exe, the same argv and pid) with glibc.malloc.hugetlb=1
+ *    added: malloc then advises its heap and large blocks for transparent
+ *    huge pages, where the system's THP mode is `madvise` (Debian's
+ *    default). First touches of fresh memory cost one fault per 2 MB
+ *    instead of per 4 KB; on this project's 2-core machine those faults
+ *    were 20% of a pizza erase_seams profile (bench_erase_seams pizza,
+ *    alternating runs: 16-17 s -> 12.5 s; blub 0.38 -> 0.28 s; bench_bake
+ *    blub 7.9-9.2 s -> 6.7-7.8 s; bench_decimate unchanged).
+ *  - Keep the memory freed by one stage for the next instead of handing it
+ *    back to the system (glibc: mmap threshold fixed at its 32 MB ceiling,
+ *    no trimming): bench_bake blub 8.5-8.9 s -> 7.6-8.4 s before huge pages.
+ * Nothing on other C libraries. sc_release_memory hands the retained memory
+ * back (watch mode, between cooks). */
+void sc_tune_allocator(char **argv);
 void sc_release_memory(void);
 
 /* Run fn(ud, chunk) for every chunk in [0, nchunks) on up to `threads`
