@@ -90,11 +90,6 @@ int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
     return c ? c->encode_exr(im, out, err) : SC_EIO;
 }
 
-int sc_image_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err) {
-    const sc_imageio_codecs *c = get_codecs(err);
-    return c ? c->encode_exr_mip(levels, nlevels, out, err) : SC_EIO;
-}
-
 int sc_image_decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***levels,
                            int *nlevels, sc_error *err) {
     *levels = NULL;

@@ -260,65 +260,6 @@ int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
     return write_with_oiio("exr", exr_spec(im), px.data(), out, err);
 }
 
-/* A tiled, mip-mapped EXR: level k is levels[k], each side floor(previous / 2)
- * (OpenEXR's ROUND_DOWN), down to 1 x 1 or to the last level given. */
-int encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err) {
-    if (nlevels < 1 || !levels) return sc_fail(err, SC_EINPUT, "mip-mapped EXR: no levels");
-    for (int k = 0; k < nlevels; k++) {
-        if (!check_image(levels[k], "mip-mapped EXR", err)) return err ? err->code : SC_EINPUT;
-        if (levels[k]->channels != levels[0]->channels)
-            return sc_fail(err, SC_EINPUT, "mip-mapped EXR: level %d has %d channels, level 0 has %d", k,
-                           levels[k]->channels, levels[0]->channels);
-        if (k > 0) {
-            int32_t ew = levels[k - 1]->width / 2, eh = levels[k - 1]->height / 2;
-            if (ew < 1) ew = 1;
-            if (eh < 1) eh = 1;
-            if (levels[k]->width != ew || levels[k]->height != eh)
-                return sc_fail(err, SC_EINPUT, "mip-mapped EXR: level %d is %dx%d, expected %dx%d", k,
-                               levels[k]->width, levels[k]->height, ew, eh);
-        }
-    }
-    std::vector<unsigned char> bytes;
-    size_t raw = 65536;   /* room for the uncompressed file: the vector never regrows (untouched room costs nothing) */
-    for (int k = 0; k < nlevels; k++) raw += sample_count(levels[k]) * sizeof(float) + 64;
-    bytes.reserve(raw);
-    OIIO::Filesystem::IOVecOutput proxy(bytes);
-    auto writer = ImageOutput::create("memory.exr", &proxy);
-    if (!writer) return sc_fail(err, SC_EIO, "exr writer: %s", global_error().c_str());
-    if (!writer->supports("mipmap") || !writer->supports("tiles"))
-        return sc_fail(err, SC_EIO, "the EXR writer cannot write tiled mip-maps");
-    bool ok = true;
-    for (int k = 0; k < nlevels && ok; k++) {
-        ImageSpec spec = exr_spec(levels[k]);
-        spec.attribute("compression", "zip:1");   /* fastest deflate: a float map barely packs tighter at 6 */
-        spec.tile_width = spec.tile_height = 64;
-        spec.tile_depth = 1;
-        spec.attribute("textureformat", "Plain Texture");   /* what makes OIIO write MIP levels */
-        spec.attribute("openexr:levelmode", 1);   /* MIPMAP_LEVELS */
-        spec.attribute("openexr:roundingmode", 0); /* ROUND_DOWN */
-        ok = k == 0 ? writer->open("memory.exr", spec) : writer->open("memory.exr", spec, ImageOutput::AppendMIPLevel);
-        const sc_image_data *im = levels[k];
-        if (ok && im->pixel == SC_PIXEL_F32 && im->colorspace != SC_COLOR_SRGB) {
-            /* float written as it is: straight from the bottom-up rows, last row first (a negative row stride) */
-            const OIIO::stride_t row = (OIIO::stride_t)im->width * im->channels * (OIIO::stride_t)sizeof(float);
-            const char *last = (const char *)im->pixels + (size_t)(im->height - 1) * (size_t)row;
-            ok = writer->write_image(TypeDesc::FLOAT, last, OIIO::AutoStride, -row);
-        } else if (ok) {
-            std::vector<float> px = exr_pixels(im);
-            ok = writer->write_image(TypeDesc::FLOAT, px.data());
-        }
-    }
-    if (!ok || !writer->close()) {
-        std::string e = tidy(writer->geterror());
-        global_error();
-        return sc_fail(err, SC_EIO, "cannot encode a mip-mapped exr: %s", e.c_str());
-    }
-    writer.reset();
-    sc_buf_append(out, bytes.data(), bytes.size());
-    if (out->failed) return sc_fail(err, SC_ENOMEM, "out of memory for the encoded exr");
-    return SC_OK;
-}
-
 /* Every mip level of an EXR (or of any OIIO-readable file), as f32 images. */
 int decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***out, int *nout,
                   sc_error *err) {
@@ -426,18 +367,6 @@ static int module_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err
     }
 }
 
-static int module_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err) {
-    try {
-        return encode_exr_mip(levels, nlevels, out, err);
-    } catch (const std::bad_alloc &) {
-        return sc_fail(err, SC_ENOMEM, "EXR: out of memory");
-    } catch (const std::exception &e) {
-        return sc_fail(err, SC_EIO, "EXR: %s", e.what());
-    } catch (...) {
-        return sc_fail(err, SC_EIO, "EXR: cannot encode (unknown exception)");
-    }
-}
-
 static int module_decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***out,
                                 int *nout, sc_error *err) {
     *out = NULL;
@@ -454,7 +383,7 @@ static int module_decode_levels(const char *name, const void *bytes, size_t size
 /* The module's one exported symbol: the table sc_imageio.c loads on first use. */
 static const sc_imageio_codecs codecs = {
     SC_IMAGEIO_ABI, module_decode, module_encode_png, module_encode_jpeg, module_encode_exr,
-    module_encode_exr_mip, module_decode_levels,
+    module_decode_levels,
 };
 
 extern "C" __attribute__((visibility("default"))) const sc_imageio_codecs *sc_imageio_codecs_get(void) {

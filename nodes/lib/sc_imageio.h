@@ -48,12 +48,14 @@ int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_e
 int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err);
 
 /* A tiled (64 x 64), mip-mapped OpenEXR holding every level in one file,
- * float32, zip at level 1 (fast; a float map packs barely tighter at the
- * default level), channels named as in sc_image_encode_exr. Level k + 1 must be
- * max(1, floor(level k / 2)) on each side (OpenEXR's round-down rule); the
- * chain may stop before 1 x 1. */
+ * float32, ZIP-compressed (written through the OpenEXR C API, deflated by
+ * libdeflate: sc_imageio_exr.c), channels named as in sc_image_encode_exr.
+ * Level k + 1 must be max(1, floor(level k / 2)) on each side (OpenEXR's
+ * round-down rule), down to 1 x 1. _threads packs and deflates the tiles on
+ * up to `threads` threads (the same bytes for any count). */
 int sc_image_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err);
-
+int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlevels, int threads, sc_buf *out,
+                                    sc_error *err);
 /* Every mip level of an OpenEXR file (one level for a flat file), as f32
  * images, rows bottom-up. *levels is a malloc'd array of *nlevels images:
  * free each with sc_image_free, then the array with free(). */

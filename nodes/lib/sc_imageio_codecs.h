@@ -17,7 +17,7 @@
 extern "C" {
 #endif
 
-#define SC_IMAGEIO_ABI 2
+#define SC_IMAGEIO_ABI 3
 #define SC_IMAGEIO_MODULE "libseamcook_imageio.so"
 #define SC_IMAGEIO_ENTRY "sc_imageio_codecs_get"
 
@@ -27,8 +27,8 @@ typedef struct sc_imageio_codecs {
     int (*encode_png)(const sc_image_data *im, int bits, sc_buf *out, sc_error *err);
     int (*encode_jpeg)(const sc_image_data *im, int quality, sc_buf *out, sc_error *err);
     int (*encode_exr)(const sc_image_data *im, sc_buf *out, sc_error *err);
-    /* ABI 2: tiled mip-mapped EXR, and reading every level of one */
-    int (*encode_exr_mip)(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err);
+    /* ABI 2: reading every level of a mip-mapped EXR (ABI 3: writing one is
+     * sc_imageio_exr.c's, in C) */
     int (*decode_levels)(const char *name, const void *bytes, size_t size, sc_image_data ***out, int *nout,
                          sc_error *err);
 } sc_imageio_codecs;

@@ -292,11 +292,9 @@ SC_TEST(encoders_write_no_time_stamps) {
 
 /* A mip chain of float images written as one tiled EXR reads back level
  * for level, bit for bit, and the bytes do not depend on the run. */
-SC_TEST(exr_mip_round_trip) {
-    sc_image_data *lv[8] = {0};
-    int32_t w = 40, h = 24;
+static int float_chain(int32_t w, int32_t h, sc_image_data **lv, int most) {
     int n = 0;
-    for (; n < 8; n++) {
+    for (; n < most; n++) {
         lv[n] = sc_image_alloc(w, h, 3, SC_PIXEL_F32);
         lv[n]->colorspace = SC_COLOR_DATA;
         float *p = lv[n]->pixels;
@@ -304,7 +302,12 @@ SC_TEST(exr_mip_round_trip) {
         if (w == 1 && h == 1) break;
         w = w / 2 > 0 ? w / 2 : 1, h = h / 2 > 0 ? h / 2 : 1;
     }
-    n++;   /* 40x24 ... 1x1: 6 levels */
+    return n + 1;
+}
+
+SC_TEST(exr_mip_round_trip) {
+    sc_image_data *lv[8] = {0};
+    int n = float_chain(40, 24, lv, 8);   /* 40x24 ... 1x1: 6 levels */
     SC_CHECK_INT(n, 6);
     sc_buf a, b;
     sc_error err;
@@ -322,11 +325,29 @@ SC_TEST(exr_mip_round_trip) {
     }
     for (int k = 0; k < nd; k++) sc_image_free(dec[k]);
     free(dec);
-    /* a wrong level size is refused */
+    /* the same bytes on several threads (520x300: 9 x 5 tiles at level 0);
+     * OpenImageIO reads a chain from level 1 on too */
+    sc_image_data *big[12] = {0};
+    int nb = float_chain(520, 300, big, 12);
+    sc_buf_reset(&a), sc_buf_reset(&b);
+    SC_CHECK(sc_image_encode_exr_mip((const sc_image_data *const *)big, nb, &a, &err) == SC_OK);
+    SC_CHECK(sc_image_encode_exr_mip_threads((const sc_image_data *const *)big, nb, 3, &b, &err) == SC_OK);
+    SC_CHECK(a.len > 0 && a.len == b.len && memcmp(a.data, b.data, a.len) == 0);
+    for (int k = 0; k < nb; k++) sc_image_free(big[k]);
     sc_buf_reset(&b);
-    SC_CHECK(sc_image_encode_exr_mip((const sc_image_data *const *)lv + 1, 2, &b, &err) == SC_OK);
+    SC_CHECK(sc_image_encode_exr_mip((const sc_image_data *const *)lv + 1, n - 1, &b, &err) == SC_OK);
+    SC_CHECK(sc_image_decode_levels("mip1.exr", b.data, b.len, &dec, &nd, &err) == SC_OK);
+    SC_CHECK_INT(nd, n - 1);
+    for (int k = 0; k < nd; k++) sc_image_free(dec[k]);
+    free(dec);
+    /* a wrong level size, or a chain that stops before 1 x 1, is refused
+     * and writes nothing */
+    sc_buf_reset(&b);
     const sc_image_data *bad[2] = {lv[0], lv[2]};
     SC_CHECK(sc_image_encode_exr_mip(bad, 2, &b, &err) == SC_EINPUT);
+    SC_CHECK(sc_image_encode_exr_mip((const sc_image_data *const *)lv, 2, &b, &err) == SC_EINPUT);
+    SC_CHECK(strstr(err.message, "1x1") != NULL);
+    SC_CHECK_INT((int)b.len, 0);
     sc_buf_free(&a), sc_buf_free(&b);
     for (int k = 0; k < n; k++) sc_image_free(lv[k]);
 }
