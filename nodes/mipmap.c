@@ -53,8 +53,8 @@
  *    Groups are built one after the other (each source's, then the shared
  *    chains; the order changes no result), and a finished group's chains are
  *    encoded by a worker thread (with more than one thread) while the next
- *    groups are erased, the caller joining in at the end: the zlib work of
- *    the files, the largest part of the node, overlaps the erasure's serial
+ *    groups are erased, the caller joining in at the end: the deflate work
+ *    of the files (sc_image_encode_exr_mip) overlaps the erasure's serial
  *    stretches. A file depends on its chain alone and the report takes the
  *    files in chain order. seconds_files is the encoding left after the
  *    metrics.
