@@ -61,6 +61,22 @@
  * other; both are independent tasks, so results do not depend on the thread
  * count.
  *
+ * Building the system (pizza: 29M terms: 16.6M from the seams, 12.5M
+ * from the grid). Q is assembled from the seam triplets (sc_seam_assemble,
+ * on all threads) by sc_sparse_from_triplets_threads; grid_terms then
+ * widens its pattern by the grid neighbours and adds each grid term to its
+ * entry in the order triplets appended after the seam terms would have been
+ * summed, so Q has the same bits as one assembly of all 29M triplets while
+ * 12.5M triplets (200 MB) are never stored or sorted. Fresh memory is what
+ * costs most here: on this machine first-touch page faults run at 0.5-8
+ * GB/s depending on what the host reclaimed, which makes the build stage
+ * vary by +-40% from run to run. Measured on pizza, best of alternating
+ * runs: build 3.4-4.3 s -> 2.5-3.0 s (6.2 -> 2.9 s on a loaded machine),
+ * total 9.7-11.5 s -> 9.5-9.9 s (factor and quantise came out 0.3-0.6 s
+ * slower in the same runs, for reasons not yet found). The
+ * preconditioner's full-pattern copy of Q (sc_sparse_full_threads) is made
+ * on all threads too.
+ *
  * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the
  * default, takes it from 500k unknowns). The texels that only one edge's
  * cells reach form that edge's cluster, ordered along it; texels shared by
@@ -116,7 +132,9 @@
  * reported; every seam is still erased, those texels being single unknowns
  * that every seam through them constrains.
  *
- * Determinism. Assembly emits triplets in a fixed order for any thread count;
+ * Determinism. Assembly emits triplets in a fixed order for any thread count,
+ * sums them in that order on any thread count, and adds the grid terms after
+ * them in one fixed order;
  * the channels of the rounding are independent (a channel equal to an
  * earlier one at every seam texel, floats and bytes, copies its rounding);
  * the rounding revisits only texels whose gradient changed, which makes the
@@ -191,65 +209,131 @@ static void metric(sc_ctx *ctx, const char *prefix, const char *name, double v) 
 
 /* ---------------------------------------------------------------- grid terms */
 
-/* The per-texel terms: E_change, the Tikhonov floor, E_grad_in and
- * E_grad_out. With trip, Q's entries are added; with p0 and rhs (n x C, one
- * column per channel), the residual -1/2 grad E at p0: only E_grad_out is
- * not minimal there. */
-static void grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
-                       const sc_seam_texset *covered, const options *o, double w_change_texel,
-                       sc_triplets *trip, const sc_image_data *p0, double *rhs, const int32_t *chart,
-                       sc_triplets *apart_out) {
-    const int32_t W = g->width, H = g->height, n = unk->count;
-    const int32_t C = p0 ? p0->channels : 0;
+/* A grid edge from an unknown texel to one of its four neighbours that
+ * carries a term of E_grad_in or E_grad_out. */
+typedef struct grid_link {
+    int32_t texel, index;   /* the neighbour, and its unknown index (-1: fixed) */
+    double w;
+    bool keep_gradient;     /* E_grad_in (the original gradient) or E_grad_out (zero) */
+    bool other_end;         /* between two unknowns, and met first from the other one */
+} grid_link;
+
+/* The grid links of texel t (inside: t is covered), neighbours in the order
+ * right, up, left, down, following the wrap modes; returns their count. */
+static int grid_links(const sc_seam_grid *g, const sc_seam_texset *unk, const sc_seam_texset *covered,
+                      const options *o, int32_t t, bool inside, grid_link out[4]) {
     static const int di[4] = {1, 0, -1, 0}, dj[4] = {0, 1, 0, -1};
+    const int32_t W = g->width, H = g->height, i = t % W, j = t / W;
+    int count = 0;
+    for (int d = 0; d < 4; d++) {
+        int64_t ii = (int64_t)i + di[d], jj = (int64_t)j + dj[d];
+        if (ii < 0 || ii >= W) {
+            if (g->wrap_u != SC_WRAP_REPEAT) continue;
+            ii = sc_seam_wrap(ii, W, SC_WRAP_REPEAT);
+        }
+        if (jj < 0 || jj >= H) {
+            if (g->wrap_v != SC_WRAP_REPEAT) continue;
+            jj = sc_seam_wrap(jj, H, SC_WRAP_REPEAT);
+        }
+        int32_t nb = (int32_t)jj * W + (int32_t)ii;
+        if (nb == t) continue;
+        int32_t r2 = sc_seam_texset_index(unk, nb);
+        bool nb_inside = sc_seam_texset_has(covered, nb);
+        grid_link *l = &out[count];
+        if (inside && nb_inside) {
+            l->w = o->w_grad_in, l->keep_gradient = true;
+        } else if ((!inside && (nb_inside || r2 >= 0)) || (inside && r2 >= 0)) {
+            l->w = o->w_grad_out, l->keep_gradient = false;
+        } else {
+            continue; /* an unreliable outside texel beyond the unknowns */
+        }
+        if (l->w == 0) continue;
+        l->texel = nb, l->index = r2;
+        l->other_end = d >= 2 && r2 >= 0;
+        count++;
+    }
+    return count;
+}
+
+/* Q's pattern gains the grid terms' entries: in column c the diagonal and
+ * the unknown neighbours of smaller index (the pattern is symmetric: a link
+ * between unknowns is a link from both ends). */
+static int grid_pattern(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
+                        const sc_seam_texset *covered, const options *o, sc_sparse *q, sc_error *err) {
+    const int32_t n = unk->count;
+    int32_t *start = sc_alloc_array((size_t)n + 1, sizeof *start);
+    int32_t *rows = sc_alloc_array(5 * (size_t)n + 1, sizeof *rows);
+    if (!start || !rows) {
+        free(start), free(rows);
+        return sc_fail(err, SC_ENOMEM, "out of memory for the grid terms of %d unknowns", (int)n);
+    }
+    int32_t at = 0;
+    for (int32_t c = 0; c < n; c++) {
+        grid_link links[4];
+        int nl = grid_links(g, unk, covered, o, ids[c], sc_seam_texset_has(covered, ids[c]), links);
+        start[c] = at;
+        for (int k = 0; k < nl; k++) {
+            int32_t r = links[k].index;
+            if (r < 0 || r >= c) continue;
+            int32_t b = at++;   /* insertion sort: at most four */
+            while (b > start[c] && rows[b - 1] > r) rows[b] = rows[b - 1], b--;
+            rows[b] = r;
+        }
+        rows[at++] = c;
+    }
+    start[n] = at;
+    int rc = sc_sparse_widen(q, start, rows, err);
+    free(start), free(rows);
+    return rc;
+}
+
+/* The diagonal entry of column r of an upper-triangular Q: its last. */
+static double *diag_entry(sc_sparse *q, int32_t r) { return &q->val[q->colptr[r + 1] - 1]; }
+
+/* The per-texel terms: E_change, the Tikhonov floor, E_grad_in and
+ * E_grad_out. With q (Q's seam terms, assembled), the grid terms are added
+ * to it, every entry in the same order as triplets appended after the seam
+ * terms would sum them; with p0 and rhs (n x C, one column per channel), the
+ * residual -1/2 grad E at p0: only E_grad_out is not minimal there. */
+static int grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
+                      const sc_seam_texset *covered, const options *o, double w_change_texel,
+                      sc_sparse *q, const sc_image_data *p0, double *rhs, const int32_t *chart,
+                      sc_triplets *apart_out, sc_error *err) {
+    const int32_t n = unk->count;
+    const int32_t C = p0 ? p0->channels : 0;
+    int rc = q ? grid_pattern(g, unk, ids, covered, o, q, err) : SC_OK;
+    if (rc) return rc;
     for (int32_t r = 0; r < n; r++) {
-        int32_t t = ids[r], i = t % W, j = t / W;
+        int32_t t = ids[r];
         bool inside = sc_seam_texset_has(covered, t);
-        if (trip) sc_triplets_add(trip, r, r, TIKHONOV + (inside ? w_change_texel : 0));
-        for (int d = 0; d < 4; d++) {
-            int64_t ii = (int64_t)i + di[d], jj = (int64_t)j + dj[d];
-            if (ii < 0 || ii >= W) {
-                if (g->wrap_u != SC_WRAP_REPEAT) continue;
-                ii = sc_seam_wrap(ii, W, SC_WRAP_REPEAT);
-            }
-            if (jj < 0 || jj >= H) {
-                if (g->wrap_v != SC_WRAP_REPEAT) continue;
-                jj = sc_seam_wrap(jj, H, SC_WRAP_REPEAT);
-            }
-            int32_t nb = (int32_t)jj * W + (int32_t)ii;
-            if (nb == t) continue;
-            int32_t r2 = sc_seam_texset_index(unk, nb);
-            if (d >= 2 && r2 >= 0) continue; /* an edge between unknowns: seen from the other end */
-            bool nb_inside = sc_seam_texset_has(covered, nb);
-            double w;
-            bool keep_gradient; /* E_grad_in (the original gradient) or E_grad_out (zero) */
-            if (inside && nb_inside) {
-                w = o->w_grad_in, keep_gradient = true;
-            } else if ((!inside && (nb_inside || r2 >= 0)) || (inside && r2 >= 0)) {
-                w = o->w_grad_out, keep_gradient = false;
-            } else {
-                continue; /* an unreliable outside texel beyond the unknowns */
-            }
-            if (w == 0) continue;
+        if (q) *diag_entry(q, r) += TIKHONOV + (inside ? w_change_texel : 0);
+        grid_link links[4];
+        int nl = grid_links(g, unk, covered, o, t, inside, links);
+        for (int k = 0; k < nl; k++) {
+            const grid_link *l = &links[k];
+            if (l->other_end) continue;
+            int32_t r2 = l->index;
+            double w = l->w;
             /* with `chart`: a coupling of unknowns of two different charts
              * (side by side in the atlas) is also listed in apart_out */
             if (apart_out && r2 >= 0 && chart[r] >= 0 && chart[r2] >= 0 && chart[r] != chart[r2])
                 sc_triplets_add(apart_out, r, r2, w);
-            if (trip) {
-                sc_triplets_add(trip, r, r, w);
+            if (q) {
+                *diag_entry(q, r) += w;
                 if (r2 >= 0) {
-                    sc_triplets_add(trip, r2, r2, w);
-                    sc_triplets_add(trip, r, r2, -w);
+                    *diag_entry(q, r2) += w;
+                    q->val[r < r2 ? sc_sparse_find(q, r, r2) : sc_sparse_find(q, r2, r)] += -w;
                 }
             }
-            if (rhs && !keep_gradient)
+            if (rhs && !l->keep_gradient)
                 for (int32_t c = 0; c < C; c++) {
-                    double gr = w * (sc_seam_texel(p0, t, c) - sc_seam_texel(p0, nb, c));
+                    double gr = w * (sc_seam_texel(p0, t, c) - sc_seam_texel(p0, l->texel, c));
                     rhs[(size_t)c * n + r] -= gr;
                     if (r2 >= 0) rhs[(size_t)c * n + r2] += gr;
                 }
         }
     }
+    return SC_OK;
 }
 
 /* ---------------------------------------------------------------- E_lerp targets */
@@ -468,29 +552,18 @@ typedef struct prep_job {
     double seconds_factor, seconds_resid, seconds_nullity, seconds_round_prep;
 } prep_job;
 
-/* Where row r sits in column c of a full-pattern matrix (rows sorted), -1
- * when it is not stored. */
-static int64_t full_entry(const sc_sparse *f, int32_t c, int32_t r) {
-    int32_t lo = f->colptr[c], hi = f->colptr[c + 1];
-    while (lo < hi) {
-        int32_t mid = lo + (hi - lo) / 2;
-        if (f->rowind[mid] < r) lo = mid + 1;
-        else hi = mid;
-    }
-    return lo < f->colptr[c + 1] && f->rowind[lo] == r ? lo : -1;
-}
-
 /* The preconditioner's matrix, full pattern: Q less each listed coupling
  * term w (p_r - p_r2)^2 (both diagonals and the pair), the couplings that
  * end at exactly zero dropped, so that they join no cluster to another. */
-static int preconditioner_matrix(const sc_sparse *q, const sc_triplets *apart, sc_sparse *full, sc_error *err) {
-    int rc = sc_sparse_full(q, full, err);
+static int preconditioner_matrix(const sc_sparse *q, const sc_triplets *apart, int threads, sc_sparse *full,
+                                 sc_error *err) {
+    int rc = sc_sparse_full_threads(q, threads, full, err);
     if (rc) return rc;
     for (size_t k = 0; k < apart->count; k++) {
         int32_t r = apart->row[k], r2 = apart->col[k];
         double w = apart->val[k];
-        int64_t at[4] = {full_entry(full, r, r), full_entry(full, r2, r2), full_entry(full, r, r2),
-                         full_entry(full, r2, r)};
+        int64_t at[4] = {sc_sparse_find(full, r, r), sc_sparse_find(full, r2, r2), sc_sparse_find(full, r2, r),
+                         sc_sparse_find(full, r, r2)};
         if (at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) continue;   /* assembled with Q: never */
         full->val[at[0]] -= w, full->val[at[1]] -= w, full->val[at[2]] += w, full->val[at[3]] += w;
     }
@@ -515,7 +588,7 @@ static int prep_factor(prep_job *pj) {
     group_work *w = pj->ctx.w;
     if (w->use_schur) {
         sc_sparse full;
-        pj->rc_factor = preconditioner_matrix(&w->q, &w->apart, &full, &pj->err_factor);
+        pj->rc_factor = preconditioner_matrix(&w->q, &w->apart, pj->ctx.o->threads, &full, &pj->err_factor);
         sc_triplets_free(&w->apart);
         if (pj->rc_factor == SC_OK)
             pj->rc_factor = sc_schur_factor(&full, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
@@ -568,7 +641,7 @@ static int prep_side(prep_job *pj) {
             if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, c->o->threads, NULL, err)))
                 return pj->rc_side = rc;
         }
-        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs, NULL, NULL);
+        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs, NULL, NULL, NULL);
         col += img->channels;
     }
     double t2 = sc_now();
@@ -782,6 +855,9 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     first.rhs = w.rhs;
     sc_triplets_init(&w.trip, n);
     if ((rc = sc_seam_assemble(m, seams, g, &w.unk, &first, o->threads, &w.trip, err))) goto done;
+    /* Q: the seam terms, then the grid terms added to their sums */
+    if ((rc = sc_sparse_from_triplets_threads(&w.trip, o->threads, &w.q, err))) goto done;
+    sc_triplets_free(&w.trip);
     w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= SCHUR_MIN_UNKNOWNS);
     if (w.use_schur) {
         /* the couplings between charts (chart of the face whose edge piece
@@ -789,10 +865,9 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         if ((rc = schur_groups(m, seams, g, &w, err))) goto done;
         sc_triplets_init(&w.apart, n);
     }
-    grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.trip, NULL, NULL, w.group ? w.group + n : NULL,
-               w.use_schur ? &w.apart : NULL);
-    if ((rc = sc_sparse_from_triplets(&w.trip, &w.q, err))) goto done;
-    sc_triplets_free(&w.trip);
+    if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.q, NULL, NULL,
+                         w.group ? w.group + n : NULL, w.use_schur ? &w.apart : NULL, err)))
+        goto done;
     bool want_round = false;
     for (int32_t k = 0; k < gr->ntex; k++)
         want_round |= atlas->textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&

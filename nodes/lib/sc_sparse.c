@@ -5,6 +5,15 @@
  * order: the same triplets give the same bits whatever happened before (the
  * callers emit triplets in a fixed order, whatever their thread count). Only
  * the upper triangle is stored, which is what CHOLMOD reads for stype = 1.
+ * On several threads the triplets are cut into consecutive ranges, each
+ * counted and scattered by its own thread into its own slots of every
+ * column (range after range, so a column still holds its entries in the
+ * order they were added), and the columns are then sorted and summed in
+ * ranges of about equal entries: the same bits for any thread count. The
+ * full pattern (sc_sparse_full) is made the same way, by ranges of upper
+ * columns. sc_sparse_widen adds entries to a pattern in place (a merge from
+ * the last column back), so that terms known by their structure can be
+ * added straight into an assembled matrix instead of going through triplets.
  *
  * CHOLMOD is driven with one cholmod_common per factorisation (so several
  * nodes may factor at once on different threads), printing switched off, and
@@ -118,55 +127,75 @@ static void sort_column(int32_t *row, double *val, int32_t len, int32_t *trow, d
     }
 }
 
-int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err) {
-    memset(out, 0, sizeof *out);
-    if (t->failed) return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
-    int32_t n = t->n;
-    if (n <= 0) return sc_fail(err, SC_EINPUT, "sparse matrix of size %d", (int)n);
-    if (t->count > (size_t)INT32_MAX)
-        return sc_fail(err, SC_ENOMEM, "sparse matrix with %zu entries is beyond the 2^31 limit",
-                       t->count);
-    int32_t *colptr = sc_calloc_array((size_t)n + 1, sizeof *colptr);
-    int32_t *rows = sc_alloc_array(t->count ? t->count : 1, sizeof *rows);
-    double *vals = sc_alloc_array(t->count ? t->count : 1, sizeof *vals);
-    int32_t *next = sc_alloc_array((size_t)n + 1, sizeof *next);
-    if (!colptr || !rows || !vals || !next) {
-        free(colptr), free(rows), free(vals), free(next);
-        return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
-    }
-    for (size_t k = 0; k < t->count; k++) {
+/* Assembly runs in `parts` pieces, each on its own thread: part p first
+ * counts and scatters the triplets of its own range [first[p], first[p+1]),
+ * so within a column the entries of part p follow those of part p - 1 (the
+ * order they were added in); then it sorts and sums the columns of its own
+ * column range. */
+#define ASSEMBLY_MAX_PARTS 8
+#define ASSEMBLY_MIN_PER_PART 65536   /* fewer triplets per part: not worth a thread */
+
+typedef struct assembly {
+    const sc_triplets *t;
+    int32_t n, parts;
+    size_t first[ASSEMBLY_MAX_PARTS + 1];     /* triplet range of each part */
+    size_t bad[ASSEMBLY_MAX_PARTS];           /* first entry out of range in it, or SIZE_MAX */
+    int32_t *cursor;        /* parts x n: entries per column in each part, then where the next goes */
+    int32_t *colptr;        /* n + 1: the columns before summing duplicates */
+    int32_t *rows;
+    double *vals;
+    int32_t col0[ASSEMBLY_MAX_PARTS + 1];     /* column range of each part (sorting) */
+    int32_t *distinct;      /* n: distinct rows of each column */
+} assembly;
+
+static int assembly_count(void *ud, int32_t part) {
+    assembly *a = ud;
+    const sc_triplets *t = a->t;
+    int32_t *count = a->cursor + (size_t)part * (size_t)a->n;
+    a->bad[part] = SIZE_MAX;
+    for (size_t k = a->first[part]; k < a->first[part + 1]; k++) {
         int32_t i = t->row[k], j = t->col[k];
-        if (i < 0 || j >= n || i > j) {
-            free(colptr), free(rows), free(vals), free(next);
-            return sc_fail(err, SC_EINPUT, "sparse entry (%d, %d) outside a %d x %d matrix",
-                           (int)i, (int)j, (int)n, (int)n);
+        if (i < 0 || j >= a->n || i > j) {
+            a->bad[part] = k;
+            return SC_EINPUT;
         }
-        colptr[j + 1]++;
+        count[j]++;
     }
-    int32_t longest = 0;
-    for (int32_t j = 0; j < n; j++) {
-        if (colptr[j + 1] > longest) longest = colptr[j + 1];
-        colptr[j + 1] += colptr[j];
-    }
-    memcpy(next, colptr, (size_t)n * sizeof *next);
-    for (size_t k = 0; k < t->count; k++) {
+    return SC_OK;
+}
+
+static int assembly_scatter(void *ud, int32_t part) {
+    assembly *a = ud;
+    const sc_triplets *t = a->t;
+    int32_t *next = a->cursor + (size_t)part * (size_t)a->n;
+    for (size_t k = a->first[part]; k < a->first[part + 1]; k++) {
         int32_t p = next[t->col[k]]++;
-        rows[p] = t->row[k];
-        vals[p] = t->val[k];
+        a->rows[p] = t->row[k];
+        a->vals[p] = t->val[k];
     }
-    free(next);
+    return SC_OK;
+}
+
+/* Sort the columns of the part, sum duplicates, and pack the result from
+ * the part's first entry on (distinct[j] says how many each column kept). */
+static int assembly_sum(void *ud, int32_t part) {
+    assembly *a = ud;
+    int32_t j0 = a->col0[part], j1 = a->col0[part + 1];
+    int32_t longest = 0;
+    for (int32_t j = j0; j < j1; j++)
+        if (a->colptr[j + 1] - a->colptr[j] > longest) longest = a->colptr[j + 1] - a->colptr[j];
     int32_t *trow = sc_alloc_array((size_t)longest + 1, sizeof *trow);
     double *tval = sc_alloc_array((size_t)longest + 1, sizeof *tval);
     if (!trow || !tval) {
-        free(trow), free(tval), free(colptr), free(rows), free(vals);
-        return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
+        free(trow), free(tval);
+        return SC_ENOMEM;
     }
-    /* sort each column, sum duplicates, compact in place */
-    int32_t w = 0;
-    for (int32_t j = 0; j < n; j++) {
-        int32_t p0 = colptr[j], p1 = colptr[j + 1];
+    int32_t *rows = a->rows;
+    double *vals = a->vals;
+    int32_t w = a->colptr[j0];
+    for (int32_t j = j0; j < j1; j++) {
+        int32_t p0 = a->colptr[j], p1 = a->colptr[j + 1], w0 = w;
         sort_column(rows + p0, vals + p0, p1 - p0, trow, tval);
-        colptr[j] = w;
         for (int32_t p = p0; p < p1;) {
             int32_t r = rows[p];
             double s = vals[p++];
@@ -175,21 +204,174 @@ int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err)
             vals[w] = s;
             w++;
         }
+        a->distinct[j] = w - w0;
     }
-    colptr[n] = w;
     free(trow), free(tval);
-    if (w > 0) {
-        int32_t *r2 = sc_realloc_array(rows, (size_t)w, sizeof *r2);
-        if (r2) rows = r2;
-        double *v2 = sc_realloc_array(vals, (size_t)w, sizeof *v2);
-        if (v2) vals = v2;
+    return SC_OK;
+}
+
+int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err) {
+    return sc_sparse_from_triplets_threads(t, 1, out, err);
+}
+
+int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    if (t->failed) return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
+    int32_t n = t->n;
+    if (n <= 0) return sc_fail(err, SC_EINPUT, "sparse matrix of size %d", (int)n);
+    if (t->count > (size_t)INT32_MAX)
+        return sc_fail(err, SC_ENOMEM, "sparse matrix with %zu entries is beyond the 2^31 limit",
+                       t->count);
+    assembly a = {.t = t, .n = n, .parts = 1};
+    if (threads > 1) {
+        size_t by_size = t->count / ASSEMBLY_MIN_PER_PART;
+        a.parts = threads < ASSEMBLY_MAX_PARTS ? threads : ASSEMBLY_MAX_PARTS;
+        if ((size_t)a.parts > by_size) a.parts = by_size > 1 ? (int32_t)by_size : 1;
+    }
+    for (int32_t p = 0; p <= a.parts; p++) a.first[p] = t->count / (size_t)a.parts * (size_t)p;
+    a.first[a.parts] = t->count;
+    a.colptr = sc_calloc_array((size_t)n + 1, sizeof *a.colptr);
+    a.cursor = sc_calloc_array((size_t)n * (size_t)a.parts, sizeof *a.cursor);
+    a.rows = sc_alloc_array(t->count ? t->count : 1, sizeof *a.rows);
+    a.vals = sc_alloc_array(t->count ? t->count : 1, sizeof *a.vals);
+    int rc = a.colptr && a.cursor && a.rows && a.vals ? SC_OK : SC_ENOMEM;
+    if (rc == SC_OK && (rc = sc_parallel(threads, a.parts, assembly_count, &a)) == SC_EINPUT) {
+        for (int32_t p = 0; p < a.parts; p++)
+            if (a.bad[p] != SIZE_MAX) {
+                size_t k = a.bad[p];
+                sc_fail(err, SC_EINPUT, "sparse entry (%d, %d) outside a %d x %d matrix",
+                        (int)t->row[k], (int)t->col[k], (int)n, (int)n);
+                break;
+            }
+    }
+    if (rc == SC_OK) {
+        /* column starts, and where each part's entries of a column begin */
+        int32_t at = 0;
+        for (int32_t j = 0; j < n; j++) {
+            a.colptr[j] = at;
+            for (int32_t p = 0; p < a.parts; p++) {
+                int32_t *c = &a.cursor[(size_t)p * (size_t)n + (size_t)j];
+                int32_t cnt = *c;
+                *c = at;
+                at += cnt;
+            }
+        }
+        a.colptr[n] = at;
+        rc = sc_parallel(threads, a.parts, assembly_scatter, &a);
+    }
+    free(a.cursor);
+    a.cursor = NULL;
+    a.distinct = rc == SC_OK ? sc_alloc_array((size_t)n, sizeof *a.distinct) : NULL;
+    if (rc == SC_OK && !a.distinct) rc = SC_ENOMEM;
+    if (rc == SC_OK) {
+        /* columns split into parts of about equal entries */
+        a.col0[0] = 0;
+        for (int32_t p = 1; p < a.parts; p++) {
+            int64_t target = (int64_t)a.colptr[n] * p / a.parts;
+            int32_t lo = a.col0[p - 1], hi = n;
+            while (lo < hi) {
+                int32_t mid = lo + (hi - lo) / 2;
+                if (a.colptr[mid] < target) lo = mid + 1;
+                else hi = mid;
+            }
+            a.col0[p] = lo;
+        }
+        a.col0[a.parts] = n;
+        rc = sc_parallel(threads, a.parts, assembly_sum, &a);
+    }
+    if (rc == SC_OK) {
+        /* close the gaps the summed duplicates left, part after part */
+        int32_t w = 0;
+        for (int32_t p = 0; p < a.parts; p++) {
+            int32_t src = a.colptr[a.col0[p]], len = 0;
+            for (int32_t j = a.col0[p]; j < a.col0[p + 1]; j++) {
+                a.colptr[j] = w + len;
+                len += a.distinct[j];
+            }
+            if (src != w && len > 0) {
+                memmove(a.rows + w, a.rows + src, (size_t)len * sizeof *a.rows);
+                memmove(a.vals + w, a.vals + src, (size_t)len * sizeof *a.vals);
+            }
+            w += len;
+        }
+        a.colptr[n] = w;
+        if (w > 0) {
+            int32_t *r2 = sc_realloc_array(a.rows, (size_t)w, sizeof *r2);
+            if (r2) a.rows = r2;
+            double *v2 = sc_realloc_array(a.vals, (size_t)w, sizeof *v2);
+            if (v2) a.vals = v2;
+        }
+    }
+    free(a.distinct);
+    if (rc) {
+        free(a.colptr), free(a.rows), free(a.vals);
+        if (rc == SC_EINPUT) return rc;
+        return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
     }
     out->n = n;
-    out->nnz = w;
-    out->colptr = colptr;
-    out->rowind = rows;
-    out->val = vals;
+    out->nnz = a.colptr[n];
+    out->colptr = a.colptr;
+    out->rowind = a.rows;
+    out->val = a.vals;
     return SC_OK;
+}
+
+int sc_sparse_widen(sc_sparse *a, const int32_t *extra_start, const int32_t *extra_rows, sc_error *err) {
+    const int32_t n = a->n;
+    /* the size of the merged columns: the stored rows plus the new ones */
+    int64_t total = 0;
+    for (int32_t j = 0; j < n; j++) {
+        int32_t p = a->colptr[j], pe = a->colptr[j + 1], q = extra_start[j], qe = extra_start[j + 1];
+        int32_t len = 0;
+        while (p < pe || q < qe) {
+            int32_t ra = p < pe ? a->rowind[p] : INT32_MAX, rb = q < qe ? extra_rows[q] : INT32_MAX;
+            if (ra <= rb) p++;
+            if (rb <= ra) {
+                int32_t r = rb;
+                while (q < qe && extra_rows[q] == r) q++;
+            }
+            len++;
+        }
+        total += len;
+    }
+    if (total > INT32_MAX) return sc_fail(err, SC_ENOMEM, "sparse matrix beyond the 2^31 limit");
+    if (total == a->nnz) return SC_OK;   /* nothing new */
+    int32_t *rows = sc_realloc_array(a->rowind, (size_t)total, sizeof *rows);
+    if (rows) a->rowind = rows;
+    double *vals = rows ? sc_realloc_array(a->val, (size_t)total, sizeof *vals) : NULL;
+    if (vals) a->val = vals;
+    if (!rows || !vals) return sc_fail(err, SC_ENOMEM, "out of memory widening a sparse matrix");
+    /* merge from the last column back, in place: every entry only moves up */
+    int32_t w = (int32_t)total;
+    for (int32_t j = n - 1; j >= 0; j--) {
+        int32_t p = a->colptr[j + 1] - 1, pe = a->colptr[j], q = extra_start[j + 1] - 1, qe = extra_start[j];
+        a->colptr[j + 1] = w;
+        while (p >= pe || q >= qe) {
+            int32_t ra = p >= pe ? rows[p] : -1, rb = q >= qe ? extra_rows[q] : -1;
+            w--;
+            if (ra >= rb) {
+                rows[w] = ra, vals[w] = vals[p];
+                p--;
+                while (q >= qe && extra_rows[q] == ra) q--;
+            } else {
+                rows[w] = rb, vals[w] = 0;
+                while (q >= qe && extra_rows[q] == rb) q--;
+            }
+        }
+    }
+    a->colptr[0] = 0;
+    a->nnz = total;
+    return SC_OK;
+}
+
+int64_t sc_sparse_find(const sc_sparse *a, int32_t i, int32_t j) {
+    int32_t lo = a->colptr[j], hi = a->colptr[j + 1];
+    while (lo < hi) {
+        int32_t mid = lo + (hi - lo) / 2;
+        if (a->rowind[mid] < i) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < a->colptr[j + 1] && a->rowind[lo] == i ? lo : -1;
 }
 
 void sc_sparse_free(sc_sparse *a) {
@@ -287,42 +469,104 @@ static void symv_columns(const sc_sparse *a, const double *x, double *y, int32_t
 
 void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) { symv_columns(a, x, y, 0, a->n); }
 
-int sc_sparse_full(const sc_sparse *u, sc_sparse *f, sc_error *err) {
-    memset(f, 0, sizeof *f);
-    int32_t n = u->n;
-    int64_t nnz = 0;
-    for (int32_t j = 0; j < n; j++)
-        for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) nnz += u->rowind[p] == j ? 1 : 2;
-    if (nnz > INT32_MAX) return sc_fail(err, SC_ENOMEM, "symmetric matrix beyond the 2^31 limit");
-    f->colptr = sc_calloc_array((size_t)n + 1, sizeof *f->colptr);
-    f->rowind = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->rowind);
-    f->val = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->val);
-    int32_t *next = sc_alloc_array((size_t)n + 1, sizeof *next);
-    if (!f->colptr || !f->rowind || !f->val || !next) {
-        free(next);
-        sc_sparse_free(f);
-        return sc_fail(err, SC_ENOMEM, "out of memory for a symmetric matrix");
-    }
-    for (int32_t j = 0; j < n; j++)
+/* The full pattern in parts, each on its own thread: part p counts and
+ * then places the entries of the upper columns [col0[p], col0[p + 1]);
+ * every column of the result receives its rows in increasing order of the
+ * upper column they come from, part after part, so the result does not
+ * depend on the number of parts. */
+typedef struct mirror_job {
+    const sc_sparse *u;
+    sc_sparse *f;
+    int32_t parts;
+    int32_t col0[ASSEMBLY_MAX_PARTS + 1];
+    int32_t *cursor;   /* parts x n: entries each part gives each column, then where the next goes */
+} mirror_job;
+
+static int mirror_count(void *ud, int32_t part) {
+    mirror_job *m = ud;
+    const sc_sparse *u = m->u;
+    int32_t *count = m->cursor + (size_t)part * (size_t)u->n;
+    for (int32_t j = m->col0[part]; j < m->col0[part + 1]; j++)
         for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) {
             int32_t i = u->rowind[p];
-            f->colptr[j + 1]++;
-            if (i != j) f->colptr[i + 1]++;
+            count[j]++;
+            if (i != j) count[i]++;
         }
-    for (int32_t j = 0; j < n; j++) f->colptr[j + 1] += f->colptr[j];
-    memcpy(next, f->colptr, (size_t)n * sizeof *next);
+    return SC_OK;
+}
+
+static int mirror_place(void *ud, int32_t part) {
+    mirror_job *m = ud;
+    const sc_sparse *u = m->u;
+    sc_sparse *f = m->f;
+    int32_t *next = m->cursor + (size_t)part * (size_t)u->n;
     /* column c gets its own upper rows (<= c) at j = c, then rows j > c in
      * increasing j: sorted */
-    for (int32_t j = 0; j < n; j++)
+    for (int32_t j = m->col0[part]; j < m->col0[part + 1]; j++)
         for (int32_t p = u->colptr[j]; p < u->colptr[j + 1]; p++) {
             int32_t i = u->rowind[p];
             double v = u->val[p];
             f->rowind[next[j]] = i, f->val[next[j]++] = v;
             if (i != j) f->rowind[next[i]] = j, f->val[next[i]++] = v;
         }
+    return SC_OK;
+}
+
+int sc_sparse_full(const sc_sparse *u, sc_sparse *f, sc_error *err) {
+    return sc_sparse_full_threads(u, 1, f, err);
+}
+
+int sc_sparse_full_threads(const sc_sparse *u, int threads, sc_sparse *f, sc_error *err) {
+    memset(f, 0, sizeof *f);
+    int32_t n = u->n;
+    int64_t nnz = 2 * u->nnz;
+    for (int32_t j = 0; j < n; j++)
+        if (u->colptr[j + 1] > u->colptr[j] && u->rowind[u->colptr[j + 1] - 1] == j) nnz--;
+    if (nnz > INT32_MAX) return sc_fail(err, SC_ENOMEM, "symmetric matrix beyond the 2^31 limit");
+    mirror_job m = {.u = u, .f = f, .parts = 1};
+    if (threads > 1 && u->nnz / ASSEMBLY_MIN_PER_PART > 1) {
+        m.parts = threads < ASSEMBLY_MAX_PARTS ? threads : ASSEMBLY_MAX_PARTS;
+        if (m.parts > u->nnz / ASSEMBLY_MIN_PER_PART) m.parts = (int32_t)(u->nnz / ASSEMBLY_MIN_PER_PART);
+    }
+    /* upper columns split into parts of about equal entries */
+    for (int32_t p = 1; p < m.parts; p++) {
+        int64_t target = u->nnz * p / m.parts;
+        int32_t lo = m.col0[p - 1], hi = n;
+        while (lo < hi) {
+            int32_t mid = lo + (hi - lo) / 2;
+            if (u->colptr[mid] < target) lo = mid + 1;
+            else hi = mid;
+        }
+        m.col0[p] = lo;
+    }
+    m.col0[m.parts] = n;
+    f->colptr = sc_alloc_array((size_t)n + 1, sizeof *f->colptr);
+    f->rowind = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->rowind);
+    f->val = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->val);
+    m.cursor = sc_calloc_array((size_t)n * (size_t)m.parts, sizeof *m.cursor);
+    int rc = f->colptr && f->rowind && f->val && m.cursor ? SC_OK : SC_ENOMEM;
+    if (rc == SC_OK) rc = sc_parallel(threads, m.parts, mirror_count, &m);
+    if (rc == SC_OK) {
+        int32_t at = 0;
+        for (int32_t c = 0; c < n; c++) {
+            f->colptr[c] = at;
+            for (int32_t p = 0; p < m.parts; p++) {
+                int32_t *k = &m.cursor[(size_t)p * (size_t)n + (size_t)c];
+                int32_t cnt = *k;
+                *k = at;
+                at += cnt;
+            }
+        }
+        f->colptr[n] = at;
+        rc = sc_parallel(threads, m.parts, mirror_place, &m);
+    }
+    free(m.cursor);
+    if (rc) {
+        sc_sparse_free(f);
+        return sc_fail(err, SC_ENOMEM, "out of memory for a symmetric matrix");
+    }
     f->n = n;
     f->nnz = nnz;
-    free(next);
     return SC_OK;
 }
 

@@ -52,7 +52,18 @@ typedef struct sc_sparse {
  * (row, col) are summed in the order they were added. Fails with SC_EINPUT on
  * an index out of range and SC_ENOMEM when out of memory. */
 int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err);
+/* The same on up to `threads` threads: the same bits for any thread count. */
+int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse *out, sc_error *err);
 void sc_sparse_free(sc_sparse *a);
+
+/* Add entries to the pattern of a, in place: column j also gets the rows
+ * extra_rows[extra_start[j] .. extra_start[j + 1]) (sorted, <= j, repeats
+ * and rows already stored allowed), as zeros; stored entries keep their
+ * values. */
+int sc_sparse_widen(sc_sparse *a, const int32_t *extra_start, const int32_t *extra_rows, sc_error *err);
+/* Where row i of column j is stored in rowind/val, -1 when it is not (rows
+ * sorted within columns: an upper-triangular or a full-pattern matrix). */
+int64_t sc_sparse_find(const sc_sparse *a, int32_t i, int32_t j);
 
 /* C = alpha A + beta B (same size; the union of both patterns). */
 int sc_sparse_add(const sc_sparse *a, double alpha, const sc_sparse *b, double beta, sc_sparse *c,
@@ -123,6 +134,8 @@ double sc_sparse_norm_bound(const sc_sparse *a);
  * same as compressed sparse rows; only the sc_sparse_full_* functions (and
  * sc_schur) take it. */
 int sc_sparse_full(const sc_sparse *upper, sc_sparse *full, sc_error *err);
+/* The same on up to `threads` threads: the same bits for any thread count. */
+int sc_sparse_full_threads(const sc_sparse *upper, int threads, sc_sparse *full, sc_error *err);
 
 /* y = A x for a full-pattern A, rows split over up to `threads` threads (each
  * row's sum is formed the same way whatever the thread count). */

@@ -526,6 +526,77 @@ SC_TEST(schur_clusters_match_direct_solve) {
     sc_triplets_free(&ta), sc_triplets_free(&tq);
 }
 
+static bool same_sparse(const sc_sparse *a, const sc_sparse *b) {
+    return a->n == b->n && a->nnz == b->nnz &&
+           memcmp(a->colptr, b->colptr, ((size_t)a->n + 1) * sizeof *a->colptr) == 0 &&
+           memcmp(a->rowind, b->rowind, (size_t)a->nnz * sizeof *a->rowind) == 0 &&
+           memcmp(a->val, b->val, (size_t)a->nnz * sizeof *a->val) == 0;
+}
+
+SC_TEST(sparse_assembly_threads_same_bits) {
+    /* many duplicates of irrational values in a scrambled order: the sums
+     * depend on their order, which must not depend on the thread count */
+    int32_t n = 40000;   /* enough entries for several parts */
+    sc_triplets t;
+    sc_triplets_init(&t, n);
+    uint64_t x = 12345;
+    for (int k = 0; k < 400000; k++) {
+        x = x * 6364136223846793005ull + 1442695040888963407ull;
+        int32_t i = (int32_t)((x >> 33) % (uint64_t)n), j = (int32_t)((x >> 13) % 7);
+        j = i + j < n ? i + j : i;
+        sc_triplets_add(&t, (k & 1) ? j : i, (k & 1) ? i : j, sin(k * 0.37) + 1e-9 * k);
+    }
+    sc_error err = {0};
+    sc_sparse one, full1;
+    SC_CHECK_INT(sc_sparse_from_triplets(&t, &one, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_full(&one, &full1, &err), SC_OK);
+    for (int threads = 2; threads <= 5; threads++) {
+        sc_sparse more, fullm;
+        SC_CHECK_INT(sc_sparse_from_triplets_threads(&t, threads, &more, &err), SC_OK);
+        SC_CHECK(same_sparse(&one, &more));
+        SC_CHECK_INT(sc_sparse_full_threads(&more, threads, &fullm, &err), SC_OK);
+        SC_CHECK(same_sparse(&full1, &fullm));
+        sc_sparse_free(&more), sc_sparse_free(&fullm);
+    }
+    /* an entry out of range is found whichever part holds it */
+    sc_triplets_add(&t, 1, n, 1.0);
+    sc_sparse bad;
+    SC_CHECK(sc_sparse_from_triplets_threads(&t, 3, &bad, &err) == SC_EINPUT);
+
+    /* widening: new entries are zeros, stored ones keep their values */
+    int32_t *start = malloc(((size_t)n + 1) * sizeof *start), *rows = malloc(3 * (size_t)n * sizeof *rows);
+    int32_t at = 0;
+    for (int32_t j = 0; j < n; j++) {
+        start[j] = at;
+        if (j >= 3) rows[at++] = j - 3, rows[at++] = j - 3;   /* a repeat */
+        rows[at++] = j;
+    }
+    start[n] = at;
+    sc_sparse wide;
+    t.count--;   /* drop the bad entry again */
+    SC_CHECK_INT(sc_sparse_from_triplets(&t, &wide, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_widen(&wide, start, rows, &err), SC_OK);
+    int64_t added = 0;
+    for (int32_t j = 0; j < n; j++) {
+        for (int32_t p = wide.colptr[j]; p + 1 < wide.colptr[j + 1]; p++) SC_CHECK(wide.rowind[p] < wide.rowind[p + 1]);
+        for (int32_t p = wide.colptr[j]; p < wide.colptr[j + 1]; p++) {
+            int32_t i = wide.rowind[p];
+            int64_t at_one = sc_sparse_find(&one, i, j);
+            if (at_one >= 0) SC_CHECK(wide.val[p] == one.val[at_one]);
+            else {
+                SC_CHECK(wide.val[p] == 0);
+                added++;
+            }
+        }
+        SC_CHECK(sc_sparse_find(&wide, j, j) >= 0);
+        if (j >= 3) SC_CHECK(sc_sparse_find(&wide, j - 3, j) >= 0);
+    }
+    SC_CHECK_INT(wide.nnz, one.nnz + added);
+    sc_sparse_free(&one), sc_sparse_free(&full1), sc_sparse_free(&wide);
+    sc_triplets_free(&t);
+    free(start), free(rows);
+}
+
 SC_TEST(sparse_not_positive_definite) {
     sc_triplets t;
     sc_triplets_init(&t, 3);
