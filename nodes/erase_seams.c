@@ -92,7 +92,9 @@
  * unknowns, 19.4k clusters, 271k interface texels), same machine and
  * session: 13 iterations, 1.35e9 flops instead of 4e10, CHOLMOD's peak
  * 165 MB instead of 946 MB, factor 6.9 s instead of 13.8 s, 16.1 s in all
- * instead of 21.2 s, the same seam energy and gap. Below ~500k unknowns one
+ * instead of 21.2 s, the same seam energy and gap (9.1-10.5 s once the
+ * command line runs with huge pages, sc_tune_allocator, and the build is
+ * threaded). Below ~500k unknowns one
  * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7
  * per texel.
  *
