@@ -156,9 +156,9 @@
 #define TIKHONOV 1e-8
 #define NULLITY_MAX_TEXELS 100000
 #define ROUND_MAX_SWEEPS 64
-#define SCHUR_MIN_UNKNOWNS 500000  /* solver auto: the edge-cluster solver from this many unknowns */
+#define SCHUR_MIN_UNKNOWNS 500000  /* schur_from's default: solver auto takes the edge-cluster solver from here */
 #define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
-#define PCG_MAX_ITERATIONS 500
+#define PCG_MAX_ITERATIONS 500      /* pcg_iterations's default */
 
 typedef enum quantize_mode { QUANT_NONE = 0, QUANT_NAIVE = 1, QUANT_OPTIMAL = 2 } quantize_mode;
 typedef enum solver_kind { SOLVER_AUTO = 0, SOLVER_CHOLMOD = 1, SOLVER_SCHUR = 2 } solver_kind;
@@ -169,6 +169,8 @@ typedef struct options {
     double gap_tolerance;
     quantize_mode quantize;
     solver_kind solver;
+    int64_t schur_from;       /* solver auto: the edge-cluster solver from this many unknowns */
+    int32_t pcg_iterations;   /* the most conjugate-gradient iterations */
     int threads;
 } options;
 
@@ -708,7 +710,7 @@ static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncol
          * the iterations not converge */
         double *kept = o->solver == SOLVER_AUTO ? sc_alloc_array((size_t)n * (size_t)nu, sizeof *kept) : NULL;
         if (kept) memcpy(kept, rhs, (size_t)n * (size_t)nu * sizeof *rhs);
-        rc = sc_schur_pcg(w->schur, &w->q, nu, rhs, PCG_TOLERANCE, PCG_MAX_ITERATIONS, o->threads, &w->pcg, err);
+        rc = sc_schur_pcg(w->schur, &w->q, nu, rhs, PCG_TOLERANCE, o->pcg_iterations, o->threads, &w->pcg, err);
         if (rc == SC_EINPUT && kept) {
             sc_schur_free(w->schur);
             w->schur = NULL;
@@ -860,7 +862,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     /* Q: the seam terms, then the grid terms added to their sums */
     if ((rc = sc_sparse_from_triplets_threads(&w.trip, o->threads, &w.q, err))) goto done;
     sc_triplets_free(&w.trip);
-    w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= SCHUR_MIN_UNKNOWNS);
+    w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= o->schur_from);
     if (w.use_schur) {
         /* the couplings between charts (chart of the face whose edge piece
          * first reaches the texel), which the preconditioner leaves out */
@@ -1262,6 +1264,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.quantize = strcmp(qm, "none") == 0 ? QUANT_NONE : strcmp(qm, "naive") == 0 ? QUANT_NAIVE : QUANT_OPTIMAL;
     const char *sv = sc_ctx_string(ctx, "solver");
     o.solver = strcmp(sv, "schur") == 0 ? SOLVER_SCHUR : strcmp(sv, "cholmod") == 0 ? SOLVER_CHOLMOD : SOLVER_AUTO;
+    o.schur_from = sc_ctx_integer(ctx, "schur_from");
+    o.pcg_iterations = (int32_t)sc_ctx_integer(ctx, "pcg_iterations");
     const char *list = sc_ctx_string(ctx, "textures");
     int rc = check_selection(list, a, err);
     if (rc) return rc;
@@ -1426,8 +1430,13 @@ static const sc_param_desc params[] = {
     {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = solver_choices,
      .doc = "cholmod: one direct factorisation of the whole system; schur: the texels along each "
             "edge eliminated on their own and the rest factored by CHOLMOD, as the preconditioner "
-            "of conjugate gradients on the whole system (to 1e-12); auto: schur from 500k "
+            "of conjugate gradients on the whole system (to 1e-12); auto: schur from schur_from "
             "unknowns, falling back to cholmod should it fail"},
+    {.name = "schur_from", .type = SC_PARAM_INTEGER, .def = SCHUR_MIN_UNKNOWNS, .min = 0, .max = 2147483647,
+     .doc = "solver auto takes the edge-cluster solver (schur) for a system of this many unknowns or more"},
+    {.name = "pcg_iterations", .type = SC_PARAM_INTEGER, .def = PCG_MAX_ITERATIONS, .min = 1, .max = 1000000,
+     .doc = "the most conjugate-gradient iterations of the schur solver; when they do not reach 1e-12, "
+            "solver auto factors the whole system with cholmod instead, solver schur fails"},
 };
 
 static const sc_port_desc inputs[] = {

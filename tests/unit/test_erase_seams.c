@@ -1265,6 +1265,33 @@ SC_TEST(node_schur_solver_synthetic_cube) {
     sc_value_release(atlas);
 }
 
+/* Solver auto on the edge-cluster solver (schur_from 0) whose iterations
+ * cannot converge (one allowed) factors the whole system instead: the
+ * fallback is reported and gives what solver cholmod gives, byte for byte;
+ * solver schur under the same limit fails with a message. */
+SC_TEST(node_auto_solver_falls_back_to_cholmod) {
+    sc_value *atlas = one_texture_atlas(cube_mesh(17, true), noise_image(64, 64, 3, SC_PIXEL_F32, -1), SC_WRAP_REPEAT);
+    const char *kv_auto[] = {"solver", "auto", "schur_from", "0", "pcg_iterations", "1", NULL};
+    const char *kv_chol[] = {"solver", "cholmod", NULL};
+    const char *kv_schur[] = {"solver", "schur", "pcg_iterations", "1", NULL};
+    const char *kv_iter[] = {"solver", "auto", "schur_from", "0", NULL};
+    sc_error err = {0};
+    sc_ctx *a = run_erase(atlas, kv_auto, 2, &err), *c = run_erase(atlas, kv_chol, 2, &err);
+    sc_ctx *it = run_erase(atlas, kv_iter, 2, &err);
+    SC_CHECK_MSG(a && c && it, "cube: %s", err.message);
+    if (a && c && it) {
+        SC_CHECK(sc_ctx_metric_value(a, "solver_fallbacks") == 1);
+        SC_CHECK(sc_digest_equal(&sc_ctx_output(a, 0)->digest, &sc_ctx_output(c, 0)->digest));
+        SC_CHECK(sc_ctx_metric_value(it, "pcg_iterations") >= 2);   /* converged on its own */
+        SC_CHECK(!(sc_ctx_metric_value(it, "solver_fallbacks") > 0));
+    }
+    sc_error serr = {0};
+    sc_ctx *s = run_erase(atlas, kv_schur, 2, &serr);
+    SC_CHECK(s == NULL && strstr(serr.message, "did not converge") != NULL);
+    sc_ctx_free(a), sc_ctx_free(c), sc_ctx_free(it), sc_ctx_free(s);
+    sc_value_release(atlas);
+}
+
 SC_TEST(corpus_boombox_schur_solver) {
     if (!sc_test_corpus()) {
         printf("     corpus absent: skipped\n");
