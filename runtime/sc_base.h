@@ -130,7 +130,7 @@ char *sc_path_dirname(const char *path);
 double sc_now(void);
 
 /* For a process that cooks (the command line, the benchmarks), called
- * first thing in main with main's argv:
+ * early in main, before it starts threads or opens files, with main's argv:
  *  - Huge pages. Unless GLIBC_TUNABLES already names glibc.malloc.hugetlb
  *    (set it to 0 to opt out), the program runs itself again
  *    (/proc/self/exe, the same argv and pid) with glibc.malloc.hugetlb=1

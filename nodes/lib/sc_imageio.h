@@ -56,6 +56,7 @@ int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err);
 int sc_image_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err);
 int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlevels, int threads, sc_buf *out,
                                     sc_error *err);
+
 /* Every mip level of an OpenEXR file (one level for a flat file), as f32
  * images, rows bottom-up. *levels is a malloc'd array of *nlevels images:
  * free each with sc_image_free, then the array with free(). */

@@ -104,7 +104,6 @@ typedef struct level_job {
     const int *order;            /* image channel of each file channel */
     int32_t tiles_x, tiles_y;
     tile_bytes *tiles;           /* tiles_x * tiles_y, row-major */
-    bool failed;
 } level_job;
 
 static bool encode_tile(const level_job *J, struct libdeflate_compressor *z, uint8_t *packed, uint8_t *shuffled,
@@ -149,7 +148,6 @@ static int encode_band(void *ud, int32_t band) {
             ok = encode_tile(J, z, packed, shuffled, tx, ty, &J->tiles[(size_t)ty * J->tiles_x + tx]);
     free(packed), free(shuffled);
     if (z) libdeflate_free_compressor(z);
-    if (!ok) J->failed = true;   /* only ever set: any worker may */
     return ok ? SC_OK : SC_ENOMEM;
 }
 
@@ -244,12 +242,7 @@ int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlev
             break;
         }
         int32_t bands = (J.tiles_y + ROWS_PER_BAND - 1) / ROWS_PER_BAND;
-        if (threads > 1 && bands > 1) {
-            if (sc_parallel(threads, bands, encode_band, &J) != SC_OK) J.failed = true;
-        } else {
-            for (int32_t b = 0; b < bands; b++) encode_band(&J, b);
-        }
-        if (J.failed) rv = EXR_ERR_OUT_OF_MEMORY;
+        if (sc_parallel(threads, bands, encode_band, &J) != SC_OK) rv = EXR_ERR_OUT_OF_MEMORY;
         for (int32_t ty = 0; ty < J.tiles_y && rv == EXR_ERR_SUCCESS; ty++)
             for (int32_t tx = 0; tx < J.tiles_x && rv == EXR_ERR_SUCCESS; tx++) {
                 const tile_bytes *t = &J.tiles[(size_t)ty * J.tiles_x + tx];

@@ -135,6 +135,48 @@ static void sort_column(int32_t *row, double *val, int32_t len, int32_t *trow, d
 #define ASSEMBLY_MAX_PARTS 8
 #define ASSEMBLY_MIN_PER_PART 65536   /* fewer triplets per part: not worth a thread */
 
+/* How many parts `entries` entries are worth on `threads` threads. */
+static int32_t part_count(int threads, int64_t entries) {
+    int64_t most = entries / ASSEMBLY_MIN_PER_PART;
+    int32_t parts = threads < ASSEMBLY_MAX_PARTS ? threads : ASSEMBLY_MAX_PARTS;
+    if (parts > most) parts = most > 1 ? (int32_t)most : 1;
+    return parts < 1 ? 1 : parts;
+}
+
+/* col0[p] .. col0[p + 1]: the columns of part p, parts of about equal
+ * entries (colptr: n + 1 column starts). */
+static void split_columns(const int32_t *colptr, int32_t n, int32_t parts, int32_t *col0) {
+    col0[0] = 0;
+    for (int32_t p = 1; p < parts; p++) {
+        int64_t target = (int64_t)colptr[n] * p / parts;
+        int32_t lo = col0[p - 1], hi = n;
+        while (lo < hi) {
+            int32_t mid = lo + (hi - lo) / 2;
+            if (colptr[mid] < target) lo = mid + 1;
+            else hi = mid;
+        }
+        col0[p] = lo;
+    }
+    col0[parts] = n;
+}
+
+/* cursor (parts x n) holds how many entries each part gives each column:
+ * colptr gets the column starts, and cursor where each part's entries of
+ * each column begin (part after part). */
+static void column_starts(int32_t *cursor, int32_t n, int32_t parts, int32_t *colptr) {
+    int32_t at = 0;
+    for (int32_t j = 0; j < n; j++) {
+        colptr[j] = at;
+        for (int32_t p = 0; p < parts; p++) {
+            int32_t *c = &cursor[(size_t)p * (size_t)n + (size_t)j];
+            int32_t count = *c;
+            *c = at;
+            at += count;
+        }
+    }
+    colptr[n] = at;
+}
+
 typedef struct assembly {
     const sc_triplets *t;
     int32_t n, parts;
@@ -222,12 +264,7 @@ int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse
     if (t->count > (size_t)INT32_MAX)
         return sc_fail(err, SC_ENOMEM, "sparse matrix with %zu entries is beyond the 2^31 limit",
                        t->count);
-    assembly a = {.t = t, .n = n, .parts = 1};
-    if (threads > 1) {
-        size_t by_size = t->count / ASSEMBLY_MIN_PER_PART;
-        a.parts = threads < ASSEMBLY_MAX_PARTS ? threads : ASSEMBLY_MAX_PARTS;
-        if ((size_t)a.parts > by_size) a.parts = by_size > 1 ? (int32_t)by_size : 1;
-    }
+    assembly a = {.t = t, .n = n, .parts = part_count(threads, (int64_t)t->count)};
     for (int32_t p = 0; p <= a.parts; p++) a.first[p] = t->count / (size_t)a.parts * (size_t)p;
     a.first[a.parts] = t->count;
     a.colptr = sc_calloc_array((size_t)n + 1, sizeof *a.colptr);
@@ -245,18 +282,7 @@ int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse
             }
     }
     if (rc == SC_OK) {
-        /* column starts, and where each part's entries of a column begin */
-        int32_t at = 0;
-        for (int32_t j = 0; j < n; j++) {
-            a.colptr[j] = at;
-            for (int32_t p = 0; p < a.parts; p++) {
-                int32_t *c = &a.cursor[(size_t)p * (size_t)n + (size_t)j];
-                int32_t cnt = *c;
-                *c = at;
-                at += cnt;
-            }
-        }
-        a.colptr[n] = at;
+        column_starts(a.cursor, n, a.parts, a.colptr);
         rc = sc_parallel(threads, a.parts, assembly_scatter, &a);
     }
     free(a.cursor);
@@ -264,19 +290,7 @@ int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse
     a.distinct = rc == SC_OK ? sc_alloc_array((size_t)n, sizeof *a.distinct) : NULL;
     if (rc == SC_OK && !a.distinct) rc = SC_ENOMEM;
     if (rc == SC_OK) {
-        /* columns split into parts of about equal entries */
-        a.col0[0] = 0;
-        for (int32_t p = 1; p < a.parts; p++) {
-            int64_t target = (int64_t)a.colptr[n] * p / a.parts;
-            int32_t lo = a.col0[p - 1], hi = n;
-            while (lo < hi) {
-                int32_t mid = lo + (hi - lo) / 2;
-                if (a.colptr[mid] < target) lo = mid + 1;
-                else hi = mid;
-            }
-            a.col0[p] = lo;
-        }
-        a.col0[a.parts] = n;
+        split_columns(a.colptr, n, a.parts, a.col0);
         rc = sc_parallel(threads, a.parts, assembly_sum, &a);
     }
     if (rc == SC_OK) {
@@ -523,23 +537,8 @@ int sc_sparse_full_threads(const sc_sparse *u, int threads, sc_sparse *f, sc_err
     for (int32_t j = 0; j < n; j++)
         if (u->colptr[j + 1] > u->colptr[j] && u->rowind[u->colptr[j + 1] - 1] == j) nnz--;
     if (nnz > INT32_MAX) return sc_fail(err, SC_ENOMEM, "symmetric matrix beyond the 2^31 limit");
-    mirror_job m = {.u = u, .f = f, .parts = 1};
-    if (threads > 1 && u->nnz / ASSEMBLY_MIN_PER_PART > 1) {
-        m.parts = threads < ASSEMBLY_MAX_PARTS ? threads : ASSEMBLY_MAX_PARTS;
-        if (m.parts > u->nnz / ASSEMBLY_MIN_PER_PART) m.parts = (int32_t)(u->nnz / ASSEMBLY_MIN_PER_PART);
-    }
-    /* upper columns split into parts of about equal entries */
-    for (int32_t p = 1; p < m.parts; p++) {
-        int64_t target = u->nnz * p / m.parts;
-        int32_t lo = m.col0[p - 1], hi = n;
-        while (lo < hi) {
-            int32_t mid = lo + (hi - lo) / 2;
-            if (u->colptr[mid] < target) lo = mid + 1;
-            else hi = mid;
-        }
-        m.col0[p] = lo;
-    }
-    m.col0[m.parts] = n;
+    mirror_job m = {.u = u, .f = f, .parts = part_count(threads, u->nnz)};
+    split_columns(u->colptr, n, m.parts, m.col0);   /* upper columns, parts of about equal entries */
     f->colptr = sc_alloc_array((size_t)n + 1, sizeof *f->colptr);
     f->rowind = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->rowind);
     f->val = sc_alloc_array(nnz ? (size_t)nnz : 1, sizeof *f->val);
@@ -547,17 +546,7 @@ int sc_sparse_full_threads(const sc_sparse *u, int threads, sc_sparse *f, sc_err
     int rc = f->colptr && f->rowind && f->val && m.cursor ? SC_OK : SC_ENOMEM;
     if (rc == SC_OK) rc = sc_parallel(threads, m.parts, mirror_count, &m);
     if (rc == SC_OK) {
-        int32_t at = 0;
-        for (int32_t c = 0; c < n; c++) {
-            f->colptr[c] = at;
-            for (int32_t p = 0; p < m.parts; p++) {
-                int32_t *k = &m.cursor[(size_t)p * (size_t)n + (size_t)c];
-                int32_t cnt = *k;
-                *k = at;
-                at += cnt;
-            }
-        }
-        f->colptr[n] = at;
+        column_starts(m.cursor, n, m.parts, f->colptr);
         rc = sc_parallel(threads, m.parts, mirror_place, &m);
     }
     free(m.cursor);
