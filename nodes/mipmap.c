@@ -27,7 +27,24 @@
  *    textures (one run per group and level, so one factorisation serves all
  *    of a group's textures of one size); 8/16-bit textures come back
  *    quantised by erase_seams (`quantize` optimal), float ones as f32. The
- *    next level is built from the erased float values.
+ *    next level is built from the erased float values. The seam stiffness
+ *    `w_seam` is 1e12, 100 times erase_seams's default: a coarse level's
+ *    charts are a few texels across, and at 1e10 the penalty left gaps that
+ *    the render check sees. Measured on lod_chain.lua's geometry images
+ *    (1024^2, GPU seam gap over the bounding-box diagonal, worst over every
+ *    LOD and level): Duck 6.9e-5 (64^2) -> 9.8e-6 (level 0, which is the
+ *    bake's, not erased here), blub 2.2e-5 (8^2) -> 1.6e-6; seam energies
+ *    fell 10-50 times. BoomBox stays at 1.15e-5 (512^2) at 1e12 and 1e13
+ *    alike, so that floor is not the penalty's. Cholesky's backward error,
+ *    ~1e-16 * 1e12 of the grid stiffness, is still far below it.
+ *  - Levels not erased. Where an atlas's charts fall under a texel, the
+ *    seams tie texels all over the level together and no ordering keeps
+ *    the factor sparse: pizza's 4,740 charts at 1024^2 (440k unknowns, 4M
+ *    entries) would need a factor of 2.0e9 entries under AMD, 1.2e9 under
+ *    METIS (~10 GB, 3e13 flops), past CHOLMOD's 32-bit limit. Such a level
+ *    fails with a message naming `erase_min_size`: levels whose sides are
+ *    both below it are box-averaged (DATA maps as above) but not erased;
+ *    their seam energies are reported like any other level's.
  *  - Level 0 already erased. A level-0 texture whose largest seam gap is
  *    within what its storage holds (`level0_gap` times its largest magnitude
  *    for float, one step for 8/16-bit; or `gap_tolerance`) is kept as it is:
@@ -477,8 +494,9 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
  * in[i] (pixel type of the chain); results into the chains' level m. At
  * level 0, chains whose seams are closed already (seam_free_already) pass
  * through as they are; the others are erased in one erase_seams run. */
-static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m, double gap_tolerance,
-                       double level0_gap, int threads, int *runs, int *passed, sc_error *err) {
+static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m, bool erase,
+                       double gap_tolerance, double level0_gap, double w_seam, int threads, int *runs, int *passed,
+                       sc_error *err) {
     sc_atlas_ops_map *maps = calloc((size_t)n + 1, sizeof *maps);
     sc_value **f32 = calloc((size_t)n + 1, sizeof *f32), **native = calloc((size_t)n + 1, sizeof *native);
     int *which = calloc((size_t)n + 1, sizeof *which);   /* erased map i is chain which[i] */
@@ -488,8 +506,8 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
     int32_t seams_material = -1;
     for (int i = 0; i < n && rc == SC_OK; i++) {
         const sc_texture *t = chains[i]->tex;
-        bool clean = false;
-        if (m == 0 && level0_gap > 0) {
+        bool clean = !erase;
+        if (erase && m == 0 && level0_gap > 0) {
             if (seams_material != t->material) {
                 if (seams_material >= 0) sc_seam_set_free(&seams);
                 seams_material = -1;
@@ -506,7 +524,7 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
             sc_value *fv = im->pixel == SC_PIXEL_F32 ? sc_value_retain(in[i]) : f ? sc_value_new_image(f) : NULL;
             if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
             chains[i]->f32[m] = fv, chains[i]->native[m] = fv ? sc_value_retain(in[i]) : NULL;
-            (*passed)++;
+            if (erase) (*passed)++;
         } else if (rc == SC_OK) {
             maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
             which[nerase++] = i;
@@ -514,13 +532,20 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
     }
     if (seams_material >= 0) sc_seam_set_free(&seams);
     if (rc == SC_OK && nerase > 0) {
-        rc = sc_atlas_ops_erase(mesh, maps, nerase, gap_tolerance, NULL, NULL, threads, f32, native, err);
+        char stiffness[64];
+        snprintf(stiffness, sizeof stiffness, "%.17g", w_seam);
+        const char *const params[] = {"w_seam", stiffness, NULL};
+        rc = sc_atlas_ops_erase(mesh, maps, nerase, gap_tolerance, NULL, params, threads, f32, native, err);
         if (rc == SC_OK) {
             (*runs)++;
             for (int i = 0; i < nerase; i++) chains[which[i]]->f32[m] = f32[i], chains[which[i]]->native[m] = native[i];
         }
     }
-    if (rc != SC_OK) sc_error_prefix(err, "erase_seams at mip level %d", m);
+    if (rc == SC_ENOMEM && m > 0)   /* e.g. a factor over CHOLMOD's size limit: charts under a texel */
+        sc_error_prefix(err, "erase_seams at mip level %d (%dx%d; erase_min_size above this size keeps such levels "
+                             "unerased)", m, in[0]->as.image->width, in[0]->as.image->height);
+    else if (rc != SC_OK)
+        sc_error_prefix(err, "erase_seams at mip level %d", m);
     free(maps), free(f32), free(native), free(which);
     return rc;
 }
@@ -668,6 +693,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const int32_t min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
     const double gap_tolerance = sc_ctx_number(ctx, "gap_tolerance");
     const double level0_gap = sc_ctx_number(ctx, "level0_gap");
+    const double w_seam = sc_ctx_number(ctx, "w_seam");
+    const int32_t erase_min_size = (int32_t)sc_ctx_integer(ctx, "erase_min_size");
     const int threads = sc_ctx_threads(ctx);
     const sc_atlas **src = calloc((size_t)nsrc, sizeof *src);
     if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -741,7 +768,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
      * ones) and level by level, one erase_seams run per group and level; a
      * finished group's chains go to the encoder */
     double t0 = sc_now();
-    int runs = 0, passed = 0;
+    int runs = 0, passed = 0, unerased = 0;   /* unerased: (group, level) pairs below erase_min_size */
     chain **members = calloc((size_t)nchains + 1, sizeof *members);
     sc_value **inputs = calloc((size_t)nchains + 1, sizeof *inputs);
     encoder enc;
@@ -782,7 +809,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
             }
             if (rc == SC_OK && n > 0) {
                 sc_value *mesh = g == nsrc ? union_mesh : src[g]->mesh;
-                rc = erase_level(mesh, members, inputs, n, m, gap_tolerance, level0_gap, threads, &runs, &passed, err);
+                const sc_image_data *im = inputs[0]->as.image;
+                bool erase = im->width >= erase_min_size || im->height >= erase_min_size;
+                if (!erase) unerased++;
+                rc = erase_level(mesh, members, inputs, n, m, erase, gap_tolerance, level0_gap, w_seam, threads, &runs,
+                                 &passed, err);
             }
             for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
         }
@@ -839,6 +870,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "chains", nchains);
         sc_ctx_metric(ctx, "erase_runs", runs);
         sc_ctx_metric(ctx, "level0_passed", passed);
+        sc_ctx_metric(ctx, "erase_runs_skipped", unerased);
         sc_ctx_metric(ctx, "seam_energy", worst_energy);
         sc_ctx_metric(ctx, "max_seam_gap", worst_gap);
         if (sc_report_metric(report, "levels", nmip) || sc_report_metric(report, "seam_energy", worst_energy) ||
@@ -906,6 +938,11 @@ static const sc_param_desc params[] = {
     {.name = "level0_gap", .type = SC_PARAM_NUMBER, .def = 1e-5, .min = 0, .max = 1,
      .doc = "level 0 of a chain is kept as it is when its largest seam gap is within this fraction of its "
             "largest magnitude (float) or one step (8/16-bit): seams already erased; 0 erases every level 0"},
+    {.name = "erase_min_size", .type = SC_PARAM_INTEGER, .def = 1, .min = 1, .max = 32768,
+     .doc = "levels whose sides are both below this are averaged but not erased (reported as not erased): for "
+            "atlases whose charts fall under a texel there, where an exact erasure can outgrow memory"},
+    {.name = "w_seam", .type = SC_PARAM_NUMBER, .def = 1e12, .min = 0, .max = 1e30,
+     .doc = "erase_seams's w_seam on every level: the seam stiffness against the grid terms"},
 };
 
 static const sc_port_desc inputs[] = {
@@ -923,7 +960,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 3,
+    .version = 4,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
