@@ -43,8 +43,9 @@
  *    entries) would need a factor of 2.0e9 entries under AMD, 1.2e9 under
  *    METIS (~10 GB, 3e13 flops), past CHOLMOD's 32-bit limit. Such a level
  *    fails with a message naming `erase_min_size`: levels whose sides are
- *    both below it are box-averaged (DATA maps as above) but not erased;
- *    their seam energies are reported like any other level's.
+ *    both below it are box-averaged (DATA maps as above) but not erased
+ *    (counted: levels_not_erased); their seam energies are reported like
+ *    any other level's.
  *  - Level 0 already erased. A level-0 texture whose largest seam gap is
  *    within what its storage holds (`level0_gap` times its largest magnitude
  *    for float, one step for 8/16-bit; or `gap_tolerance`) is kept as it is:
@@ -493,10 +494,11 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
 /* Erase level m of the chains of one group on `mesh`: the input images are
  * in[i] (pixel type of the chain); results into the chains' level m. At
  * level 0, chains whose seams are closed already (seam_free_already) pass
- * through as they are; the others are erased in one erase_seams run. */
-static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m, bool erase,
-                       double gap_tolerance, double level0_gap, double w_seam, int threads, int *runs, int *passed,
-                       sc_error *err) {
+ * through as they are; so do maps whose sides are both below erase_min_size
+ * (counted in *unerased); the others are erased in one erase_seams run. */
+static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m,
+                       int32_t erase_min_size, double gap_tolerance, double level0_gap, double w_seam, int threads,
+                       int *runs, int *passed, int *unerased, sc_error *err) {
     sc_atlas_ops_map *maps = calloc((size_t)n + 1, sizeof *maps);
     sc_value **f32 = calloc((size_t)n + 1, sizeof *f32), **native = calloc((size_t)n + 1, sizeof *native);
     int *which = calloc((size_t)n + 1, sizeof *which);   /* erased map i is chain which[i] */
@@ -506,7 +508,10 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
     int32_t seams_material = -1;
     for (int i = 0; i < n && rc == SC_OK; i++) {
         const sc_texture *t = chains[i]->tex;
+        const sc_image_data *level = in[i]->as.image;
+        bool erase = level->width >= erase_min_size || level->height >= erase_min_size;
         bool clean = !erase;
+        if (!erase) (*unerased)++;
         if (erase && m == 0 && level0_gap > 0) {
             if (seams_material != t->material) {
                 if (seams_material >= 0) sc_seam_set_free(&seams);
@@ -768,7 +773,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
      * ones) and level by level, one erase_seams run per group and level; a
      * finished group's chains go to the encoder */
     double t0 = sc_now();
-    int runs = 0, passed = 0, unerased = 0;   /* unerased: (group, level) pairs below erase_min_size */
+    int runs = 0, passed = 0, unerased = 0;   /* unerased: map levels below erase_min_size */
     chain **members = calloc((size_t)nchains + 1, sizeof *members);
     sc_value **inputs = calloc((size_t)nchains + 1, sizeof *inputs);
     encoder enc;
@@ -809,11 +814,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
             }
             if (rc == SC_OK && n > 0) {
                 sc_value *mesh = g == nsrc ? union_mesh : src[g]->mesh;
-                const sc_image_data *im = inputs[0]->as.image;
-                bool erase = im->width >= erase_min_size || im->height >= erase_min_size;
-                if (!erase) unerased++;
-                rc = erase_level(mesh, members, inputs, n, m, erase, gap_tolerance, level0_gap, w_seam, threads, &runs,
-                                 &passed, err);
+                rc = erase_level(mesh, members, inputs, n, m, erase_min_size, gap_tolerance, level0_gap, w_seam,
+                                 threads, &runs, &passed, &unerased, err);
             }
             for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
         }
@@ -870,7 +872,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "chains", nchains);
         sc_ctx_metric(ctx, "erase_runs", runs);
         sc_ctx_metric(ctx, "level0_passed", passed);
-        sc_ctx_metric(ctx, "erase_runs_skipped", unerased);
+        sc_ctx_metric(ctx, "levels_not_erased", unerased);
         sc_ctx_metric(ctx, "seam_energy", worst_energy);
         sc_ctx_metric(ctx, "max_seam_gap", worst_gap);
         if (sc_report_metric(report, "levels", nmip) || sc_report_metric(report, "seam_energy", worst_energy) ||
