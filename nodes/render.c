@@ -48,9 +48,13 @@
  *    counts only when no back face of the reference lies within 2 pixels of
  *    it (silhouettes of holes move a little between LODs). Without a
  *    reference, every back-face pixel of an open mesh counts.
- *  - Views: orthographic, all framing one bounding sphere (the union of every
- *    level and the reference, grown by the longest displacement vector), so
- *    a view is the same camera for every LOD,
+ *  - Views: orthographic, all framing one bounding sphere (the box of every
+ *    level's and the reference's vertices, each also where the position
+ *    modes draw it: the geometry image at its uv, itself plus the
+ *    displacement there. Framing by the longest vector anywhere in the
+ *    displacement maps, gutter and fill texels included, once made spot's
+ *    views ten times too wide: the cow at 25 of 256 pixels, which hid most
+ *    of its crack pixels), so a view is the same camera for every LOD,
  *    mode and the reference. 6 axis views (posx ... negz), then the cube's
  *    corners (obl0 ... obl7), then a Fibonacci sphere. Depth clamping keeps
  *    displaced geometry from being cut open by the near or far plane.
@@ -1536,34 +1540,32 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
     return rc;
 }
 
-/* The longest vector in any displacement texture (each distinct image once),
- * so the framing holds displaced geometry too. */
-static double max_displacement(const sc_lods *lods, const sc_atlas *single) {
-    double best = 0;
-    const sc_value *seen[16];
-    int nseen = 0;
-    int32_t nlevels = lods ? lods->count : 1;
-    for (int32_t k = 0; k < nlevels; k++) {
-        const sc_atlas *a = lods ? lods->levels[k]->as.atlas : single;
-        for (int32_t t = 0; t < a->ntex; t++) {
-            if (strcmp(a->textures[t].name, "displacement") != 0) continue;
-            const sc_value *v = a->textures[t].image;
-            bool done = false;
-            for (int i = 0; i < nseen; i++) done |= sc_digest_equal(&seen[i]->digest, &v->digest);
-            if (done) continue;
-            if (nseen < 16) seen[nseen++] = v;
-            const sc_image_data *im = v->as.image;
-            if (im->channels < 3) continue;
-            size_t n = (size_t)im->width * (size_t)im->height;
-            for (size_t i = 0; i < n; i++) {
-                double d[3];
-                for (int c = 0; c < 3; c++) d[c] = sc_image_texel(im, (int32_t)(i % im->width), (int32_t)(i / im->width), c);
-                double l = vlen(d);
-                if (isfinite(l) && l > best) best = l;
+/* Widen lo/hi by the vertices of atlas `a` where the position modes draw
+ * them: the geometry image at the vertex's uv, and the vertex plus the
+ * displacement there (bilinear, float maps of 3+ channels). */
+static void add_drawn_vertices(const sc_atlas *a, double lo[3], double hi[3]) {
+    const sc_mesh *m = a->mesh->as.mesh;
+    for (int32_t t = 0; t < a->ntex; t++) {
+        const sc_texture *tx = &a->textures[t];
+        const sc_image_data *im = tx->image->as.image;
+        bool offsets = strcmp(tx->name, "displacement") == 0;
+        if ((!offsets && strcmp(tx->name, "geometry_image") != 0) || im->pixel != SC_PIXEL_F32 || im->channels < 3)
+            continue;
+        sc_seam_grid g = {im->width, im->height, tx->wrap_u, tx->wrap_v};
+        for (int32_t f = 0; f < m->nf; f++) {
+            if (m->FM[f] != tx->material) continue;
+            for (int c = 0; c < 3; c++) {
+                const double *uv = &m->U[2 * m->FU[3 * f + c]], *base = &m->V[3 * m->FV[3 * f + c]];
+                double p[4];
+                sc_seam_sample(&g, im->pixels, im->channels, uv[0], uv[1], p);
+                for (int k = 0; k < 3; k++) {
+                    double x = offsets ? base[k] + p[k] : p[k];
+                    if (x < lo[k]) lo[k] = x;
+                    if (x > hi[k]) hi[k] = x;
+                }
             }
         }
     }
-    return best;
 }
 
 /* Entry b is the next mip level of entry a (the mipmap node's `levels`
@@ -1622,9 +1624,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     if (reference) bbox_add(reference->mesh->as.mesh, lo, hi);
     if (!(lo[0] <= hi[0])) return sc_fail(err, SC_EINPUT, "lods: no vertices to render");
+    for (int32_t k = 0; k < nlevels; k++) add_drawn_vertices(lods ? lods->levels[k]->as.atlas : single, lo, hi);
     double center[3], ext[3];
     for (int c = 0; c < 3; c++) center[c] = 0.5 * (lo[c] + hi[c]), ext[c] = hi[c] - lo[c];
-    double radius = 0.5 * vlen(ext) * 1.02 + max_displacement(lods, single);
+    double radius = 0.5 * vlen(ext) * 1.02;
     if (!(radius > 0) || !isfinite(radius)) radius = 1;
     view *views = calloc((size_t)J.nviews, sizeof *views);
     if (!views) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1737,7 +1740,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 1,
+    .version = 2,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -80,6 +80,17 @@ char *sc_test_source_path(const char *rel) {
     return p;
 }
 
+bool sc_test_sanitized(void) {
+#if defined(__SANITIZE_ADDRESS__)
+    return true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+    return true;
+#endif
+#endif
+    return false;
+}
+
 const char *sc_test_corpus(void) {
     static char path[4096];
     struct stat st;

@@ -28,6 +28,10 @@ char *sc_test_source_path(const char *rel);
 /* The shared corpus folder (../shared/corpus from the source tree), or NULL
  * when it is absent; corpus tests then print that they skipped. */
 const char *sc_test_corpus(void);
+/* Whether this build runs under AddressSanitizer. The heaviest corpus checks
+ * skip there (the release run makes them): their code paths are those of the
+ * small cases that do run, at 20-50 times the time. */
+bool sc_test_sanitized(void);
 /* Run a shell command, return its exit status (or -1). */
 int sc_test_system(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
