@@ -60,7 +60,8 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- mip_min: the coarsest mip level made and checked. Geometry fetched from a
 -- level stays fold-free while the gutters between charts span 2 texels or
 -- more there: the procedural asset pads its charts for 16^2; an asset packed
--- tighter may need a larger mip_min.
+-- tighter may need a larger mip_min: spot's geometry image folds at 128^2
+-- (crack pixels along its spine), whether mipped from 1024^2 or baked at 128^2.
 local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16) }
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
         size = param("map_render_size", 256), views = param("map_views", 6),
