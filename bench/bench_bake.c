@@ -142,11 +142,12 @@ int main(int argc, char **argv) {
                    sc_ctx_metric_value(mip, "seconds_files"));
         if (mip) {
             printf("       lod 0 seam energy per mip level:");
-            for (int m = 0; m < 14; m++) {
+            for (int m = 0;; m++) {   /* every level built, down to 1 x 1 */
                 char n[64];
                 snprintf(n, sizeof n, "lod0.level%d.seam_energy", m);
                 double e = sc_ctx_metric_value(mip, n);
-                if (e == e) printf(" %.2g", e);
+                if (isnan(e)) break;
+                printf(" %.2g", e);
             }
             printf("\n");
         }

@@ -491,14 +491,27 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
     return rc;
 }
 
+/* How levels are erased (the node's parameters), and what happened. */
+typedef struct erase_settings {
+    int32_t min_size;            /* erase_min_size */
+    double gap_tolerance, level0_gap;
+    const char *const *params;   /* erase_seams's own: w_seam */
+    int threads;
+} erase_settings;
+
+typedef struct erase_counts {
+    int runs;       /* erase_seams runs */
+    int passed;     /* level-0 maps kept as they are */
+    int unerased;   /* map levels below erase_min_size */
+} erase_counts;
+
 /* Erase level m of the chains of one group on `mesh`: the input images are
  * in[i] (pixel type of the chain); results into the chains' level m. At
  * level 0, chains whose seams are closed already (seam_free_already) pass
  * through as they are; so do maps whose sides are both below erase_min_size
- * (counted in *unerased); the others are erased in one erase_seams run. */
+ * (counted as unerased); the others are erased in one erase_seams run. */
 static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m,
-                       int32_t erase_min_size, double gap_tolerance, double level0_gap, double w_seam, int threads,
-                       int *runs, int *passed, int *unerased, sc_error *err) {
+                       const erase_settings *es, erase_counts *counts, sc_error *err) {
     sc_atlas_ops_map *maps = calloc((size_t)n + 1, sizeof *maps);
     sc_value **f32 = calloc((size_t)n + 1, sizeof *f32), **native = calloc((size_t)n + 1, sizeof *native);
     int *which = calloc((size_t)n + 1, sizeof *which);   /* erased map i is chain which[i] */
@@ -509,10 +522,10 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
     for (int i = 0; i < n && rc == SC_OK; i++) {
         const sc_texture *t = chains[i]->tex;
         const sc_image_data *level = in[i]->as.image;
-        bool erase = level->width >= erase_min_size || level->height >= erase_min_size;
+        bool erase = level->width >= es->min_size || level->height >= es->min_size;
         bool clean = !erase;
-        if (!erase) (*unerased)++;
-        if (erase && m == 0 && level0_gap > 0) {
+        if (!erase) counts->unerased++;
+        if (erase && m == 0 && es->level0_gap > 0) {
             if (seams_material != t->material) {
                 if (seams_material >= 0) sc_seam_set_free(&seams);
                 seams_material = -1;
@@ -520,7 +533,8 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
                 if (rc == SC_OK) seams_material = t->material;
             }
             if (rc == SC_OK)
-                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, gap_tolerance, level0_gap, threads,
+                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, es->gap_tolerance, es->level0_gap,
+                                       es->threads,
                                        &clean, err);
         }
         if (rc == SC_OK && clean) {
@@ -529,7 +543,7 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
             sc_value *fv = im->pixel == SC_PIXEL_F32 ? sc_value_retain(in[i]) : f ? sc_value_new_image(f) : NULL;
             if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
             chains[i]->f32[m] = fv, chains[i]->native[m] = fv ? sc_value_retain(in[i]) : NULL;
-            if (erase) (*passed)++;
+            if (erase) counts->passed++;
         } else if (rc == SC_OK) {
             maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
             which[nerase++] = i;
@@ -537,12 +551,10 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
     }
     if (seams_material >= 0) sc_seam_set_free(&seams);
     if (rc == SC_OK && nerase > 0) {
-        char stiffness[64];
-        snprintf(stiffness, sizeof stiffness, "%.17g", w_seam);
-        const char *const params[] = {"w_seam", stiffness, NULL};
-        rc = sc_atlas_ops_erase(mesh, maps, nerase, gap_tolerance, NULL, params, threads, f32, native, err);
+        rc = sc_atlas_ops_erase(mesh, maps, nerase, es->gap_tolerance, NULL, es->params, es->threads, f32, native,
+                                err);
         if (rc == SC_OK) {
-            (*runs)++;
+            counts->runs++;
             for (int i = 0; i < nerase; i++) chains[which[i]]->f32[m] = f32[i], chains[which[i]]->native[m] = native[i];
         }
     }
@@ -696,11 +708,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const int32_t nsrc = lods ? lods->count : 1;
     if (nsrc < 1) return sc_fail(err, SC_EINPUT, "lods: the list is empty");
     const int32_t min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
-    const double gap_tolerance = sc_ctx_number(ctx, "gap_tolerance");
-    const double level0_gap = sc_ctx_number(ctx, "level0_gap");
-    const double w_seam = sc_ctx_number(ctx, "w_seam");
-    const int32_t erase_min_size = (int32_t)sc_ctx_integer(ctx, "erase_min_size");
     const int threads = sc_ctx_threads(ctx);
+    char stiffness[64];
+    snprintf(stiffness, sizeof stiffness, "%.17g", sc_ctx_number(ctx, "w_seam"));
+    const char *const erase_params[] = {"w_seam", stiffness, NULL};
+    const erase_settings es = {(int32_t)sc_ctx_integer(ctx, "erase_min_size"), sc_ctx_number(ctx, "gap_tolerance"),
+                               sc_ctx_number(ctx, "level0_gap"), erase_params, threads};
     const sc_atlas **src = calloc((size_t)nsrc, sizeof *src);
     if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
     int rc = SC_OK;
@@ -773,7 +786,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
      * ones) and level by level, one erase_seams run per group and level; a
      * finished group's chains go to the encoder */
     double t0 = sc_now();
-    int runs = 0, passed = 0, unerased = 0;   /* unerased: map levels below erase_min_size */
+    erase_counts counts = {0};
     chain **members = calloc((size_t)nchains + 1, sizeof *members);
     sc_value **inputs = calloc((size_t)nchains + 1, sizeof *inputs);
     encoder enc;
@@ -814,8 +827,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
             }
             if (rc == SC_OK && n > 0) {
                 sc_value *mesh = g == nsrc ? union_mesh : src[g]->mesh;
-                rc = erase_level(mesh, members, inputs, n, m, erase_min_size, gap_tolerance, level0_gap, w_seam,
-                                 threads, &runs, &passed, &unerased, err);
+                rc = erase_level(mesh, members, inputs, n, m, &es, &counts, err);
             }
             for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
         }
@@ -870,9 +882,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc == SC_OK) {
         sc_ctx_metric(ctx, "levels", nmip);
         sc_ctx_metric(ctx, "chains", nchains);
-        sc_ctx_metric(ctx, "erase_runs", runs);
-        sc_ctx_metric(ctx, "level0_passed", passed);
-        sc_ctx_metric(ctx, "levels_not_erased", unerased);
+        sc_ctx_metric(ctx, "erase_runs", counts.runs);
+        sc_ctx_metric(ctx, "level0_passed", counts.passed);
+        sc_ctx_metric(ctx, "levels_not_erased", counts.unerased);
         sc_ctx_metric(ctx, "seam_energy", worst_energy);
         sc_ctx_metric(ctx, "max_seam_gap", worst_gap);
         if (sc_report_metric(report, "levels", nmip) || sc_report_metric(report, "seam_energy", worst_energy) ||

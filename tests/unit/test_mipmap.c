@@ -270,7 +270,7 @@ SC_TEST(levels_below_erase_min_size_are_not_erased) {
             const sc_atlas *af = lf->levels[e]->as.atlas, *ap = lp->levels[e]->as.atlas;
             for (int t = 0; t < af->ntex && t < ap->ntex; t++) {
                 const sc_image_data *f = af->textures[t].image->as.image, *q = ap->textures[t].image->as.image;
-                size_t bytes = (size_t)f->width * f->height * f->channels * (f->pixel == SC_PIXEL_F32 ? 4 : 1);
+                size_t bytes = (size_t)f->width * f->height * f->channels * (size_t)f->pixel;
                 bool same = f->width == q->width && f->height == q->height && memcmp(f->pixels, q->pixels, bytes) == 0;
                 if (f->width >= 64) SC_CHECK_MSG(same, "entry %d %s (%d^2): differs", e, af->textures[t].name, f->width);
             }
