@@ -48,6 +48,17 @@
  *    counts only when no back face of the reference lies within 2 pixels of
  *    it (silhouettes of holes move a little between LODs). Without a
  *    reference, every back-face pixel of an open mesh counts.
+ *  - Pinholes: seam-free maps still leave the two sides of a seam apart by
+ *    float rounding (about 1e-7 of the diagonal), and the rasteriser snaps
+ *    vertices to a grid of 2^-GL_SUBPIXEL_BITS pixels (llvmpipe: 8 bits):
+ *    two sides a rounding apart now and then land on neighbouring grid
+ *    points, and a pixel centre in the sliver between shows the back face
+ *    (the procedural main job: one pixel in 504 pictures). When a pass's
+ *    measured seam gap is below one grid step, a crack pixel within a pixel
+ *    of a seam side as the GPU placed it (the points the seam-gap check
+ *    captured, projected) is counted as lod<k>.<pass>.pinhole_pixels, not
+ *    as a crack; any larger gap keeps every such pixel a crack, and a
+ *    back-face pixel away from seams always is one.
  *  - Views: orthographic, all framing one bounding sphere (the box of every
  *    level's and the reference's vertices, each also where the position
  *    modes draw it: the geometry image at its uv, itself plus the
@@ -137,6 +148,15 @@ typedef struct seam_corner {
     int32_t k0, k1, k2;   /* corners of v0, v1 and the third vertex */
 } seam_corner;
 
+/* The seam sides of one pass as the GPU placed them: one polyline of world
+ * points per (seam edge, side), in edge order. */
+typedef struct seam_trace {
+    float *points;              /* 3 floats a point */
+    size_t npoints, cap;
+    int32_t *run_start;         /* nruns + 1 entries into points */
+    int32_t nruns, run_cap;
+} seam_trace;
+
 /* One level, uploaded. */
 typedef struct level_gl {
     const sc_atlas *atlas;
@@ -167,6 +187,9 @@ typedef struct renderer {
     int32_t ntextures;
     uint8_t *rgba, *flags;      /* size*size*4, size*size */
     float *depth;               /* size*size */
+    seam_trace trace;           /* the current pass's seam sides as drawn */
+    int subpixel_bits;          /* GL_SUBPIXEL_BITS: the rasteriser's vertex grid is 2^-bits pixels */
+    double subpixel;            /* that grid step in pixels, 0 when unknown */
     double t_render, t_gap;
 } renderer;
 
@@ -178,7 +201,7 @@ typedef struct outcome {
     sc_report *report;
     encoder *enc;
     const char *folder;          /* report files go under it: "render" */
-    double crack_total, gap_max, vertex_gap_max;
+    double crack_total, pinhole_total, gap_max, vertex_gap_max;
     int32_t renders, skipped;
 } outcome;
 
@@ -420,6 +443,9 @@ static int get_seam_program(renderer *R, int pos, GLuint *out, sc_error *err) {
 }
 
 static void renderer_free(renderer *R) {
+    free(R->trace.points);
+    free(R->trace.run_start);
+    R->trace = (seam_trace){0};
     if (!R->gl) return;
     sc_gl_target_destroy(&R->target);
     for (int p = 0; p < 3; p++) {
@@ -669,6 +695,61 @@ static void gap_consider(gap_result *g, double d, double t, int32_t edge) {
     if (t <= 0.0 || t >= 1.0) g->vertex_gap = fmax(g->vertex_gap, d);
 }
 
+static void trace_clear(seam_trace *t) { t->npoints = 0, t->nruns = 0; }
+
+/* Starts the next polyline of the trace. */
+static int trace_run(seam_trace *t, sc_error *err) {
+    if (t->nruns + 2 > t->run_cap) {
+        int32_t ncap = t->run_cap ? 2 * t->run_cap : 256;
+        int32_t *r = realloc(t->run_start, sizeof *r * (size_t)ncap);
+        if (!r) return sc_fail(err, SC_ENOMEM, "out of memory");
+        t->run_start = r, t->run_cap = ncap;
+    }
+    t->run_start[t->nruns] = (int32_t)t->npoints;
+    t->run_start[++t->nruns] = (int32_t)t->npoints;
+    return SC_OK;
+}
+
+/* Appends a point to the polyline trace_run started last. */
+static int trace_point(seam_trace *t, const float p[3], sc_error *err) {
+    if (t->npoints == t->cap) {
+        size_t ncap = t->cap ? 2 * t->cap : 4096;
+        if (ncap > INT32_MAX) return sc_fail(err, SC_ENOMEM, "seam trace: too many points");
+        float *q = realloc(t->points, sizeof *q * 3 * ncap);
+        if (!q) return sc_fail(err, SC_ENOMEM, "out of memory");
+        t->points = q, t->cap = ncap;
+    }
+    memcpy(t->points + 3 * t->npoints, p, 3 * sizeof *p);
+    t->run_start[t->nruns] = (int32_t)++t->npoints;
+    return SC_OK;
+}
+
+static double segment_distance(double x, double y, double x0, double y0, double x1, double y1) {
+    double dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy;
+    double t = len2 > 0 ? ((x - x0) * dx + (y - y0) * dy) / len2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    return hypot(x - x0 - t * dx, y - y0 - t * dy);
+}
+
+/* Whether the centre of pixel (x, y) (GL order: row 0 at the bottom) lies
+ * within one pixel of a seam side of the current pass, projected in view v
+ * (orthographic: w = 1). */
+static bool near_seam(const renderer *R, const view *v, int32_t x, int32_t y) {
+    const seam_trace *t = &R->trace;
+    const float *M = v->view_proj;   /* column-major */
+    double s = R->size, cx = x + 0.5, cy = y + 0.5, px0 = 0, py0 = 0;
+    for (int32_t r = 0; r < t->nruns; r++)
+        for (int32_t i = t->run_start[r]; i < t->run_start[r + 1]; i++) {
+            const float *p = t->points + 3 * (size_t)i;
+            double px = (M[0] * p[0] + M[4] * p[1] + M[8] * p[2] + M[12] + 1.0) * 0.5 * s;
+            double py = (M[1] * p[0] + M[5] * p[1] + M[9] * p[2] + M[13] + 1.0) * 0.5 * s;
+            if (i == t->run_start[r]) px0 = px, py0 = py;
+            if (segment_distance(cx, cy, px0, py0, px, py) <= 1.0) return true;
+            px0 = px, py0 = py;
+        }
+    return false;
+}
+
 /* Capture into a buffer of `bytes`; returns primitives written, or -1 on overflow. */
 typedef struct capture {
     GLuint buffer, q_written, q_generated;
@@ -805,6 +886,13 @@ static int seam_gap_points(renderer *R, const level_gl *L, const pass *ps, int n
                 double t = i == npoints - 1 ? 1.0 : (double)i / (npoints - 1);
                 gap_consider(res, vlen(d) / L->diag, t, e);
             }
+    for (int32_t e = 0; rc == SC_OK && e < ne; e++)
+        for (int s = 0; s < 2 && rc == SC_OK; s++) {
+            rc = trace_run(&R->trace, err);
+            for (int i = 0; rc == SC_OK && i < npoints; i++)
+                rc = trace_point(&R->trace, out + 3 * (size_t)slot_of[((size_t)e * 2 + (size_t)s) * (size_t)npoints + (size_t)i],
+                                 err);
+        }
     free(out);
     free(slot_of);
     return rc;
@@ -998,7 +1086,7 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
     if (rc == SC_OK && nsamples > 0) {
         qsort(samples, nsamples, sizeof *samples, compare_samples);
         size_t i = 0;
-        while (i < nsamples) {
+        while (i < nsamples && rc == SC_OK) {
             size_t a = i, mid = i, b;
             while (mid < nsamples && samples[mid].edge == samples[a].edge && samples[mid].side == 0) mid++;
             b = mid;
@@ -1011,6 +1099,10 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
             } else {
                 pair_runs(samples + a, (int32_t)(mid - a), samples + mid, (int32_t)(b - mid), L->diag, res);
                 pair_runs(samples + mid, (int32_t)(b - mid), samples + a, (int32_t)(mid - a), L->diag, res);
+            }
+            for (size_t j = a; j < b && rc == SC_OK; j++) {
+                if (j == a || j == mid) rc = trace_run(&R->trace, err);
+                if (rc == SC_OK) rc = trace_point(&R->trace, samples[j].p, err);
             }
             i = b;
         }
@@ -1220,6 +1312,7 @@ typedef struct job {
     int32_t size;
     int seam_points;
     double max_cracks, max_gap;
+    double pixels_per_unit;   /* view scale: size / (2 radius) */
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
 } job;
 
@@ -1229,8 +1322,13 @@ typedef struct job {
  * 3) shows the background or a front face farther away: there the back
  * sheet folds under the front one and rasterisation of the two at sub-pixel
  * distance can expose a pixel of it on a perfectly closed mesh. Through a
- * crack, the back face seen lies behind all the front faces around it. */
-static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v) {
+ * crack, the back face seen lies behind all the front faces around it.
+ * When the pass's seam gap is below the rasteriser's vertex grid, a crack
+ * pixel within a pixel of a seam side as drawn is a pinhole instead
+ * (*pinholes): the two sides' vertices, equal but for float rounding, fell
+ * on neighbouring grid points. */
+static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v, bool gap_below_grid,
+                            int64_t *pinholes) {
     int32_t s = J->size;
     size_t n = (size_t)s * (size_t)s;
     const uint8_t *ref = (!L->closed && J->reference) ? J->reference + n * (size_t)v : NULL;
@@ -1251,7 +1349,9 @@ static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, 
                         break;
                     }
                 }
-            if (!contour) count++;
+            if (contour) continue;
+            if (gap_below_grid && near_seam(R, &J->views[v], x, y)) (*pinholes)++;
+            else count++;
         }
     return count;
 }
@@ -1260,6 +1360,7 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                     sheet *sh, int32_t row, gap_result *gap_out, sc_error *err) {
     double t0 = sc_now();
     gap_result gap = {0, 0, -1, 0};
+    trace_clear(&R->trace);
     int rc = ps->level > 0 ? seam_gap_tess(R, L, ps, &gap, err)
                            : seam_gap_points(R, L, ps, J->seam_points, &gap, err);
     R->t_gap += sc_now() - t0;
@@ -1273,15 +1374,16 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                        k->human, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
                        gap.edge_t);
     }
-    int64_t total = 0, worst = -1;
+    int64_t total = 0, worst = -1, pinholes = 0;
     int worst_view = 0;
+    bool gap_below_grid = gap.gap * L->diag * J->pixels_per_unit < R->subpixel;
     for (int v = 0; v < J->nviews; v++) {
         t0 = sc_now();
         rc = draw(R, L, ps, &J->views[v], err);
         if (rc == SC_OK) rc = read_target(R, err);
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s, view %s", k->human, ps->name, J->views[v].name);
-        int64_t cracks = count_cracks(R, L, J, v);
+        int64_t cracks = count_cracks(R, L, J, v, gap_below_grid, &pinholes);
         total += cracks;
         if (cracks > worst) worst = cracks, worst_view = v;
         char path[200];
@@ -1293,9 +1395,11 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     }
     *gap_out = gap;
     o->crack_total += (double)total;
+    o->pinhole_total += (double)pinholes;
     o->gap_max = fmax(o->gap_max, gap.gap);
     o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
     if (metricf(o, (double)total, "%s.%s.crack_pixels", k->metric, ps->name) ||
+        metricf(o, (double)pinholes, "%s.%s.pinhole_pixels", k->metric, ps->name) ||
         metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
         metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name))
         return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1633,6 +1737,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (!views) return sc_fail(err, SC_ENOMEM, "out of memory");
     make_views(views, J.nviews, center, radius);
     J.views = views;
+    J.pixels_per_unit = J.size / (2.0 * radius);
 
     encoder enc;
     encoder_start(&enc, sc_ctx_threads(ctx));
@@ -1642,6 +1747,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (!o.report) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     double t0 = sc_now();
     if (rc == SC_OK) rc = sc_gl_open(&R.gl, err);
+    if (rc == SC_OK) {
+        GLint bits = 0;
+        glGetIntegerv(GL_SUBPIXEL_BITS, &bits);
+        R.subpixel_bits = bits > 0 && bits < 30 ? bits : 0;
+        R.subpixel = R.subpixel_bits ? ldexp(1.0, -R.subpixel_bits) : 0.0;
+    }
     double t_context = sc_now() - t0;
     if (rc == SC_OK) {
         R.rgba = malloc((size_t)J.size * (size_t)J.size * 4);
@@ -1675,7 +1786,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc == SC_OK &&
         (metric(&o, "levels", nlevels) || metric(&o, "views", J.nviews) || metric(&o, "size", J.size) ||
          metric(&o, "renders", o.renders) || metric(&o, "skipped_modes", o.skipped) ||
-         metric(&o, "crack_pixels", o.crack_total) || metric(&o, "max_seam_gap", o.gap_max) ||
+         metric(&o, "crack_pixels", o.crack_total) || metric(&o, "pinhole_pixels", o.pinhole_total) ||
+         metric(&o, "subpixel_bits", R.subpixel_bits) || metric(&o, "max_seam_gap", o.gap_max) ||
          metric(&o, "max_vertex_gap", o.vertex_gap_max)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
     double t_render = R.t_render, t_gap = R.t_gap;
@@ -1740,7 +1852,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 2,
+    .version = 3,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
