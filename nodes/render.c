@@ -54,11 +54,13 @@
  *    two sides a rounding apart now and then land on neighbouring grid
  *    points, and a pixel centre in the sliver between shows the back face
  *    (the procedural main job: one pixel in 504 pictures). When a pass's
- *    measured seam gap is below one grid step, a crack pixel within a pixel
- *    of a seam side as the GPU placed it (the points the seam-gap check
- *    captured, projected) is counted as lod<k>.<pass>.pinhole_pixels, not
- *    as a crack; any larger gap keeps every such pixel a crack, and a
- *    back-face pixel away from seams always is one.
+ *    measured seam gap is above 0 (equal vertices rasterise watertight:
+ *    the textured mode's gap is 0) and below one grid step, a crack pixel alone among
+ *    its 8 neighbours and within a pixel of a seam side as the GPU placed
+ *    it (the points the seam-gap check captured, projected) is counted as
+ *    lod<k>.<pass>.pinhole_pixels, not as a crack; any larger gap keeps
+ *    every such pixel a crack, as does a back-face pixel away from seams or
+ *    next to another (a fold or a real crack).
  *  - Views: orthographic, all framing one bounding sphere (the box of every
  *    level's and the reference's vertices, each also where the position
  *    modes draw it: the geometry image at its uv, itself plus the
@@ -1316,6 +1318,16 @@ typedef struct job {
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
 } job;
 
+/* Whether pixel (x, y) is the only back-face pixel of its 3 x 3 block. */
+static bool lone_back_face(const uint8_t *flags, int32_t size, int32_t x, int32_t y) {
+    for (int32_t yy = y - 1; yy <= y + 1; yy++)
+        for (int32_t xx = x - 1; xx <= x + 1; xx++)
+            if ((xx != x || yy != y) && xx >= 0 && yy >= 0 && xx < size && yy < size &&
+                flags[(size_t)yy * size + xx] == 2)
+                return false;
+    return true;
+}
+
 /* Crack pixels of the picture in R: back-face pixels (not near a back face
  * of the reference, for an open mesh with a reference) that are not on an
  * occluding contour. A back-face pixel is on a contour when a neighbour (3 x
@@ -1324,9 +1336,10 @@ typedef struct job {
  * distance can expose a pixel of it on a perfectly closed mesh. Through a
  * crack, the back face seen lies behind all the front faces around it.
  * When the pass's seam gap is below the rasteriser's vertex grid, a crack
- * pixel within a pixel of a seam side as drawn is a pinhole instead
- * (*pinholes): the two sides' vertices, equal but for float rounding, fell
- * on neighbouring grid points. */
+ * pixel with no back face among its 8 neighbours, within a pixel of a seam
+ * side as drawn, is a pinhole instead (*pinholes): the two sides' vertices,
+ * equal but for float rounding, fell on neighbouring grid points, and a
+ * sliver that thin holds one pixel centre at most. */
 static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v, bool gap_below_grid,
                             int64_t *pinholes) {
     int32_t s = J->size;
@@ -1350,7 +1363,7 @@ static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, 
                     }
                 }
             if (contour) continue;
-            if (gap_below_grid && near_seam(R, &J->views[v], x, y)) (*pinholes)++;
+            if (gap_below_grid && lone_back_face(f, s, x, y) && near_seam(R, &J->views[v], x, y)) (*pinholes)++;
             else count++;
         }
     return count;
@@ -1376,7 +1389,8 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     }
     int64_t total = 0, worst = -1, pinholes = 0;
     int worst_view = 0;
-    bool gap_below_grid = gap.gap * L->diag * J->pixels_per_unit < R->subpixel;
+    /* sides a rounding apart (not 0: equal vertices rasterise watertight) */
+    bool gap_below_grid = gap.gap > 0 && gap.gap * L->diag * J->pixels_per_unit < R->subpixel;
     for (int v = 0; v < J->nviews; v++) {
         t0 = sc_now();
         rc = draw(R, L, ps, &J->views[v], err);
@@ -1852,7 +1866,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 3,
+    .version = 5,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
