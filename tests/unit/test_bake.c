@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sc_atlas_ops.h"
 #include "sc_exec.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
@@ -306,6 +307,40 @@ SC_TEST(unerased_displacement_cracks) {
 done:
     sc_value_release(lods);
     sc_value_release(atlas);
+}
+
+/* Two coincident copies of the procedural sphere in one mesh share every uv
+ * texel: the bake refuses them, naming the parameter, unless allowed. */
+SC_TEST(overlapping_charts_are_refused) {
+    sc_value *asset = procedural_asset(8);
+    if (!asset) return;
+    const sc_atlas *a = asset->as.atlas;
+    const sc_mesh *copies[2] = {a->mesh->as.mesh, a->mesh->as.mesh};
+    sc_value *twice = sc_atlas_ops_mesh_union(copies, 2);
+    SC_CHECK(twice != NULL);
+    if (!twice) goto done;
+    sc_atlas *b = sc_atlas_new(twice);
+    for (int t = 0; t < a->ntex; t++)
+        sc_atlas_add_texture(b, a->textures[t].name, a->textures[t].material, a->textures[t].wrap_u,
+                             a->textures[t].wrap_v, a->textures[t].source, sc_value_retain(a->textures[t].image));
+    sc_value *overlapping = sc_value_new_atlas(b);
+    const char *strict[] = {"size", "64", NULL};
+    sc_test_run r = sc_test_run_node(&sc_node_bake_displacement, strict, "atlas", overlapping, NULL, NULL);
+    SC_CHECK(r.rc == SC_EINPUT);
+    SC_CHECK_MSG(strstr(r.err.message, "max_shared_fraction: 100.0% of the") != NULL, "message: %s", r.err.message);
+    SC_CHECK(r.rc != SC_OK || sc_ctx_output(r.ctx, 0) == NULL);
+    sc_ctx_free(r.ctx);
+    const char *allowed[] = {"size", "64", "max_shared_fraction", "1", NULL};
+    r = sc_test_run_node(&sc_node_bake_displacement, allowed, "atlas", overlapping, NULL, NULL);
+    SC_CHECK_MSG(r.rc == SC_OK, "bake: %s", r.err.message);
+    sc_ctx_free(r.ctx);
+    /* one copy shares nothing */
+    r = sc_test_run_node(&sc_node_bake_displacement, strict, "atlas", asset, NULL, NULL);
+    SC_CHECK_MSG(r.rc == SC_OK, "bake: %s", r.err.message);
+    sc_ctx_free(r.ctx);
+    sc_value_release(overlapping);
+done:
+    sc_value_release(asset);
 }
 
 /* ---------------------------------------------------------------- corpus */
