@@ -63,11 +63,15 @@ render{ name = "check", lods = chain, reference = shared,
 -- with positions fetched from the maps and tessellated.
 local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
                                  size = param("bake_size", 1024) }
--- mip_min: the coarsest mip level made and checked. Geometry fetched from a
+-- mip_min: the chains stop once the largest texture is at most mip_min^2
+-- (a smaller map's chain stops as many levels down). Geometry fetched from a
 -- level stays fold-free while the gutters between charts span 2 texels or
--- more there: the procedural asset pads its charts for 16^2; an asset packed
--- tighter may need a larger mip_min: spot's geometry image folds at 128^2
--- (crack pixels along its spine), whether mipped from 1024^2 or baked at 128^2.
+-- more there: the procedural asset pads its charts for 16^2; the corpus
+-- folds sooner. First crack pixels of the 1024^2 maps, measured: blub at
+-- 128^2 (the whole job passes with mip_min=512: its colour is 2048^2, so the
+-- maps stop at 256^2), Avocado at 256^2, spot and Lantern at 512^2,
+-- WaterBottle and BoomBox at 1024^2 already (thin parts and charts that all
+-- but touch).
 local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16) }
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
         size = param("map_render_size", 256), views = param("map_views", 6),
