@@ -55,12 +55,14 @@
  *    points, and a pixel centre in the sliver between shows the back face
  *    (the procedural main job: one pixel in 504 pictures). When a pass's
  *    measured seam gap is above 0 (equal vertices rasterise watertight:
- *    the textured mode's gap is 0) and below one grid step, a crack pixel alone among
- *    its 8 neighbours and within a pixel of a seam side as the GPU placed
- *    it (the points the seam-gap check captured, projected) is counted as
- *    lod<k>.<pass>.pinhole_pixels, not as a crack; any larger gap keeps
- *    every such pixel a crack, as does a back-face pixel away from seams or
- *    next to another (a fold or a real crack).
+ *    the textured mode's gap is 0) and below one grid step, a crack pixel
+ *    alone among its 8 neighbours and within a pixel of a seam side as the
+ *    GPU placed it (the points the seam-gap check captured, projected) is
+ *    counted as lod<k>.<pass>.pinhole_pixels, not as a crack; any larger
+ *    gap keeps every such pixel a crack, as does a back-face pixel away
+ *    from seams or next to another (a fold, a real crack, or a sliver along
+ *    a seam that runs through a row of pixel centres: visible as a line).
+ *    The main job's test (main_job_lod_chain) holds such a pinhole.
  *  - Views: orthographic, all framing one bounding sphere (the box of every
  *    level's and the reference's vertices, each also where the position
  *    modes draw it: the geometry image at its uv, itself plus the
@@ -891,9 +893,8 @@ static int seam_gap_points(renderer *R, const level_gl *L, const pass *ps, int n
     for (int32_t e = 0; rc == SC_OK && e < ne; e++)
         for (int s = 0; s < 2 && rc == SC_OK; s++) {
             rc = trace_run(&R->trace, err);
-            for (int i = 0; rc == SC_OK && i < npoints; i++)
-                rc = trace_point(&R->trace, out + 3 * (size_t)slot_of[((size_t)e * 2 + (size_t)s) * (size_t)npoints + (size_t)i],
-                                 err);
+            const int32_t *slots = slot_of + ((size_t)e * 2 + (size_t)s) * (size_t)npoints;
+            for (int i = 0; rc == SC_OK && i < npoints; i++) rc = trace_point(&R->trace, out + 3 * (size_t)slots[i], err);
         }
     free(out);
     free(slot_of);

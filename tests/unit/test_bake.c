@@ -206,17 +206,24 @@ static sc_value *decimated(sc_value *atlas, const char *ratios) {
     return v;
 }
 
-/* The render node on lods: returns its rc; crack and gap sums by reference. */
-static int render_check(sc_value *lods, sc_value *reference, const char *modes, double *cracks, double *gap,
-                        char *msg, size_t msg_size) {
+/* The render node on lods: returns its rc; crack and gap sums by reference
+ * (and the pinhole pixels, when asked). */
+static int render_check_pinholes(sc_value *lods, sc_value *reference, const char *modes, double *cracks,
+                                 double *gap, double *pinholes, char *msg, size_t msg_size) {
     const char *params[] = {"modes", modes, "views", "6", "size", "128", "tess_levels", "1,3", NULL};
     sc_test_run r = sc_test_run_node(&sc_node_render, params, "lods", lods, "reference", reference);
     *cracks = sc_ctx_metric_value(r.ctx, "crack_pixels");
     *gap = sc_ctx_metric_value(r.ctx, "max_seam_gap");
+    if (pinholes) *pinholes = sc_ctx_metric_value(r.ctx, "pinhole_pixels");
     snprintf(msg, msg_size, "%s", r.rc == SC_OK ? "" : r.err.message);
     int rc = r.rc;
     sc_ctx_free(r.ctx);
     return rc;
+}
+
+static int render_check(sc_value *lods, sc_value *reference, const char *modes, double *cracks, double *gap,
+                        char *msg, size_t msg_size) {
+    return render_check_pinholes(lods, reference, modes, cracks, gap, NULL, msg, msg_size);
 }
 
 /* ---------------------------------------------------------------- tests */
@@ -294,13 +301,15 @@ SC_TEST(unerased_displacement_cracks) {
     SC_CHECK_MSG(b.rc == SC_OK, "bake: %s", b.err.message);
     if (b.rc == SC_OK) {
         sc_value *disp_only = sc_test_lods_without(out_of(&b, 1), "geometry_image");
-        double cracks, gap;
+        double cracks, gap, pinholes = -1;
         char msg[1100];
-        int rc = render_check(disp_only, atlas, "displaced,tessellated", &cracks, &gap, msg, sizeof msg);
+        int rc = render_check_pinholes(disp_only, atlas, "displaced,tessellated", &cracks, &gap, &pinholes, msg,
+                                       sizeof msg);
         SC_CHECK_MSG(rc == SC_OK, "render: %s", msg);
         printf("     unerased: %.0f crack pixels, max seam gap %.3g\n", cracks, gap);
         SC_CHECK(gap > 1e-4);
         SC_CHECK(cracks > 0);
+        SC_CHECK(pinholes == 0);   /* a gap this wide makes every back-face pixel at a seam a crack */
         sc_value_release(disp_only);
     }
     sc_ctx_free(b.ctx);
