@@ -213,7 +213,7 @@ typedef struct outcome {
  * for the mip levels of a LOD, "lod1.mip2" in metrics and "lod1_mip2" in file
  * names; `human` goes into messages. */
 typedef struct level_label {
-    char metric[32], file[32], human[40];
+    char metric[32], file[32], human[64];
 } level_label;
 
 /* ---------------------------------------------------------------- small helpers */
@@ -355,6 +355,21 @@ static void make_views(view *views, int n, const double center[3], double radius
         double dir[3] = {rho * cos(phi), z, rho * sin(phi)};
         make_view(&views[i], name, dir, center, radius);
     }
+}
+
+/* The largest position map (geometry_image, displacement) of a level, else
+ * its largest texture; NULL without textures. */
+static const sc_image_data *largest_map(const sc_atlas *a) {
+    const sc_image_data *best = NULL;
+    bool best_is_map = false;
+    for (int32_t t = 0; t < a->ntex; t++) {
+        const sc_image_data *im = a->textures[t].image->as.image;
+        bool is_map = !strcmp(a->textures[t].name, "geometry_image") || !strcmp(a->textures[t].name, "displacement");
+        if (!best || (is_map && !best_is_map) ||
+            (is_map == best_is_map && (int64_t)im->width * im->height > (int64_t)best->width * best->height))
+            best = im, best_is_map = is_map;
+    }
+    return best;
 }
 
 /* ---------------------------------------------------------------- GL objects */
@@ -1787,7 +1802,13 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (has_mips) {
             snprintf(label.metric, sizeof label.metric, "lod%d.mip%d", lod, mip);
             snprintf(label.file, sizeof label.file, "lod%d_mip%d", lod, mip);
-            snprintf(label.human, sizeof label.human, "lod %d, mip %d", lod, mip);
+            /* the size tells which mip_min would stop before this level */
+            const sc_image_data *map = largest_map(a);
+            if (map)
+                snprintf(label.human, sizeof label.human, "lod %d, mip %d (%d x %d maps)", lod, mip,
+                         (int)map->width, (int)map->height);
+            else
+                snprintf(label.human, sizeof label.human, "lod %d, mip %d", lod, mip);
         } else {
             snprintf(label.metric, sizeof label.metric, "lod%d", lod);
             snprintf(label.file, sizeof label.file, "lod%d", lod);
