@@ -462,6 +462,7 @@ void sc_tune_allocator(char **argv) {
     }
     mallopt(M_MMAP_THRESHOLD, 32 << 20);   /* fixed: no longer adapts down after frees */
     mallopt(M_TRIM_THRESHOLD, INT_MAX);
+    mallopt(M_MMAP_MAX, 0);                /* large blocks from the heap too: reused, not re-faulted */
 #endif
 }
 
