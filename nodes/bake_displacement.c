@@ -57,6 +57,11 @@
  *    `erase` the maps are only fitted and
  *    filled, e.g. to feed erase_seams from the graph or to show that unerased
  *    maps crack.
+ *  - Repeated levels. A level whose mesh is an earlier level's (the same
+ *    digest: a decimation that stalled repeats its last level) takes that
+ *    level's erased maps and metrics instead of being fitted and erased
+ *    again; the bytes are the same either way (pizza's three levels are one
+ *    mesh of 30k faces).
  *  - Limits (measured at 1024^2). Where a chart's uv is squeezed below a
  *    texel per face (blub: faces of 0.01 texel, a texel spanning ~5% of the
  *    diagonal), no bilinear map follows the surface: the RMS residual of the
@@ -1904,11 +1909,26 @@ static int run(sc_ctx *ctx, sc_error *err) {
     /* every level's displacement, handed over as it is fitted */
     locator *locs = calloc((size_t)nmat * nlevels + 1, sizeof *locs);   /* level k, material m: k * nmat + m */
     int64_t *texels_fitted = calloc((size_t)nlevels + 1, sizeof *texels_fitted);
-    if ((!locs || !texels_fitted) && rc == SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    /* a level whose mesh is an earlier level's (a stalled decimation repeats
+     * its last level) gets that level's maps and metrics: job_of[k] is the
+     * after_fit job that made them */
+    int32_t *job_of = calloc((size_t)nlevels + 1, sizeof *job_of), *same_as = calloc((size_t)nlevels + 1, sizeof *same_as);
+    if ((!locs || !texels_fitted || !job_of || !same_as) && rc == SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     raster rl = {0};   /* the level's, one material at a time */
     for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
         const sc_mesh *lm = meshes[k + 1];
         fit_stats sk = {0};
+        same_as[k] = -1;
+        for (int32_t j = 0; lods && j < k && same_as[k] < 0; j++)
+            if (same_as[j] < 0 &&
+                sc_digest_equal(&lods->levels[j]->as.atlas->mesh->digest, &lods->levels[k]->as.atlas->mesh->digest))
+                same_as[k] = j;
+        if (same_as[k] >= 0) {   /* its maps are taken once the jobs are done */
+            job_of[k] = job_of[same_as[k]];
+            texels_fitted[k] = texels_fitted[same_as[k]];
+            continue;
+        }
+        job_of[k] = af.njobs;
         for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
             t0 = sc_now();
             locator *L = &locs[(size_t)k * nmat + m];
@@ -1935,12 +1955,16 @@ static int run(sc_ctx *ctx, sc_error *err) {
         t_erase = af.seconds_erase, t_metrics = af.seconds_metrics;
     }
     double t_wait = sc_now() - t0;
+    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
+        if (same_as[k] >= 0)
+            for (int32_t m = 0; m < nmat; m++)
+                disp[(size_t)k * nmat + m] = sc_value_retain(disp[(size_t)same_as[k] * nmat + m]);
 
     /* the metrics the jobs measured */
     double worst = 0, worst_same = 0;
     if (rc == SC_OK) report_errors(ctx, "geometry_image_error", af.jobs[0].acc.same, af.jobs[0].acc.nsame);
     for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
-        recon *acc = &af.jobs[k + 1].acc;
+        recon *acc = &af.jobs[job_of[k]].acc;
         char name[64];
         snprintf(name, sizeof name, "lod%d.same_uv_error", k);
         worst_same = fmax(worst_same, report_errors(ctx, name, acc->same, acc->nsame));
@@ -1961,6 +1985,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (started) after_fit_free(&af);
     for (size_t i = 0; locs && i < (size_t)nmat * nlevels; i++) locator_free(&locs[i]);
     free(texels_fitted);
+    free(job_of), free(same_as);
     free(locs);
     raster_free(&rl);
     fit_scratch_free(&ws);

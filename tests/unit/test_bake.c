@@ -318,6 +318,50 @@ done:
     sc_value_release(atlas);
 }
 
+/* A repeated level (the same mesh twice, as a stalled decimation gives)
+ * gets the very maps and metrics of its first occurrence, and those are
+ * what a bake of that level alone makes. */
+SC_TEST(repeated_level_shares_its_maps) {
+    sc_value *atlas = procedural_asset(12);
+    sc_value *once = atlas ? decimated(atlas, "0.2") : NULL;
+    if (!once) goto done;
+    sc_lods *twice = sc_lods_new();
+    sc_lods_add(twice, sc_value_retain(once->as.lods->levels[0]));
+    sc_lods_add(twice, sc_value_retain(once->as.lods->levels[0]));
+    sc_value *twice_v = sc_value_new_lods(twice);
+    const char *params[] = {"size", "64", NULL};
+    sc_test_run a = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", once);
+    sc_test_run b = sc_test_run_node(&sc_node_bake_displacement, params, "atlas", atlas, "lods", twice_v);
+    SC_CHECK_MSG(a.rc == SC_OK && b.rc == SC_OK, "bake: %s %s", a.err.message, b.err.message);
+    if (a.rc == SC_OK && b.rc == SC_OK) {
+        const sc_lods *la = out_of(&a, 1)->as.lods, *lb = out_of(&b, 1)->as.lods;
+        SC_CHECK_INT(lb->count, 2);
+        const sc_image_data *d0 = slot(la->levels[0]->as.atlas, "displacement");
+        const sc_image_data *d1 = slot(lb->levels[0]->as.atlas, "displacement");
+        const sc_image_data *d2 = slot(lb->levels[1]->as.atlas, "displacement");
+        SC_CHECK(d0 && d1 && d2);
+        if (d0 && d1 && d2) {
+            size_t bytes = (size_t)d0->width * d0->height * d0->channels * sizeof(float);
+            SC_CHECK(d1->width == d0->width && memcmp(d0->pixels, d1->pixels, bytes) == 0);
+            SC_CHECK(d2->width == d0->width && memcmp(d0->pixels, d2->pixels, bytes) == 0);
+        }
+        SC_CHECK(sc_ctx_metric_value(b.ctx, "lod1.reconstruction_error") ==
+                 sc_ctx_metric_value(a.ctx, "lod0.reconstruction_error"));
+        SC_CHECK(sc_ctx_metric_value(b.ctx, "lod1.same_uv_error") ==
+                 sc_ctx_metric_value(a.ctx, "lod0.same_uv_error"));
+        SC_CHECK(sc_ctx_metric_value(b.ctx, "lod1.texels_fitted") ==
+                 sc_ctx_metric_value(a.ctx, "lod0.texels_fitted"));
+        /* and the repeat was neither sampled nor fitted again */
+        SC_CHECK(sc_ctx_metric_value(b.ctx, "fit_samples") == sc_ctx_metric_value(a.ctx, "fit_samples"));
+    }
+    sc_ctx_free(a.ctx);
+    sc_ctx_free(b.ctx);
+    sc_value_release(twice_v);
+done:
+    sc_value_release(once);
+    sc_value_release(atlas);
+}
+
 /* Two coincident copies of the procedural sphere in one mesh share every uv
  * texel: the bake refuses them, naming the parameter, unless allowed. */
 SC_TEST(overlapping_charts_are_refused) {
