@@ -49,7 +49,8 @@
  *    (sc_atlas_ops_erase; no E_C1 term: the two sides of a seam map uv to the
  *    surface with their own Jacobians, so positions have no reason to be C1
  *    across it): G on the union of the input mesh and every level (disjoint
- *    copies in one mesh, so one geometry image serves every level), each D_k
+ *    copies in one mesh, so one geometry image serves every level; a level
+ *    repeating another is in it once), each D_k
  *    on level k's own seams. Each map set's erasure and then its metrics run
  *    on a worker thread (with more than one thread) as soon as the set is
  *    fitted (after_fit), so erase_seams's serial stretches overlap the next
@@ -1901,7 +1902,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
     bool started = rc == SC_OK && after_fit_start(&af, nlevels + 1, threads);
     if (rc == SC_OK && !started) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK && erase) {
-        union_mesh = sc_atlas_ops_mesh_union(meshes, lods ? nlevels + 1 : 1);
+        const sc_value **mv = calloc((size_t)nlevels + 1, sizeof *mv);
+        for (int32_t k = 0; mv && k <= nlevels; k++)
+            mv[k] = k == 0 || !lods ? atlas->mesh : lods->levels[k - 1]->as.atlas->mesh;
+        union_mesh = mv ? sc_atlas_ops_mesh_union_distinct(mv, lods ? nlevels + 1 : 1) : NULL;
+        free(mv);
         if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
     }
     if (rc == SC_OK) after_fit_hand(&af, union_mesh, geometry, -1, NULL);
@@ -2081,7 +2086,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_bake_displacement = {
     .type = "bake_displacement",
-    .version = 3,
+    .version = 4,
     .summary = "bakes a geometry image and a vector displacement map per level of detail (Liu et al. 2017 §7)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -60,7 +60,7 @@
  *    erased on its own seams, except a texture that is the very same image
  *    (same slot, material and digest) on every level: its chain is built once
  *    and erased on the union of every level's mesh (disjoint copies in one
- *    mesh), so it stays shared - the geometry image of bake_displacement.
+ *    mesh, a repeated mesh once), so it stays shared - the geometry image of bake_displacement.
  *  - Outputs. `levels` (LODS): with `atlas`, level m is the atlas's mesh with
  *    every texture at mip level m (a shorter chain repeats its last level);
  *    with `lods`, entry k * levels + m is LOD k at mip level m. render then
@@ -775,9 +775,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_value *union_mesh = NULL;
     bool any_shared = nchains > 0 && chains[0].source < 0 && chains[0].group == nsrc;
     if (rc == SC_OK && any_shared) {
-        const sc_mesh **ms = calloc((size_t)nsrc, sizeof *ms);
-        for (int32_t k = 0; ms && k < nsrc; k++) ms[k] = src[k]->mesh->as.mesh;
-        union_mesh = ms ? sc_atlas_ops_mesh_union(ms, nsrc) : NULL;
+        const sc_value **ms = calloc((size_t)nsrc, sizeof *ms);
+        for (int32_t k = 0; ms && k < nsrc; k++) ms[k] = src[k]->mesh;
+        union_mesh = ms ? sc_atlas_ops_mesh_union_distinct(ms, nsrc) : NULL;
         free(ms);
         if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
     }
@@ -974,7 +974,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 4,
+    .version = 5,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

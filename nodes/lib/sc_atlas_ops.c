@@ -52,6 +52,21 @@ sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *ms, int n) {
     return sc_value_new_mesh(u);
 }
 
+sc_value *sc_atlas_ops_mesh_union_distinct(const sc_value *const *meshes, int n) {
+    if (n < 1 || !meshes) return NULL;
+    const sc_mesh **ms = calloc((size_t)n, sizeof *ms);
+    if (!ms) return NULL;
+    int distinct = 0;
+    for (int i = 0; i < n; i++) {
+        bool seen = false;
+        for (int j = 0; j < i && !seen; j++) seen = sc_digest_equal(&meshes[j]->digest, &meshes[i]->digest);
+        if (!seen) ms[distinct++] = meshes[i]->as.mesh;
+    }
+    sc_value *u = sc_atlas_ops_mesh_union(ms, distinct);
+    free(ms);
+    return u;
+}
+
 int sc_atlas_ops_erase(sc_value *mesh, const sc_atlas_ops_map *maps, int n, double gap_tolerance,
                        const char *quantize, const char *const *params, int threads, sc_value **f32_out,
                        sc_value **native_out, sc_error *err) {

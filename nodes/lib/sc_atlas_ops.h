@@ -2,7 +2,8 @@
  *
  *  - sc_atlas_ops_mesh_union: meshes as disjoint copies in one mesh, so that
  *    one erase_seams run sees the seams of all of them at once (one texture
- *    serving every level of detail).
+ *    serving every level of detail); _distinct takes each distinct mesh
+ *    value once.
  *  - sc_atlas_ops_erase: erase the seams of a set of images on a mesh by
  *    running the erase_seams node (a pure function, through sc_ctx). Each
  *    image gets a slot of its own, so two images of one name and material are
@@ -23,6 +24,11 @@
  * count and names). NULL when out of memory, or when the counts overflow or
  * the materials differ. */
 sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *meshes, int n);
+
+/* The same over mesh values, each distinct value (by digest) once: a level
+ * that repeats another (a stalled decimation) adds no second copy of its
+ * seams, which would weigh them twice in the seam energy. */
+sc_value *sc_atlas_ops_mesh_union_distinct(const sc_value *const *meshes, int n);
 
 /* One image to erase: its material, wrap modes and (retained by the caller)
  * image value. */

@@ -319,8 +319,8 @@ done:
 }
 
 /* A repeated level (the same mesh twice, as a stalled decimation gives)
- * gets the very maps and metrics of its first occurrence, and those are
- * what a bake of that level alone makes. */
+ * gets the very maps and metrics of its first occurrence, and those (and
+ * the geometry image) are what a bake of that level alone makes. */
 SC_TEST(repeated_level_shares_its_maps) {
     sc_value *atlas = procedural_asset(12);
     sc_value *once = atlas ? decimated(atlas, "0.2") : NULL;
@@ -351,6 +351,13 @@ SC_TEST(repeated_level_shares_its_maps) {
                  sc_ctx_metric_value(a.ctx, "lod0.same_uv_error"));
         SC_CHECK(sc_ctx_metric_value(b.ctx, "lod1.texels_fitted") ==
                  sc_ctx_metric_value(a.ctx, "lod0.texels_fitted"));
+        /* the geometry image is erased on the distinct meshes: the repeat
+         * adds no second copy of its seams */
+        const sc_image_data *g0 = slot(la->levels[0]->as.atlas, "geometry_image");
+        const sc_image_data *g1 = slot(lb->levels[0]->as.atlas, "geometry_image");
+        SC_CHECK(g0 && g1);
+        if (g0 && g1)
+            SC_CHECK(memcmp(g0->pixels, g1->pixels, (size_t)g0->width * g0->height * g0->channels * sizeof(float)) == 0);
         /* and the repeat was neither sampled nor fitted again */
         SC_CHECK(sc_ctx_metric_value(b.ctx, "fit_samples") == sc_ctx_metric_value(a.ctx, "fit_samples"));
     }
