@@ -72,7 +72,12 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- maps stop at 256^2), Avocado at 256^2, spot and Lantern at 512^2,
 -- WaterBottle and BoomBox at 1024^2 already (thin parts and charts that all
 -- but touch).
-local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16) }
+-- erase_min_size: mip levels with both sides below it are averaged, not
+-- erased (an atlas of thousands of charts, pizza's, cannot be erased once its
+-- charts fall under a texel: --set erase_min_size=2048 there). Levels left
+-- unerased keep their seams, and check_maps's seam-gap limit says so.
+local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16),
+                     erase_min_size = param("erase_min_size", 1) }
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
         size = param("map_render_size", 256), views = param("map_views", 6),
         modes = "geometry_image,displaced,tessellated",
