@@ -1924,9 +1924,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         const sc_mesh *lm = meshes[k + 1];
         fit_stats sk = {0};
         same_as[k] = -1;
-        for (int32_t j = 0; lods && j < k && same_as[k] < 0; j++)
-            if (same_as[j] < 0 &&
-                sc_digest_equal(&lods->levels[j]->as.atlas->mesh->digest, &lods->levels[k]->as.atlas->mesh->digest))
+        for (int32_t j = 0; lods && j < k && same_as[k] < 0; j++)   /* the first of equal levels */
+            if (sc_digest_equal(&lods->levels[j]->as.atlas->mesh->digest, &lods->levels[k]->as.atlas->mesh->digest))
                 same_as[k] = j;
         if (same_as[k] >= 0) {   /* its maps are taken once the jobs are done */
             job_of[k] = job_of[same_as[k]];

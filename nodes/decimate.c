@@ -2239,6 +2239,14 @@ static bool tracking_now(state *st) {
     return input_bvh_take(st) != NULL;
 }
 
+/* A valid plan that may not go now: dropped, its endpoints marked so that a
+ * later collapse next to them queues it again. */
+static void reject_edge(state *st, int32_t a, int32_t b) {
+    st->rejected++;
+    st->vflags[a] |= V_RETRY;
+    st->vflags[b] |= V_RETRY;
+}
+
 /* Collapse until the face count is at most target or nothing can collapse.
  * Returns false when stalled. */
 static bool decimate_to(state *st, int64_t target) {
@@ -2281,15 +2289,13 @@ static bool decimate_to(state *st, int64_t target) {
          * bounds, and a collapse whose full cost is above the next queued
          * one waits with its full cost (lazy evaluation: the order is the
          * order of the full costs). */
-        double popped = entry_cost(&e), tracked_e = 0;
+        double popped = entry_cost(&e);
         bool complete = true, tracked = tracking_now(st);
         int32_t seed = -1;
         if (tracked && e.full && check_plan(st, &p) != BLOCK_NONE) {
             /* it was measured and is at the front, but cannot collapse: the
              * test below would drop it; no need to measure it again first */
-            st->rejected++;
-            st->vflags[a] |= V_RETRY;
-            st->vflags[b] |= V_RETRY;
+            reject_edge(st, a, b);
             continue;
         }
         if (tracked) {
@@ -2300,11 +2306,9 @@ static bool decimate_to(state *st, int64_t target) {
             double stop = (2 * next - p.cost) / st->tracking_scale;
             seed = st->near_face[p.keep];
             if (st->max_error2 > 0 && !(stop < st->max_error2)) stop = st->max_error2;   /* past the bound: refused */
-            tracked_e = tracked_error(st, &p, &seed, stop, &complete);
+            double tracked_e = tracked_error(st, &p, &seed, stop, &complete);
             if (st->max_error2 > 0 && tracked_e > st->max_error2) {
-                st->rejected++;
-                st->vflags[a] |= V_RETRY;
-                st->vflags[b] |= V_RETRY;
+                reject_edge(st, a, b);
                 continue;
             }
             p.cost += st->tracking_scale * tracked_e;
@@ -2320,9 +2324,7 @@ static bool decimate_to(state *st, int64_t target) {
         }
         block_reason r = check_plan(st, &p);
         if (r != BLOCK_NONE) {
-            st->rejected++;
-            st->vflags[a] |= V_RETRY;
-            st->vflags[b] |= V_RETRY;
+            reject_edge(st, a, b);
             continue;
         }
         if (!apply_plan(st, &p)) {
@@ -2368,10 +2370,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     double started = sc_now();
     sc_lods *lods = NULL;
-    if (max_error > 0) {
-        double d = sc_hausdorff_bbox_diagonal(&input_mesh) * max_error;
-        st.max_error2 = d * d > 0 ? d * d : 0;
-    }
+    const double diagonal = sc_hausdorff_bbox_diagonal(&input_mesh);
+    if (max_error > 0 && diagonal > 0) st.max_error2 = (diagonal * max_error) * (diagonal * max_error);
     if (st.error_weight > 0 || st.max_error2 > 0 || samples > 0) input_bvh_start(&st, threads);
     rc = setup(&st, in, uv_weight, err);
     if (rc == SC_OK) {
@@ -2392,7 +2392,6 @@ static int run(sc_ctx *ctx, sc_error *err) {
         lods = sc_lods_new();
         if (!lods) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     }
-    double diagonal = sc_hausdorff_bbox_diagonal(&input_mesh);
     double hausdorff_seconds = 0;
     double level_start = started, total_seconds = 0;
     bool stalled = false;

@@ -60,7 +60,8 @@
  *    erased on its own seams, except a texture that is the very same image
  *    (same slot, material and digest) on every level: its chain is built once
  *    and erased on the union of every level's mesh (disjoint copies in one
- *    mesh, a repeated mesh once), so it stays shared - the geometry image of bake_displacement.
+ *    mesh, a repeated mesh once), so it stays shared - the geometry image
+ *    of bake_displacement.
  *  - Outputs. `levels` (LODS): with `atlas`, level m is the atlas's mesh with
  *    every texture at mip level m (a shorter chain repeats its last level);
  *    with `lods`, entry k * levels + m is LOD k at mip level m. render then

@@ -104,6 +104,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sc_atlas_ops.h"
 #include "sc_gl.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
@@ -743,13 +744,6 @@ static int trace_point(seam_trace *t, const float p[3], sc_error *err) {
     return SC_OK;
 }
 
-static double segment_distance(double x, double y, double x0, double y0, double x1, double y1) {
-    double dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy;
-    double t = len2 > 0 ? ((x - x0) * dx + (y - y0) * dy) / len2 : 0;
-    t = t < 0 ? 0 : t > 1 ? 1 : t;
-    return hypot(x - x0 - t * dx, y - y0 - t * dy);
-}
-
 /* Whether the centre of pixel (x, y) (GL order: row 0 at the bottom) lies
  * within one pixel of a seam side of the current pass, projected in view v
  * (orthographic: w = 1). */
@@ -763,7 +757,7 @@ static bool near_seam(const renderer *R, const view *v, int32_t x, int32_t y) {
             double px = (M[0] * p[0] + M[4] * p[1] + M[8] * p[2] + M[12] + 1.0) * 0.5 * s;
             double py = (M[1] * p[0] + M[5] * p[1] + M[9] * p[2] + M[13] + 1.0) * 0.5 * s;
             if (i == t->run_start[r]) px0 = px, py0 = py;
-            if (segment_distance(cx, cy, px0, py0, px, py) <= 1.0) return true;
+            if (sc_atlas_ops_segment_distance2(cx, cy, px0, py0, px, py) <= 1.0) return true;
             px0 = px, py0 = py;
         }
     return false;
