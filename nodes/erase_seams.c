@@ -98,6 +98,19 @@
  * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7
  * per texel.
  *
+ * Memory (pizza). One full-pattern copy of Q serves the edge-cluster solver
+ * and the rounding: the preconditioner is made in it in place (each dropped
+ * grid coupling's four entries saved, zeroed, and put back after the
+ * factorisation; sc_schur reads exact zeros as no coupling), and the 8-bit
+ * rounding reads M on the seam texels from its rows once the solve is done,
+ * instead of a submatrix and a second full copy. The seam energies of the
+ * float and naively rounded results are measured while the optimal
+ * rounding runs. Measured on pizza, three alternating runs on a 2-core
+ * 2.3 GHz machine: growth of the resident set 1432-1525 MB -> 1050-1074 MB,
+ * peak 1761-1853 MB -> 1377-1401 MB, same bits; wall time 12.2-15.1 s ->
+ * 12.3-14.3 s (within the noise; quantise 4.3-4.7 s -> 1.0-1.2 s, most of
+ * the old quantise ran beside the factorisation).
+ *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
  * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
  * local 1e4, global 1e2; an explicit w_change >= 0 overrides the preset.
@@ -379,13 +392,16 @@ static double *vertex_values(const sc_mesh *m, int32_t material, const sc_seam_g
 /* ---------------------------------------------------------------- 8-bit rounding */
 
 typedef struct round_job {
-    const sc_sparse *mf;     /* full symmetric M over the seam texels */
-    const int32_t *ids;      /* texel id of each seam texel */
+    const sc_sparse *mf;     /* full symmetric M over rows that include the seam texels */
+    const uint8_t *rows;     /* the rows that are seam texels (1), or NULL: every row */
+    const int32_t *ids;      /* texel id of each row */
     const float *x;          /* float solution image */
     uint8_t *bytes;          /* quantised image, changed in place */
     int32_t channels;
     const int32_t *chan;     /* the channel of each chunk */
 } round_job;
+
+static inline bool round_row(const round_job *job, int32_t k) { return !job->rows || job->rows[k]; }
 
 /* Channels c with the same float values and bytes as an earlier channel at
  * every seam texel round the same way: src[c] names that channel (or -1). */
@@ -397,6 +413,7 @@ static int32_t round_unique_channels(const round_job *job, int32_t *src, int32_t
             if (src[e] >= 0) continue;
             bool same = true;
             for (int32_t k = 0; k < n && same; k++) {
+                if (!round_row(job, k)) continue;
                 size_t at = (size_t)job->ids[k] * (size_t)C;
                 same = job->x[at + c] == job->x[at + e] && job->bytes[at + c] == job->bytes[at + e];
             }
@@ -407,7 +424,8 @@ static int32_t round_unique_channels(const round_job *job, int32_t *src, int32_t
     return nu;
 }
 
-/* Greedy coordinate descent on q^T M q over q_k in {floor(255 x_k), +1}. */
+/* Greedy coordinate descent on q^T M q over q_k in {floor(255 x_k), +1}
+ * (rows that are not seam texels take no part). */
 static int round_channel(void *ud, int32_t chunk) {
     round_job *job = ud;
     int32_t c = job->chan[chunk];
@@ -422,6 +440,10 @@ static int round_channel(void *ud, int32_t chunk) {
         return SC_ENOMEM;
     }
     for (int32_t k = 0; k < n; k++) {
+        if (!round_row(job, k)) {
+            q[k] = lo[k] = hi[k] = 0;
+            continue;
+        }
         size_t at = (size_t)job->ids[k] * (size_t)C + (size_t)c;
         double x = job->x[at] * 255.0;
         if (!(x > 0)) x = 0;
@@ -434,8 +456,10 @@ static int round_channel(void *ud, int32_t chunk) {
     }
     for (int32_t j = 0; j < n; j++) {
         dg[j] = 0;
+        if (!round_row(job, j)) continue;
         for (int32_t p = mf->colptr[j]; p < mf->colptr[j + 1]; p++) {
             int32_t i = mf->rowind[p];
+            if (!round_row(job, i)) continue;
             g[i] += mf->val[p] * q[j];
             if (i == j) dg[j] = mf->val[p];
         }
@@ -456,6 +480,7 @@ static int round_channel(void *ud, int32_t chunk) {
             dirty[k] = 1;
             for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) {
                 int32_t i = mf->rowind[p];
+                if (!round_row(job, i)) continue;
                 g[i] += d * mf->val[p];
                 dirty[i] = lo[i] != hi[i];
             }
@@ -464,9 +489,55 @@ static int round_channel(void *ud, int32_t chunk) {
         if (!moved) break;
     }
     for (int32_t k = 0; k < n; k++)
-        job->bytes[(size_t)job->ids[k] * (size_t)C + (size_t)c] = (uint8_t)q[k];
+        if (round_row(job, k)) job->bytes[(size_t)job->ids[k] * (size_t)C + (size_t)c] = (uint8_t)q[k];
     free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
     return SC_OK;
+}
+
+/* The measurements after a solve, side by side with the optimal rounding:
+ * task 0 takes the seam energy of the float result and of the naive
+ * rounding, task 1 makes the optimal rounding (its channels on all
+ * threads) and takes its energy. */
+typedef struct measure_job {
+    const sc_mesh *m;
+    const sc_seam_set *seams;
+    const sc_seam_grid *g;
+    int threads;
+    const sc_image_data *f32, *naive;  /* naive: NULL when not quantised */
+    const sc_image_data *optimal;      /* the optimal rounding's image (round's bytes) */
+    round_job *round;                  /* NULL: no optimal rounding */
+    int32_t *src, *chan;               /* per channel: the channel it copies, or -1; the channels rounded */
+    int threads_energy;
+    double e_float, g_float, e_naive, g_naive, e_optimal, g_optimal;
+    int rc[2];
+    sc_error err[2];
+} measure_job;
+
+static int measure_task(void *ud, int32_t chunk) {
+    measure_job *j = ud;
+    if (chunk == 0) {
+        const sc_image_data *imgs[2] = {j->f32, j->naive};
+        double e[2] = {0, 0}, gap[2] = {0, 0};
+        j->rc[0] = sc_seam_energies(j->m, j->seams, j->g, imgs, j->naive ? 2 : 1, j->threads_energy, e, gap,
+                                    &j->err[0]);
+        j->e_float = e[0], j->g_float = gap[0], j->e_naive = e[1], j->g_naive = gap[1];
+        return j->rc[0];
+    }
+    round_job *rj = j->round;
+    int32_t C = rj->channels;
+    int32_t nu = round_unique_channels(rj, j->src, j->chan);
+    int rc = sc_seam_parallel(j->threads, nu, round_channel, rj);
+    for (int32_t c = 0; c < C && rc == SC_OK; c++)
+        if (j->src[c] >= 0)
+            for (int32_t s2 = 0; s2 < rj->mf->n; s2++) {
+                if (!round_row(rj, s2)) continue;
+                uint8_t *b = rj->bytes + (size_t)rj->ids[s2] * C;
+                b[c] = b[j->src[c]];
+            }
+    if (rc) return j->rc[1] = sc_fail(&j->err[1], rc, "out of memory rounding to 8 bits");
+    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, j->optimal, j->threads_energy, &j->e_optimal, &j->g_optimal,
+                              &j->err[1]);
+    return j->rc[1];
 }
 
 /* ---------------------------------------------------------------- one group */
@@ -486,6 +557,12 @@ typedef struct group_work {
     int32_t nseam_texels;
     sc_triplets trip;
     sc_sparse q, msub, mfull;
+    /* Q's full pattern (the edge-cluster solver's preconditioner is made in
+     * it; 8-bit rounding then reads M = Q / w_pen from the rows marked in
+     * round_rows), or empty */
+    sc_sparse qfull;
+    uint8_t *round_rows;
+    bool qfull_scaled;
     sc_sparse_chol *chol;
     /* the edge-cluster solver (solver schur): Q without the grid couplings
      * between charts (apart: row, column, weight), factored by sc_schur as
@@ -509,6 +586,8 @@ static void group_work_free(group_work *w, int32_t ntex) {
     sc_sparse_free(&w->q);
     sc_sparse_free(&w->msub);
     sc_sparse_free(&w->mfull);
+    sc_sparse_free(&w->qfull);
+    free(w->round_rows);
     sc_sparse_chol_free(w->chol);
     sc_triplets_free(&w->apart);
     free(w->group), free(w->gamma);
@@ -556,32 +635,40 @@ typedef struct prep_job {
     double seconds_factor, seconds_resid, seconds_nullity, seconds_round_prep;
 } prep_job;
 
-/* The preconditioner's matrix, full pattern: Q less each listed coupling
- * term w (p_r - p_r2)^2 (both diagonals and the pair), the couplings that
- * end at exactly zero dropped, so that they join no cluster to another. */
-static int preconditioner_matrix(const sc_sparse *q, const sc_triplets *apart, int threads, sc_sparse *full,
-                                 sc_error *err) {
-    int rc = sc_sparse_full_threads(q, threads, full, err);
-    if (rc) return rc;
+/* The preconditioner's matrix is Q less each listed coupling term
+ * w (p_r - p_r2)^2 (both diagonals and the pair): it is made in place in
+ * Q's full pattern, and the couplings that end at exactly zero join no
+ * cluster to another (sc_schur reads stored zeros as no coupling). The
+ * values it overwrites are kept in `saved` (4 per term) and put back, last
+ * term first, by preconditioner_restore: Q keeps its exact bits. */
+static void term_entries(const sc_sparse *full, const sc_triplets *apart, size_t k, int64_t at[4]) {
+    int32_t r = apart->row[k], r2 = apart->col[k];
+    at[0] = sc_sparse_find(full, r, r), at[1] = sc_sparse_find(full, r2, r2);
+    at[2] = sc_sparse_find(full, r2, r), at[3] = sc_sparse_find(full, r, r2);
+    if (at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) at[0] = -1;   /* assembled with Q: never */
+}
+
+static int preconditioner_apply(sc_sparse *full, const sc_triplets *apart, double **saved, sc_error *err) {
+    *saved = sc_alloc_array(4 * apart->count + 1, sizeof **saved);
+    if (!*saved) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (size_t k = 0; k < apart->count; k++) {
-        int32_t r = apart->row[k], r2 = apart->col[k];
         double w = apart->val[k];
-        int64_t at[4] = {sc_sparse_find(full, r, r), sc_sparse_find(full, r2, r2), sc_sparse_find(full, r2, r),
-                         sc_sparse_find(full, r, r2)};
-        if (at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) continue;   /* assembled with Q: never */
+        int64_t at[4];
+        term_entries(full, apart, k, at);
+        if (at[0] < 0) continue;
+        for (int i = 0; i < 4; i++) (*saved)[4 * k + i] = full->val[at[i]];
         full->val[at[0]] -= w, full->val[at[1]] -= w, full->val[at[2]] += w, full->val[at[3]] += w;
     }
-    int32_t out = 0;
-    for (int32_t c = 0; c < full->n; c++) {
-        int32_t p0 = full->colptr[c], p1 = full->colptr[c + 1];
-        full->colptr[c] = out;
-        for (int32_t p = p0; p < p1; p++)
-            if (full->rowind[p] == c || full->val[p] != 0)
-                full->rowind[out] = full->rowind[p], full->val[out++] = full->val[p];
-    }
-    full->colptr[full->n] = out;
-    full->nnz = out;
     return SC_OK;
+}
+
+static void preconditioner_restore(sc_sparse *full, const sc_triplets *apart, const double *saved) {
+    for (size_t k = apart->count; k-- > 0;) {
+        int64_t at[4];
+        term_entries(full, apart, k, at);
+        if (at[0] < 0) continue;
+        for (int i = 0; i < 4; i++) full->val[at[i]] = saved[4 * k + i];
+    }
 }
 
 /* Task 0: analyse and factor Q (supernodal where the factor is big,
@@ -591,12 +678,16 @@ static int prep_factor(prep_job *pj) {
     double t0 = sc_now();
     group_work *w = pj->ctx.w;
     if (w->use_schur) {
-        sc_sparse full;
-        pj->rc_factor = preconditioner_matrix(&w->q, &w->apart, pj->ctx.o->threads, &full, &pj->err_factor);
-        sc_triplets_free(&w->apart);
+        /* Q's full pattern: the preconditioner is made in it, and rounding
+         * reads M from it afterwards */
+        double *saved = NULL;
+        pj->rc_factor = sc_sparse_full_threads(&w->q, pj->ctx.o->threads, &w->qfull, &pj->err_factor);
+        if (pj->rc_factor == SC_OK) pj->rc_factor = preconditioner_apply(&w->qfull, &w->apart, &saved, &pj->err_factor);
         if (pj->rc_factor == SC_OK)
-            pj->rc_factor = sc_schur_factor(&full, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
-        sc_sparse_free(&full);
+            pj->rc_factor = sc_schur_factor(&w->qfull, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
+        if (saved) preconditioner_restore(&w->qfull, &w->apart, saved);
+        free(saved);
+        sc_triplets_free(&w->apart);
         if (pj->rc_factor != SC_OK && pj->ctx.o->solver == SOLVER_AUTO) {   /* CHOLMOD instead */
             w->fallback = true;
             sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
@@ -620,15 +711,14 @@ static int prep_side(prep_job *pj) {
     int rc = SC_OK;
     double t0 = sc_now();
     if (pj->want_round && !pj->want_nullity) {
-        /* for rounding, M on the seam texels is Q / w_pen there: the other terms
-         * are ~1e-10 of it and only nudge the greedy choices */
-        int32_t *keep = sc_alloc_array((size_t)n, sizeof *keep);
-        if (!keep) return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
-        for (int32_t r = 0; r < n; r++) keep[r] = sc_seam_texset_index(&w->seamset, w->ids[r]);
-        rc = sc_sparse_submatrix(&w->q, keep, w->seamset.count, &w->msub, err);
-        free(keep);
-        if (rc) return pj->rc_side = rc;
-        for (int64_t k = 0; k < w->msub.nnz; k++) w->msub.val[k] /= c->w_pen;
+        /* for rounding, M on the seam texels is Q / w_pen there: the other
+         * terms are ~1e-10 of it and only nudge the greedy choices. Q's full
+         * pattern holds it (the edge-cluster solver makes that pattern for
+         * its preconditioner); rounding reads the rows of seam texels. */
+        if (!w->use_schur && (rc = sc_sparse_full(&w->q, &w->qfull, err))) return pj->rc_side = rc;
+        w->round_rows = sc_alloc_array((size_t)n + 1, sizeof *w->round_rows);
+        if (!w->round_rows) return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t r = 0; r < n; r++) w->round_rows[r] = sc_seam_texset_has(&w->seamset, w->ids[r]);
     }
     double t1 = sc_now();
 
@@ -672,7 +762,7 @@ static int prep_side(prep_job *pj) {
         if (sc_sparse_count_eigs_below(&w->msub, tol, &below, NULL) == SC_OK) pj->nullity = (double)below;
     }
     double t3 = sc_now();
-    if (pj->want_round && (rc = sc_sparse_full(&w->msub, &w->mfull, err))) return pj->rc_side = rc;
+    if (pj->want_round && pj->want_nullity && (rc = sc_sparse_full(&w->msub, &w->mfull, err))) return pj->rc_side = rc;
     sc_sparse_free(&w->msub);
     double t4 = sc_now();
     pj->seconds_resid = t2 - t1;
@@ -896,6 +986,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         goto done;
     }
     if (!w.use_schur) sc_sparse_free(&w.q);   /* conjugate gradients multiply by it */
+    if (!w.round_rows) sc_sparse_free(&w.qfull);   /* rounding reads it */
     /* stage times: the overlapped side work counts where it belongs */
     double t1 = tp0 + pj.seconds_resid, t2 = t1 + pj.seconds_factor;
     double ts = sc_now();
@@ -988,13 +1079,17 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         }
         st[ti].f32 = fv;
         e0 = st[ti].energy_before, g0 = st[ti].gap_before;
-        if ((rc = sc_seam_energy(m, seams, g, fv->as.image, o->threads, &e1, &g1, err))) goto done;
-
-        /* the input's own pixel type */
+        /* the input's own pixel type: naive rounding, and the optimal one
+         * made from it while the energies of the float and naive results
+         * are measured */
         double eq_naive = NAN, eq_opt = NAN, gq = NAN;
-        if (img->pixel != SC_PIXEL_F32 && o->quantize != QUANT_NONE) {
-            double tq0 = sc_now();
-            sc_image_data *nat = sc_image_alloc(img->width, img->height, C, img->pixel);
+        bool quantise = img->pixel != SC_PIXEL_F32 && o->quantize != QUANT_NONE;
+        double tq0 = sc_now();
+        sc_image_data *nat = NULL, *opt = NULL;
+        round_job rj = {&w.mfull, NULL, w.seam_ids, px, NULL, C, NULL};
+        int32_t src[4], chan[4];
+        if (quantise) {
+            nat = sc_image_alloc(img->width, img->height, C, img->pixel);
             if (!nat) {
                 rc = sc_fail(err, SC_ENOMEM, "out of memory");
                 goto done;
@@ -1013,37 +1108,53 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
                     if (img->pixel == SC_PIXEL_U8) ((uint8_t *)nat->pixels)[at] = (uint8_t)v;
                     else ((uint16_t *)nat->pixels)[at] = (uint16_t)v;
                 }
-            if ((rc = sc_seam_energy(m, seams, g, nat, o->threads, &eq_naive, &gq, err))) {
-                sc_image_free(nat);
-                goto done;
+            /* M on the seam texels: exactly (small atlases, where the
+             * nullity was measured), or Q's rows there over w_pen */
+            if (w.mfull.n == 0 && w.qfull.n > 0 && w.round_rows) {
+                if (!w.qfull_scaled)
+                    for (int64_t e = 0; e < w.qfull.nnz; e++) w.qfull.val[e] /= w_pen;
+                w.qfull_scaled = true;
+                rj.mf = &w.qfull, rj.rows = w.round_rows, rj.ids = w.ids;
             }
-            if (img->pixel == SC_PIXEL_U8 && o->quantize == QUANT_OPTIMAL && w.mfull.n > 0) {
-                int32_t src[4], chan[4];
-                round_job rj = {&w.mfull, w.seam_ids, px, nat->pixels, C, chan};
-                int32_t nu = C <= 4 ? round_unique_channels(&rj, src, chan) : 0;
-                if (C > 4) {
-                    rc = SC_EINPUT; /* images hold at most 4 channels */
-                } else {
-                    rc = sc_seam_parallel(o->threads, nu, round_channel, &rj);
-                    for (int32_t c = 0; c < C && rc == SC_OK; c++)
-                        if (src[c] >= 0)
-                            for (int32_t s2 = 0; s2 < w.mfull.n; s2++) {
-                                uint8_t *b = (uint8_t *)nat->pixels + (size_t)w.seam_ids[s2] * C;
-                                b[c] = b[src[c]];
-                            }
-                }
-                if (rc) {
+            if (img->pixel == SC_PIXEL_U8 && o->quantize == QUANT_OPTIMAL && rj.mf->n > 0) {
+                if (C > 4) {   /* images hold at most 4 channels */
                     sc_image_free(nat);
-                    rc = sc_fail(err, rc, rc == SC_ENOMEM ? "out of memory rounding to 8 bits"
-                                                          : "rounding to 8 bits: more than 4 channels");
+                    rc = sc_fail(err, SC_EINPUT, "rounding to 8 bits: more than 4 channels");
                     goto done;
                 }
-                if ((rc = sc_seam_energy(m, seams, g, nat, o->threads, &eq_opt, &gq, err))) {
+                opt = sc_image_alloc(nat->width, nat->height, C, nat->pixel);
+                if (opt) {
+                    opt->colorspace = nat->colorspace;
+                    memcpy(opt->format, nat->format, sizeof opt->format);
+                    memcpy(opt->pixels, nat->pixels, (size_t)nat->width * nat->height * C);
+                }
+                if (!opt) {
                     sc_image_free(nat);
+                    rc = sc_fail(err, SC_ENOMEM, "out of memory");
                     goto done;
                 }
+                rj.bytes = opt->pixels, rj.chan = chan;
             }
-            st[ti].native = sc_value_new_image(nat);
+        }
+        measure_job mj = {m, seams, g, o->threads, fv->as.image, nat, opt, opt ? &rj : NULL, src, chan, 0};
+        mj.threads_energy = opt && o->threads > 1 ? o->threads - 1 : o->threads;
+        sc_seam_parallel(opt && o->threads > 1 ? 2 : 1, opt ? 2 : 1, measure_task, &mj);
+        if (mj.rc[0] || mj.rc[1]) {
+            rc = mj.rc[0] ? mj.rc[0] : mj.rc[1];
+            if (err) *err = mj.err[mj.rc[0] ? 0 : 1];
+        } else if (opt) {
+            eq_opt = mj.e_optimal, gq = mj.g_optimal;
+        }
+        if (rc) {
+            sc_image_free(nat), sc_image_free(opt);
+            goto done;
+        }
+        e1 = mj.e_float, g1 = mj.g_float;
+        if (nat) {
+            eq_naive = mj.e_naive;
+            if (!opt) gq = mj.g_naive;
+            if (opt) sc_image_free(nat);
+            st[ti].native = sc_value_new_image(opt ? opt : nat);   /* owns it, even on failure */
             if (!st[ti].native) {
                 rc = sc_fail(err, SC_ENOMEM, "out of memory");
                 goto done;

@@ -22,6 +22,12 @@
  *    a fixed order, and factored by CHOLMOD (AMD). It is a small fraction of
  *    A (pizza: 271k of 2.07M unknowns) and carries what makes the whole
  *    system hard to order: where chains meet.
+ *  - Layout (the blocks' envelopes, A_pi's couplings, A_ii's triplets) is
+ *    made in fixed chunks of positions on all threads: one pass counts,
+ *    prefix sums place every chunk, a second pass fills; A_ii's triplets are
+ *    appended chunk by chunk. Exact zeros off the diagonal (a caller that
+ *    drops terms in place, as erase_seams' preconditioner does) are not
+ *    couplings anywhere: not in the plan, the layout or the clusters.
  *  - Solve: y = A_pp^-1 b_p; S x_i = b_i - A_ip y; x_p = y - A_pp^-1 A_pi x_i.
  *  - Conjugate gradients (sc_schur_pcg) solve (A + E) x = b with this
  *    factorisation as the preconditioner, for an E that would spoil the
@@ -152,6 +158,7 @@ static int factor_cluster(factor_job *job, int32_t c, sc_triplets *trip, double 
         memset(rk, 0, (size_t)(k - fk + 1) * sizeof *rk);
         int32_t t = f->order[k];
         for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+            if (a->val[p] == 0 && a->rowind[p] != t) continue;
             int32_t q = f->position[a->rowind[p]];
             if (q <= k && q >= k0) rk[q - fk] += a->val[p];
         }
@@ -260,6 +267,7 @@ static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const dou
         int32_t gt = group[t];
         bool itf = gt < 0;
         for (int32_t p = a->colptr[t]; p < a->colptr[t + 1] && !itf; p++) {
+            if (a->val[p] == 0) continue;   /* a stored zero is no coupling */
             int32_t gu = group[a->rowind[p]];
             itf = gu >= 0 && gu != gt;
         }
@@ -313,61 +321,117 @@ static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const dou
     return SC_OK;
 }
 
-/* Envelope rows, and the couplings between private rows and the interface. */
+/* Envelope rows, and the couplings between private rows and the interface,
+ * in fixed chunks of rows: each chunk counts, the counts are summed in
+ * order, and each chunk then places its rows (interface entries go to one
+ * triplet list per chunk, appended in chunk order). */
+typedef struct layout_job {
+    sc_schur *f;
+    const sc_sparse *a;
+    int32_t rows_per_chunk, chunks_priv;   /* private chunks first, then interface chunks */
+    int64_t *env_count;                    /* per private row: its envelope length */
+    sc_triplets *sii;                      /* one per interface chunk */
+    int pass;
+} layout_job;
+
+static void layout_rows(const layout_job *job, int32_t chunk, int32_t *k0, int32_t *k1, bool *priv) {
+    const sc_schur *f = job->f;
+    *priv = chunk < job->chunks_priv;
+    int32_t c = *priv ? chunk : chunk - job->chunks_priv, limit = *priv ? f->npriv : f->nif;
+    *k0 = c * job->rows_per_chunk, *k1 = *k0 + job->rows_per_chunk;
+    if (*k1 > limit) *k1 = limit;
+}
+
+static int layout_chunk(void *ud, int32_t chunk) {
+    layout_job *job = ud;
+    sc_schur *f = job->f;
+    const sc_sparse *a = job->a;
+    const int32_t npriv = f->npriv;
+    int32_t k0, k1;
+    bool priv;
+    layout_rows(job, chunk, &k0, &k1, &priv);
+    for (int32_t k = k0; k < k1; k++) {
+        int32_t row = priv ? k : npriv + k, t = f->order[row];
+        if (job->pass == 0) {
+            int32_t fk = k, nb = 0;
+            for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+                if (a->val[p] == 0 && a->rowind[p] != t) continue;
+                int32_t q = f->position[a->rowind[p]];
+                if (!priv) nb += q < npriv;
+                else if (q >= npriv) nb++;
+                else if (q < fk) fk = q;
+            }
+            if (priv) f->first[k] = fk, job->env_count[k] = k - fk + 1, f->b.ptr[k + 1] = nb;
+            else f->bt.ptr[k + 1] = nb;
+        } else if (priv) {
+            int32_t w = f->b.ptr[k];
+            for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+                if (a->val[p] == 0) continue;
+                int32_t q = f->position[a->rowind[p]];
+                if (q >= npriv) f->b.idx[w] = q - npriv, f->b.val[w++] = a->val[p];
+            }
+        } else {
+            int32_t w = f->bt.ptr[k];
+            sc_triplets *sii = &job->sii[chunk - job->chunks_priv];
+            for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
+                if (a->val[p] == 0 && a->rowind[p] != t) continue;
+                int32_t q = f->position[a->rowind[p]];
+                if (q < npriv) f->bt.idx[w] = q, f->bt.val[w++] = a->val[p];
+                else if (q - npriv >= k) sc_triplets_add(sii, k, q - npriv, a->val[p]);
+            }
+            if (sii->failed) return SC_ENOMEM;
+        }
+    }
+    return SC_OK;
+}
+
 static int layout(sc_schur *f, const sc_sparse *a, sc_triplets *sii, sc_error *err) {
     const int32_t npriv = f->npriv, nif = f->nif;
     f->first = sc_alloc_array(npriv ? (size_t)npriv : 1, sizeof *f->first);
     f->envptr = sc_alloc_array((size_t)npriv + 1, sizeof *f->envptr);
     f->b.ptr = sc_calloc_array((size_t)npriv + 1, sizeof *f->b.ptr);
     f->bt.ptr = sc_calloc_array((size_t)nif + 1, sizeof *f->bt.ptr);
-    if (!f->first || !f->envptr || !f->b.ptr || !f->bt.ptr) return sc_fail(err, SC_ENOMEM, "out of memory");
+    layout_job job = {.f = f, .a = a, .rows_per_chunk = ROW_CHUNK};
+    job.chunks_priv = (npriv + ROW_CHUNK - 1) / ROW_CHUNK;
+    int32_t chunks_if = (nif + ROW_CHUNK - 1) / ROW_CHUNK, chunks = job.chunks_priv + chunks_if;
+    job.env_count = sc_alloc_array(npriv ? (size_t)npriv : 1, sizeof *job.env_count);
+    job.sii = sc_calloc_array(chunks_if ? (size_t)chunks_if : 1, sizeof *job.sii);
+    int rc = SC_OK;
+    if (!f->first || !f->envptr || !f->b.ptr || !f->bt.ptr || !job.env_count || !job.sii) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    for (int32_t c = 0; c < chunks_if; c++) sc_triplets_init(&job.sii[c], nif);
+    if ((rc = sc_parallel(f->threads, chunks, layout_chunk, &job))) goto fail;
     int64_t env = 0, nb = 0, nbt = 0;
     f->envptr[0] = 0;
     for (int32_t k = 0; k < npriv; k++) {
-        int32_t t = f->order[k], fk = k;
-        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-            int32_t q = f->position[a->rowind[p]];
-            if (q < npriv) {
-                if (q < fk) fk = q;
-            } else {
-                nb++;
-            }
-        }
-        f->first[k] = fk;
-        env += k - fk + 1;
-        f->envptr[k + 1] = env;
-        f->b.ptr[k + 1] = (int32_t)nb;
+        env += job.env_count[k], f->envptr[k + 1] = env;
+        nb += f->b.ptr[k + 1], f->b.ptr[k + 1] = (int32_t)nb;
     }
-    for (int32_t i = 0; i < nif; i++) {
-        int32_t t = f->order[npriv + i];
-        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) nbt += f->position[a->rowind[p]] < npriv;
-        f->bt.ptr[i + 1] = (int32_t)nbt;
-    }
+    for (int32_t i = 0; i < nif; i++) nbt += f->bt.ptr[i + 1], f->bt.ptr[i + 1] = (int32_t)nbt;
     f->env = sc_alloc_array(env ? (size_t)env : 1, sizeof *f->env);
     f->b.idx = sc_alloc_array(nb ? (size_t)nb : 1, sizeof *f->b.idx);
     f->b.val = sc_alloc_array(nb ? (size_t)nb : 1, sizeof *f->b.val);
     f->bt.idx = sc_alloc_array(nbt ? (size_t)nbt : 1, sizeof *f->bt.idx);
     f->bt.val = sc_alloc_array(nbt ? (size_t)nbt : 1, sizeof *f->bt.val);
-    if (!f->env || !f->b.idx || !f->b.val || !f->bt.idx || !f->bt.val)
-        return sc_fail(err, SC_ENOMEM, "out of memory for %.0f envelope entries", (double)env);
-    for (int32_t k = 0, w = 0; k < npriv; k++) {
-        int32_t t = f->order[k];
-        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-            int32_t q = f->position[a->rowind[p]];
-            if (q >= npriv) f->b.idx[w] = q - npriv, f->b.val[w++] = a->val[p];
-        }
+    if (!f->env || !f->b.idx || !f->b.val || !f->bt.idx || !f->bt.val) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory for %.0f envelope entries", (double)env);
+        goto done;
     }
-    for (int32_t i = 0, w = 0; i < nif; i++) {
-        int32_t t = f->order[npriv + i];
-        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-            int32_t q = f->position[a->rowind[p]];
-            if (q < npriv) f->bt.idx[w] = q, f->bt.val[w++] = a->val[p];
-            else if (q - npriv >= i) sc_triplets_add(sii, i, q - npriv, a->val[p]);
-        }
-    }
-    if (sii->failed) return sc_fail(err, SC_ENOMEM, "out of memory");
+    job.pass = 1;
+    if ((rc = sc_parallel(f->threads, chunks, layout_chunk, &job))) goto fail;
+    for (int32_t c = 0; c < chunks_if; c++) sc_triplets_append(sii, &job.sii[c]);
+    if (sii->failed) goto fail;
     f->stats.envelope = (double)env;
-    return SC_OK;
+    goto done;
+fail:
+    rc = sc_fail(err, SC_ENOMEM, "out of memory");
+done:
+    if (job.sii)
+        for (int32_t c = 0; c < chunks_if; c++) sc_triplets_free(&job.sii[c]);
+    free(job.sii), free(job.env_count);
+    return rc;
 }
 
 int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
@@ -536,7 +600,8 @@ static int run_phase(solve_job *job, int phase) {
 /* x (n x nrhs, positions) <- A^-1 x; f->work_if holds nif x nrhs values. */
 static int solve_positions(sc_schur *f, int32_t nrhs, double *x, sc_error *err) {
     solve_job job = {.f = f, .x = x, .nrhs = nrhs};
-    if (run_phase(&job, 1) || run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (run_phase(&job, 1)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
     if (f->nif > 0) {
         double *xi = f->work_if;
         for (int32_t c = 0; c < nrhs; c++)

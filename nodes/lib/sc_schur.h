@@ -13,7 +13,8 @@
  * decides how cheap it is.
  *
  * Input matrices here are full-pattern symmetric matrices (sc_sparse_full:
- * both triangles, so a column is also a row). Results are the same bits for
+ * both triangles, so a column is also a row); an entry stored as an exact
+ * zero off the diagonal is no coupling. Results are the same bits for
  * any thread count.
  */
 #ifndef SC_SCHUR_H

@@ -1134,20 +1134,24 @@ typedef struct energy_job {
     const sc_mesh *m;
     const sc_seam_set *s;
     const sc_seam_grid *g;
-    const sc_image_data *img;
-    double *d;   /* per seam */
-    double *gap; /* per seam */
+    const sc_image_data *const *imgs;
+    int count;
+    double *d;   /* per image, per seam */
+    double *gap; /* per image, per seam */
     int failed_face;
 } energy_job;
 
-static double edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
-                              const sc_image_data *img, walk *w, double *gap_out, bool *ok) {
-    int32_t C = img->channels;
+/* D of one seam edge (eq. 9 before weighting, summed over channels) and its
+ * largest sampled gap, for each of `count` images of the grid's size: the
+ * pieces are found once and read in every image. */
+static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
+                            const sc_image_data *const *imgs, int count, walk *w, double *d_out,
+                            double *gap_out, bool *ok) {
     const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
     const double *b0 = uvp(m, e->side[1].uv0), *b1 = uvp(m, e->side[1].uv1);
     int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w->gm, &w->gcap);
     *ok = n >= 0;
-    double d = 0, gap = 0;
+    for (int im = 0; im < count; im++) d_out[im] = 0, gap_out[im] = 0;
     for (int32_t i = 0; i + 1 < n; i++) {
         double ga = w->gm[i], gb = w->gm[i + 1], h = gb - ga;
         if (!(h > 0)) continue;
@@ -1157,26 +1161,29 @@ static double edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_
         sc_seam_cellpoly_make(g, pa, pb, NULL, &cp[0]);
         lerp2(b0, b1, ga, pa), lerp2(b0, b1, gb, pb);
         sc_seam_cellpoly_make(g, pa, pb, NULL, &cp[1]);
-        for (int32_t c = 0; c < C; c++) {
-            double q[3] = {0, 0, 0};
-            for (int side = 0; side < 2; side++)
-                for (int k = 0; k < 4; k++) {
-                    double p = sc_seam_texel(img, cp[side].id[k], c);
-                    double sg = side ? -1.0 : 1.0;
-                    for (int x = 0; x < 3; x++) q[x] += sg * cp[side].q[k][x] * p;
+        for (int im = 0; im < count; im++) {
+            const sc_image_data *img = imgs[im];
+            double d = d_out[im], gap = gap_out[im];
+            for (int32_t c = 0; c < img->channels; c++) {
+                double q[3] = {0, 0, 0};
+                for (int side = 0; side < 2; side++)
+                    for (int k = 0; k < 4; k++) {
+                        double p = sc_seam_texel(img, cp[side].id[k], c);
+                        double sg = side ? -1.0 : 1.0;
+                        for (int x = 0; x < 3; x++) q[x] += sg * cp[side].q[k][x] * p;
+                    }
+                double v = 0;
+                for (int x = 0; x < 3; x++)
+                    for (int y = 0; y < 3; y++) v += q[x] * q[y] * G3[x][y];
+                d += h * v;
+                for (int k = 0; k <= 4; k++) {
+                    double tau = 0.25 * k, val = fabs(q[0] + tau * (q[1] + tau * q[2]));
+                    if (val > gap) gap = val;
                 }
-            double v = 0;
-            for (int x = 0; x < 3; x++)
-                for (int y = 0; y < 3; y++) v += q[x] * q[y] * G3[x][y];
-            d += h * v;
-            for (int k = 0; k <= 4; k++) {
-                double tau = 0.25 * k, val = fabs(q[0] + tau * (q[1] + tau * q[2]));
-                if (val > gap) gap = val;
             }
+            d_out[im] = d, gap_out[im] = gap;
         }
     }
-    if (gap_out) *gap_out = gap;
-    return d;
 }
 
 typedef struct trace_job {
@@ -1251,7 +1258,8 @@ double sc_seam_edge_energy(const sc_mesh *m, const sc_seam_edge *e, const sc_sea
                            const sc_image_data *img) {
     walk w = {0};
     bool ok;
-    double d = edge_energy_gap(m, e, g, img, &w, NULL, &ok);
+    double d, gap;
+    edge_energy_gap(m, e, g, &img, 1, &w, &d, &gap, &ok);
     free(w.gm);
     return ok ? d : NAN;
 }
@@ -1264,8 +1272,12 @@ static int energy_chunk(void *ud, int32_t chunk) {
     int rc = SC_OK;
     for (int32_t i = i0; i < i1; i++) {
         bool ok;
-        job->d[i] = edge_energy_gap(job->m, &job->s->seams[i], job->g, job->img, &w, &job->gap[i],
-                                    &ok);
+        double d[SC_SEAM_ENERGY_IMAGES], gap[SC_SEAM_ENERGY_IMAGES];
+        edge_energy_gap(job->m, &job->s->seams[i], job->g, job->imgs, job->count, &w, d, gap, &ok);
+        for (int im = 0; im < job->count; im++) {
+            job->d[(size_t)im * job->s->nseams + i] = d[im];
+            job->gap[(size_t)im * job->s->nseams + i] = gap[im];
+        }
         if (!ok) {
             job->failed_face = job->s->seams[i].side[0].face;
             rc = SC_EINPUT;
@@ -1276,15 +1288,21 @@ static int energy_chunk(void *ud, int32_t chunk) {
     return rc;
 }
 
-int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
-                   const sc_image_data *img, int threads, double *energy, double *max_gap,
-                   sc_error *err) {
-    if (energy) *energy = 0;
-    if (max_gap) *max_gap = 0;
+int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                     const sc_image_data *const *imgs, int count, int threads, double *energy,
+                     double *max_gap, sc_error *err) {
+    if (count < 1 || count > SC_SEAM_ENERGY_IMAGES)
+        return sc_fail(err, SC_EINPUT, "seam energy of %d images at once (1 to %d)", count,
+                       SC_SEAM_ENERGY_IMAGES);
+    for (int im = 0; im < count; im++) {
+        if (energy) energy[im] = 0;
+        if (max_gap) max_gap[im] = 0;
+    }
     if (s->nseams == 0) return SC_OK;
-    energy_job job = {m, s, g, img, NULL, NULL, -1};
-    job.d = sc_alloc_array((size_t)s->nseams, sizeof *job.d);
-    job.gap = sc_alloc_array((size_t)s->nseams, sizeof *job.gap);
+    energy_job job = {m, s, g, imgs, count, NULL, NULL, -1};
+    size_t len = (size_t)s->nseams * (size_t)count;
+    job.d = sc_alloc_array(len, sizeof *job.d);
+    job.gap = sc_alloc_array(len, sizeof *job.gap);
     if (!job.d || !job.gap) {
         free(job.d), free(job.gap);
         return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1292,13 +1310,16 @@ int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g
     int32_t nchunks = (s->nseams + ITEMS_PER_CHUNK - 1) / ITEMS_PER_CHUNK;
     int rc = sc_seam_parallel(threads, nchunks, energy_chunk, &job);
     if (rc == SC_OK) {
-        double e = 0, gmax = 0;
-        for (int32_t i = 0; i < s->nseams; i++) {
-            e += edge_weight(s->seams[i].length, s->seam_length, s->nseams) * job.d[i];
-            if (job.gap[i] > gmax) gmax = job.gap[i];
+        for (int im = 0; im < count; im++) {
+            const double *d = job.d + (size_t)im * s->nseams, *gp = job.gap + (size_t)im * s->nseams;
+            double e = 0, gmax = 0;
+            for (int32_t i = 0; i < s->nseams; i++) {
+                e += edge_weight(s->seams[i].length, s->seam_length, s->nseams) * d[i];
+                if (gp[i] > gmax) gmax = gp[i];
+            }
+            if (energy) energy[im] = e;
+            if (max_gap) max_gap[im] = gmax;
         }
-        if (energy) *energy = e;
-        if (max_gap) *max_gap = gmax;
     } else if (rc == SC_EINPUT) {
         sc_fail(err, rc, "face %d: a uv edge crosses more than %d texel lines (uvs out of range?)",
                 job.failed_face, SC_SEAM_MAX_CROSSINGS);
@@ -1307,4 +1328,10 @@ int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g
     }
     free(job.d), free(job.gap);
     return rc;
+}
+
+int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                   const sc_image_data *img, int threads, double *energy, double *max_gap,
+                   sc_error *err) {
+    return sc_seam_energies(m, s, g, &img, 1, threads, energy, max_gap, err);
 }

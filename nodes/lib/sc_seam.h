@@ -234,6 +234,14 @@ int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g
                    const sc_image_data *img, int threads, double *energy, double *max_gap,
                    sc_error *err);
 
+/* The same for `count` images (at most SC_SEAM_ENERGY_IMAGES) of one grid,
+ * in one pass over the pieces: energy[i] and max_gap[i] (either may be NULL)
+ * are those sc_seam_energy gives image i, to the bit. */
+#define SC_SEAM_ENERGY_IMAGES 4
+int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                     const sc_image_data *const *imgs, int count, int threads, double *energy,
+                     double *max_gap, sc_error *err);
+
 /* The trace of the normalised seam operator M of eq. 9 (the sum of its
  * diagonal over all texels), exactly. */
 int sc_seam_trace(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g, int threads,
