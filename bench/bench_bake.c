@@ -67,7 +67,7 @@ static sc_ctx *run(const sc_node_desc *d, const char *const *params, const char 
 }
 
 int main(int argc, char **argv) {
-    sc_tune_allocator(argv);   /* as the command line runs */
+    sc_tune_allocator();   /* as the command line runs */
     int threads = 2;
     const char *only[8];
     int nonly = 0;

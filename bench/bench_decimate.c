@@ -301,7 +301,7 @@ static void row(const char *method, const sc_mesh *in, const sc_mesh *lod, const
 }
 
 int main(int argc, char **argv) {
-    sc_tune_allocator(argv);   /* as the command line runs */
+    sc_tune_allocator();   /* as the command line runs */
     const char *corpus = argc > 1 ? argv[1] : SC_SOURCE_DIR "/../shared/corpus";
     const char *only = argc > 2 ? argv[2] : NULL;
     /* decimate parameters from the command line, after the method's own */

@@ -163,7 +163,7 @@ static int run_asset(const char *corpus, const asset *a, int threads, char **set
 }
 
 int main(int argc, char **argv) {
-    sc_tune_allocator(argv);   /* as the command line runs */
+    sc_tune_allocator();   /* as the command line runs */
     int threads = 2;
     const char *only[NASSETS];
     int nonly = 0, nsets = 0;

@@ -103,7 +103,7 @@ static timing time_render(sc_value *lods, sc_value *atlas, const char *size, con
 }
 
 int main(int argc, char **argv) {
-    sc_tune_allocator(argv);   /* as the command line runs */
+    sc_tune_allocator();   /* as the command line runs */
     setvbuf(stdout, NULL, _IOLBF, 0);
     char path[1024], texture[1024];
     const char *root = argc > 1 ? argv[1] : SC_SOURCE_DIR;

@@ -121,7 +121,7 @@ static void bench_load(const char *corpus, const char *rel, const char *param, c
 }
 
 int main(int argc, char **argv) {
-    sc_tune_allocator(argv);   /* as the command line runs */
+    sc_tune_allocator();   /* as the command line runs */
     char *bin = argc > 1 ? sc_strdup(argv[1]) : NULL;
     if (!bin) {
         /* the seamcook binary next to this one */

@@ -208,7 +208,7 @@ static int run_asset(const char *corpus, const asset *a, curve curves[NTOL]) {
 }
 
 int main(int argc, char **argv) {
-    sc_tune_allocator(argv);   /* as the command line runs */
+    sc_tune_allocator();   /* as the command line runs */
     const char *plot = "bench_straighten.png";
     const char *only[NASSETS];
     int nonly = 0;

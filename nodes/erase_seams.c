@@ -92,9 +92,9 @@
  * unknowns, 19.4k clusters, 271k interface texels), same machine and
  * session: 13 iterations, 1.35e9 flops instead of 4e10, CHOLMOD's peak
  * 165 MB instead of 946 MB, factor 6.9 s instead of 13.8 s, 16.1 s in all
- * instead of 21.2 s, the same seam energy and gap (9.1-10.5 s once the
- * command line runs with huge pages, sc_tune_allocator, and the build is
- * threaded). Below ~500k unknowns one
+ * instead of 21.2 s, the same seam energy and gap (9.1-10.5 s on that
+ * machine once the build was threaded and the memory tuned; on a slower
+ * one, 10.9-12.2 s: sc_tune_allocator). Below ~500k unknowns one
  * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7
  * per texel.
  *
@@ -109,7 +109,7 @@
  * 2.3 GHz machine: growth of the resident set 1432-1525 MB -> 1050-1074 MB,
  * peak 1761-1853 MB -> 1377-1401 MB, same bits; wall time 12.2-15.1 s ->
  * 12.3-14.3 s (within the noise; quantise 4.3-4.7 s -> 1.0-1.2 s, most of
- * the old quantise ran beside the factorisation).
+ * the old quantise ran beside the factorisation), both with huge pages.
  *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
  * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:

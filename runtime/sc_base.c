@@ -449,17 +449,8 @@ double sc_now(void) {
 
 /* ---------------------------------------------------------------- memory */
 
-void sc_tune_allocator(char **argv) {
+void sc_tune_allocator(void) {
 #ifdef __GLIBC__
-    /* glibc reads its tunables once, at start: run the program again with
-     * the huge-page tunable added (once: the variable then names it) */
-    const char *have = getenv("GLIBC_TUNABLES");
-    if (argv && argv[0] && !(have && strstr(have, "glibc.malloc.hugetlb"))) {
-        char *want = have && *have ? sc_strprintf("%s:glibc.malloc.hugetlb=1", have)
-                                   : sc_strdup("glibc.malloc.hugetlb=1");
-        if (want && setenv("GLIBC_TUNABLES", want, 1) == 0) execv("/proc/self/exe", argv);
-        free(want);   /* no exec: go on as we are */
-    }
     mallopt(M_MMAP_THRESHOLD, 32 << 20);   /* fixed: no longer adapts down after frees */
     mallopt(M_TRIM_THRESHOLD, INT_MAX);
     mallopt(M_MMAP_MAX, 0);                /* large blocks from the heap too: reused, not re-faulted */

@@ -130,20 +130,19 @@ char *sc_path_dirname(const char *path);
 double sc_now(void);
 
 /* For a process that cooks (the command line, the benchmarks), called
- * early in main, before it starts threads or opens files, with main's argv:
- *  - Huge pages. Unless GLIBC_TUNABLES already names glibc.malloc.hugetlb
- *    (set it to 0 to opt out), the program runs itself again
- *    (/proc/self/exe, the same argv and pid) with glibc.malloc.hugetlb=1
- *    added: malloc then advises its heap and large blocks for transparent
- *    huge pages, where the system's THP mode is `madvise` (Debian's
- *    default). First touches of fresh memory cost one fault per 2 MB
- *    instead of per 4 KB; on this project's 2-core machine those faults
- *    were 20% of a pizza erase_seams profile (bench_erase_seams pizza,
- *    alternating runs: 16-17 s -> 12.5 s; blub 0.38 -> 0.28 s; bench_bake
- *    blub 7.9-9.2 s -> 6.7-7.8 s; bench_decimate unchanged).
+ * early in main, before it starts threads:
+ *  - No huge pages of its own. An earlier version ran itself again with
+ *    glibc.malloc.hugetlb=1 (malloc advising its heap for transparent huge
+ *    pages); on one 2-core machine that won (bench_erase_seams pizza 16-17 s
+ *    -> 12.5 s), on another it lost: faults on fresh 2 MB pages there ran at
+ *    0.2-0.4 GB/s against 1.2-1.9 GB/s for 4 KB pages, pizza 14.0-15.5 s
+ *    with against 10.9-12.2 s without (7 alternating pairs), bench_bake
+ *    blub 9.4-9.5 s against 7.7-8.1 s. What the host does with fresh memory
+ *    decides it, so it is left to the environment:
+ *    GLIBC_TUNABLES=glibc.malloc.hugetlb=1 turns it on.
  *  - Keep the memory freed by one stage for the next instead of handing it
  *    back to the system (glibc: mmap threshold fixed at its 32 MB ceiling,
- *    no trimming): bench_bake blub 8.5-8.9 s -> 7.6-8.4 s before huge pages.
+ *    no trimming): bench_bake blub 8.5-8.9 s -> 7.6-8.4 s.
  *    Blocks above that ceiling come from the heap too (no mmap), so a
  *    stage's large arrays reuse the pages an earlier stage freed instead of
  *    faulting fresh ones: bench_erase_seams pizza 7.2-8.7 s (mean 8.0) ->
@@ -151,7 +150,7 @@ double sc_now(void);
  *    same within noise, peak memory the same.
  * Nothing on other C libraries. sc_release_memory hands the retained memory
  * back (watch mode, between cooks). */
-void sc_tune_allocator(char **argv);
+void sc_tune_allocator(void);
 void sc_release_memory(void);
 
 /* Run fn(ud, chunk) for every chunk in [0, nchunks) on up to `threads`

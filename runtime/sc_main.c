@@ -532,7 +532,7 @@ int main(int argc, char **argv) {
         free_options(&o);
         return status;
     }
-    sc_tune_allocator(argv);
+    sc_tune_allocator();
     /* the thread pool is sized once, at its first use: cooking jobs plus loads */
     char pool[16];
     snprintf(pool, sizeof pool, "%d", o.jobs + 1);
