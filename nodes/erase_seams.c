@@ -96,7 +96,11 @@
  * machine once the build was threaded and the memory tuned; on a slower
  * one, 10.9-12.2 s: sc_tune_allocator). Below ~500k unknowns one
  * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7
- * per texel.
+ * per texel. Where most texels lie in the cells of two or more edges (a
+ * geometry image erased on a mesh and its levels in one uv: pizza's
+ * 2.07M unknowns were all interface) there are no clusters, and `auto`
+ * factors Q itself: the preconditioner would be that factorisation with
+ * conjugate gradients around it.
  *
  * Memory (pizza). One full-pattern copy of Q serves the edge-cluster solver
  * and the rounding: the preconditioner is made in it in place (each dropped
@@ -170,6 +174,7 @@
 #define NULLITY_MAX_TEXELS 100000
 #define ROUND_MAX_SWEEPS 64
 #define SCHUR_MIN_UNKNOWNS 500000  /* schur_from's default: solver auto takes the edge-cluster solver from here */
+#define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no edge's cluster */
 #define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
 #define PCG_MAX_ITERATIONS 500      /* pcg_iterations's default */
 
@@ -957,8 +962,19 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         /* the couplings between charts (chart of the face whose edge piece
          * first reaches the texel), which the preconditioner leaves out */
         if ((rc = schur_groups(m, seams, g, &w, err))) goto done;
-        sc_triplets_init(&w.apart, n);
+        /* texels that two edges' cells reach join no cluster: where they are
+         * most of the system (a geometry image of a mesh and its levels in
+         * one uv), every unknown is interface, and one factorisation of Q
+         * does what the preconditioner would, without the iterations */
+        int64_t shared = 0;
+        for (int32_t r = 0; r < n; r++) shared += w.group[r] < 0;
+        if (o->solver == SOLVER_AUTO && (double)shared > SCHUR_MAX_SHARED * (double)n) {
+            w.use_schur = false;
+            free(w.group), free(w.gamma);
+            w.group = NULL, w.gamma = NULL;
+        }
     }
+    if (w.use_schur) sc_triplets_init(&w.apart, n);
     if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.q, NULL, NULL,
                          w.group ? w.group + n : NULL, w.use_schur ? &w.apart : NULL, err)))
         goto done;
@@ -1542,7 +1558,8 @@ static const sc_param_desc params[] = {
      .doc = "cholmod: one direct factorisation of the whole system; schur: the texels along each "
             "edge eliminated on their own and the rest factored by CHOLMOD, as the preconditioner "
             "of conjugate gradients on the whole system (to 1e-12); auto: schur from schur_from "
-            "unknowns, falling back to cholmod should it fail"},
+            "unknowns unless most texels lie in the cells of two or more edges, falling back to cholmod "
+            "should it fail"},
     {.name = "schur_from", .type = SC_PARAM_INTEGER, .def = SCHUR_MIN_UNKNOWNS, .min = 0, .max = 2147483647,
      .doc = "solver auto takes the edge-cluster solver (schur) for a system of this many unknowns or more"},
     {.name = "pcg_iterations", .type = SC_PARAM_INTEGER, .def = PCG_MAX_ITERATIONS, .min = 1, .max = 1000000,
@@ -1563,7 +1580,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 3,
+    .version = 4,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

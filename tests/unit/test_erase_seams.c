@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sc_atlas_ops.h"
 #include "sc_exec.h"
 #include "sc_nodes.h"
 #include "sc_schur.h"
@@ -1289,6 +1290,39 @@ SC_TEST(node_auto_solver_falls_back_to_cholmod) {
     sc_ctx *s = run_erase(atlas, kv_schur, 2, &serr);
     SC_CHECK(s == NULL && strstr(serr.message, "did not converge") != NULL);
     sc_ctx_free(a), sc_ctx_free(c), sc_ctx_free(it), sc_ctx_free(s);
+    sc_value_release(atlas);
+}
+
+/* Two copies of one cube in one uv (as a geometry image of a mesh and its
+ * levels has them): every texel lies in the cells of two edges, so the
+ * edge-cluster solver would have no cluster (solver schur: every unknown is
+ * interface) and solver auto factors the whole system instead, the same
+ * bytes as solver cholmod, with no fallback to report. */
+SC_TEST(node_auto_solver_takes_cholmod_without_clusters) {
+    sc_mesh *cube = cube_mesh(17, true);
+    const sc_mesh *two[2] = {cube, cube};
+    sc_atlas *a = sc_atlas_new(sc_atlas_ops_mesh_union(two, 2));
+    sc_mesh_free(cube);
+    sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "",
+                         sc_value_new_image(noise_image(64, 64, 3, SC_PIXEL_F32, -1)));
+    sc_value *atlas = sc_value_new_atlas(a);
+    const char *kv_auto[] = {"solver", "auto", "schur_from", "0", NULL};
+    const char *kv_chol[] = {"solver", "cholmod", NULL};
+    const char *kv_schur[] = {"solver", "schur", NULL};
+    sc_error err = {0};
+    sc_ctx *au = run_erase(atlas, kv_auto, 2, &err), *c = run_erase(atlas, kv_chol, 2, &err);
+    sc_ctx *s = run_erase(atlas, kv_schur, 2, &err);
+    SC_CHECK_MSG(au && c && s, "two cubes: %s", err.message);
+    if (au && c && s) {
+        printf("     two cubes in one uv: %g unknowns, %g of them interface for solver schur\n",
+               sc_ctx_metric_value(s, "unknowns"), sc_ctx_metric_value(s, "interface_unknowns"));
+        SC_CHECK(sc_ctx_metric_value(s, "interface_unknowns") == sc_ctx_metric_value(s, "unknowns"));
+        SC_CHECK(isnan(sc_ctx_metric_value(au, "interface_unknowns")));
+        SC_CHECK(!(sc_ctx_metric_value(au, "solver_fallbacks") > 0));
+        SC_CHECK(sc_digest_equal(&sc_ctx_output(au, 0)->digest, &sc_ctx_output(c, 0)->digest));
+        SC_CHECK(sc_ctx_metric_value(au, "seam_energy_after") <= 1e-6 * sc_ctx_metric_value(au, "seam_energy_before"));
+    }
+    sc_ctx_free(au), sc_ctx_free(c), sc_ctx_free(s);
     sc_value_release(atlas);
 }
 
