@@ -89,8 +89,8 @@
  * CHOLMOD; conjugate gradients on Q take the terms back in, to a
  * preconditioned residual of 1e-12 of the start (auto falls back to one
  * CHOLMOD factorisation should that fail). Measured on pizza (2.07M
- * unknowns, 19.4k clusters, 271k interface texels), same machine and
- * session: 13 iterations, 1.35e9 flops instead of 4e10, CHOLMOD's peak
+ * unknowns, 19.4k clusters, 271k interface texels), side by side on one
+ * machine: 13 iterations, 1.35e9 flops instead of 4e10, CHOLMOD's peak
  * 165 MB instead of 946 MB, factor 6.9 s instead of 13.8 s, 16.1 s in all
  * instead of 21.2 s, the same seam energy and gap (9.1-10.5 s on that
  * machine once the build was threaded and the memory tuned; on a slower
