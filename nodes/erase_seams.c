@@ -567,7 +567,6 @@ typedef struct group_work {
      * round_rows), or empty */
     sc_sparse qfull;
     uint8_t *round_rows;
-    bool qfull_scaled;
     sc_sparse_chol *chol;
     /* the edge-cluster solver (solver schur): Q without the grid couplings
      * between charts (apart: row, column, weight), factored by sc_schur as
@@ -1002,7 +1001,9 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         goto done;
     }
     if (!w.use_schur) sc_sparse_free(&w.q);   /* conjugate gradients multiply by it */
-    if (!w.round_rows) sc_sparse_free(&w.qfull);   /* rounding reads it */
+    if (!w.round_rows) sc_sparse_free(&w.qfull);
+    else   /* rounding reads M = Q / w_pen on the seam rows */
+        for (int64_t e = 0; e < w.qfull.nnz; e++) w.qfull.val[e] /= w_pen;
     /* stage times: the overlapped side work counts where it belongs */
     double t1 = tp0 + pj.seconds_resid, t2 = t1 + pj.seconds_factor;
     double ts = sc_now();
@@ -1126,12 +1127,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
                 }
             /* M on the seam texels: exactly (small atlases, where the
              * nullity was measured), or Q's rows there over w_pen */
-            if (w.mfull.n == 0 && w.qfull.n > 0 && w.round_rows) {
-                if (!w.qfull_scaled)
-                    for (int64_t e = 0; e < w.qfull.nnz; e++) w.qfull.val[e] /= w_pen;
-                w.qfull_scaled = true;
-                rj.mf = &w.qfull, rj.rows = w.round_rows, rj.ids = w.ids;
-            }
+            if (w.round_rows && w.qfull.n > 0) rj.mf = &w.qfull, rj.rows = w.round_rows, rj.ids = w.ids;
             if (img->pixel == SC_PIXEL_U8 && o->quantize == QUANT_OPTIMAL && rj.mf->n > 0) {
                 if (C > 4) {   /* images hold at most 4 channels */
                     sc_image_free(nat);

@@ -146,6 +146,12 @@ static int cmp_int32(const void *pa, const void *pb) {
     return a < b ? -1 : a > b;
 }
 
+/* Entry p of column t couples: a stored exact zero off the diagonal does not
+ * (a caller that drops terms in place leaves them). */
+static inline bool is_coupling(const sc_sparse *a, int32_t p, int32_t t) {
+    return a->val[p] != 0 || a->rowind[p] == t;
+}
+
 /* Fill, factor and eliminate one cluster; its complement goes to trip. */
 static int factor_cluster(factor_job *job, int32_t c, sc_triplets *trip, double *flops,
                           int32_t **loc, int32_t *loc_cap, double **z, size_t *z_cap) {
@@ -158,7 +164,7 @@ static int factor_cluster(factor_job *job, int32_t c, sc_triplets *trip, double 
         memset(rk, 0, (size_t)(k - fk + 1) * sizeof *rk);
         int32_t t = f->order[k];
         for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-            if (a->val[p] == 0 && a->rowind[p] != t) continue;
+            if (!is_coupling(a, p, t)) continue;
             int32_t q = f->position[a->rowind[p]];
             if (q <= k && q >= k0) rk[q - fk] += a->val[p];
         }
@@ -267,7 +273,7 @@ static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const dou
         int32_t gt = group[t];
         bool itf = gt < 0;
         for (int32_t p = a->colptr[t]; p < a->colptr[t + 1] && !itf; p++) {
-            if (a->val[p] == 0) continue;   /* a stored zero is no coupling */
+            if (!is_coupling(a, p, t)) continue;
             int32_t gu = group[a->rowind[p]];
             itf = gu >= 0 && gu != gt;
         }
@@ -355,7 +361,7 @@ static int layout_chunk(void *ud, int32_t chunk) {
         if (job->pass == 0) {
             int32_t fk = k, nb = 0;
             for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-                if (a->val[p] == 0 && a->rowind[p] != t) continue;
+                if (!is_coupling(a, p, t)) continue;
                 int32_t q = f->position[a->rowind[p]];
                 if (!priv) nb += q < npriv;
                 else if (q >= npriv) nb++;
@@ -366,7 +372,7 @@ static int layout_chunk(void *ud, int32_t chunk) {
         } else if (priv) {
             int32_t w = f->b.ptr[k];
             for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-                if (a->val[p] == 0) continue;
+                if (!is_coupling(a, p, t)) continue;
                 int32_t q = f->position[a->rowind[p]];
                 if (q >= npriv) f->b.idx[w] = q - npriv, f->b.val[w++] = a->val[p];
             }
@@ -374,7 +380,7 @@ static int layout_chunk(void *ud, int32_t chunk) {
             int32_t w = f->bt.ptr[k];
             sc_triplets *sii = &job->sii[chunk - job->chunks_priv];
             for (int32_t p = a->colptr[t]; p < a->colptr[t + 1]; p++) {
-                if (a->val[p] == 0 && a->rowind[p] != t) continue;
+                if (!is_coupling(a, p, t)) continue;
                 int32_t q = f->position[a->rowind[p]];
                 if (q < npriv) f->bt.idx[w] = q, f->bt.val[w++] = a->val[p];
                 else if (q - npriv >= k) sc_triplets_add(sii, k, q - npriv, a->val[p]);
@@ -600,8 +606,7 @@ static int run_phase(solve_job *job, int phase) {
 /* x (n x nrhs, positions) <- A^-1 x; f->work_if holds nif x nrhs values. */
 static int solve_positions(sc_schur *f, int32_t nrhs, double *x, sc_error *err) {
     solve_job job = {.f = f, .x = x, .nrhs = nrhs};
-    if (run_phase(&job, 1)) return sc_fail(err, SC_ENOMEM, "out of memory");
-    if (run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (run_phase(&job, 1) || run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
     if (f->nif > 0) {
         double *xi = f->work_if;
         for (int32_t c = 0; c < nrhs; c++)
