@@ -134,12 +134,13 @@ int main(int argc, char **argv) {
                    sc_ctx_metric_value(bake, n[3]), sc_ctx_metric_value(bake, n[4]), sc_ctx_metric_value(bake, n[5]));
         }
         if (mip)
-            printf("       mipmap: erase %.2f s (%.0f erase_seams runs, %.0f level-0 maps kept as baked, %.0f map levels "
-                   "below erase_min_size %s not erased), metrics %.2f s, files %.2f s\n",
-                   sc_ctx_metric_value(mip, "seconds_erase"), sc_ctx_metric_value(mip, "erase_runs"),
+            printf("       mipmap: groups %.2f s (side by side; summed over them: erase %.2f s in %.0f erase_seams runs, "
+                   "files %.2f s; %.0f level-0 maps kept as baked, %.0f map levels below erase_min_size %s not "
+                   "erased), metrics %.2f s\n",
+                   sc_ctx_metric_value(mip, "seconds_groups"), sc_ctx_metric_value(mip, "seconds_erase"),
+                   sc_ctx_metric_value(mip, "erase_runs"), sc_ctx_metric_value(mip, "seconds_files"),
                    sc_ctx_metric_value(mip, "level0_passed"), sc_ctx_metric_value(mip, "levels_not_erased"),
-                   as->mip_erase_min, sc_ctx_metric_value(mip, "seconds_metrics"),
-                   sc_ctx_metric_value(mip, "seconds_files"));
+                   as->mip_erase_min, sc_ctx_metric_value(mip, "seconds_metrics"));
         if (mip) {
             printf("       lod 0 seam energy per mip level:");
             for (int m = 0;; m++) {   /* every level built, down to 1 x 1 */

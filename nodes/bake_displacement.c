@@ -42,7 +42,14 @@
  *    by less than the tolerance (cell_within: the map is affine there, so the
  *    miss is bounded by the corners'), counting them only; a second pass
  *    repeats the same samples in the cells next to a solved texel only,
- *    summing their Gram matrices and residuals. The
+ *    summing their Gram matrices and residuals. In each cell row a face
+ *    visits only the cells its four sample rows cross, and on each sample
+ *    row only the points within the face's span (line_span, grown by 1e-6
+ *    per texel of the face's extent, far above barycentric's rounding):
+ *    the points left out are outside the face, so the samples and their
+ *    order are those of a scan of the face's box. The level's faces at a
+ *    cell's corners are read once per cell (level_cell). Measured on blub
+ *    (bench_bake, one thread): sampling 2.26 s -> 1.67 s, the same bytes. The
  *    solver's matrix products gather per unknown in the order a scatter over
  *    the cells would add, so they split over threads with the same bytes.
  *  - Seams. With `erase` (the default), the node runs the erase_seams node
@@ -448,14 +455,18 @@ typedef struct cellgrid {
     sc_wrap wu, wv;
 } cellgrid;
 
+/* One axis of cell_key: the key column (row) of cell column (row) c of a
+ * grid of n texels under wrap mode w; false when the cell is outside it. */
+static inline bool key_axis(int64_t c, int32_t n, sc_wrap w, int64_t *k) {
+    if (w == SC_WRAP_REPEAT) *k = c >= 0 && c < n ? c : sc_seam_wrap(c, n, SC_WRAP_REPEAT);
+    else if (c < -1 || c > n - 1) return false;
+    else *k = c + 1;
+    return true;
+}
+
 static bool cell_key(const cellgrid *cg, int64_t cx, int64_t cy, size_t *key) {
     int64_t kx, ky;
-    if (cg->wu == SC_WRAP_REPEAT) kx = sc_seam_wrap(cx, cg->W, SC_WRAP_REPEAT);
-    else if (cx < -1 || cx > cg->W - 1) return false;
-    else kx = cx + 1;
-    if (cg->wv == SC_WRAP_REPEAT) ky = sc_seam_wrap(cy, cg->H, SC_WRAP_REPEAT);
-    else if (cy < -1 || cy > cg->H - 1) return false;
-    else ky = cy + 1;
+    if (!key_axis(cx, cg->W, cg->wu, &kx) || !key_axis(cy, cg->H, cg->wv, &ky)) return false;
     *key = (size_t)ky * cg->CW + (size_t)kx;
     return true;
 }
@@ -472,22 +483,35 @@ static void cell_corners(const cellgrid *cg, size_t key, int32_t id[4]) {
         id[q] = sc_seam_wrap(cy + (q >> 1), cg->H, cg->wv) * cg->W + sc_seam_wrap(cx + (q & 1), cg->W, cg->wu);
 }
 
-/* The level's position at uv when one of the faces the raster gives the
- * cell's corners contains it (the common case, far cheaper than locate). */
-static bool level_at_corners(const sc_mesh *m, const raster *rl, const int32_t id[4], double u, double v,
-                             double p[3]) {
+/* The faces the level's raster gives a cell's four corners (a face equal
+ * to the previous corner's once), with their uv triangles and corner
+ * positions: where the level's position at a sample of the cell is looked
+ * up first (level_at), far cheaper than locate. */
+typedef struct level_cell {
+    int n;
+    double x[4][3], y[4][3];
+    const double *p[4][3];
+} level_cell;
+
+static void level_cell_make(const sc_mesh *m, const raster *rl, const int32_t id[4], level_cell *lc) {
+    lc->n = 0;
     for (int q = 0; q < 4; q++) {
         int32_t f = rl->face[id[q]];
         if (f < 0 || (q > 0 && f == rl->face[id[q - 1]])) continue;
-        double fx[3], fy[3], l[3];
         for (int c = 0; c < 3; c++) {
             const double *uv = m->U + 2 * m->FU[3 * f + c];
-            fx[c] = uv[0], fy[c] = uv[1];
+            lc->x[lc->n][c] = uv[0], lc->y[lc->n][c] = uv[1], lc->p[lc->n][c] = m->V + 3 * m->FV[3 * f + c];
         }
-        if (!barycentric(fx, fy, u, v, l) || l[0] < 0 || l[1] < 0 || l[2] < 0) continue;
-        for (int k = 0; k < 3; k++)
-            p[k] = l[0] * m->V[3 * m->FV[3 * f] + k] + l[1] * m->V[3 * m->FV[3 * f + 1] + k] +
-                   l[2] * m->V[3 * m->FV[3 * f + 2] + k];
+        lc->n++;
+    }
+}
+
+/* The level's position at uv when one of the cell's corner faces holds it. */
+static bool level_at(const level_cell *lc, double u, double v, double p[3]) {
+    for (int i = 0; i < lc->n; i++) {
+        double l[3];
+        if (!barycentric(lc->x[i], lc->y[i], u, v, l) || l[0] < 0 || l[1] < 0 || l[2] < 0) continue;
+        for (int k = 0; k < 3; k++) p[k] = l[0] * lc->p[i][0][k] + l[1] * lc->p[i][1][k] + l[2] * lc->p[i][2][k];
         return true;
     }
     return false;
@@ -517,7 +541,8 @@ typedef struct sample_job {
 
 /* Face f's uv corners in texel-centre coordinates and whether it is sampled
  * at all (not absurd, not NaN, not flat); *small: under two texels across. */
-static bool sample_face(const sc_mesh *in, int32_t f, int32_t W, int32_t H, double fx[3], double fy[3], bool *small) {
+static bool sample_face(const sc_mesh *in, int32_t f, int32_t W, int32_t H, double fx[3], double fy[3], bool *small,
+                        double *extent) {
     for (int c = 0; c < 3; c++) {
         const double *t = in->U + 2 * in->FU[3 * f + c];
         fx[c] = t[0] * W - 0.5, fy[c] = t[1] * H - 0.5;
@@ -525,6 +550,7 @@ static bool sample_face(const sc_mesh *in, int32_t f, int32_t W, int32_t H, doub
     double e = 0, lt[3];
     for (int c = 0; c < 3; c++) e = fmax(e, hypot(fx[(c + 1) % 3] - fx[c], fy[(c + 1) % 3] - fy[c]));
     *small = e < 2;
+    if (extent) *extent = e;
     return e < 4.0 * (W + H) && barycentric(fx, fy, fx[0], fy[0], lt);
 }
 
@@ -548,7 +574,7 @@ static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg,
             if (in->FM[f] != material) continue;
             double fx[3], fy[3];
             bool small;
-            if (!sample_face(in, f, cg->W, cg->H, fx, fy, &small)) continue;
+            if (!sample_face(in, f, cg->W, cg->H, fx, fy, &small, NULL)) continue;
             int64_t cy0 = (int64_t)floor(fmin(fy[0], fmin(fy[1], fy[2]))) - 1;
             int64_t cy1 = (int64_t)floor(fmax(fy[0], fmax(fy[1], fy[2]))) + 1;
             int64_t r0, r1;   /* key rows, or every row */
@@ -585,6 +611,55 @@ static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg,
     return SC_OK;
 }
 
+/* Where the line y = Y (texel-centre coordinates) crosses triangle (fx, fy):
+ * [*lo, *hi] grown by `margin` (empty, lo > hi, when it misses). A sample
+ * point of the line outside it is outside the face: barycentric's rounding
+ * is far below the margin. */
+static void line_span(const double fx[3], const double fy[3], double Y, double margin, double *lo, double *hi) {
+    double a = HUGE_VAL, b = -HUGE_VAL;
+    for (int c = 0; c < 3; c++) {
+        double x0 = fx[c], y0 = fy[c], x1 = fx[(c + 1) % 3], y1 = fy[(c + 1) % 3];
+        if (!((y0 <= Y && Y <= y1) || (y1 <= Y && Y <= y0))) continue;
+        double xa = x0, xb = x1;
+        if (y1 != y0) xa = xb = x0 + (x1 - x0) * ((Y - y0) / (y1 - y0));
+        if (xa > xb) {
+            double t = xa;
+            xa = xb, xb = t;
+        }
+        if (xa < a) a = xa;
+        if (xb > b) b = xb;
+    }
+    *lo = a - margin, *hi = b + margin;
+}
+
+/* A big face's spans on the four sample rows y = cy + (j + 1/2) / 4 of a
+ * cell row. */
+typedef struct row_spans {
+    double lo[4], hi[4];
+} row_spans;
+
+/* The spans on cell row cy and the cell columns [*xa, *xb] (within
+ * [cx0, cx1]) they reach; false when none does. */
+
+static bool sample_rows(const double fx[3], const double fy[3], double margin, int64_t cy, int64_t cx0, int64_t cx1,
+                        row_spans *rs, int64_t *xa, int64_t *xb) {
+    double lo = HUGE_VAL, hi = -HUGE_VAL;
+    for (int j = 0; j < 4; j++) {
+        line_span(fx, fy, (double)cy + (j + 0.5) / 4, margin, &rs->lo[j], &rs->hi[j]);
+        if (rs->lo[j] <= rs->hi[j]) lo = rs->lo[j] < lo ? rs->lo[j] : lo, hi = rs->hi[j] > hi ? rs->hi[j] : hi;
+    }
+    if (!(lo <= hi)) return false;
+    double l = floor(lo), h = floor(hi);
+    *xa = l > (double)cx0 ? (int64_t)l : cx0, *xb = h < (double)cx1 ? (int64_t)h : cx1;
+    return *xa <= *xb;
+}
+
+/* Whether sample s (4 x 4, row-major) of cell column cx can be inside. */
+static inline bool in_span(const row_spans *rs, int64_t cx, int32_t s) {
+    double X = (double)cx + ((s & 3) + 0.5) / 4;
+    return rs->lo[s >> 2] <= X && X <= rs->hi[s >> 2];
+}
+
 /* Pass 1 only: whether no sample of big face f (texel coordinates fx, fy,
  * positions p) in cell (cx, cy) with corner texels id can miss by more than
  * `tol`, so that its samples need only be counted. Over the cell, f = L_F -
@@ -599,11 +674,14 @@ static int sample_lists(const sc_mesh *in, int32_t material, const cellgrid *cg,
  * same. *nsamples gets the samples the full evaluation would count (those
  * inside the face; G holds them all). */
 static bool cell_within(const sample_job *J, const double fx[3], const double fy[3], const double *const p[3],
-                        int64_t cx, int64_t cy, const int32_t id[4], double tol, int64_t *nsamples) {
+                        int64_t cx, int64_t cy, const int32_t id[4], const row_spans *rs, double tol,
+                        int64_t *nsamples) {
     double f[4][3];
+    bool corners_inside = true;   /* then so is every sample point (a triangle is convex) */
     for (int q = 0; q < 4; q++) {
         double l[3], X = (double)(cx + (q & 1)), Y = (double)(cy + (q >> 1));
         barycentric(fx, fy, X, Y, l);
+        corners_inside = corners_inside && l[0] >= 0 && l[1] >= 0 && l[2] >= 0;
         for (int k = 0; k < 3; k++) f[q][k] = l[0] * p[0][k] + l[1] * p[1][k] + l[2] * p[2][k];
     }
     if (J->lev) {
@@ -645,8 +723,13 @@ static bool cell_within(const sample_job *J, const double fx[3], const double fy
             }
             if (!(sqrt(d2) <= 0.999 * tol)) return false;
         }
+    if (corners_inside) {
+        *nsamples += 16;
+        return true;
+    }
     for (int32_t s = 0; s < 16; s++) {
         double l[3];
+        if (!in_span(rs, cx, s)) continue;
         barycentric(fx, fy, (double)cx + ((s & 3) + 0.5) / 4, (double)cy + ((s >> 2) + 0.5) / 4, l);
         *nsamples += !(l[0] < 0 || l[1] < 0 || l[2] < 0);
     }
@@ -668,6 +751,8 @@ static int sample_band(void *ud, int32_t chunk) {
     const float *x = J->x;
     const size_t k0 = (size_t)chunk * J->band, k1 = k0 + (size_t)J->band;
     int64_t nsamples = 0;
+    level_cell lc;                 /* the level's faces at the corners of cell lc_key */
+    size_t lc_key = SIZE_MAX;
     /* dense samples of f in those cells: 4 x 4 per cell inside a face,
      * and a barycentric grid on faces under two texels across */
     for (int32_t lq = J->list_start[chunk]; lq < J->list_start[chunk + 1]; lq++) {
@@ -676,7 +761,9 @@ static int sample_band(void *ud, int32_t chunk) {
         const double *t[3], *p[3];
         double fx[3], fy[3];
         bool small;
-        if (!sample_face(in, f, W, H, fx, fy, &small)) continue;   /* absurd, NaN, flat */
+        double extent;
+        if (!sample_face(in, f, W, H, fx, fy, &small, &extent)) continue;   /* absurd, NaN, flat */
+        const double margin = 1e-6 * (1 + extent);   /* of the sample rows' spans: far above rounding */
         for (int c = 0; c < 3; c++) t[c] = in->U + 2 * in->FU[3 * f + c], p[c] = in->V + 3 * in->FV[3 * f + c];
         int32_t n = small ? 3 : 0;
         int64_t cx0 = (int64_t)floor(fmin(fx[0], fmin(fx[1], fx[2]))), cx1 = (int64_t)floor(fmax(fx[0], fmax(fx[1], fx[2])));
@@ -694,16 +781,21 @@ static int sample_band(void *ud, int32_t chunk) {
             ry0 = cy0 > (int64_t)k0 ? cy0 : (int64_t)k0;
             ry1 = cy1 < (int64_t)k1 - 1 ? cy1 : (int64_t)k1 - 1;
         }
-        const int64_t bw = small ? 1 : cx1 - cx0 + 1;
-        int64_t ncells = small ? 1 : ry1 < ry0 ? 0 : bw * (ry1 - ry0 + 1);
-        for (int64_t cell = 0; cell < ncells; cell++) {
-            int64_t cx = cx0 + cell % bw, cy = (small ? cy0 : ry0) + cell / bw;
-            size_t key;
-            if (!small && (!cell_key(&cg, cx, cy, &key) || slot[key] < 0 || key / cg.CW < k0 || key / cg.CW >= k1)) continue;
-            const size_t cell_key0 = small ? 0 : key;   /* a big face's samples land in this cell */
+        for (int64_t cy = small ? cy0 : ry0; cy <= (small ? cy0 : ry1); cy++) {
+        int64_t ky = 0, xa = cx0, xb = cx0;
+        row_spans rs;
+        if (!small) {   /* the key row, then the cells of the row whose sample points can be in the face */
+            if (!key_axis(cy, H, cg.wv, &ky) || ky < (int64_t)k0 || ky >= (int64_t)k1) continue;
+            if (!sample_rows(fx, fy, margin, cy, cx0, cx1, &rs, &xa, &xb)) continue;
+        }
+        for (int64_t cx = xa; cx <= xb; cx++) {
+            size_t key = 0;
+            int64_t kx;
+            if (!small && (!key_axis(cx, W, cg.wu, &kx) || slot[key = (size_t)ky * cg.CW + (size_t)kx] < 0)) continue;
+            const size_t cell_key0 = key;   /* a big face's samples land in this cell */
             int32_t cell_id[4];
             if (!small) cell_corners(&cg, cell_key0, cell_id);
-            if (!small && !cells && cell_within(J, fx, fy, p, cx, cy, cell_id, J->tol, &nsamples)) continue;
+            if (!small && !cells && cell_within(J, fx, fy, p, cx, cy, cell_id, &rs, J->tol, &nsamples)) continue;
             int32_t npts = small ? (n + 1) * (n + 2) / 2 : 16;
             for (int32_t s = 0; s < npts; s++) {
                 double l[3];
@@ -712,6 +804,7 @@ static int sample_band(void *ud, int32_t chunk) {
                     while (rem > n - a) rem -= n - a + 1, a++;
                     l[0] = (double)a / n, l[1] = (double)rem / n, l[2] = 1 - l[0] - l[1];
                 } else {
+                    if (!in_span(&rs, cx, s)) continue;
                     barycentric(fx, fy, (double)cx + ((s & 3) + 0.5) / 4, (double)cy + ((s >> 2) + 0.5) / 4, l);
                     if (l[0] < 0 || l[1] < 0 || l[2] < 0) continue;
                 }
@@ -732,7 +825,8 @@ static int sample_band(void *ud, int32_t chunk) {
                 for (int k = 0; k < 3; k++) y[k] = l[0] * p[0][k] + l[1] * p[1][k] + l[2] * p[2][k];
                 if (lev) {
                     double q[3];
-                    if (!level_at_corners(lev->m, rlev, id, u, v, q) && locate(lev, u, v, q) < 0) continue;
+                    if (key != lc_key) level_cell_make(lev->m, rlev, id, &lc), lc_key = key;
+                    if (!level_at(&lc, u, v, q) && locate(lev, u, v, q) < 0) continue;
                     for (int k = 0; k < 3; k++) y[k] -= q[k];
                 }
                 double ss = px - qx, tt = py - qy;
@@ -746,7 +840,8 @@ static int sample_band(void *ud, int32_t chunk) {
                 }
                 nsamples++;
                 if (!cells) {
-                    worst[slot[key]] = fmax(worst[slot[key]], sqrt(gap));
+                    double miss = sqrt(gap);
+                    if (miss > worst[slot[key]]) worst[slot[key]] = miss;
                     continue;
                 }
                 fit_cell *C = &cells[slot[key]];
@@ -756,6 +851,7 @@ static int sample_band(void *ud, int32_t chunk) {
                 }
                 C->n += 1;
             }
+        }
         }
     }
     J->samples[chunk] = nsamples;

@@ -70,7 +70,7 @@ static inline void sc_atlas_ops_row_span(const double x[3], const double y[3], d
     double lo = fmin(x[0], fmin(x[1], x[2])) - r, hi = fmax(x[0], fmax(x[1], x[2])) + r;
     double area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
     for (int k = 0; k < 3 && area != 0; k++) {
-        double ax = x[k], ay = y[k], dx = x[(k + 1) % 3] - ax, dy = y[(k + 1) % 3] - ay, len = hypot(dx, dy);
+        double ax = x[k], ay = y[k], dx = x[(k + 1) % 3] - ax, dy = y[(k + 1) % 3] - ay, len = sqrt(dx * dx + dy * dy);
         if (!(len > 0)) continue;
         double ox = (area > 0 ? dy : -dy) / len, oy = (area > 0 ? -dx : dx) / len;   /* outward unit normal */
         double rest = r + 1e-6 - (row - ay) * oy;   /* within: (i - ax) ox <= rest */
