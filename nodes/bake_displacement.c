@@ -640,7 +640,6 @@ typedef struct row_spans {
 
 /* The spans on cell row cy and the cell columns [*xa, *xb] (within
  * [cx0, cx1]) they reach; false when none does. */
-
 static bool sample_rows(const double fx[3], const double fy[3], double margin, int64_t cy, int64_t cx0, int64_t cx1,
                         row_spans *rs, int64_t *xa, int64_t *xb) {
     double lo = HUGE_VAL, hi = -HUGE_VAL;
@@ -782,76 +781,77 @@ static int sample_band(void *ud, int32_t chunk) {
             ry1 = cy1 < (int64_t)k1 - 1 ? cy1 : (int64_t)k1 - 1;
         }
         for (int64_t cy = small ? cy0 : ry0; cy <= (small ? cy0 : ry1); cy++) {
-        int64_t ky = 0, xa = cx0, xb = cx0;
-        row_spans rs;
-        if (!small) {   /* the key row, then the cells of the row whose sample points can be in the face */
-            if (!key_axis(cy, H, cg.wv, &ky) || ky < (int64_t)k0 || ky >= (int64_t)k1) continue;
-            if (!sample_rows(fx, fy, margin, cy, cx0, cx1, &rs, &xa, &xb)) continue;
-        }
-        for (int64_t cx = xa; cx <= xb; cx++) {
-            size_t key = 0;
-            int64_t kx;
-            if (!small && (!key_axis(cx, W, cg.wu, &kx) || slot[key = (size_t)ky * cg.CW + (size_t)kx] < 0)) continue;
-            const size_t cell_key0 = key;   /* a big face's samples land in this cell */
-            int32_t cell_id[4];
-            if (!small) cell_corners(&cg, cell_key0, cell_id);
-            if (!small && !cells && cell_within(J, fx, fy, p, cx, cy, cell_id, &rs, J->tol, &nsamples)) continue;
-            int32_t npts = small ? (n + 1) * (n + 2) / 2 : 16;
-            for (int32_t s = 0; s < npts; s++) {
-                double l[3];
-                if (small) {
-                    int32_t a = 0, rem = s;
-                    while (rem > n - a) rem -= n - a + 1, a++;
-                    l[0] = (double)a / n, l[1] = (double)rem / n, l[2] = 1 - l[0] - l[1];
-                } else {
-                    if (!in_span(&rs, cx, s)) continue;
-                    barycentric(fx, fy, (double)cx + ((s & 3) + 0.5) / 4, (double)cy + ((s >> 2) + 0.5) / 4, l);
-                    if (l[0] < 0 || l[1] < 0 || l[2] < 0) continue;
-                }
-                double u = l[0] * t[0][0] + l[1] * t[1][0] + l[2] * t[2][0];
-                double v = l[0] * t[0][1] + l[1] * t[1][1] + l[2] * t[2][1];
-                double px = u * W - 0.5, py = v * H - 0.5, qx = floor(px), qy = floor(py);
-                int32_t id[4];
-                if (!small && (int64_t)qx == cx && (int64_t)qy == cy) {
-                    key = cell_key0;
-                    memcpy(id, cell_id, sizeof id);
-                } else {
-                    if (!cell_key(&cg, (int64_t)qx, (int64_t)qy, &key) || slot[key] < 0 || key / cg.CW < k0 ||
-                        key / cg.CW >= k1)
-                        continue;
-                    cell_corners(&cg, key, id);
-                }
-                double y[3];
-                for (int k = 0; k < 3; k++) y[k] = l[0] * p[0][k] + l[1] * p[1][k] + l[2] * p[2][k];
-                if (lev) {
-                    double q[3];
-                    if (key != lc_key) level_cell_make(lev->m, rlev, id, &lc), lc_key = key;
-                    if (!level_at(&lc, u, v, q) && locate(lev, u, v, q) < 0) continue;
-                    for (int k = 0; k < 3; k++) y[k] -= q[k];
-                }
-                double ss = px - qx, tt = py - qy;
-                double w[4] = {(1 - ss) * (1 - tt), ss * (1 - tt), (1 - ss) * tt, ss * tt};
-                double r[3], gap = 0;
-                for (int k = 0; k < 3; k++) {
-                    double bx = 0;
-                    for (int q = 0; q < 4; q++) bx += w[q] * x[3 * (size_t)id[q] + k];
-                    r[k] = y[k] - bx;
-                    gap += r[k] * r[k];
-                }
-                nsamples++;
-                if (!cells) {
-                    double miss = sqrt(gap);
-                    if (miss > worst[slot[key]]) worst[slot[key]] = miss;
-                    continue;
-                }
-                fit_cell *C = &cells[slot[key]];
-                for (int i = 0; i < 4; i++) {
-                    for (int j = i; j < 4; j++) C->G[gram_index[i][j]] += w[i] * w[j];
-                    for (int k = 0; k < 3; k++) C->b[i][k] += w[i] * r[k];
-                }
-                C->n += 1;
+            int64_t ky = 0, xa = cx0, xb = cx0;
+            row_spans rs;
+            if (!small) {   /* the key row, then the cells of the row whose sample points can be in the face */
+                if (!key_axis(cy, H, cg.wv, &ky) || ky < (int64_t)k0 || ky >= (int64_t)k1) continue;
+                if (!sample_rows(fx, fy, margin, cy, cx0, cx1, &rs, &xa, &xb)) continue;
             }
-        }
+            for (int64_t cx = xa; cx <= xb; cx++) {
+                size_t key = 0;
+                int64_t kx;
+                if (!small && (!key_axis(cx, W, cg.wu, &kx) || slot[key = (size_t)ky * cg.CW + (size_t)kx] < 0))
+                    continue;
+                const size_t cell_key0 = key;   /* a big face's samples land in this cell */
+                int32_t cell_id[4];
+                if (!small) cell_corners(&cg, cell_key0, cell_id);
+                if (!small && !cells && cell_within(J, fx, fy, p, cx, cy, cell_id, &rs, J->tol, &nsamples)) continue;
+                int32_t npts = small ? (n + 1) * (n + 2) / 2 : 16;
+                for (int32_t s = 0; s < npts; s++) {
+                    double l[3];
+                    if (small) {
+                        int32_t a = 0, rem = s;
+                        while (rem > n - a) rem -= n - a + 1, a++;
+                        l[0] = (double)a / n, l[1] = (double)rem / n, l[2] = 1 - l[0] - l[1];
+                    } else {
+                        if (!in_span(&rs, cx, s)) continue;
+                        barycentric(fx, fy, (double)cx + ((s & 3) + 0.5) / 4, (double)cy + ((s >> 2) + 0.5) / 4, l);
+                        if (l[0] < 0 || l[1] < 0 || l[2] < 0) continue;
+                    }
+                    double u = l[0] * t[0][0] + l[1] * t[1][0] + l[2] * t[2][0];
+                    double v = l[0] * t[0][1] + l[1] * t[1][1] + l[2] * t[2][1];
+                    double px = u * W - 0.5, py = v * H - 0.5, qx = floor(px), qy = floor(py);
+                    int32_t id[4];
+                    if (!small && (int64_t)qx == cx && (int64_t)qy == cy) {
+                        key = cell_key0;
+                        memcpy(id, cell_id, sizeof id);
+                    } else {
+                        if (!cell_key(&cg, (int64_t)qx, (int64_t)qy, &key) || slot[key] < 0 || key / cg.CW < k0 ||
+                            key / cg.CW >= k1)
+                            continue;
+                        cell_corners(&cg, key, id);
+                    }
+                    double y[3];
+                    for (int k = 0; k < 3; k++) y[k] = l[0] * p[0][k] + l[1] * p[1][k] + l[2] * p[2][k];
+                    if (lev) {
+                        double q[3];
+                        if (key != lc_key) level_cell_make(lev->m, rlev, id, &lc), lc_key = key;
+                        if (!level_at(&lc, u, v, q) && locate(lev, u, v, q) < 0) continue;
+                        for (int k = 0; k < 3; k++) y[k] -= q[k];
+                    }
+                    double ss = px - qx, tt = py - qy;
+                    double w[4] = {(1 - ss) * (1 - tt), ss * (1 - tt), (1 - ss) * tt, ss * tt};
+                    double r[3], gap = 0;
+                    for (int k = 0; k < 3; k++) {
+                        double bx = 0;
+                        for (int q = 0; q < 4; q++) bx += w[q] * x[3 * (size_t)id[q] + k];
+                        r[k] = y[k] - bx;
+                        gap += r[k] * r[k];
+                    }
+                    nsamples++;
+                    if (!cells) {
+                        double miss = sqrt(gap);
+                        if (miss > worst[slot[key]]) worst[slot[key]] = miss;
+                        continue;
+                    }
+                    fit_cell *C = &cells[slot[key]];
+                    for (int i = 0; i < 4; i++) {
+                        for (int j = i; j < 4; j++) C->G[gram_index[i][j]] += w[i] * w[j];
+                        for (int k = 0; k < 3; k++) C->b[i][k] += w[i] * r[k];
+                    }
+                    C->n += 1;
+                }
+            }
         }
     }
     J->samples[chunk] = nsamples;

@@ -675,7 +675,7 @@ static int build_group(void *ud, int32_t item) {
     const erase_settings *es = J->es;
     chain *chains = J->chains;
     sc_error *err = &J->errs[g];
-    const sc_value *mesh = g == nsrc ? J->union_mesh : J->src[g]->mesh;
+    sc_value *mesh = g == nsrc ? J->union_mesh : J->src[g]->mesh;
     chain **members = calloc((size_t)J->nchains + 1, sizeof *members);
     sc_value **inputs = calloc((size_t)J->nchains + 1, sizeof *inputs);
     int rc = members && inputs ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
@@ -713,7 +713,7 @@ static int build_group(void *ud, int32_t item) {
         }
         if (rc == SC_OK && n > 0) {
             double t1 = sc_now();
-            rc = erase_level((sc_value *)mesh, members, inputs, n, m, es, &J->counts[g], err);
+            rc = erase_level(mesh, members, inputs, n, m, es, &J->counts[g], err);
             t_erase += sc_now() - t1;
         }
         for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
@@ -819,9 +819,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
     }
 
-    /* build and erase, group by group (each source's chains, then the shared
-     * ones) and level by level, one erase_seams run per group and level; a
-     * finished group's chains go to the encoder */
+    /* build, erase and encode the groups, side by side (build_group) */
     double t0 = sc_now();
     erase_counts counts = {0};
     const int32_t ngroups = nsrc + 1;
