@@ -606,16 +606,13 @@ typedef struct chain_files {
     int n;
     char path[MAX_MIP][320];
     sc_buf buf[MAX_MIP];
-    sc_error err;
-    int rc;
 } chain_files;
 
-static int encode_files(const chain *ch, const sc_mesh *mesh, int threads, chain_files *out) {
+static int encode_files(const chain *ch, const sc_mesh *mesh, int threads, chain_files *out, sc_error *err) {
     char mat[96], slot[96], prefix[32] = "";
     clean_name(mesh->materials[ch->tex->material], mat, sizeof mat);
     clean_name(ch->tex->name, slot, sizeof slot);
     if (ch->source >= 0) snprintf(prefix, sizeof prefix, "lod%d_", ch->source);
-    sc_error *err = &out->err;
     int rc = SC_OK;
     const sc_image_data *top = ch->native[0]->as.image;
     if (top->pixel == SC_PIXEL_F32) {
@@ -634,7 +631,7 @@ static int encode_files(const chain *ch, const sc_mesh *mesh, int threads, chain
         }
     }
     if (rc != SC_OK) sc_error_prefix(err, "writing the chain of '%s'", ch->tex->name);
-    return out->rc = rc;
+    return rc;
 }
 
 /* Every chain's files into the report, in chain order (the order groups
@@ -651,8 +648,16 @@ static int collect_files(sc_report *r, chain_files *out, int32_t nchains, sc_err
 
 /* ---------------------------------------------------------------- groups */
 
+/* What one group did. */
+typedef struct group_result {
+    erase_counts counts;
+    int rc;
+    sc_error err;
+    double seconds_erase, seconds_files;
+} group_result;
+
 /* What building the groups reads, and where each group puts what it made
- * (its chains' levels, files, counts, error and times are its own). */
+ * (its chains' levels and files, and its result, are its own). */
 typedef struct groups_job {
     chain *chains;
     int32_t nchains, nall, nsrc;
@@ -660,10 +665,7 @@ typedef struct groups_job {
     sc_value *union_mesh;
     const erase_settings *es;
     chain_files *files;       /* per chain */
-    erase_counts *counts;     /* per group */
-    int *rcs;                 /* per group */
-    sc_error *errs;           /* per group */
-    double *seconds_erase, *seconds_files;   /* per group */
+    group_result *results;    /* per group */
 } groups_job;
 
 /* Group `g`: its chains level by level, one erase_seams run per level,
@@ -674,7 +676,8 @@ static int build_group(void *ud, int32_t item) {
     const int32_t nsrc = J->nsrc, g = item == 0 ? nsrc : item - 1;
     const erase_settings *es = J->es;
     chain *chains = J->chains;
-    sc_error *err = &J->errs[g];
+    group_result *res = &J->results[g];
+    sc_error *err = &res->err;
     sc_value *mesh = g == nsrc ? J->union_mesh : J->src[g]->mesh;
     chain **members = calloc((size_t)J->nchains + 1, sizeof *members);
     sc_value **inputs = calloc((size_t)J->nchains + 1, sizeof *inputs);
@@ -713,7 +716,7 @@ static int build_group(void *ud, int32_t item) {
         }
         if (rc == SC_OK && n > 0) {
             double t1 = sc_now();
-            rc = erase_level(mesh, members, inputs, n, m, es, &J->counts[g], err);
+            rc = erase_level(mesh, members, inputs, n, m, es, &res->counts, err);
             t_erase += sc_now() - t1;
         }
         for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
@@ -722,12 +725,12 @@ static int build_group(void *ud, int32_t item) {
     for (int32_t c = 0; c < J->nchains && rc == SC_OK; c++) {
         const chain *ch = &chains[c];
         if (ch->group != g) continue;
-        rc = encode_files(ch, J->src[ch->source >= 0 ? ch->source : 0]->mesh->as.mesh, es->threads, &J->files[c]);
-        if (rc != SC_OK) *err = J->files[c].err;
+        rc = encode_files(ch, J->src[ch->source >= 0 ? ch->source : 0]->mesh->as.mesh, es->threads, &J->files[c],
+                          err);
     }
-    J->seconds_erase[g] = t_erase, J->seconds_files[g] = sc_now() - t1;
+    res->seconds_erase = t_erase, res->seconds_files = sc_now() - t1;
     free(members), free(inputs);
-    return J->rcs[g] = rc;
+    return res->rc = rc;
 }
 
 /* ---------------------------------------------------------------- run */
@@ -824,11 +827,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     erase_counts counts = {0};
     const int32_t ngroups = nsrc + 1;
     chain_files *files = calloc((size_t)nchains + 1, sizeof *files);
-    erase_counts *group_counts = calloc((size_t)ngroups, sizeof *group_counts);
-    int *group_rc = calloc((size_t)ngroups, sizeof *group_rc);
-    sc_error *group_err = calloc((size_t)ngroups, sizeof *group_err);
-    double *group_times = calloc((size_t)ngroups * 2, sizeof *group_times);
-    if (!files || !group_counts || !group_rc || !group_err || !group_times) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    group_result *results = calloc((size_t)ngroups, sizeof *results);
+    if (!files || !results) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     double t_erase = 0, t_files = 0;
     if (rc == SC_OK) {
         int32_t busy = 0;   /* groups with chains: as many work side by side, each on every thread */
@@ -837,19 +837,18 @@ static int run(sc_ctx *ctx, sc_error *err) {
             for (int32_t c = 0; c < nchains && !any; c++) any = chains[c].group == g;
             busy += any;
         }
-        groups_job gj = {chains, nchains, nall, nsrc, src, union_mesh, &es, files, group_counts, group_rc, group_err,
-                         group_times, group_times + ngroups};
+        groups_job gj = {chains, nchains, nall, nsrc, src, union_mesh, &es, files, results};
         int prc = sc_parallel(threads < busy ? threads : busy, ngroups, build_group, &gj);
         for (int32_t g = 0; g < ngroups && rc == SC_OK; g++)   /* the first failure in group order */
-            if (group_rc[g] != SC_OK) *err = group_err[g], rc = group_rc[g];
+            if (results[g].rc != SC_OK) *err = results[g].err, rc = results[g].rc;
         if (rc == SC_OK && prc != SC_OK) rc = sc_fail(err, prc, "out of memory");
         for (int32_t g = 0; g < ngroups; g++) {
-            counts.runs += group_counts[g].runs, counts.passed += group_counts[g].passed;
-            counts.unerased += group_counts[g].unerased;
-            t_erase += group_times[g], t_files += group_times[ngroups + g];
+            const group_result *r = &results[g];
+            counts.runs += r->counts.runs, counts.passed += r->counts.passed, counts.unerased += r->counts.unerased;
+            t_erase += r->seconds_erase, t_files += r->seconds_files;
         }
     }
-    free(group_counts), free(group_rc), free(group_err), free(group_times);
+    free(results);
     double t_groups = sc_now() - t0;
 
     /* metrics: seam energy of every LOD at every mip level */

@@ -133,20 +133,25 @@ static size_t tile_floats(const level_job *J, int32_t x0, int32_t y0, int32_t w,
     return n;
 }
 
-/* Sample k's four little-endian bytes sit at 4k .. 4k + 3 of the raw tile;
- * ZIP's transform puts the even bytes first, then the odd ones. */
-static void put_bytes(const float *f, size_t count, uint8_t *raw, uint8_t *split) {
+/* Sample k's four little-endian bytes, at 4k .. 4k + 3 of the raw tile. */
+static void put_raw(const float *f, size_t count, uint8_t *raw) {
+    for (size_t k = 0; k < count; k++) {
+        uint32_t b;
+        memcpy(&b, &f[k], 4);
+        raw[4 * k] = (uint8_t)b, raw[4 * k + 1] = (uint8_t)(b >> 8);
+        raw[4 * k + 2] = (uint8_t)(b >> 16), raw[4 * k + 3] = (uint8_t)(b >> 24);
+    }
+}
+
+/* The same bytes in ZIP's order: the even ones (bytes 0 and 2 of each
+ * sample) first, then the odd ones. */
+static void put_split(const float *f, size_t count, uint8_t *split) {
     uint8_t *even = split, *odd = split + 2 * count;
     for (size_t k = 0; k < count; k++) {
         uint32_t b;
         memcpy(&b, &f[k], 4);
-        if (raw) {
-            raw[4 * k] = (uint8_t)b, raw[4 * k + 1] = (uint8_t)(b >> 8);
-            raw[4 * k + 2] = (uint8_t)(b >> 16), raw[4 * k + 3] = (uint8_t)(b >> 24);
-        } else {
-            even[2 * k] = (uint8_t)b, even[2 * k + 1] = (uint8_t)(b >> 16);
-            odd[2 * k] = (uint8_t)(b >> 8), odd[2 * k + 1] = (uint8_t)(b >> 24);
-        }
+        even[2 * k] = (uint8_t)b, even[2 * k + 1] = (uint8_t)(b >> 16);
+        odd[2 * k] = (uint8_t)(b >> 8), odd[2 * k + 1] = (uint8_t)(b >> 24);
     }
 }
 
@@ -157,7 +162,7 @@ static bool encode_tile(const level_job *J, struct libdeflate_compressor *z, flo
     int32_t w = im->width - x0 < TILE ? im->width - x0 : TILE, h = im->height - y0 < TILE ? im->height - y0 : TILE;
     size_t count = tile_floats(J, x0, y0, w, h, samples), n = 4 * count;
     /* ZIP's transform: even bytes, then odd ones; then byte deltas */
-    put_bytes(samples, count, NULL, split);
+    put_split(samples, count, split);
     delta[0] = split[0];
     for (size_t i = 1; i < n; i++) delta[i] = (uint8_t)(split[i] - split[i - 1] + 128);
     size_t bound = libdeflate_zlib_compress_bound(z, n);
@@ -165,7 +170,7 @@ static bool encode_tile(const level_job *J, struct libdeflate_compressor *z, flo
     if (!out->data) return false;
     size_t zn = libdeflate_zlib_compress(z, delta, n, out->data, bound);
     if (zn == 0 || zn >= n) {   /* stored as the raw bytes */
-        put_bytes(samples, count, out->data, NULL);
+        put_raw(samples, count, out->data);
         zn = n;
     }
     out->size = zn;
