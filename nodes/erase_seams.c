@@ -46,74 +46,75 @@
  * material.) Right-hand-side columns equal to an earlier one (grey images
  * stored as RGB) are solved once and copied.
  *
- * Where the time goes (pizza: 2.07M unknowns, one connected component of
- * the matrix graph apart from 40 tiny ones). CHOLMOD's AMD ordering alone is
- * ~2.5-3 s, the rest of the analysis ~1.4 s (permuted transposes, etree,
- * column counts), the supernodal factorisation ~3.5 s for only 4e10 flops
- * (370k small supernodes, first-touch page faults on a ~600 MB factor).
- * Measured alternatives that lose: METIS (CHOLMOD_METIS: 10x the flops and
- * 4x the analysis time on these thin texel bands glued by seams and by atlas
- * neighbours), AMD on a coarsened graph (2x2 texel blocks or heavy-edge
- * matching: 5-10x the flops), simplicial factorisation (8x slower), larger
- * relaxed supernodes. The factorisation therefore runs on one thread while
- * everything that needs only Q and the seams (residuals of the other
- * textures, M on the seam texels for rounding, the nullity) runs on the
- * other; both are independent tasks, so results do not depend on the thread
- * count.
+ * One factorisation of all of Q (solver cholmod; pizza: 2.07M unknowns,
+ * one connected component of the matrix graph apart from 40 tiny ones):
+ * CHOLMOD's AMD ordering alone is ~2.5-3 s, the rest of the analysis ~1.4 s
+ * (permuted transposes, etree, column counts), the supernodal factorisation
+ * ~3.5 s for only 4e10 flops (370k small supernodes, first-touch page
+ * faults on a ~600 MB factor). Measured alternatives that lose: METIS
+ * (CHOLMOD_METIS: 10x the flops and 4x the analysis time on these thin
+ * texel bands glued by seams and by atlas neighbours), AMD on a coarsened
+ * graph (2x2 texel blocks or heavy-edge matching: 5-10x the flops),
+ * simplicial factorisation (8x slower), larger relaxed supernodes. The
+ * factorisation runs on one thread while everything that needs only the
+ * seams (residuals of the other textures, the rows rounding reads, the
+ * nullity) runs on the other; both are independent tasks, so results do
+ * not depend on the thread count.
  *
- * Building the system (pizza: 29M terms: 16.6M from the seams, 12.5M
- * from the grid). Q is assembled from the seam triplets (sc_seam_assemble,
- * on all threads) by sc_sparse_from_triplets_threads; grid_terms then
- * widens its pattern by the grid neighbours and adds each grid term to its
- * entry in the order triplets appended after the seam terms would have been
- * summed, so Q has the same bits as one assembly of all 29M triplets while
- * 12.5M triplets (200 MB) are never stored or sorted. Fresh memory is what
- * costs most here: on this machine first-touch page faults run at 0.5-8
- * GB/s depending on what the host reclaimed, which makes the build stage
- * vary by +-40% from run to run. Measured on pizza, best of alternating
- * runs: build 3.4-4.3 s -> 2.5-3.0 s (6.2 -> 2.9 s on a loaded machine),
- * total 9.7-11.5 s -> 9.5-9.9 s (factor and quantise came out 0.3-0.6 s
- * slower in the same runs, for reasons not yet found). The
- * preconditioner's full-pattern copy of Q (sc_sparse_full_threads) is made
- * on all threads too.
+ * Building the system (pizza: 16.6M seam triplets, 29.7M entries in Q's
+ * full pattern). Q is kept in its full pattern (both triangles) only: the
+ * edge-cluster solver reads its rows, conjugate gradients multiply by it
+ * and the 8-bit rounding reads M = Q / w_pen from its seam rows, so no
+ * upper triangle is kept beside it. sc_seam_assemble's chunks keep their
+ * triplet lists (sc_triplet_parts: no copy into one list), and
+ * sc_sparse_full_from_triplet_parts assembles them straight into the full
+ * pattern, reserving the grid terms' entries (grid_pattern) as zeros;
+ * grid_terms then adds every unknown's own terms to its own row (column),
+ * so rows are filled on all threads with no two writing one entry. The
+ * edge-cluster solver's groups (schur_groups, serial) are found while Q is
+ * assembled. Fresh memory is what costs most on the 2-core machine: a
+ * first-touch page fault costs ~10 us (0.4 GB/s), and sc_alloc_array maps
+ * blocks of 1 MB and more in one call (0.9 GB/s).
  *
  * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the
  * default, takes it from 500k unknowns). The texels that only one edge's
  * cells reach form that edge's cluster, ordered along it; texels shared by
  * two edges' cells, or coupled to another edge's texels, form the
- * interface. The fill above comes from grid couplings between texels of
- * different charts that happen to lie side by side in the atlas: the
- * preconditioner's matrix is Q less those terms, whole (so it stays
- * positive definite; grid_terms lists them while it assembles Q), with
- * each cluster eliminated on its own and the interface factored by
+ * interface. Grid couplings between texels of different charts that happen
+ * to lie side by side in the atlas would join far-apart parts of the
+ * interface: the preconditioner's matrix is Q less those terms, whole (so
+ * it stays positive definite; grid_terms lists them while it assembles Q),
+ * with each cluster eliminated on its own and the interface factored by
  * CHOLMOD; conjugate gradients on Q take the terms back in, to a
  * preconditioned residual of 1e-12 of the start (auto falls back to one
- * CHOLMOD factorisation should that fail). Measured on pizza (2.07M
- * unknowns, 19.4k clusters, 271k interface texels), side by side on one
- * machine: 13 iterations, 1.35e9 flops instead of 4e10, CHOLMOD's peak
- * 165 MB instead of 946 MB, factor 6.9 s instead of 13.8 s, 16.1 s in all
- * instead of 21.2 s, the same seam energy and gap (9.1-10.5 s on that
- * machine once the build was threaded and the memory tuned; on a slower
- * one, 10.9-12.2 s: sc_tune_allocator). Below ~500k unknowns one
- * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7
- * per texel. Where most texels lie in the cells of two or more edges (a
- * geometry image erased on a mesh and its levels in one uv: pizza's
- * 2.07M unknowns were all interface) there are no clusters, and `auto`
- * factors Q itself: the preconditioner would be that factorisation with
- * conjugate gradients around it.
+ * CHOLMOD factorisation should that fail). On pizza they are only 6,678
+ * terms, but kept in the preconditioner (274.5k interface texels instead
+ * of 270.8k) they make its interface factor 2.8e7 entries and 5.7e10 flops
+ * instead of 8.6e6 and 5e8: 3.8 s against the 13 iterations' 1.6 s. Below
+ * ~500k unknowns one factorisation is as fast and simpler. On BoomBox the
+ * two agree to 3e-7 per texel. Where most texels lie in the cells of two
+ * or more edges (a geometry image erased on a mesh and its levels in one
+ * uv: pizza's 2.07M unknowns were all interface) there are no clusters,
+ * and `auto` factors Q itself: the preconditioner would be that
+ * factorisation with conjugate gradients around it.
  *
- * Memory (pizza). One full-pattern copy of Q serves the edge-cluster solver
- * and the rounding: the preconditioner is made in it in place (each dropped
- * grid coupling's four entries saved, zeroed, and put back after the
- * factorisation; sc_schur reads exact zeros as no coupling), and the 8-bit
- * rounding reads M on the seam texels from its rows once the solve is done,
- * instead of a submatrix and a second full copy. The seam energies of the
- * float and naively rounded results are measured while the optimal
- * rounding runs. Measured on pizza, three alternating runs on a 2-core
- * 2.3 GHz machine: growth of the resident set 1432-1525 MB -> 1050-1074 MB,
- * peak 1761-1853 MB -> 1377-1401 MB, same bits; wall time 12.2-15.1 s ->
- * 12.3-14.3 s (within the noise; quantise 4.3-4.7 s -> 1.0-1.2 s, most of
- * the old quantise ran beside the factorisation), both with huge pages.
+ * Where pizza's erase goes now (2-core machine, one run of
+ * bench_erase_seams, 7.6 s in all): texel sets and the trace 0.3 s; Q's
+ * seam terms 1.0 s and its assembly 1.2 s (with the groups beside them);
+ * the cluster plan, layout and elimination 0.9 s; the interface's CHOLMOD
+ * analysis 0.4 s and factorisation 1.1 s (one thread: its supernodes are
+ * small, and half of it is first-touch faults on the factor); 13
+ * iterations 1.6 s; writing, measuring and rounding 0.9 s. The preceding
+ * design (upper triangle plus a full copy, triplets copied into one list,
+ * a BLAS helper thread spinning beside the solve) took 9.3-11.2 s in the
+ * same minutes.
+ *
+ * Memory (pizza): the resident set grows by ~880 MB during the erase, peak
+ * ~1210 MB (was 1050-1100 MB and 1420 MB). The preconditioner is made in
+ * Q in place (each dropped grid coupling's four entries saved, zeroed, and
+ * put back after the factorisation; sc_schur reads exact zeros as no
+ * coupling). The seam energies of the float and naively rounded results
+ * are measured while the optimal rounding runs.
  *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
  * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
@@ -152,9 +153,8 @@
  * that every seam through them constrains.
  *
  * Determinism. Assembly emits triplets in a fixed order for any thread count,
- * sums them in that order on any thread count, and adds the grid terms after
- * them in one fixed order;
- * the channels of the rounding are independent (a channel equal to an
+ * sums them in that order on any thread count, and then each unknown adds
+ * its grid terms to its own row in the order of its links; the channels of the rounding are independent (a channel equal to an
  * earlier one at every seam texel, floats and bytes, copies its rounding);
  * the rounding revisits only texels whose gradient changed, which makes the
  * same choices in the same order as full sweeps; CHOLMOD is deterministic.
@@ -277,85 +277,145 @@ static int grid_links(const sc_seam_grid *g, const sc_seam_texset *unk, const sc
     return count;
 }
 
-/* Q's pattern gains the grid terms' entries: in column c the diagonal and
- * the unknown neighbours of smaller index (the pattern is symmetric: a link
- * between unknowns is a link from both ends). */
-static int grid_pattern(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
-                        const sc_seam_texset *covered, const options *o, sc_sparse *q, sc_error *err) {
-    const int32_t n = unk->count;
-    int32_t *start = sc_alloc_array((size_t)n + 1, sizeof *start);
-    int32_t *rows = sc_alloc_array(5 * (size_t)n + 1, sizeof *rows);
-    if (!start || !rows) {
-        free(start), free(rows);
-        return sc_fail(err, SC_ENOMEM, "out of memory for the grid terms of %d unknowns", (int)n);
-    }
-    int32_t at = 0;
-    for (int32_t c = 0; c < n; c++) {
+/* Grid work in fixed chunks of unknowns, each unknown from its own row:
+ * the same results on any thread count. */
+#define GRID_ROWS_PER_CHUNK 16384
+
+typedef struct grid_job {
+    const sc_seam_grid *g;
+    const sc_seam_texset *unk, *covered;
+    const int32_t *ids;
+    const options *o;
+    int32_t n;
+    /* the pattern: per unknown its count (pass 0), then its sorted rows */
+    int32_t *start, *rows;
+    int pass;
+    /* the terms */
+    double w_change_texel;
+    sc_sparse *q;
+    const sc_image_data *p0;
+    double *rhs;
+    const int32_t *chart;
+    sc_triplets *apart;   /* one list per chunk */
+} grid_job;
+
+static int grid_pattern_chunk(void *ud, int32_t chunk) {
+    grid_job *job = ud;
+    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK < job->n ? r0 + GRID_ROWS_PER_CHUNK : job->n;
+    for (int32_t r = r0; r < r1; r++) {
         grid_link links[4];
-        int nl = grid_links(g, unk, covered, o, ids[c], sc_seam_texset_has(covered, ids[c]), links);
-        start[c] = at;
-        for (int k = 0; k < nl; k++) {
-            int32_t r = links[k].index;
-            if (r < 0 || r >= c) continue;
-            int32_t b = at++;   /* insertion sort: at most four */
-            while (b > start[c] && rows[b - 1] > r) rows[b] = rows[b - 1], b--;
-            rows[b] = r;
+        int nl = grid_links(job->g, job->unk, job->covered, job->o, job->ids[r],
+                            sc_seam_texset_has(job->covered, job->ids[r]), links);
+        if (job->pass == 0) {
+            int32_t count = 1;
+            for (int k = 0; k < nl; k++) count += links[k].index >= 0;
+            job->start[r + 1] = count;
+            continue;
         }
-        rows[at++] = c;
+        int32_t *rows = job->rows + job->start[r], at = 0;
+        rows[at++] = r;
+        for (int k = 0; k < nl; k++) {
+            int32_t x = links[k].index;
+            if (x < 0) continue;
+            int32_t b = at++;   /* insertion sort: at most five */
+            while (b > 0 && rows[b - 1] > x) rows[b] = rows[b - 1], b--;
+            rows[b] = x;
+        }
     }
-    start[n] = at;
-    int rc = sc_sparse_widen(q, start, rows, err);
-    free(start), free(rows);
-    return rc;
+    return SC_OK;
 }
 
-/* The diagonal entry of column r of an upper-triangular Q: its last. */
-static double *diag_entry(sc_sparse *q, int32_t r) { return &q->val[q->colptr[r + 1] - 1]; }
+/* The entries the grid terms add to Q's full pattern: row (= column) r holds
+ * its diagonal and its unknown neighbours, (*rows)[(*start)[r] ..
+ * (*start)[r + 1]), sorted (a neighbour reached twice through a wrap is
+ * listed twice). */
+static int grid_pattern(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
+                        const sc_seam_texset *covered, const options *o, int32_t **start, int32_t **rows,
+                        sc_error *err) {
+    const int32_t n = unk->count, chunks = (n + GRID_ROWS_PER_CHUNK - 1) / GRID_ROWS_PER_CHUNK;
+    grid_job job = {.g = g, .unk = unk, .covered = covered, .ids = ids, .o = o, .n = n};
+    job.start = sc_alloc_array((size_t)n + 1, sizeof *job.start);
+    int rc = job.start ? sc_parallel(o->threads, chunks, grid_pattern_chunk, &job) : SC_ENOMEM;
+    if (rc == SC_OK) {
+        job.start[0] = 0;
+        for (int32_t r = 0; r < n; r++) job.start[r + 1] += job.start[r];
+        job.rows = sc_alloc_array((size_t)job.start[n] + 1, sizeof *job.rows);
+        job.pass = 1;
+        rc = job.rows ? sc_parallel(o->threads, chunks, grid_pattern_chunk, &job) : SC_ENOMEM;
+    }
+    if (rc) {
+        free(job.start), free(job.rows);
+        return sc_fail(err, SC_ENOMEM, "out of memory for the grid terms of %d unknowns", (int)n);
+    }
+    *start = job.start, *rows = job.rows;
+    return SC_OK;
+}
+
+/* Entry (i, j) of Q (full pattern; grid_pattern stored it). */
+static double *entry(sc_sparse *q, int32_t i, int32_t j) { return &q->val[sc_sparse_find(q, i, j)]; }
+
+static int grid_terms_chunk(void *ud, int32_t chunk) {
+    grid_job *job = ud;
+    const int32_t n = job->n, C = job->p0 ? job->p0->channels : 0;
+    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK < n ? r0 + GRID_ROWS_PER_CHUNK : n;
+    sc_triplets *apart = job->apart ? &job->apart[chunk] : NULL;
+    for (int32_t r = r0; r < r1; r++) {
+        int32_t t = job->ids[r];
+        bool inside = sc_seam_texset_has(job->covered, t);
+        grid_link links[4];
+        int nl = grid_links(job->g, job->unk, job->covered, job->o, t, inside, links);
+        double *diag = job->q ? entry(job->q, r, r) : NULL;
+        if (diag) *diag += TIKHONOV + (inside ? job->w_change_texel : 0);
+        for (int k = 0; k < nl; k++) {
+            const grid_link *l = &links[k];
+            int32_t r2 = l->index;
+            double w = l->w;
+            if (diag) {
+                *diag += w;
+                if (r2 >= 0) *entry(job->q, r2, r) += -w;   /* row r2 of column r */
+            }
+            if (apart && r2 >= 0 && !l->other_end && job->chart[r] >= 0 && job->chart[r2] >= 0 &&
+                job->chart[r] != job->chart[r2])
+                sc_triplets_add(apart, r, r2, w);
+            if (job->rhs && !l->keep_gradient)
+                for (int32_t c = 0; c < C; c++)
+                    job->rhs[(size_t)c * n + r] -= w * (sc_seam_texel(job->p0, t, c) - sc_seam_texel(job->p0, l->texel, c));
+        }
+        if (apart && apart->failed) return SC_ENOMEM;
+    }
+    return SC_OK;
+}
 
 /* The per-texel terms: E_change, the Tikhonov floor, E_grad_in and
- * E_grad_out. With q (Q's seam terms, assembled), the grid terms are added
- * to it, every entry in the same order as triplets appended after the seam
- * terms would sum them; with p0 and rhs (n x C, one column per channel), the
- * residual -1/2 grad E at p0: only E_grad_out is not minimal there. */
+ * E_grad_out, each unknown's from its own row (a link between two unknowns
+ * is met from both ends, each adding its half: w to its diagonal and -w to
+ * the pair, or its side of the gradient to its residual). With q (Q's seam
+ * terms, assembled in the full pattern with grid_pattern's entries), they
+ * are added to it; with p0 and rhs (n x C, one column per channel), the
+ * residual -1/2 grad E at p0 is: only E_grad_out is not minimal there. With
+ * chart, every coupling of unknowns of two different charts (side by side
+ * in the atlas) is also listed in apart_out, once, from the end that meets
+ * it first. */
 static int grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
                       const sc_seam_texset *covered, const options *o, double w_change_texel,
                       sc_sparse *q, const sc_image_data *p0, double *rhs, const int32_t *chart,
                       sc_triplets *apart_out, sc_error *err) {
-    const int32_t n = unk->count;
-    const int32_t C = p0 ? p0->channels : 0;
-    int rc = q ? grid_pattern(g, unk, ids, covered, o, q, err) : SC_OK;
-    if (rc) return rc;
-    for (int32_t r = 0; r < n; r++) {
-        int32_t t = ids[r];
-        bool inside = sc_seam_texset_has(covered, t);
-        if (q) *diag_entry(q, r) += TIKHONOV + (inside ? w_change_texel : 0);
-        grid_link links[4];
-        int nl = grid_links(g, unk, covered, o, t, inside, links);
-        for (int k = 0; k < nl; k++) {
-            const grid_link *l = &links[k];
-            if (l->other_end) continue;
-            int32_t r2 = l->index;
-            double w = l->w;
-            /* with `chart`: a coupling of unknowns of two different charts
-             * (side by side in the atlas) is also listed in apart_out */
-            if (apart_out && r2 >= 0 && chart[r] >= 0 && chart[r2] >= 0 && chart[r] != chart[r2])
-                sc_triplets_add(apart_out, r, r2, w);
-            if (q) {
-                *diag_entry(q, r) += w;
-                if (r2 >= 0) {
-                    *diag_entry(q, r2) += w;
-                    q->val[r < r2 ? sc_sparse_find(q, r, r2) : sc_sparse_find(q, r2, r)] += -w;
-                }
-            }
-            if (rhs && !l->keep_gradient)
-                for (int32_t c = 0; c < C; c++) {
-                    double gr = w * (sc_seam_texel(p0, t, c) - sc_seam_texel(p0, l->texel, c));
-                    rhs[(size_t)c * n + r] -= gr;
-                    if (r2 >= 0) rhs[(size_t)c * n + r2] += gr;
-                }
-        }
+    const int32_t n = unk->count, chunks = (n + GRID_ROWS_PER_CHUNK - 1) / GRID_ROWS_PER_CHUNK;
+    grid_job job = {.g = g, .unk = unk, .covered = covered, .ids = ids, .o = o, .n = n,
+                    .w_change_texel = w_change_texel, .q = q, .p0 = p0, .rhs = rhs, .chart = chart};
+    if (chart && apart_out) {
+        job.apart = sc_calloc_array((size_t)chunks + 1, sizeof *job.apart);
+        if (!job.apart) return sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t c = 0; c < chunks; c++) sc_triplets_init(&job.apart[c], n);
     }
-    return SC_OK;
+    int rc = sc_parallel(o->threads, chunks, grid_terms_chunk, &job);
+    for (int32_t c = 0; job.apart && c < chunks; c++) {
+        if (rc == SC_OK) sc_triplets_append(apart_out, &job.apart[c]);
+        sc_triplets_free(&job.apart[c]);
+    }
+    free(job.apart);
+    if (rc == SC_OK && apart_out && apart_out->failed) rc = SC_ENOMEM;
+    return rc ? sc_fail(err, SC_ENOMEM, "out of memory for the grid terms of %d unknowns", (int)n) : SC_OK;
 }
 
 /* ---------------------------------------------------------------- E_lerp targets */
@@ -560,12 +620,10 @@ typedef struct group_work {
     sc_seam_texset unk, seamset;
     int32_t *ids, *seam_ids;
     int32_t nseam_texels;
-    sc_triplets trip;
+    /* Q in its full pattern: the edge-cluster solver's preconditioner is made
+     * in it, conjugate gradients multiply by it, and 8-bit rounding then
+     * reads M = Q / w_pen from the rows marked in round_rows */
     sc_sparse q, msub, mfull;
-    /* Q's full pattern (the edge-cluster solver's preconditioner is made in
-     * it; 8-bit rounding then reads M = Q / w_pen from the rows marked in
-     * round_rows), or empty */
-    sc_sparse qfull;
     uint8_t *round_rows;
     sc_sparse_chol *chol;
     /* the edge-cluster solver (solver schur): Q without the grid couplings
@@ -586,11 +644,9 @@ static void group_work_free(group_work *w, int32_t ntex) {
     sc_seam_texset_free(&w->unk);
     sc_seam_texset_free(&w->seamset);
     free(w->ids), free(w->seam_ids);
-    sc_triplets_free(&w->trip);
     sc_sparse_free(&w->q);
     sc_sparse_free(&w->msub);
     sc_sparse_free(&w->mfull);
-    sc_sparse_free(&w->qfull);
     free(w->round_rows);
     sc_sparse_chol_free(w->chol);
     sc_triplets_free(&w->apart);
@@ -682,14 +738,12 @@ static int prep_factor(prep_job *pj) {
     double t0 = sc_now();
     group_work *w = pj->ctx.w;
     if (w->use_schur) {
-        /* Q's full pattern: the preconditioner is made in it, and rounding
-         * reads M from it afterwards */
+        /* the preconditioner is made in Q itself, and Q put back after */
         double *saved = NULL;
-        pj->rc_factor = sc_sparse_full_threads(&w->q, pj->ctx.o->threads, &w->qfull, &pj->err_factor);
-        if (pj->rc_factor == SC_OK) pj->rc_factor = preconditioner_apply(&w->qfull, &w->apart, &saved, &pj->err_factor);
+        pj->rc_factor = preconditioner_apply(&w->q, &w->apart, &saved, &pj->err_factor);
         if (pj->rc_factor == SC_OK)
-            pj->rc_factor = sc_schur_factor(&w->qfull, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
-        if (saved) preconditioner_restore(&w->qfull, &w->apart, saved);
+            pj->rc_factor = sc_schur_factor(&w->q, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
+        if (saved) preconditioner_restore(&w->q, &w->apart, saved);
         free(saved);
         sc_triplets_free(&w->apart);
         if (pj->rc_factor != SC_OK && pj->ctx.o->solver == SOLVER_AUTO) {   /* CHOLMOD instead */
@@ -705,8 +759,8 @@ static int prep_factor(prep_job *pj) {
     return pj->rc_factor;
 }
 
-/* Task 1: the residuals of the other textures, M over the seam texels for
- * rounding, and the nullity of M. */
+/* Task 1: the residuals of the other textures, the rows of M for rounding,
+ * and the nullity of M. It does not read Q, which task 0 changes in place. */
 static int prep_side(prep_job *pj) {
     const prep_ctx *c = &pj->ctx;
     group_work *w = c->w;
@@ -716,10 +770,8 @@ static int prep_side(prep_job *pj) {
     double t0 = sc_now();
     if (pj->want_round && !pj->want_nullity) {
         /* for rounding, M on the seam texels is Q / w_pen there: the other
-         * terms are ~1e-10 of it and only nudge the greedy choices. Q's full
-         * pattern holds it (the edge-cluster solver makes that pattern for
-         * its preconditioner); rounding reads the rows of seam texels. */
-        if (!w->use_schur && (rc = sc_sparse_full(&w->q, &w->qfull, err))) return pj->rc_side = rc;
+         * terms are ~1e-10 of it and only nudge the greedy choices. Rounding
+         * reads the rows of seam texels of Q's full pattern. */
         w->round_rows = sc_alloc_array((size_t)n + 1, sizeof *w->round_rows);
         if (!w->round_rows) return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
         for (int32_t r = 0; r < n; r++) w->round_rows[r] = sc_seam_texset_has(&w->seamset, w->ids[r]);
@@ -750,12 +802,12 @@ static int prep_side(prep_job *pj) {
         return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
     if (pj->want_nullity) {
         /* M (eq. 9) alone, exactly, over the seam texels */
-        sc_triplets t;
-        sc_triplets_init(&t, w->seamset.count);
+        sc_triplet_parts t;
+        sc_triplet_parts_init(&t, w->seamset.count);
         sc_seam_terms mterms = {.w_seam = 1.0};
         rc = sc_seam_assemble(c->m, c->seams_only, c->g, &w->seamset, &mterms, c->o->threads, &t, err);
-        if (rc == SC_OK) rc = sc_sparse_from_triplets(&t, &w->msub, err);
-        sc_triplets_free(&t);
+        if (rc == SC_OK) rc = sc_sparse_from_triplet_parts(&t, 1, &w->msub, err);
+        sc_triplet_parts_free(&t);
         if (rc) return pj->rc_side = rc;
     }
     if (pj->want_nullity && w->msub.n > 0) {
@@ -834,6 +886,38 @@ static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncol
     }
     free(src);
     return rc;
+}
+
+/* Q (full pattern) from the seam terms, with room for the grid terms
+ * (task 0), and the edge-cluster solver's groups (task 1): independent. */
+typedef struct build_job {
+    const sc_mesh *m;
+    const sc_seam_set *seams;
+    const sc_seam_grid *g;
+    const options *o;
+    group_work *w;
+    const sc_seam_terms *first;   /* the first texture's residual is taken with Q's terms */
+    int rc[2];
+    sc_error err[2];
+} build_job;
+
+static int schur_groups(const sc_mesh *m, const sc_seam_set *seams, const sc_seam_grid *g, group_work *w,
+                        sc_error *err);
+
+static int build_task(void *ud, int32_t task) {
+    build_job *bj = ud;
+    group_work *w = bj->w;
+    sc_error *err = &bj->err[task];
+    if (task == 1) return bj->rc[1] = schur_groups(bj->m, bj->seams, bj->g, w, err);
+    sc_triplet_parts trip;
+    sc_triplet_parts_init(&trip, w->unk.count);
+    int rc = sc_seam_assemble(bj->m, bj->seams, bj->g, &w->unk, bj->first, bj->o->threads, &trip, err);
+    int32_t *grid_start = NULL, *grid_rows = NULL;
+    if (rc == SC_OK) rc = grid_pattern(bj->g, &w->unk, w->ids, &w->cov.covered, bj->o, &grid_start, &grid_rows, err);
+    if (rc == SC_OK) rc = sc_sparse_full_from_triplet_parts(&trip, grid_start, grid_rows, bj->o->threads, &w->q, err);
+    free(grid_start), free(grid_rows);
+    sc_triplet_parts_free(&trip);
+    return bj->rc[0] = rc;
 }
 
 /* For the edge-cluster solver: per unknown, its edge (w->group[r], -1
@@ -951,16 +1035,15 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     first.p0 = atlas->textures[gr->tex[0]].image->as.image;
     first.vertex_values = w.vv[0];
     first.rhs = w.rhs;
-    sc_triplets_init(&w.trip, n);
-    if ((rc = sc_seam_assemble(m, seams, g, &w.unk, &first, o->threads, &w.trip, err))) goto done;
-    /* Q: the seam terms, then the grid terms added to their sums */
-    if ((rc = sc_sparse_from_triplets_threads(&w.trip, o->threads, &w.q, err))) goto done;
-    sc_triplets_free(&w.trip);
+    /* Q's seam terms, and the edge-cluster solver's groups, side by side */
     w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= o->schur_from);
+    build_job bj = {.m = m, .seams = seams, .g = g, .o = o, .w = &w, .first = &first};
+    sc_seam_parallel(o->threads >= 2 && w.use_schur ? 2 : 1, w.use_schur ? 2 : 1, build_task, &bj);
+    if ((rc = bj.rc[0] ? bj.rc[0] : bj.rc[1])) {
+        if (err) *err = bj.err[bj.rc[0] ? 0 : 1];
+        goto done;
+    }
     if (w.use_schur) {
-        /* the couplings between charts (chart of the face whose edge piece
-         * first reaches the texel), which the preconditioner leaves out */
-        if ((rc = schur_groups(m, seams, g, &w, err))) goto done;
         /* texels that two edges' cells reach join no cluster: where they are
          * most of the system (a geometry image of a mesh and its levels in
          * one uv), every unknown is interface, and one factorisation of Q
@@ -1000,10 +1083,8 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         if (err) *err = pj.err_side;
         goto done;
     }
-    if (!w.use_schur) sc_sparse_free(&w.q);   /* conjugate gradients multiply by it */
-    if (!w.round_rows) sc_sparse_free(&w.qfull);
-    else   /* rounding reads M = Q / w_pen on the seam rows */
-        for (int64_t e = 0; e < w.qfull.nnz; e++) w.qfull.val[e] /= w_pen;
+    /* conjugate gradients multiply by Q, and rounding reads it */
+    if (!w.use_schur && !w.round_rows) sc_sparse_free(&w.q);
     /* stage times: the overlapped side work counts where it belongs */
     double t1 = tp0 + pj.seconds_resid, t2 = t1 + pj.seconds_factor;
     double ts = sc_now();
@@ -1024,12 +1105,14 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         if (w.pcg.iterations > tot->pcg_iterations) tot->pcg_iterations = w.pcg.iterations;
         sc_schur_free(w.schur);
         w.schur = NULL;
-        sc_sparse_free(&w.q);
     } else {
         sc_sparse_chol_stats(w.chol, &stats);
         sc_sparse_chol_free(w.chol);
         w.chol = NULL;
     }
+    if (!w.round_rows) sc_sparse_free(&w.q);
+    else   /* rounding reads M = Q / w_pen on the seam rows */
+        for (int64_t e = 0; e < w.q.nnz; e++) w.q.val[e] /= w_pen;
     double nullity = pj.nullity;
 
     /* write the solution, measure, quantise */
@@ -1127,7 +1210,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
                 }
             /* M on the seam texels: exactly (small atlases, where the
              * nullity was measured), or Q's rows there over w_pen */
-            if (w.round_rows && w.qfull.n > 0) rj.mf = &w.qfull, rj.rows = w.round_rows, rj.ids = w.ids;
+            if (w.round_rows && w.q.n > 0) rj.mf = &w.q, rj.rows = w.round_rows, rj.ids = w.ids;
             if (img->pixel == SC_PIXEL_U8 && o->quantize == QUANT_OPTIMAL && rj.mf->n > 0) {
                 if (C > 4) {   /* images hold at most 4 channels */
                     sc_image_free(nat);
@@ -1576,7 +1659,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 4,
+    .version = 5,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -42,7 +42,12 @@ int sc_error_prefix(sc_error *err, const char *fmt, ...)
 /* ---------------------------------------------------------------- memory */
 
 /* malloc/calloc/realloc that return NULL for a zero or overflowing size
- * product instead of wrapping around. */
+ * product instead of wrapping around. A block of 1 MB or more has its pages
+ * mapped at once (Linux: madvise MADV_POPULATE_WRITE): on the 2-core
+ * machine a first-touch page fault costs ~10 us, 512 MB touched page by
+ * page 1.25 s against 0.63 s mapped in one call (bench_erase_seams pizza
+ * 8.45 -> 7.88 s, bench_bake blub 4.99 -> 4.81 s, alternating runs). The
+ * memory is counted as used from then on, as it would be once written. */
 void *sc_alloc_array(size_t count, size_t size);
 void *sc_calloc_array(size_t count, size_t size);
 void *sc_realloc_array(void *p, size_t count, size_t size);

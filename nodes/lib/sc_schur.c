@@ -24,17 +24,21 @@
  *    system hard to order: where chains meet.
  *  - Layout (the blocks' envelopes, A_pi's couplings, A_ii's triplets) is
  *    made in fixed chunks of positions on all threads: one pass counts,
- *    prefix sums place every chunk, a second pass fills; A_ii's triplets are
- *    appended chunk by chunk. Exact zeros off the diagonal (a caller that
- *    drops terms in place, as erase_seams' preconditioner does) are not
- *    couplings anywhere: not in the plan, the layout or the clusters.
+ *    prefix sums place every chunk, a second pass fills; A_ii's triplets and
+ *    then the clusters' complements join one sc_triplet_parts, list by list
+ *    in chunk order, freed before CHOLMOD factors S. Exact zeros off the
+ *    diagonal (a caller that drops terms in place, as erase_seams'
+ *    preconditioner does) are not couplings anywhere: not in the plan, the
+ *    layout or the clusters.
  *  - Solve: y = A_pp^-1 b_p; S x_i = b_i - A_ip y; x_p = y - A_pp^-1 A_pi x_i.
  *  - Conjugate gradients (sc_schur_pcg) solve (A + E) x = b with this
  *    factorisation as the preconditioner, for an E that would spoil the
  *    chain structure (erase_seams: grid couplings between texels of
- *    different charts that happen to lie side by side in the atlas).
+ *    different charts that happen to lie side by side in the atlas). The
+ *    product with A + E reads its full pattern row by row, every column of
+ *    a batch in one pass.
  *  - Determinism. Work is split into chunks fixed by the sizes alone;
- *    complements are appended chunk by chunk; dot products are summed per
+ *    complements join chunk by chunk; dot products are summed per
  *    fixed chunk of rows and then in chunk order. The bits do not depend on
  *    the thread count.
  */
@@ -330,7 +334,7 @@ static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const dou
 /* Envelope rows, and the couplings between private rows and the interface,
  * in fixed chunks of rows: each chunk counts, the counts are summed in
  * order, and each chunk then places its rows (interface entries go to one
- * triplet list per chunk, appended in chunk order). */
+ * triplet list per chunk, assembled in chunk order). */
 typedef struct layout_job {
     sc_schur *f;
     const sc_sparse *a;
@@ -391,7 +395,8 @@ static int layout_chunk(void *ud, int32_t chunk) {
     return SC_OK;
 }
 
-static int layout(sc_schur *f, const sc_sparse *a, sc_triplets *sii, sc_error *err) {
+/* A_ii's entries join sii, chunk after chunk. */
+static int layout(sc_schur *f, const sc_sparse *a, sc_triplet_parts *sii, sc_error *err) {
     const int32_t npriv = f->npriv, nif = f->nif;
     f->first = sc_alloc_array(npriv ? (size_t)npriv : 1, sizeof *f->first);
     f->envptr = sc_alloc_array((size_t)npriv + 1, sizeof *f->envptr);
@@ -427,15 +432,13 @@ static int layout(sc_schur *f, const sc_sparse *a, sc_triplets *sii, sc_error *e
     }
     job.pass = 1;
     if ((rc = sc_parallel(f->threads, chunks, layout_chunk, &job))) goto fail;
-    for (int32_t c = 0; c < chunks_if; c++) sc_triplets_append(sii, &job.sii[c]);
-    if (sii->failed) goto fail;
     f->stats.envelope = (double)env;
+    for (int32_t c = 0; c < chunks_if; c++) sc_triplet_parts_take(sii, &job.sii[c]);
     goto done;
 fail:
     rc = sc_fail(err, SC_ENOMEM, "out of memory");
 done:
-    if (job.sii)
-        for (int32_t c = 0; c < chunks_if; c++) sc_triplets_free(&job.sii[c]);
+    for (int32_t c = 0; job.sii && c < chunks_if; c++) sc_triplets_free(&job.sii[c]);
     free(job.sii), free(job.env_count);
     return rc;
 }
@@ -449,13 +452,11 @@ int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key,
     f->n = a->n;
     f->threads = threads < 1 ? 1 : threads;
     double t0 = sc_now();
-    sc_triplets sii;
-    sc_triplets_init(&sii, 1);
+    /* the interface matrix's entries: layout's lists, then one per cluster chunk */
+    sc_triplet_parts sii;
     int rc = plan(f, a, group, key, err);
-    if (rc == SC_OK) {
-        sc_triplets_init(&sii, f->nif > 0 ? f->nif : 1);
-        rc = layout(f, a, &sii, err);
-    }
+    sc_triplet_parts_init(&sii, f->nif);
+    if (rc == SC_OK) rc = layout(f, a, &sii, err);
 
     /* clusters, in fixed chunks */
     int32_t nchunks = f->nclusters < CLUSTER_CHUNKS ? f->nclusters : CLUSTER_CHUNKS;
@@ -478,20 +479,18 @@ int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key,
                 break;
             }
             f->stats.cluster_flops += job.flops[c];
-            sc_triplets_append(&sii, &job.trip[c]);
-            sc_triplets_free(&job.trip[c]);
+            sc_triplet_parts_take(&sii, &job.trip[c]);
         }
     }
-    if (job.trip)
-        for (int32_t c = 0; c < nchunks; c++) sc_triplets_free(&job.trip[c]);
+    for (int32_t c = 0; job.trip && c < nchunks; c++) sc_triplets_free(&job.trip[c]);
     free(job.trip), free(job.flops), free(job.bad);
     double t1 = sc_now();
 
     /* the interface */
     if (rc == SC_OK && f->nif > 0) {
         sc_sparse s;
-        rc = sc_sparse_from_triplets(&sii, &s, err);
-        sc_triplets_free(&sii);
+        rc = sc_sparse_from_triplet_parts(&sii, f->threads, &s, err);
+        sc_triplet_parts_free(&sii);
         if (rc == SC_OK) {
             f->stats.interface_nnz = (double)s.nnz;
             sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
@@ -506,7 +505,7 @@ int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key,
             f->stats.peak_bytes = st.peak_bytes;
         }
     }
-    sc_triplets_free(&sii);
+    sc_triplet_parts_free(&sii);
     if (rc != SC_OK) {
         sc_schur_free(f);
         return rc;
@@ -670,9 +669,9 @@ static int pcg_batch(sc_schur *f, const sc_sparse *qm, int32_t nrhs, double *b,
     const size_t len = (size_t)n * (size_t)nrhs;
     double *x = sc_calloc_array(len, sizeof *x), *r = sc_alloc_array(len, sizeof *r);
     double *z = sc_alloc_array(len, sizeof *z), *p = sc_alloc_array(len, sizeof *p);
-    double *q = sc_alloc_array(len, sizeof *q), *scratch = sc_alloc_array((size_t)n, sizeof *scratch);
+    double *q = sc_alloc_array(len, sizeof *q);
     int rc = SC_OK;
-    if (!x || !r || !z || !p || !q || !scratch) {
+    if (!x || !r || !z || !p || !q) {
         rc = sc_fail(err, SC_ENOMEM, "out of memory for conjugate gradients on %d unknowns", (int)n);
         goto done;
     }
@@ -700,10 +699,15 @@ static int pcg_batch(sc_schur *f, const sc_sparse *qm, int32_t nrhs, double *b,
             goto done;
         }
         it++;
+        const double *pcols[PCG_BATCH];
+        double *qcols[PCG_BATCH];
+        int32_t nmul = 0;
+        for (int32_t c = 0; c < nrhs; c++)
+            if (active[c]) pcols[nmul] = p + (size_t)c * n, qcols[nmul++] = q + (size_t)c * n;
+        sc_sparse_full_multiply(qm, nmul, pcols, qcols, threads);
         for (int32_t c = 0; c < nrhs; c++) {
             if (!active[c]) continue;
             double *pc = p + (size_t)c * n, *qc = q + (size_t)c * n;
-            sc_sparse_symv_parallel(qm, pc, qc, scratch, threads);
             double pq = dot(pc, qc, n);
             if (!(pq > 0)) { /* p is zero: nothing left to gain */
                 active[c] = false, nactive--;
@@ -733,7 +737,7 @@ static int pcg_batch(sc_schur *f, const sc_sparse *qm, int32_t nrhs, double *b,
     if (it > res->iterations) res->iterations = it;
     memcpy(b, x, len * sizeof *b);
 done:
-    free(x), free(r), free(z), free(p), free(q), free(scratch);
+    free(x), free(r), free(z), free(p), free(q);
     return rc;
 }
 

@@ -51,8 +51,8 @@ void sc_schur_get_stats(const sc_schur *f, sc_schur_stats *out);
 void sc_schur_free(sc_schur *f);
 
 /* Conjugate gradients on Q X = B, preconditioned by f, the factorisation of
- * an A close to Q (Q = A gives the answer in one iteration). q is the upper
- * triangle of the symmetric positive definite Q. Each column stops when its
+ * an A close to Q (Q = A gives the answer in one iteration). q is the
+ * symmetric positive definite Q in its full pattern (sc_sparse_full). Each column stops when its
  * preconditioned residual sqrt(r^T A^-1 r) has fallen to tol times its
  * starting value (a zero right-hand side gives exactly zero); more than
  * max_iter iterations is an error (SC_EINPUT, "did not converge"). b

@@ -1069,7 +1069,7 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
 
 int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                      const sc_seam_texset *index, const sc_seam_terms *terms, int threads,
-                     sc_triplets *out, sc_error *err) {
+                     sc_triplet_parts *out, sc_error *err) {
     asm_job job = {m, s, g, index, terms, 0, NULL, 0, NULL, out != NULL, 0};
     if (terms->rhs && terms->p0) job.channels = terms->p0->channels;
     else if (terms->rhs) return sc_fail(err, SC_EINPUT, "seam operator: a right-hand side needs p0");
@@ -1101,7 +1101,7 @@ int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
         for (int32_t b = 0; b < nb; b++) {
             asm_chunk *ch = &job.chunks[b];
             if (rc == SC_OK && ch->rc == SC_OK) {
-                if (out) sc_triplets_append(out, &ch->trip);
+                if (out) sc_triplet_parts_take(out, &ch->trip);
                 for (int32_t r = 0; r < ch->nrhs && terms->rhs; r++)
                     terms->rhs[(size_t)ch->rhs[r].channel * (size_t)index->count +
                                (size_t)ch->rhs[r].index] += ch->rhs[r].value;

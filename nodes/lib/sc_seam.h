@@ -209,8 +209,8 @@ int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_g
  * All integrals are exact (closed form over the pieces of eq. 5); L is the
  * total seam length, L' the total silhouette length; E_C1 uses derivatives
  * per texel along the texel-space unit inward normals.
- * With `out`, Q's triplets are appended to it (in a fixed order for any
- * thread count). With `rhs` (index->count x channels, one column per
+ * With `out`, Q's triplets join it, list after list (in a fixed order for
+ * any thread count). With `rhs` (index->count x channels, one column per
  * channel), the residual r = -1/2 grad E at p0 is added to it, term by term
  * and without forming Q p0 (seam differences are taken before they are
  * weighted, so a seam-free p0 gives an exact zero); the correction
@@ -225,7 +225,7 @@ typedef struct sc_seam_terms {
 
 int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                      const sc_seam_texset *index, const sc_seam_terms *terms, int threads,
-                     sc_triplets *out, sc_error *err);
+                     sc_triplet_parts *out, sc_error *err);
 
 /* Seam discontinuity of an image (eq. 9, summed over channels), exactly, and
  * the largest |B(e1) - B(e2)| of any channel sampled at 5 points of every

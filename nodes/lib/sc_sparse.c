@@ -3,17 +3,25 @@
  * Design note. Assembly is a counting sort by column followed by a stable
  * merge sort of each column by row, so duplicates are summed in insertion
  * order: the same triplets give the same bits whatever happened before (the
- * callers emit triplets in a fixed order, whatever their thread count). Only
- * the upper triangle is stored, which is what CHOLMOD reads for stype = 1.
- * On several threads the triplets are cut into consecutive ranges, each
- * counted and scattered by its own thread into its own slots of every
+ * callers emit triplets in a fixed order, whatever their thread count).
+ * Triplets are the upper triangle; the matrix is stored as its upper
+ * triangle, which is what CHOLMOD reads for stype = 1, or as its full
+ * pattern (each triplet placed in both of its columns, so the two copies of
+ * an entry are the same sum), which row-wise users want (CHOLMOD ignores
+ * its lower half). Triplets may come as several lists (sc_triplet_parts,
+ * made apart by chunks of work), read end to end without being copied into
+ * one. On several threads the triplets are cut into consecutive ranges,
+ * each counted and scattered by its own thread into its own slots of every
  * column (range after range, so a column still holds its entries in the
  * order they were added), and the columns are then sorted and summed in
  * ranges of about equal entries: the same bits for any thread count. The
- * full pattern (sc_sparse_full) is made the same way, by ranges of upper
- * columns. sc_sparse_widen adds entries to a pattern in place (a merge from
- * the last column back), so that terms known by their structure can be
- * added straight into an assembled matrix instead of going through triplets.
+ * full pattern of an upper triangle (sc_sparse_full) is made the same way,
+ * by ranges of upper columns. Assembly can also reserve entries a caller
+ * will add to later (rows given per column, as zeros), so that terms known
+ * by their structure are added straight into the assembled matrix instead
+ * of going through triplets.
+ *
+ * BLAS runs on the calling thread (see blas_on_calling_thread).
  *
  * CHOLMOD is driven with one cholmod_common per factorisation (so several
  * nodes may factor at once on different threads), printing switched off, and
@@ -23,8 +31,10 @@
 #include "sc_sparse.h"
 
 #include <cholmod.h>
+#include <dlfcn.h>
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -82,6 +92,31 @@ void sc_triplets_append(sc_triplets *t, const sc_triplets *src) {
     t->count += src->count;
 }
 
+void sc_triplet_parts_init(sc_triplet_parts *p, int32_t n) {
+    memset(p, 0, sizeof *p);
+    p->n = n;
+}
+
+void sc_triplet_parts_free(sc_triplet_parts *p) {
+    for (int32_t k = 0; k < p->count; k++) sc_triplets_free(&p->list[k]);
+    free(p->list);
+    memset(p, 0, sizeof *p);
+}
+
+void sc_triplet_parts_take(sc_triplet_parts *p, sc_triplets *t) {
+    int32_t n = t->n;
+    if (t->failed) p->failed = true;
+    if (!p->failed && t->count > 0 && p->count == p->cap) {
+        int32_t cap = p->cap ? 2 * p->cap : 16;
+        sc_triplets *l = sc_realloc_array(p->list, (size_t)cap, sizeof *l);
+        if (l) p->list = l, p->cap = cap;
+        else p->failed = true;
+    }
+    if (!p->failed && t->count > 0) p->list[p->count++] = *t;
+    else sc_triplets_free(t);
+    sc_triplets_init(t, n);
+}
+
 /* ---------------------------------------------------------------- assembly */
 
 /* Stable sort of (row, val) pairs by row: insertion sort for short runs,
@@ -128,10 +163,10 @@ static void sort_column(int32_t *row, double *val, int32_t len, int32_t *trow, d
 }
 
 /* Assembly runs in `parts` pieces, each on its own thread: part p first
- * counts and scatters the triplets of its own range [first[p], first[p+1]),
- * so within a column the entries of part p follow those of part p - 1 (the
- * order they were added in); then it sorts and sums the columns of its own
- * column range. */
+ * counts and scatters the triplets of its own range [first[p], first[p+1])
+ * of the sources laid end to end, so within a column the entries of part p
+ * follow those of part p - 1 (the order they were added in); then it sorts
+ * and sums the columns of its own column range. */
 #define ASSEMBLY_MAX_PARTS 8
 #define ASSEMBLY_MIN_PER_PART 65536   /* fewer triplets per part: not worth a thread */
 
@@ -162,8 +197,9 @@ static void split_columns(const int32_t *colptr, int32_t n, int32_t parts, int32
 
 /* cursor (parts x n) holds how many entries each part gives each column:
  * colptr gets the column starts, and cursor where each part's entries of
- * each column begin (part after part). */
-static void column_starts(int32_t *cursor, int32_t n, int32_t parts, int32_t *colptr) {
+ * each column begin (part after part, then extra_start[j + 1] -
+ * extra_start[j] more when extra_start is given). */
+static void column_starts(int32_t *cursor, int32_t n, int32_t parts, const int32_t *extra_start, int32_t *colptr) {
     int32_t at = 0;
     for (int32_t j = 0; j < n; j++) {
         colptr[j] = at;
@@ -173,15 +209,21 @@ static void column_starts(int32_t *cursor, int32_t n, int32_t parts, int32_t *co
             *c = at;
             at += count;
         }
+        if (extra_start) at += extra_start[j + 1] - extra_start[j];
     }
     colptr[n] = at;
 }
 
 typedef struct assembly {
-    const sc_triplets *t;
+    const sc_triplets *src;
+    int32_t nsrc;
+    size_t *start;          /* nsrc + 1: where each source begins, end to end */
     int32_t n, parts;
+    bool full;              /* both triangles: (i, j) also goes to column i as row j */
+    const int32_t *extra_start, *extra_rows;   /* rows each column also holds, or NULL */
     size_t first[ASSEMBLY_MAX_PARTS + 1];     /* triplet range of each part */
-    size_t bad[ASSEMBLY_MAX_PARTS];           /* first entry out of range in it, or SIZE_MAX */
+    bool bad[ASSEMBLY_MAX_PARTS];             /* an entry out of range in it */
+    int32_t bad_row[ASSEMBLY_MAX_PARTS], bad_col[ASSEMBLY_MAX_PARTS];   /* the first such */
     int32_t *cursor;        /* parts x n: entries per column in each part, then where the next goes */
     int32_t *colptr;        /* n + 1: the columns before summing duplicates */
     int32_t *rows;
@@ -190,30 +232,51 @@ typedef struct assembly {
     int32_t *distinct;      /* n: distinct rows of each column */
 } assembly;
 
+/* The piece of source s that part `part` covers: entries [*k0, *k1). */
+static void part_span(const assembly *a, int32_t part, int32_t s, size_t *k0, size_t *k1) {
+    size_t lo = a->first[part] > a->start[s] ? a->first[part] : a->start[s];
+    size_t hi = a->first[part + 1] < a->start[s + 1] ? a->first[part + 1] : a->start[s + 1];
+    *k0 = lo - a->start[s], *k1 = hi > lo ? hi - a->start[s] : *k0;
+}
+
 static int assembly_count(void *ud, int32_t part) {
     assembly *a = ud;
-    const sc_triplets *t = a->t;
     int32_t *count = a->cursor + (size_t)part * (size_t)a->n;
-    a->bad[part] = SIZE_MAX;
-    for (size_t k = a->first[part]; k < a->first[part + 1]; k++) {
-        int32_t i = t->row[k], j = t->col[k];
-        if (i < 0 || j >= a->n || i > j) {
-            a->bad[part] = k;
-            return SC_EINPUT;
+    a->bad[part] = false;
+    for (int32_t s = 0; s < a->nsrc; s++) {
+        const sc_triplets *t = &a->src[s];
+        size_t k0, k1;
+        part_span(a, part, s, &k0, &k1);
+        for (size_t k = k0; k < k1; k++) {
+            int32_t i = t->row[k], j = t->col[k];
+            if (i < 0 || j >= a->n || i > j) {
+                a->bad[part] = true, a->bad_row[part] = i, a->bad_col[part] = j;
+                return SC_EINPUT;
+            }
+            count[j]++;
+            if (a->full && i != j) count[i]++;
         }
-        count[j]++;
     }
     return SC_OK;
 }
 
 static int assembly_scatter(void *ud, int32_t part) {
     assembly *a = ud;
-    const sc_triplets *t = a->t;
     int32_t *next = a->cursor + (size_t)part * (size_t)a->n;
-    for (size_t k = a->first[part]; k < a->first[part + 1]; k++) {
-        int32_t p = next[t->col[k]]++;
-        a->rows[p] = t->row[k];
-        a->vals[p] = t->val[k];
+    for (int32_t s = 0; s < a->nsrc; s++) {
+        const sc_triplets *t = &a->src[s];
+        size_t k0, k1;
+        part_span(a, part, s, &k0, &k1);
+        for (size_t k = k0; k < k1; k++) {
+            int32_t i = t->row[k], j = t->col[k], p = next[j]++;
+            a->rows[p] = i;
+            a->vals[p] = t->val[k];
+            if (a->full && i != j) {
+                p = next[i]++;
+                a->rows[p] = j;
+                a->vals[p] = t->val[k];
+            }
+        }
     }
     return SC_OK;
 }
@@ -237,6 +300,10 @@ static int assembly_sum(void *ud, int32_t part) {
     int32_t w = a->colptr[j0];
     for (int32_t j = j0; j < j1; j++) {
         int32_t p0 = a->colptr[j], p1 = a->colptr[j + 1], w0 = w;
+        if (a->extra_start) {   /* the extra rows close the column, as zeros */
+            int32_t e0 = a->extra_start[j], ne = a->extra_start[j + 1] - e0;
+            for (int32_t e = 0; e < ne; e++) rows[p1 - ne + e] = a->extra_rows[e0 + e], vals[p1 - ne + e] = 0;
+        }
         sort_column(rows + p0, vals + p0, p1 - p0, trow, tval);
         for (int32_t p = p0; p < p1;) {
             int32_t r = rows[p];
@@ -256,36 +323,54 @@ int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err)
     return sc_sparse_from_triplets_threads(t, 1, out, err);
 }
 
-int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse *out, sc_error *err) {
+/* The triplets of src[0 .. nsrc), laid end to end, for a matrix of size n:
+ * its upper triangle, or with `full` both triangles; extra_start and
+ * extra_rows (or NULL) give rows each column holds as well. */
+static int assemble(const sc_triplets *src, int32_t nsrc, int32_t n, bool full, const int32_t *extra_start,
+                    const int32_t *extra_rows, int threads, sc_sparse *out, sc_error *err) {
     memset(out, 0, sizeof *out);
-    if (t->failed) return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
-    int32_t n = t->n;
+    size_t count = 0;
+    for (int32_t s = 0; s < nsrc; s++) {
+        if (src[s].failed) return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
+        if (src[s].n != n)
+            return sc_fail(err, SC_EINPUT, "sparse triplets of sizes %d and %d", (int)n, (int)src[s].n);
+        count += src[s].count;
+    }
     if (n <= 0) return sc_fail(err, SC_EINPUT, "sparse matrix of size %d", (int)n);
-    if (t->count > (size_t)INT32_MAX)
+    for (int32_t e = 0; extra_start && e < extra_start[n]; e++)
+        if (extra_rows[e] < 0 || extra_rows[e] >= n)
+            return sc_fail(err, SC_EINPUT, "sparse row %d outside a %d x %d matrix", (int)extra_rows[e], (int)n, (int)n);
+    size_t placed = (full ? 2 * count : count) + (extra_start ? (size_t)extra_start[n] : 0);   /* an upper bound */
+    if (placed > (size_t)INT32_MAX)
         return sc_fail(err, SC_ENOMEM, "sparse matrix with %zu entries is beyond the 2^31 limit",
-                       t->count);
-    assembly a = {.t = t, .n = n, .parts = part_count(threads, (int64_t)t->count)};
-    for (int32_t p = 0; p <= a.parts; p++) a.first[p] = t->count / (size_t)a.parts * (size_t)p;
-    a.first[a.parts] = t->count;
+                       placed);
+    assembly a = {.src = src, .nsrc = nsrc, .n = n, .full = full, .extra_start = extra_start,
+                  .extra_rows = extra_rows, .parts = part_count(threads, (int64_t)count)};
+    for (int32_t p = 0; p <= a.parts; p++) a.first[p] = count / (size_t)a.parts * (size_t)p;
+    a.first[a.parts] = count;
+    a.start = sc_alloc_array((size_t)nsrc + 1, sizeof *a.start);
     a.colptr = sc_calloc_array((size_t)n + 1, sizeof *a.colptr);
     a.cursor = sc_calloc_array((size_t)n * (size_t)a.parts, sizeof *a.cursor);
-    a.rows = sc_alloc_array(t->count ? t->count : 1, sizeof *a.rows);
-    a.vals = sc_alloc_array(t->count ? t->count : 1, sizeof *a.vals);
-    int rc = a.colptr && a.cursor && a.rows && a.vals ? SC_OK : SC_ENOMEM;
+    a.rows = sc_alloc_array(placed ? placed : 1, sizeof *a.rows);
+    a.vals = sc_alloc_array(placed ? placed : 1, sizeof *a.vals);
+    int rc = a.start && a.colptr && a.cursor && a.rows && a.vals ? SC_OK : SC_ENOMEM;
+    if (rc == SC_OK) {
+        a.start[0] = 0;
+        for (int32_t s = 0; s < nsrc; s++) a.start[s + 1] = a.start[s] + src[s].count;
+    }
     if (rc == SC_OK && (rc = sc_parallel(threads, a.parts, assembly_count, &a)) == SC_EINPUT) {
         for (int32_t p = 0; p < a.parts; p++)
-            if (a.bad[p] != SIZE_MAX) {
-                size_t k = a.bad[p];
+            if (a.bad[p]) {
                 sc_fail(err, SC_EINPUT, "sparse entry (%d, %d) outside a %d x %d matrix",
-                        (int)t->row[k], (int)t->col[k], (int)n, (int)n);
+                        (int)a.bad_row[p], (int)a.bad_col[p], (int)n, (int)n);
                 break;
             }
     }
     if (rc == SC_OK) {
-        column_starts(a.cursor, n, a.parts, a.colptr);
+        column_starts(a.cursor, n, a.parts, extra_start, a.colptr);
         rc = sc_parallel(threads, a.parts, assembly_scatter, &a);
     }
-    free(a.cursor);
+    free(a.cursor), free(a.start);
     a.cursor = NULL;
     a.distinct = rc == SC_OK ? sc_alloc_array((size_t)n, sizeof *a.distinct) : NULL;
     if (rc == SC_OK && !a.distinct) rc = SC_ENOMEM;
@@ -297,14 +382,14 @@ int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse
         /* close the gaps the summed duplicates left, part after part */
         int32_t w = 0;
         for (int32_t p = 0; p < a.parts; p++) {
-            int32_t src = a.colptr[a.col0[p]], len = 0;
+            int32_t from = a.colptr[a.col0[p]], len = 0;
             for (int32_t j = a.col0[p]; j < a.col0[p + 1]; j++) {
                 a.colptr[j] = w + len;
                 len += a.distinct[j];
             }
-            if (src != w && len > 0) {
-                memmove(a.rows + w, a.rows + src, (size_t)len * sizeof *a.rows);
-                memmove(a.vals + w, a.vals + src, (size_t)len * sizeof *a.vals);
+            if (from != w && len > 0) {
+                memmove(a.rows + w, a.rows + from, (size_t)len * sizeof *a.rows);
+                memmove(a.vals + w, a.vals + from, (size_t)len * sizeof *a.vals);
             }
             w += len;
         }
@@ -330,52 +415,26 @@ int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse
     return SC_OK;
 }
 
-int sc_sparse_widen(sc_sparse *a, const int32_t *extra_start, const int32_t *extra_rows, sc_error *err) {
-    const int32_t n = a->n;
-    /* the size of the merged columns: the stored rows plus the new ones */
-    int64_t total = 0;
-    for (int32_t j = 0; j < n; j++) {
-        int32_t p = a->colptr[j], pe = a->colptr[j + 1], q = extra_start[j], qe = extra_start[j + 1];
-        int32_t len = 0;
-        while (p < pe || q < qe) {
-            int32_t ra = p < pe ? a->rowind[p] : INT32_MAX, rb = q < qe ? extra_rows[q] : INT32_MAX;
-            if (ra <= rb) p++;
-            if (rb <= ra) {
-                int32_t r = rb;
-                while (q < qe && extra_rows[q] == r) q++;
-            }
-            len++;
-        }
-        total += len;
+int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse *out, sc_error *err) {
+    return assemble(t, 1, t->n, false, NULL, NULL, threads, out, err);
+}
+
+static int assemble_parts(const sc_triplet_parts *p, bool full, const int32_t *extra_start,
+                          const int32_t *extra_rows, int threads, sc_sparse *out, sc_error *err) {
+    if (p->failed) {
+        memset(out, 0, sizeof *out);
+        return sc_fail(err, SC_ENOMEM, "out of memory assembling a sparse matrix");
     }
-    if (total > INT32_MAX) return sc_fail(err, SC_ENOMEM, "sparse matrix beyond the 2^31 limit");
-    if (total == a->nnz) return SC_OK;   /* nothing new */
-    int32_t *rows = sc_realloc_array(a->rowind, (size_t)total, sizeof *rows);
-    if (rows) a->rowind = rows;
-    double *vals = rows ? sc_realloc_array(a->val, (size_t)total, sizeof *vals) : NULL;
-    if (vals) a->val = vals;
-    if (!rows || !vals) return sc_fail(err, SC_ENOMEM, "out of memory widening a sparse matrix");
-    /* merge from the last column back, in place: every entry only moves up */
-    int32_t w = (int32_t)total;
-    for (int32_t j = n - 1; j >= 0; j--) {
-        int32_t p = a->colptr[j + 1] - 1, pe = a->colptr[j], q = extra_start[j + 1] - 1, qe = extra_start[j];
-        a->colptr[j + 1] = w;
-        while (p >= pe || q >= qe) {
-            int32_t ra = p >= pe ? rows[p] : -1, rb = q >= qe ? extra_rows[q] : -1;
-            w--;
-            if (ra >= rb) {
-                rows[w] = ra, vals[w] = vals[p];
-                p--;
-                while (q >= qe && extra_rows[q] == ra) q--;
-            } else {
-                rows[w] = rb, vals[w] = 0;
-                while (q >= qe && extra_rows[q] == rb) q--;
-            }
-        }
-    }
-    a->colptr[0] = 0;
-    a->nnz = total;
-    return SC_OK;
+    return assemble(p->list, p->count, p->n, full, extra_start, extra_rows, threads, out, err);
+}
+
+int sc_sparse_from_triplet_parts(const sc_triplet_parts *p, int threads, sc_sparse *out, sc_error *err) {
+    return assemble_parts(p, false, NULL, NULL, threads, out, err);
+}
+
+int sc_sparse_full_from_triplet_parts(const sc_triplet_parts *p, const int32_t *extra_start,
+                                      const int32_t *extra_rows, int threads, sc_sparse *full, sc_error *err) {
+    return assemble_parts(p, true, extra_start, extra_rows, threads, full, err);
 }
 
 int64_t sc_sparse_find(const sc_sparse *a, int32_t i, int32_t j) {
@@ -461,11 +520,9 @@ int sc_sparse_submatrix(const sc_sparse *a, const int32_t *keep, int32_t count, 
     return SC_OK;
 }
 
-/* y = A x over the columns [j0, j1) of the symmetric A (upper triangle);
- * y is overwritten. */
-static void symv_columns(const sc_sparse *a, const double *x, double *y, int32_t j0, int32_t j1) {
+void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) {
     memset(y, 0, (size_t)a->n * sizeof *y);
-    for (int32_t j = j0; j < j1; j++) {
+    for (int32_t j = 0; j < a->n; j++) {
         double xj = x[j], acc = 0;
         for (int32_t p = a->colptr[j]; p < a->colptr[j + 1]; p++) {
             int32_t i = a->rowind[p];
@@ -480,8 +537,6 @@ static void symv_columns(const sc_sparse *a, const double *x, double *y, int32_t
         y[j] += acc;
     }
 }
-
-void sc_sparse_symv(const sc_sparse *a, const double *x, double *y) { symv_columns(a, x, y, 0, a->n); }
 
 /* The full pattern in parts, each on its own thread: part p counts and
  * then places the entries of the upper columns [col0[p], col0[p + 1]);
@@ -546,7 +601,7 @@ int sc_sparse_full_threads(const sc_sparse *u, int threads, sc_sparse *f, sc_err
     int rc = f->colptr && f->rowind && f->val && m.cursor ? SC_OK : SC_ENOMEM;
     if (rc == SC_OK) rc = sc_parallel(threads, m.parts, mirror_count, &m);
     if (rc == SC_OK) {
-        column_starts(m.cursor, n, m.parts, f->colptr);
+        column_starts(m.cursor, n, m.parts, NULL, f->colptr);
         rc = sc_parallel(threads, m.parts, mirror_place, &m);
     }
     free(m.cursor);
@@ -561,65 +616,54 @@ int sc_sparse_full_threads(const sc_sparse *u, int threads, sc_sparse *f, sc_err
 
 typedef struct full_mul_job {
     const sc_sparse *a;
-    const double *x;
-    double *y;
+    int32_t ncols;
+    const double *const *x;
+    double *const *y;
     int32_t rows_per_chunk;
 } full_mul_job;
 
+/* Rows [r0, r1) for nc columns (a constant where it is inlined): each
+ * row's sum runs over its entries in order. */
+static inline void full_mul_rows(const sc_sparse *a, int32_t r0, int32_t r1, int nc, const double *const *x,
+                                 double *const *y) {
+    for (int32_t r = r0; r < r1; r++) {
+        double s[4] = {0, 0, 0, 0};
+        for (int32_t p = a->colptr[r]; p < a->colptr[r + 1]; p++) {
+            double v = a->val[p];
+            int32_t i = a->rowind[p];
+            for (int c = 0; c < nc; c++) s[c] += v * x[c][i];
+        }
+        for (int c = 0; c < nc; c++) y[c][r] = s[c];
+    }
+}
+
+/* Up to 4 columns per pass over the rows. */
 static int full_mul_chunk(void *ud, int32_t chunk) {
     const full_mul_job *job = ud;
     const sc_sparse *a = job->a;
     int32_t r0 = chunk * job->rows_per_chunk, r1 = r0 + job->rows_per_chunk;
     if (r1 > a->n) r1 = a->n;
-    for (int32_t r = r0; r < r1; r++) {
-        double s = 0;
-        for (int32_t p = a->colptr[r]; p < a->colptr[r + 1]; p++) s += a->val[p] * job->x[a->rowind[p]];
-        job->y[r] = s;
+    for (int32_t c0 = 0; c0 < job->ncols; c0 += 4) {
+        const double *const *x = job->x + c0;
+        double *const *y = job->y + c0;
+        switch (job->ncols - c0 < 4 ? job->ncols - c0 : 4) {
+        case 1: full_mul_rows(a, r0, r1, 1, x, y); break;
+        case 2: full_mul_rows(a, r0, r1, 2, x, y); break;
+        case 3: full_mul_rows(a, r0, r1, 3, x, y); break;
+        default: full_mul_rows(a, r0, r1, 4, x, y); break;
+        }
     }
     return SC_OK;
 }
 
-void sc_sparse_full_multiply(const sc_sparse *a, const double *x, double *y, int threads) {
-    if (a->n <= 0) return;
-    full_mul_job job = {a, x, y, 16384};
+void sc_sparse_full_multiply(const sc_sparse *a, int32_t ncols, const double *const *x, double *const *y,
+                             int threads) {
+    if (a->n <= 0 || ncols <= 0) return;
+    full_mul_job job = {a, ncols, x, y, 16384};
     int32_t chunks = (a->n + job.rows_per_chunk - 1) / job.rows_per_chunk;
-    if (threads <= 1 || chunks == 1) {
-        for (int32_t c = 0; c < chunks; c++) full_mul_chunk(&job, c);
-        return;
-    }
-    if (sc_parallel(threads, chunks, full_mul_chunk, &job) != SC_OK)
+    if (threads <= 1 || chunks == 1 || sc_parallel(threads, chunks, full_mul_chunk, &job) != SC_OK)
         for (int32_t c = 0; c < chunks; c++) full_mul_chunk(&job, c); /* no threads: serially */
 }
-
-typedef struct symv_half {
-    const sc_sparse *a;
-    const double *x;
-    double *y[2];
-    int32_t split;
-} symv_half;
-
-static int symv_half_run(void *ud, int32_t half) {
-    const symv_half *h = ud;
-    symv_columns(h->a, h->x, h->y[half], half ? h->split : 0, half ? h->a->n : h->split);
-    return SC_OK;
-}
-
-void sc_sparse_symv_parallel(const sc_sparse *a, const double *x, double *y, double *second, int threads) {
-    /* the column where half of the entries have been seen */
-    int32_t lo = 0, hi = a->n;
-    while (lo < hi) {
-        int32_t mid = lo + (hi - lo) / 2;
-        if ((int64_t)a->colptr[mid] * 2 < a->nnz) lo = mid + 1;
-        else hi = mid;
-    }
-    symv_half h = {a, x, {y, second}, lo};
-    if (threads < 2 || sc_parallel(2, 2, symv_half_run, &h) != SC_OK) {
-        symv_half_run(&h, 0);
-        symv_half_run(&h, 1);
-    }
-    for (int32_t i = 0; i < a->n; i++) y[i] += second[i];
-}
-
 
 double sc_sparse_quadform(const sc_sparse *a, const double *x) {
     double s = 0;
@@ -695,7 +739,24 @@ static int cholmod_status_error(const cholmod_common *c, const char *what, sc_er
     }
 }
 
+/* BLAS runs on the calling thread. The nodes keep both cores busy on their
+ * own (erase_seams factors on one while the other assembles, or both take
+ * chunks of one job), and OpenBLAS's helper threads spin in sched_yield for
+ * about 0.1 s after every call they shared: on pizza's erase that spinning
+ * took 2.4 s of CPU from the other work (its solve: 2.0 -> 1.5 s on the
+ * calling thread alone). The supernodes of these systems are small, and
+ * bench_bake blub, the largest factorisations of the main job, runs as fast
+ * either way. Set once, before the first factorisation; a BLAS without this
+ * entry point is left as it is. */
+static void blas_on_calling_thread(void) {
+    void (*set_threads)(int) = NULL;
+    *(void **)&set_threads = dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+    if (set_threads) set_threads(1);
+}
+
 static void setup_common(cholmod_common *c, const sc_sparse_options *opt) {
+    static pthread_once_t blas_once = PTHREAD_ONCE_INIT;
+    pthread_once(&blas_once, blas_on_calling_thread);
     cholmod_start(c);
     c->print = 0;
     c->error_handler = NULL;

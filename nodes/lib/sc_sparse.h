@@ -38,6 +38,21 @@ void sc_triplets_add(sc_triplets *t, int32_t i, int32_t j, double v);
 /* Append all entries of src (in order). */
 void sc_triplets_append(sc_triplets *t, const sc_triplets *src);
 
+/* Triplet lists made apart (chunks of work, on several threads), kept in
+ * order: they read as one list, each list's entries after the previous
+ * one's, and joining a list moves it in without copying its entries. */
+typedef struct sc_triplet_parts {
+    int32_t n;              /* matrix size (n x n) */
+    int32_t count, cap;
+    sc_triplets *list;
+    bool failed;            /* an allocation failed, here or in a list */
+} sc_triplet_parts;
+
+void sc_triplet_parts_init(sc_triplet_parts *p, int32_t n);
+void sc_triplet_parts_free(sc_triplet_parts *p);
+/* Move t in as the last list; t is left empty (initialised for its size). */
+void sc_triplet_parts_take(sc_triplet_parts *p, sc_triplets *t);
+
 /* ---------------------------------------------------------------- matrices */
 
 typedef struct sc_sparse {
@@ -54,13 +69,19 @@ typedef struct sc_sparse {
 int sc_sparse_from_triplets(const sc_triplets *t, sc_sparse *out, sc_error *err);
 /* The same on up to `threads` threads: the same bits for any thread count. */
 int sc_sparse_from_triplets_threads(const sc_triplets *t, int threads, sc_sparse *out, sc_error *err);
+/* The same for the lists of p, in order, without copying them into one
+ * list first. */
+int sc_sparse_from_triplet_parts(const sc_triplet_parts *p, int threads, sc_sparse *out, sc_error *err);
+/* The same, straight into the full pattern (both triangles, as
+ * sc_sparse_full makes from the upper one, to the same bits). With
+ * extra_start (n + 1) and extra_rows, column j also holds the rows
+ * extra_rows[extra_start[j] .. extra_start[j + 1]) (any order, repeats and
+ * rows the triplets give allowed), as zeros where no triplet adds to them:
+ * the pattern of terms added to the matrix later. */
+int sc_sparse_full_from_triplet_parts(const sc_triplet_parts *p, const int32_t *extra_start,
+                                      const int32_t *extra_rows, int threads, sc_sparse *full, sc_error *err);
 void sc_sparse_free(sc_sparse *a);
 
-/* Add entries to the pattern of a, in place: column j also gets the rows
- * extra_rows[extra_start[j] .. extra_start[j + 1]) (sorted, <= j, repeats
- * and rows already stored allowed), as zeros; stored entries keep their
- * values. */
-int sc_sparse_widen(sc_sparse *a, const int32_t *extra_start, const int32_t *extra_rows, sc_error *err);
 /* Where row i of column j is stored in rowind/val, -1 when it is not (rows
  * sorted within columns: an upper-triangular or a full-pattern matrix). */
 int64_t sc_sparse_find(const sc_sparse *a, int32_t i, int32_t j);
@@ -111,8 +132,9 @@ typedef struct sc_sparse_stats {
 
 typedef struct sc_sparse_chol sc_sparse_chol;
 
-/* Analyse and factor A (n x n, symmetric positive definite). opt may be NULL
- * for the defaults. On failure *out is NULL and err says why. */
+/* Analyse and factor A (n x n, symmetric positive definite; its upper
+ * triangle, or a full pattern, whose lower entries are not read). opt may be
+ * NULL for the defaults. On failure *out is NULL and err says why. */
 int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt,
                           sc_sparse_chol **out, sc_error *err);
 /* Solve A X = B for nrhs right-hand sides at once: b holds n x nrhs values,
@@ -137,16 +159,11 @@ int sc_sparse_full(const sc_sparse *upper, sc_sparse *full, sc_error *err);
 /* The same on up to `threads` threads: the same bits for any thread count. */
 int sc_sparse_full_threads(const sc_sparse *upper, int threads, sc_sparse *full, sc_error *err);
 
-/* y = A x for a full-pattern A, rows split over up to `threads` threads (each
- * row's sum is formed the same way whatever the thread count). */
-void sc_sparse_full_multiply(const sc_sparse *full, const double *x, double *y, int threads);
-
-/* y = A x for the symmetric A (as sc_sparse_symv) on two threads when
- * `threads` allows: the columns are split in
- * two halves of equal entries, the second summed into `scratch` (n values),
- * and the two are added in a fixed order, so the bits do not depend on the
- * thread count. */
-void sc_sparse_symv_parallel(const sc_sparse *a, const double *x, double *y, double *scratch,
+/* Y = A X for a full-pattern A and ncols columns at once (x[c] and y[c]: n
+ * values each; y is overwritten): one pass over A serves up to 4 columns,
+ * rows split over up to `threads` threads, each row's sum formed the same
+ * way whatever the thread count. */
+void sc_sparse_full_multiply(const sc_sparse *full, int32_t ncols, const double *const *x, double *const *y,
                              int threads);
 
 #endif

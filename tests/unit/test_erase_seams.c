@@ -467,20 +467,23 @@ SC_TEST(schur_clusters_match_direct_solve) {
         int i = c * LEN + 3, j = (c + 1) * LEN + 17;
         sc_triplets_add(&tq, i, i, 1.0), sc_triplets_add(&tq, j, j, 1.0), sc_triplets_add(&tq, i, j, -1.0);
     }
-    sc_sparse a, q, af;
+    sc_sparse a, q, af, qf;
     sc_error err = {0};
     SC_CHECK_INT(sc_sparse_from_triplets(&ta, &a, &err), SC_OK);
     SC_CHECK_INT(sc_sparse_from_triplets(&tq, &q, &err), SC_OK);
     SC_CHECK_INT(sc_sparse_full(&a, &af, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_full(&q, &qf, &err), SC_OK);
     SC_CHECK_INT(af.nnz, 2 * a.nnz - n);
     double *x = malloc(sizeof(double) * 2 * n), *b = malloc(sizeof(double) * 2 * n);
-    double *y = malloc(sizeof(double) * 2 * n), *yf = malloc(sizeof(double) * n);
+    double *y = malloc(sizeof(double) * 2 * n), *yf = malloc(sizeof(double) * 2 * n);
     for (int i = 0; i < 2 * n; i++) x[i] = sin(0.37 * i) + (i % 5 == 0 ? 3.0 : 0.0);
-    /* full-pattern multiply = symmetric multiply */
-    sc_sparse_symv(&a, x, y);
-    sc_sparse_full_multiply(&af, x, yf, 2);
+    /* full-pattern multiply = symmetric multiply, two columns in one pass */
+    sc_sparse_symv(&a, x, y), sc_sparse_symv(&a, x + n, y + n);
+    const double *xs[2] = {x, x + n};
+    double *ys[2] = {yf, yf + n};
+    sc_sparse_full_multiply(&af, 2, xs, ys, 2);
     double e = 0;
-    for (int i = 0; i < n; i++) e = fmax(e, fabs(y[i] - yf[i]));
+    for (int i = 0; i < 2 * n; i++) e = fmax(e, fabs(y[i] - yf[i]));
     SC_CHECK_MSG(e < 1e-12, "full multiply off by %g", e);
     /* the factorisation solves A directly: two columns at once */
     sc_schur *f = NULL;
@@ -495,17 +498,11 @@ SC_TEST(schur_clusters_match_direct_solve) {
         e = 0;
         for (int i = 0; i < 2 * n; i++) e = fmax(e, fabs(b[i] - x[i]));
         SC_CHECK_MSG(e < 1e-9, "schur solve off by %g", e);
-        /* conjugate gradients on Q, against CHOLMOD on Q */
-        double scratch[CHAINS * LEN + JOINS];
-        sc_sparse_symv_parallel(&q, x, b, scratch, 2);
-        sc_sparse_symv(&q, x, y);
-        e = 0;
-        for (int i = 0; i < n; i++) e = fmax(e, fabs(b[i] - y[i]));
-        SC_CHECK_MSG(e < 1e-9, "two-thread symmetric multiply off by %g", e);
-        sc_sparse_symv(&q, x + n, b + n);
+        /* conjugate gradients on Q, against CHOLMOD on Q's upper triangle */
+        sc_sparse_symv(&q, x, b), sc_sparse_symv(&q, x + n, b + n);
         memcpy(y, b, sizeof(double) * 2 * n);
         sc_schur_pcg_result res;
-        SC_CHECK_INT(sc_schur_pcg(f, &q, 2, b, 1e-13, 200, 2, &res, &err), SC_OK);
+        SC_CHECK_INT(sc_schur_pcg(f, &qf, 2, b, 1e-13, 200, 2, &res, &err), SC_OK);
         sc_sparse_chol *direct = NULL;
         SC_CHECK_INT(sc_sparse_chol_factor(&q, NULL, &direct, &err), SC_OK);
         SC_CHECK_INT(sc_sparse_chol_solve(direct, 2, y, &err), SC_OK);
@@ -523,7 +520,7 @@ SC_TEST(schur_clusters_match_direct_solve) {
         sc_schur_free(f);
     }
     free(x), free(b), free(y), free(yf);
-    sc_sparse_free(&a), sc_sparse_free(&q), sc_sparse_free(&af);
+    sc_sparse_free(&a), sc_sparse_free(&q), sc_sparse_free(&af), sc_sparse_free(&qf);
     sc_triplets_free(&ta), sc_triplets_free(&tq);
 }
 
@@ -559,41 +556,76 @@ SC_TEST(sparse_assembly_threads_same_bits) {
         SC_CHECK(same_sparse(&full1, &fullm));
         sc_sparse_free(&more), sc_sparse_free(&fullm);
     }
+    /* the same triplets cut into lists of uneven lengths (one empty): the
+     * same upper triangle, and straight into the full pattern the same
+     * matrix as its mirror copy */
+    for (int threads = 1; threads <= 4; threads++) {
+        sc_triplet_parts parts;
+        sc_triplet_parts_init(&parts, n);
+        const size_t cuts[] = {0, 1000, 1000, 150001, 399999, t.count};
+        for (int c = 0; c + 1 < 6; c++) {
+            sc_triplets piece;
+            sc_triplets_init(&piece, n);
+            for (size_t k = cuts[c]; k < cuts[c + 1]; k++) sc_triplets_add(&piece, t.row[k], t.col[k], t.val[k]);
+            sc_triplet_parts_take(&parts, &piece);
+            sc_triplets_free(&piece);
+        }
+        sc_sparse up, full;
+        SC_CHECK_INT(sc_sparse_from_triplet_parts(&parts, threads, &up, &err), SC_OK);
+        SC_CHECK(same_sparse(&one, &up));
+        SC_CHECK_INT(sc_sparse_full_from_triplet_parts(&parts, NULL, NULL, threads, &full, &err), SC_OK);
+        SC_CHECK(same_sparse(&full1, &full));
+        sc_sparse_free(&up), sc_sparse_free(&full);
+        sc_triplet_parts_free(&parts);
+    }
     /* an entry out of range is found whichever part holds it */
     sc_triplets_add(&t, 1, n, 1.0);
     sc_sparse bad;
     SC_CHECK(sc_sparse_from_triplets_threads(&t, 3, &bad, &err) == SC_EINPUT);
 
-    /* widening: new entries are zeros, stored ones keep their values */
-    int32_t *start = malloc(((size_t)n + 1) * sizeof *start), *rows = malloc(3 * (size_t)n * sizeof *rows);
+    /* extra rows: new entries are zeros, stored ones keep their values,
+     * whatever the thread count */
+    t.count--;   /* drop the bad entry again */
+    int32_t *start = malloc(((size_t)n + 1) * sizeof *start), *rows = malloc(4 * (size_t)n * sizeof *rows);
     int32_t at = 0;
     for (int32_t j = 0; j < n; j++) {
         start[j] = at;
-        if (j >= 3) rows[at++] = j - 3, rows[at++] = j - 3;   /* a repeat */
+        if (j + 3 < n) rows[at++] = j + 3;
         rows[at++] = j;
+        if (j >= 3) rows[at++] = j - 3, rows[at++] = j - 3;   /* any order, a repeat */
     }
     start[n] = at;
-    sc_sparse wide;
-    t.count--;   /* drop the bad entry again */
-    SC_CHECK_INT(sc_sparse_from_triplets(&t, &wide, &err), SC_OK);
-    SC_CHECK_INT(sc_sparse_widen(&wide, start, rows, &err), SC_OK);
+    sc_triplet_parts parts;
+    sc_triplet_parts_init(&parts, n);
+    sc_triplets copy;
+    sc_triplets_init(&copy, n);
+    sc_triplets_append(&copy, &t);
+    sc_triplet_parts_take(&parts, &copy);
+    sc_sparse wide, wide3;
+    SC_CHECK_INT(sc_sparse_full_from_triplet_parts(&parts, start, rows, 1, &wide, &err), SC_OK);
+    SC_CHECK_INT(sc_sparse_full_from_triplet_parts(&parts, start, rows, 3, &wide3, &err), SC_OK);
+    SC_CHECK(same_sparse(&wide, &wide3));
     int64_t added = 0;
     for (int32_t j = 0; j < n; j++) {
         for (int32_t p = wide.colptr[j]; p + 1 < wide.colptr[j + 1]; p++) SC_CHECK(wide.rowind[p] < wide.rowind[p + 1]);
         for (int32_t p = wide.colptr[j]; p < wide.colptr[j + 1]; p++) {
             int32_t i = wide.rowind[p];
-            int64_t at_one = sc_sparse_find(&one, i, j);
-            if (at_one >= 0) SC_CHECK(wide.val[p] == one.val[at_one]);
+            int64_t at_full = sc_sparse_find(&full1, i, j);
+            if (at_full >= 0) SC_CHECK(wide.val[p] == full1.val[at_full]);
             else {
                 SC_CHECK(wide.val[p] == 0);
                 added++;
             }
         }
         SC_CHECK(sc_sparse_find(&wide, j, j) >= 0);
-        if (j >= 3) SC_CHECK(sc_sparse_find(&wide, j - 3, j) >= 0);
+        if (j >= 3) SC_CHECK(sc_sparse_find(&wide, j - 3, j) >= 0 && sc_sparse_find(&wide, j, j - 3) >= 0);
     }
-    SC_CHECK_INT(wide.nnz, one.nnz + added);
-    sc_sparse_free(&one), sc_sparse_free(&full1), sc_sparse_free(&wide);
+    SC_CHECK(added > 0);
+    SC_CHECK_INT(wide.nnz, full1.nnz + added);
+    rows[0] = n;   /* a row out of range */
+    SC_CHECK(sc_sparse_full_from_triplet_parts(&parts, start, rows, 2, &bad, &err) == SC_EINPUT);
+    sc_sparse_free(&one), sc_sparse_free(&full1), sc_sparse_free(&wide), sc_sparse_free(&wide3);
+    sc_triplet_parts_free(&parts);
     sc_triplets_free(&t);
     free(start), free(rows);
 }
@@ -682,12 +714,12 @@ SC_TEST(analytic_D_matches_quadrature) {
         sc_seam_texset_init(&all, pc->W, pc->H);
         for (int t = 0; t < pc->W * pc->H; t++) sc_seam_texset_add(&all, t);
         sc_seam_texset_finish(&all);
-        sc_triplets tr;
-        sc_triplets_init(&tr, all.count);
+        sc_triplet_parts tr;
+        sc_triplet_parts_init(&tr, all.count);
         sc_seam_terms terms = {.w_seam = 1};
         SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &terms, 3, &tr, &err), SC_OK);
         sc_sparse M;
-        SC_CHECK_INT(sc_sparse_from_triplets(&tr, &M, &err), SC_OK);
+        SC_CHECK_INT(sc_sparse_from_triplet_parts(&tr, 1, &M, &err), SC_OK);
         double *x = malloc(sizeof *x * (size_t)all.count), viaM = 0;
         for (int c = 0; c < 2; c++) {
             for (int t = 0; t < all.count; t++) x[t] = ((float *)im->pixels)[2 * t + c];
@@ -722,7 +754,7 @@ SC_TEST(analytic_D_matches_quadrature) {
         SC_CHECK_NEAR(tot, closed, 1e-12 * closed);
         free(x);
         sc_sparse_free(&M);
-        sc_triplets_free(&tr);
+        sc_triplet_parts_free(&tr);
         sc_seam_texset_free(&all);
         sc_seam_set_free(&s);
         sc_image_free(im);
@@ -798,17 +830,17 @@ SC_TEST(analytic_c1_and_outside_match_quadrature) {
         c1_ud cu = {im, pc->wrap, a0, a1, b0, b1, {{n[0][0], n[0][1]}, {n[1][0], n[1][1]}}};
         ref_seam rs = {{a0[0], a0[1]}, {a1[0], a1[1]}, {b0[0], b0[1]}, {b1[0], b1[1]}, 1.0};
         double ref_c1 = dense_quad(im, &rs, 64, c1_f, &cu);
-        sc_triplets tr;
-        sc_triplets_init(&tr, all.count);
+        sc_triplet_parts tr;
+        sc_triplet_parts_init(&tr, all.count);
         sc_seam_terms terms = {.w_c1 = 1};
         SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &terms, 1, &tr, &err), SC_OK);
         sc_sparse Q;
-        SC_CHECK_INT(sc_sparse_from_triplets(&tr, &Q, &err), SC_OK);
+        SC_CHECK_INT(sc_sparse_from_triplet_parts(&tr, 1, &Q, &err), SC_OK);
         double c1 = sc_sparse_quadform(&Q, x);
         SC_CHECK_MSG(fabs(c1 - ref_c1) <= 1e-9 * ref_c1, "%s: E_C1 %.15g, quadrature %.15g", pc->name,
                      c1, ref_c1);
         sc_sparse_free(&Q);
-        sc_triplets_free(&tr);
+        sc_triplet_parts_free(&tr);
         /* E_outside = (1/L') sum_s l_s int |B_s(p - p0)|^2 over every silhouette half-edge */
         double num = 0, L = 0;
         sc_image_data *dm = noise_image(pc->W, pc->H, 1, SC_PIXEL_F32, 0);
@@ -826,10 +858,10 @@ SC_TEST(analytic_c1_and_outside_match_quadrature) {
             L += sl->length;
         }
         double ref_out = num / L;
-        sc_triplets_init(&tr, all.count);
+        sc_triplet_parts_init(&tr, all.count);
         sc_seam_terms oterms = {.w_outside = 1};
         SC_CHECK_INT(sc_seam_assemble(m, &s, &g, &all, &oterms, 2, &tr, &err), SC_OK);
-        SC_CHECK_INT(sc_sparse_from_triplets(&tr, &Q, &err), SC_OK);
+        SC_CHECK_INT(sc_sparse_from_triplet_parts(&tr, 1, &Q, &err), SC_OK);
         double eo = sc_sparse_quadform(&Q, d);
         SC_CHECK_MSG(fabs(eo - ref_out) <= 1e-9 * ref_out, "%s: E_outside %.15g, quadrature %.15g",
                      pc->name, eo, ref_out);
@@ -842,7 +874,7 @@ SC_TEST(analytic_c1_and_outside_match_quadrature) {
         SC_CHECK(rmax == 0);
         free(rhs);
         sc_sparse_free(&Q);
-        sc_triplets_free(&tr);
+        sc_triplet_parts_free(&tr);
         sc_image_free(dm);
         free(x), free(d);
         sc_seam_texset_free(&all);
