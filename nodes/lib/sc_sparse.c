@@ -765,6 +765,9 @@ static void setup_common(cholmod_common *c, const sc_sparse_options *opt) {
     c->supernodal = o.kind == SC_SPARSE_SIMPLICIAL ? CHOLMOD_SIMPLICIAL
                   : o.kind == SC_SPARSE_AUTO      ? CHOLMOD_AUTO
                                                   : CHOLMOD_SUPERNODAL;
+    /* simplicial asked for: L L^T, which a pivot <= 0 fails (auto keeps
+     * CHOLMOD's L D L^T, as it always did) */
+    c->final_ll = o.kind == SC_SPARSE_SIMPLICIAL;
     switch (o.ordering) {
     case SC_SPARSE_ORDER_AMD:
         c->nmethods = 1, c->method[0].ordering = CHOLMOD_AMD, c->postorder = 1;

@@ -114,7 +114,7 @@ typedef enum sc_sparse_ordering {
 typedef enum sc_sparse_kind {
     SC_SPARSE_SUPERNODAL = 0,      /* supernodal L L^T (BLAS level 3) */
     SC_SPARSE_SIMPLICIAL = 1,      /* simplicial L L^T */
-    SC_SPARSE_AUTO = 2,            /* CHOLMOD picks from the flop count */
+    SC_SPARSE_AUTO = 2,            /* CHOLMOD picks from the flop count (simplicial: L D L^T) */
 } sc_sparse_kind;
 
 typedef struct sc_sparse_options {
