@@ -82,32 +82,34 @@
  * two edges' cells, or coupled to another edge's texels, form the
  * interface. Grid couplings between texels of different charts that happen
  * to lie side by side in the atlas would join far-apart parts of the
- * interface: the preconditioner's matrix is Q less those terms, whole (so
- * it stays positive definite; grid_terms lists them while it assembles Q),
+ * interface: the factored matrix A is Q less those terms, whole (so it
+ * stays positive definite; grid_terms lists them while it assembles Q),
  * with each cluster eliminated on its own and the interface factored by
- * CHOLMOD; conjugate gradients on Q take the terms back in, to a
- * preconditioned residual of 1e-12 of the start (auto falls back to one
- * CHOLMOD factorisation should that fail). On pizza they are only 6,678
- * terms, but kept in the preconditioner (274.5k interface texels instead
- * of 270.8k) they make its interface factor 2.8e7 entries and 5.7e10 flops
- * instead of 8.6e6 and 5e8: 3.8 s against the 13 iterations' 1.6 s. Below
- * ~500k unknowns one factorisation is as fast and simpler. On BoomBox the
- * two agree to 3e-7 per texel. Where most texels lie in the cells of two
- * or more edges (a geometry image erased on a mesh and its levels in one
- * uv: pizza's 2.07M unknowns were all interface) there are no clusters,
- * and `auto` factors Q itself: the preconditioner would be that
- * factorisation with conjugate gradients around it.
+ * CHOLMOD. The texels those terms join are made interface unknowns, so
+ * that Q and A differ on the interface alone, and conjugate gradients take
+ * the terms back in there (sc_schur_solve_terms: iterations on 275k
+ * unknowns, not 2.07M, then one round of refinement on Q's own residual),
+ * to a residual of 1e-12 of the start in A^-1's norm (auto falls back to
+ * one CHOLMOD factorisation should that fail). On pizza they are only
+ * 6,678 terms, but kept in A (274.5k interface texels instead of 270.8k)
+ * they make its interface factor 2.8e7 entries and 5.7e10 flops instead
+ * of 8.6e6 and 5e8: 3.8 s against the iterations' 0.6 s. Below ~500k
+ * unknowns one factorisation is as fast and simpler. On BoomBox the two
+ * agree to 3e-7 per texel. Where most texels lie in the cells of two or
+ * more edges (a geometry image erased on a mesh and its levels in one uv:
+ * pizza's 2.07M unknowns were all interface) there are no clusters, and
+ * `auto` factors Q itself.
  *
  * Where pizza's erase goes now (2-core machine, one run of
- * bench_erase_seams, 7.6 s in all): texel sets and the trace 0.3 s; Q's
- * seam terms 1.0 s and its assembly 1.2 s (with the groups beside them);
- * the cluster plan, layout and elimination 0.9 s; the interface's CHOLMOD
- * analysis 0.4 s and factorisation 1.1 s (one thread: its supernodes are
- * small, and half of it is first-touch faults on the factor); 13
- * iterations 1.6 s; writing, measuring and rounding 0.9 s. The preceding
- * design (upper triangle plus a full copy, triplets copied into one list,
- * a BLAS helper thread spinning beside the solve) took 9.3-11.2 s in the
- * same minutes.
+ * bench_erase_seams, 6.1 s in all): texel sets and the trace 0.3 s; Q's
+ * seam terms 1.1 s and its assembly 0.8 s (with the groups beside them);
+ * the cluster plan, layout and elimination 1.0 s; the interface's CHOLMOD
+ * analysis and factorisation 1.0 s (one thread, simplicial); the
+ * iterations and the refinement 0.6 s; writing, measuring and rounding
+ * 0.8 s. The preceding design (upper triangle plus a full copy, triplets
+ * copied into one list, a BLAS helper thread spinning beside the solve,
+ * supernodal interface, conjugate gradients on the whole system) took
+ * 9.3-11.2 s in the same minutes.
  *
  * Memory (pizza): the resident set grows by ~880 MB during the erase, peak
  * ~1210 MB (was 1050-1100 MB and 1420 MB). The preconditioner is made in
@@ -600,7 +602,7 @@ static int measure_task(void *ud, int32_t chunk) {
                 b[c] = b[j->src[c]];
             }
     if (rc) return j->rc[1] = sc_fail(&j->err[1], rc, "out of memory rounding to 8 bits");
-    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, j->optimal, j->threads_energy, &j->e_optimal, &j->g_optimal,
+    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, j->optimal, j->threads, &j->e_optimal, &j->g_optimal,
                               &j->err[1]);
     return j->rc[1];
 }
@@ -620,15 +622,15 @@ typedef struct group_work {
     sc_seam_texset unk, seamset;
     int32_t *ids, *seam_ids;
     int32_t nseam_texels;
-    /* Q in its full pattern: the edge-cluster solver's preconditioner is made
-     * in it, conjugate gradients multiply by it, and 8-bit rounding then
+    /* Q in its full pattern: the edge-cluster solver's factored matrix is
+     * made in it, its refinement multiplies by it, and 8-bit rounding then
      * reads M = Q / w_pen from the rows marked in round_rows */
     sc_sparse q, msub, mfull;
     uint8_t *round_rows;
     sc_sparse_chol *chol;
     /* the edge-cluster solver (solver schur): Q without the grid couplings
-     * between charts (apart: row, column, weight), factored by sc_schur as
-     * the preconditioner of conjugate gradients on Q */
+     * between charts (apart: row, column, weight), factored by sc_schur,
+     * the couplings taken back in by its iterations on the interface */
     bool use_schur, fallback;   /* fallback: solver auto went to CHOLMOD */
     sc_triplets apart;
     int32_t *group;
@@ -745,7 +747,6 @@ static int prep_factor(prep_job *pj) {
             pj->rc_factor = sc_schur_factor(&w->q, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
         if (saved) preconditioner_restore(&w->q, &w->apart, saved);
         free(saved);
-        sc_triplets_free(&w->apart);
         if (pj->rc_factor != SC_OK && pj->ctx.o->solver == SOLVER_AUTO) {   /* CHOLMOD instead */
             w->fallback = true;
             sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
@@ -856,7 +857,7 @@ static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncol
          * the iterations not converge */
         double *kept = o->solver == SOLVER_AUTO ? sc_alloc_array((size_t)n * (size_t)nu, sizeof *kept) : NULL;
         if (kept) memcpy(kept, rhs, (size_t)n * (size_t)nu * sizeof *rhs);
-        rc = sc_schur_pcg(w->schur, &w->q, nu, rhs, PCG_TOLERANCE, o->pcg_iterations, o->threads, &w->pcg, err);
+        rc = sc_schur_solve_terms(w->schur, &w->q, &w->apart, nu, rhs, PCG_TOLERANCE, o->pcg_iterations, &w->pcg, err);
         if (rc == SC_EINPUT && kept) {
             sc_schur_free(w->schur);
             w->schur = NULL;
@@ -1047,7 +1048,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         /* texels that two edges' cells reach join no cluster: where they are
          * most of the system (a geometry image of a mesh and its levels in
          * one uv), every unknown is interface, and one factorisation of Q
-         * does what the preconditioner would, without the iterations */
+         * does what the edge-cluster solver would, without the iterations */
         int64_t shared = 0;
         for (int32_t r = 0; r < n; r++) shared += w.group[r] < 0;
         if (o->solver == SOLVER_AUTO && (double)shared > SCHUR_MAX_SHARED * (double)n) {
@@ -1060,6 +1061,9 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.q, NULL, NULL,
                          w.group ? w.group + n : NULL, w.use_schur ? &w.apart : NULL, err)))
         goto done;
+    /* the texels those couplings join are interface unknowns: the solve
+     * iterates on the interface alone */
+    for (size_t k = 0; w.use_schur && k < w.apart.count; k++) w.group[w.apart.row[k]] = w.group[w.apart.col[k]] = -1;
     bool want_round = false;
     for (int32_t k = 0; k < gr->ntex; k++)
         want_round |= atlas->textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
@@ -1635,14 +1639,16 @@ static const sc_param_desc params[] = {
             "rounding that minimises the quantised seam energy)"},
     {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = solver_choices,
      .doc = "cholmod: one direct factorisation of the whole system; schur: the texels along each "
-            "edge eliminated on their own and the rest factored by CHOLMOD, as the preconditioner "
-            "of conjugate gradients on the whole system (to 1e-12); auto: schur from schur_from "
+            "edge eliminated on their own and the rest factored by CHOLMOD, the couplings between "
+            "charts this leaves out taken back in by conjugate gradients on the rest (to 1e-12); "
+            "auto: schur from schur_from "
             "unknowns unless most texels lie in the cells of two or more edges, falling back to cholmod "
             "should it fail"},
     {.name = "schur_from", .type = SC_PARAM_INTEGER, .def = SCHUR_MIN_UNKNOWNS, .min = 0, .max = 2147483647,
      .doc = "solver auto takes the edge-cluster solver (schur) for a system of this many unknowns or more"},
     {.name = "pcg_iterations", .type = SC_PARAM_INTEGER, .def = PCG_MAX_ITERATIONS, .min = 1, .max = 1000000,
-     .doc = "the most conjugate-gradient iterations of the schur solver; when they do not reach 1e-12, "
+     .doc = "the most conjugate-gradient iterations of the schur solver (in each of its two rounds); "
+            "when they do not reach 1e-12, "
             "solver auto factors the whole system with cholmod instead, solver schur fails"},
 };
 

@@ -50,19 +50,29 @@ int sc_schur_solve(sc_schur *f, int32_t nrhs, double *b, sc_error *err);
 void sc_schur_get_stats(const sc_schur *f, sc_schur_stats *out);
 void sc_schur_free(sc_schur *f);
 
-/* Conjugate gradients on Q X = B, preconditioned by f, the factorisation of
- * an A close to Q (Q = A gives the answer in one iteration). q is the
- * symmetric positive definite Q in its full pattern (sc_sparse_full). Each column stops when its
- * preconditioned residual sqrt(r^T A^-1 r) has fallen to tol times its
- * starting value (a zero right-hand side gives exactly zero); more than
- * max_iter iterations is an error (SC_EINPUT, "did not converge"). b
- * (n x nrhs, column-major) is overwritten by X. */
+/* Solve (A + E) X = B, f the factorisation of A and E the sum of the
+ * rank-one couplings w (x_r - x_s)^2 listed in terms (row r < column s,
+ * weight w > 0) between interface unknowns (group -1 in sc_schur_factor):
+ * couplings that would spoil the cluster structure (erase_seams: grid
+ * couplings between texels of charts side by side in the atlas). The
+ * private unknowns are eliminated exactly, and conjugate gradients run on
+ * the interface alone, on S + E with S's factor as the preconditioner
+ * (iterative substructuring: the iterates of conjugate gradients on A + E
+ * preconditioned by A, for a fraction of the work). Each column stops when
+ * its residual's A^-1 norm, sqrt(r^T A^-1 r), has fallen to tol times
+ * b's (a zero right-hand side gives exactly zero); more than max_iter
+ * iterations is an error (SC_EINPUT, "did not converge"). With q, A + E
+ * itself in its full pattern, the answer is refined once on q's residual:
+ * the factorisation holds A only to rounding, which an ill-conditioned A
+ * turns into a residual far above tol (erase_seams' pizza: 1.2e-10 of b
+ * before, 1.3e-11 after, as conjugate gradients on q preconditioned by A
+ * reach). b (n x nrhs, column-major) is overwritten by X. */
 typedef struct sc_schur_pcg_result {
     int32_t iterations;        /* the most any column took */
-    double relative_residual;  /* the largest final preconditioned residual ratio */
+    double relative_residual;  /* the largest final residual ratio */
 } sc_schur_pcg_result;
 
-int sc_schur_pcg(sc_schur *f, const sc_sparse *q, int32_t nrhs, double *b, double tol,
-                 int32_t max_iter, int threads, sc_schur_pcg_result *res, sc_error *err);
+int sc_schur_solve_terms(sc_schur *f, const sc_sparse *q, const sc_triplets *terms, int32_t nrhs, double *b,
+                         double tol, int32_t max_iter, sc_schur_pcg_result *res, sc_error *err);
 
 #endif

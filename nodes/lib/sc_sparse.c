@@ -614,57 +614,6 @@ int sc_sparse_full_threads(const sc_sparse *u, int threads, sc_sparse *f, sc_err
     return SC_OK;
 }
 
-typedef struct full_mul_job {
-    const sc_sparse *a;
-    int32_t ncols;
-    const double *const *x;
-    double *const *y;
-    int32_t rows_per_chunk;
-} full_mul_job;
-
-/* Rows [r0, r1) for nc columns (a constant where it is inlined): each
- * row's sum runs over its entries in order. */
-static inline void full_mul_rows(const sc_sparse *a, int32_t r0, int32_t r1, int nc, const double *const *x,
-                                 double *const *y) {
-    for (int32_t r = r0; r < r1; r++) {
-        double s[4] = {0, 0, 0, 0};
-        for (int32_t p = a->colptr[r]; p < a->colptr[r + 1]; p++) {
-            double v = a->val[p];
-            int32_t i = a->rowind[p];
-            for (int c = 0; c < nc; c++) s[c] += v * x[c][i];
-        }
-        for (int c = 0; c < nc; c++) y[c][r] = s[c];
-    }
-}
-
-/* Up to 4 columns per pass over the rows. */
-static int full_mul_chunk(void *ud, int32_t chunk) {
-    const full_mul_job *job = ud;
-    const sc_sparse *a = job->a;
-    int32_t r0 = chunk * job->rows_per_chunk, r1 = r0 + job->rows_per_chunk;
-    if (r1 > a->n) r1 = a->n;
-    for (int32_t c0 = 0; c0 < job->ncols; c0 += 4) {
-        const double *const *x = job->x + c0;
-        double *const *y = job->y + c0;
-        switch (job->ncols - c0 < 4 ? job->ncols - c0 : 4) {
-        case 1: full_mul_rows(a, r0, r1, 1, x, y); break;
-        case 2: full_mul_rows(a, r0, r1, 2, x, y); break;
-        case 3: full_mul_rows(a, r0, r1, 3, x, y); break;
-        default: full_mul_rows(a, r0, r1, 4, x, y); break;
-        }
-    }
-    return SC_OK;
-}
-
-void sc_sparse_full_multiply(const sc_sparse *a, int32_t ncols, const double *const *x, double *const *y,
-                             int threads) {
-    if (a->n <= 0 || ncols <= 0) return;
-    full_mul_job job = {a, ncols, x, y, 16384};
-    int32_t chunks = (a->n + job.rows_per_chunk - 1) / job.rows_per_chunk;
-    if (threads <= 1 || chunks == 1 || sc_parallel(threads, chunks, full_mul_chunk, &job) != SC_OK)
-        for (int32_t c = 0; c < chunks; c++) full_mul_chunk(&job, c); /* no threads: serially */
-}
-
 double sc_sparse_quadform(const sc_sparse *a, const double *x) {
     double s = 0;
     for (int32_t j = 0; j < a->n; j++) {

@@ -159,11 +159,4 @@ int sc_sparse_full(const sc_sparse *upper, sc_sparse *full, sc_error *err);
 /* The same on up to `threads` threads: the same bits for any thread count. */
 int sc_sparse_full_threads(const sc_sparse *upper, int threads, sc_sparse *full, sc_error *err);
 
-/* Y = A X for a full-pattern A and ncols columns at once (x[c] and y[c]: n
- * values each; y is overwritten): one pass over A serves up to 4 columns,
- * rows split over up to `threads` threads, each row's sum formed the same
- * way whatever the thread count. */
-void sc_sparse_full_multiply(const sc_sparse *full, int32_t ncols, const double *const *x, double *const *y,
-                             int threads);
-
 #endif
