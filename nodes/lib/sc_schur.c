@@ -500,9 +500,11 @@ int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key,
         sc_triplet_parts_free(&sii);
         if (rc == SC_OK) {
             f->stats.interface_nnz = (double)s.nnz;
-            /* simplicial: S's supernodes would be small (pizza: 1.0 s
-             * against 1.3 s, and a faster solve per iteration) */
-            sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_SIMPLICIAL};
+            /* simplicial unless S's supernodes are big (CHOLMOD's switch,
+             * 40 flops per entry, takes pizza's 58 supernodal: 1.3 s against
+             * simplicial's 1.0 s, and a slower solve per iteration) */
+            sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO,
+                                     .supernodal_from = 200, .definite = true};
             rc = sc_sparse_chol_factor(&s, &opt, &f->s, err);
             f->sii = s;
         }

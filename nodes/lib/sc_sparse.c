@@ -21,7 +21,7 @@
  * by their structure are added straight into the assembled matrix instead
  * of going through triplets.
  *
- * BLAS runs on the calling thread (see blas_on_calling_thread).
+ * BLAS runs on the calling thread but in large factorisations (blas_find).
  *
  * CHOLMOD is driven with one cholmod_common per factorisation (so several
  * nodes may factor at once on different threads), printing switched off, and
@@ -688,24 +688,36 @@ static int cholmod_status_error(const cholmod_common *c, const char *what, sc_er
     }
 }
 
-/* BLAS runs on the calling thread. The nodes keep both cores busy on their
- * own (erase_seams factors on one while the other assembles, or both take
- * chunks of one job), and OpenBLAS's helper threads spin in sched_yield for
- * about 0.1 s after every call they shared: on pizza's erase that spinning
- * took 2.4 s of CPU from the other work (its solve: 2.0 -> 1.5 s on the
- * calling thread alone). The supernodes of these systems are small, and
- * bench_bake blub, the largest factorisations of the main job, runs as fast
- * either way. Set once, before the first factorisation; a BLAS without this
- * entry point is left as it is. */
-static void blas_on_calling_thread(void) {
-    void (*set_threads)(int) = NULL;
-    *(void **)&set_threads = dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
-    if (set_threads) set_threads(1);
+/* BLAS threads. The nodes keep both cores busy on their own (erase_seams
+ * factors on one while the other assembles, or both take chunks of one
+ * job), and OpenBLAS's helper threads spin in sched_yield for about 0.1 s
+ * after every call they shared: on pizza's erase that spinning took 2.4 s
+ * of CPU from the other work (its solve: 2.0 -> 1.5 s on the calling
+ * thread alone). So BLAS runs on the calling thread, except in the numeric
+ * factorisation of a large factor (BLAS_THREADS_FROM flops), whose big
+ * supernodes gain from its threads (pizza's geometry image, 4e10 flops).
+ * OpenBLAS's result does not depend on its thread count. Found once; a BLAS
+ * without these entry points is left as it is. */
+#define BLAS_THREADS_FROM 1e10
+
+static void (*blas_set_threads)(int);
+static int blas_threads_default = 1;
+
+static void blas_find(void) {
+    int (*get_threads)(void) = NULL;
+    *(void **)&blas_set_threads = dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+    *(void **)&get_threads = dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
+    if (get_threads) blas_threads_default = get_threads();
+    if (blas_set_threads) blas_set_threads(1);
+}
+
+static void blas_threads(bool many) {
+    if (blas_set_threads) blas_set_threads(many ? blas_threads_default : 1);
 }
 
 static void setup_common(cholmod_common *c, const sc_sparse_options *opt) {
     static pthread_once_t blas_once = PTHREAD_ONCE_INIT;
-    pthread_once(&blas_once, blas_on_calling_thread);
+    pthread_once(&blas_once, blas_find);
     cholmod_start(c);
     c->print = 0;
     c->error_handler = NULL;
@@ -714,9 +726,8 @@ static void setup_common(cholmod_common *c, const sc_sparse_options *opt) {
     c->supernodal = o.kind == SC_SPARSE_SIMPLICIAL ? CHOLMOD_SIMPLICIAL
                   : o.kind == SC_SPARSE_AUTO      ? CHOLMOD_AUTO
                                                   : CHOLMOD_SUPERNODAL;
-    /* simplicial asked for: L L^T, which a pivot <= 0 fails (auto keeps
-     * CHOLMOD's L D L^T, as it always did) */
-    c->final_ll = o.kind == SC_SPARSE_SIMPLICIAL;
+    if (o.supernodal_from > 0) c->supernodal_switch = o.supernodal_from;
+    c->final_ll = o.kind == SC_SPARSE_SIMPLICIAL || o.definite;   /* a pivot <= 0 then fails it */
     switch (o.ordering) {
     case SC_SPARSE_ORDER_AMD:
         c->nmethods = 1, c->method[0].ordering = CHOLMOD_AMD, c->postorder = 1;
@@ -748,7 +759,10 @@ int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt, sc_s
         sc_sparse_chol_free(f);
         return rc;
     }
+    bool large = f->common.fl >= BLAS_THREADS_FROM;
+    if (large) blas_threads(true);
     int ok = cholmod_factorize(&A, f->L, &f->common);
+    if (large) blas_threads(false);
     if (!ok || f->common.status < CHOLMOD_OK) {
         int rc = cholmod_status_error(&f->common, "sparse factorisation", err);
         sc_sparse_chol_free(f);

@@ -120,6 +120,12 @@ typedef enum sc_sparse_kind {
 typedef struct sc_sparse_options {
     sc_sparse_ordering ordering;
     sc_sparse_kind kind;
+    /* auto: supernodal where the factorisation takes this many flops per
+     * entry of L or more (0: CHOLMOD's 40) */
+    double supernodal_from;
+    /* L L^T whatever the kind, which fails on a matrix that is not positive
+     * definite (auto's simplicial L D L^T takes any pivot but zero) */
+    bool definite;
 } sc_sparse_options;
 
 typedef struct sc_sparse_stats {
