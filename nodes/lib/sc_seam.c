@@ -763,11 +763,15 @@ static void acc_add_key(acc *a, int32_t r, int32_t c, double v) {
     if ((uint32_t)a->n * 2 > a->cap && !acc_rehash(a)) a->failed = true;
 }
 
+/* The keys are (row <= column) already: written straight into the room
+ * reserved for them. */
 static void acc_emit(acc *a, sc_triplets *t) {
     if (!sc_triplets_reserve(t, (size_t)a->n)) return;
-    for (int32_t i = 0; i < a->n; i++)
-        sc_triplets_add(t, (int32_t)(a->ekey[i] >> 32), (int32_t)(a->ekey[i] & 0xffffffffu),
-                        a->eval[i]);
+    for (int32_t i = 0; i < a->n; i++, t->count++) {
+        t->row[t->count] = (int32_t)(a->ekey[i] >> 32);
+        t->col[t->count] = (int32_t)(a->ekey[i] & 0xffffffffu);
+        t->val[t->count] = a->eval[i];
+    }
 }
 
 typedef struct rhs_entry {
@@ -796,6 +800,10 @@ typedef struct asm_job {
     asm_chunk *chunks;
     bool matrix;         /* emit Q's triplets */
     int32_t channels;    /* of the right-hand side */
+    /* room each chunk starts with, from the largest chunks so far: lists
+     * that grow by doubling copy themselves and fault fresh pages */
+    size_t trip_room;
+    int32_t rhs_room;
 } asm_job;
 
 #define ITEMS_PER_CHUNK 64
@@ -945,6 +953,11 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
     const sc_seam_terms *t = job->terms;
     sc_triplets_init(&ch->trip, job->index->count > 0 ? job->index->count : 1);
     ch->bad_texel = -1;
+    if (job->matrix && job->trip_room && !sc_triplets_reserve(&ch->trip, job->trip_room)) return ch->rc = SC_ENOMEM;
+    if (job->rhs_room) {
+        if (!(ch->rhs = sc_alloc_array((size_t)job->rhs_room, sizeof *ch->rhs))) return ch->rc = SC_ENOMEM;
+        ch->rhscap = job->rhs_room;
+    }
     acc a, ra; /* matrix entries; right-hand side entries (index, channel) */
     walk w = {0};
     bool ok_a = acc_init(&a), ok_ra = acc_init(&ra);
@@ -1070,7 +1083,7 @@ static int asm_chunk_run(void *ud, int32_t chunk_in_batch) {
 int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                      const sc_seam_texset *index, const sc_seam_terms *terms, int threads,
                      sc_triplet_parts *out, sc_error *err) {
-    asm_job job = {m, s, g, index, terms, 0, NULL, 0, NULL, out != NULL, 0};
+    asm_job job = {m, s, g, index, terms, 0, NULL, 0, NULL, out != NULL, 0, 0, 0};
     if (terms->rhs && terms->p0) job.channels = terms->p0->channels;
     else if (terms->rhs) return sc_fail(err, SC_EINPUT, "seam operator: a right-hand side needs p0");
     int32_t nonseam = 0;
@@ -1100,6 +1113,9 @@ int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
         int prc = sc_seam_parallel(threads, nb, asm_chunk_run, &job);
         for (int32_t b = 0; b < nb; b++) {
             asm_chunk *ch = &job.chunks[b];
+            size_t room = ch->trip.count + ch->trip.count / 8;
+            if (room > job.trip_room) job.trip_room = room;
+            if (ch->nrhs + ch->nrhs / 8 > job.rhs_room) job.rhs_room = ch->nrhs + ch->nrhs / 8;
             if (rc == SC_OK && ch->rc == SC_OK) {
                 if (out) sc_triplet_parts_take(out, &ch->trip);
                 for (int32_t r = 0; r < ch->nrhs && terms->rhs; r++)

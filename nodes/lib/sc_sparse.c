@@ -112,6 +112,15 @@ void sc_triplet_parts_take(sc_triplet_parts *p, sc_triplets *t) {
         if (l) p->list = l, p->cap = cap;
         else p->failed = true;
     }
+    if (!p->failed && t->count > 0 && t->cap > t->count) {   /* room it did not use goes back */
+        int32_t *r = sc_realloc_array(t->row, t->count, sizeof *r);
+        if (r) t->row = r;
+        int32_t *c = sc_realloc_array(t->col, t->count, sizeof *c);
+        if (c) t->col = c;
+        double *v = sc_realloc_array(t->val, t->count, sizeof *v);
+        if (v) t->val = v;
+        t->cap = t->count;
+    }
     if (!p->failed && t->count > 0) p->list[p->count++] = *t;
     else sc_triplets_free(t);
     sc_triplets_init(t, n);
