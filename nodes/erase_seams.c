@@ -57,7 +57,7 @@
  * graph (2x2 texel blocks or heavy-edge matching: 5-10x the flops),
  * simplicial factorisation (8x slower), larger relaxed supernodes. The
  * factorisation runs on one thread while everything that needs only the
- * seams (residuals of the other textures, the rows rounding reads, the
+ * seams (the textures' residuals, the rows rounding reads, the
  * nullity) runs on the other; both are independent tasks, so results do
  * not depend on the thread count.
  *
@@ -694,7 +694,7 @@ typedef struct prep_job {
     int rc_factor, rc_side;
     sc_error err_factor, err_side;
     double nullity;
-    double seconds_factor, seconds_resid, seconds_nullity, seconds_round_prep;
+    double seconds_nullity, seconds_round_prep;
 } prep_job;
 
 /* The preconditioner's matrix is Q less each listed coupling term
@@ -737,7 +737,6 @@ static void preconditioner_restore(sc_sparse *full, const sc_triplets *apart, co
  * simplicial where it is tiny), or, for the edge-cluster solver, its
  * preconditioner. */
 static int prep_factor(prep_job *pj) {
-    double t0 = sc_now();
     group_work *w = pj->ctx.w;
     if (w->use_schur) {
         /* the preconditioner is made in Q itself, and Q put back after */
@@ -756,11 +755,10 @@ static int prep_factor(prep_job *pj) {
         sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
         pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
     }
-    pj->seconds_factor = sc_now() - t0;
     return pj->rc_factor;
 }
 
-/* Task 1: the residuals of the other textures, the rows of M for rounding,
+/* Task 1: the textures' residuals, the rows of M for rounding,
  * and the nullity of M. It does not read Q, which task 0 changes in place. */
 static int prep_side(prep_job *pj) {
     const prep_ctx *c = &pj->ctx;
@@ -779,19 +777,18 @@ static int prep_side(prep_job *pj) {
     }
     double t1 = sc_now();
 
-    /* the residual r = -1/2 grad E at p0 of the other textures; the solve
-     * gives d = x - p0, so texels that need no change keep their exact value */
+    /* the residual r = -1/2 grad E at p0 of every texture (here, off the
+     * factorisation's path); the solve gives d = x - p0, so texels that
+     * need no change keep their exact value */
     for (int32_t k = 0, col = 0; k < c->gr->ntex; k++) {
         const sc_image_data *img = c->atlas->textures[c->gr->tex[k]].image->as.image;
         double *rhs = w->rhs + (size_t)col * n;
-        if (k > 0) {
-            sc_seam_terms rterms = *c->qterms;
-            rterms.p0 = img;
-            rterms.vertex_values = w->vv[k];
-            rterms.rhs = rhs;
-            if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, c->o->threads, NULL, err)))
-                return pj->rc_side = rc;
-        }
+        sc_seam_terms rterms = *c->qterms;
+        rterms.p0 = img;
+        rterms.vertex_values = w->vv[k];
+        rterms.rhs = rhs;
+        if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, c->o->threads, NULL, err)))
+            return pj->rc_side = rc;
         grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs, NULL, NULL, NULL);
         col += img->channels;
     }
@@ -822,7 +819,6 @@ static int prep_side(prep_job *pj) {
     if (pj->want_round && pj->want_nullity && (rc = sc_sparse_full(&w->msub, &w->mfull, err))) return pj->rc_side = rc;
     sc_sparse_free(&w->msub);
     double t4 = sc_now();
-    pj->seconds_resid = t2 - t1;
     pj->seconds_nullity = t3 - t2;
     pj->seconds_round_prep = (t1 - t0) + (t4 - t3);
     return SC_OK;
@@ -897,7 +893,7 @@ typedef struct build_job {
     const sc_seam_grid *g;
     const options *o;
     group_work *w;
-    const sc_seam_terms *first;   /* the first texture's residual is taken with Q's terms */
+    const sc_seam_terms *qterms;
     int rc[2];
     sc_error err[2];
 } build_job;
@@ -912,7 +908,7 @@ static int build_task(void *ud, int32_t task) {
     if (task == 1) return bj->rc[1] = schur_groups(bj->m, bj->seams, bj->g, w, err);
     sc_triplet_parts trip;
     sc_triplet_parts_init(&trip, w->unk.count);
-    int rc = sc_seam_assemble(bj->m, bj->seams, bj->g, &w->unk, bj->first, bj->o->threads, &trip, err);
+    int rc = sc_seam_assemble(bj->m, bj->seams, bj->g, &w->unk, bj->qterms, bj->o->threads, &trip, err);
     int32_t *grid_start = NULL, *grid_rows = NULL;
     if (rc == SC_OK) rc = grid_pattern(bj->g, &w->unk, w->ids, &w->cov.covered, bj->o, &grid_start, &grid_rows, err);
     if (rc == SC_OK) rc = sc_sparse_full_from_triplet_parts(&trip, grid_start, grid_rows, bj->o->threads, &w->q, err);
@@ -1006,8 +1002,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
                             .w_c1 = o->w_c1,
                             .w_outside = o->outside ? o->w_outside : 0,
                             .w_lerp = o->lerp ? o->w_lerp : 0};
-    /* right-hand sides: one column per channel of every texture (the first
-     * texture's residual is taken in the same pass as the matrix) */
+    /* right-hand sides: one column per channel of every texture */
     int32_t ncols = 0;
     for (int32_t k = 0; k < gr->ntex; k++) ncols += atlas->textures[gr->tex[k]].image->as.image->channels;
     w.rhs = sc_calloc_array((size_t)n * (size_t)ncols, sizeof *w.rhs);
@@ -1032,13 +1027,9 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
             goto done;
         }
     }
-    sc_seam_terms first = qterms;
-    first.p0 = atlas->textures[gr->tex[0]].image->as.image;
-    first.vertex_values = w.vv[0];
-    first.rhs = w.rhs;
     /* Q's seam terms, and the edge-cluster solver's groups, side by side */
     w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= o->schur_from);
-    build_job bj = {.m = m, .seams = seams, .g = g, .o = o, .w = &w, .first = &first};
+    build_job bj = {.m = m, .seams = seams, .g = g, .o = o, .w = &w, .qterms = &qterms};
     sc_seam_parallel(o->threads >= 2 && w.use_schur ? 2 : 1, w.use_schur ? 2 : 1, build_task, &bj);
     if ((rc = bj.rc[0] ? bj.rc[0] : bj.rc[1])) {
         if (err) *err = bj.err[bj.rc[0] ? 0 : 1];
@@ -1070,7 +1061,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
                       o->quantize == QUANT_OPTIMAL;
 
     /* the factorisation and everything else that needs only Q and the seams
-     * (residuals of the other textures, M for rounding, the nullity) run side
+     * (the textures' residuals, M for rounding, the nullity) run side
      * by side: two independent tasks, the same results on any thread count */
     prep_job pj = {.ctx = {m, seams, &seams_only, g, atlas, gr, o, &w, &qterms, w_pen, w_change_texel},
                    .want_round = want_round,
@@ -1089,9 +1080,10 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     }
     /* conjugate gradients multiply by Q, and rounding reads it */
     if (!w.use_schur && !w.round_rows) sc_sparse_free(&w.q);
-    /* stage times: the overlapped side work counts where it belongs */
-    double t1 = tp0 + pj.seconds_resid, t2 = t1 + pj.seconds_factor;
-    double ts = sc_now();
+    /* stage times in wall time: the factorisation's stage holds the side
+     * work beside it */
+    double t1 = tp0, t2 = sc_now();
+    double ts = t2;
     if ((rc = solve_unique(&w, o, n, ncols, w.rhs, err))) {
         sc_error_prefix(err, "material %s", m->materials[gr->material]);
         goto done;
