@@ -1965,7 +1965,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     double cov = 0, shared = 0;
     for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
         sc_seam_coverage c;
-        rc = sc_seam_coverage_build(in, m, &grids[m], &c, err);
+        rc = sc_seam_coverage_build(in, m, &grids[m], threads, &c, err);
         if (rc == SC_OK) cov += (double)c.ncovered, shared += (double)c.nshared, sc_seam_coverage_free(&c);
     }
     if (rc == SC_OK && shared > max_shared * cov)

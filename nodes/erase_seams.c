@@ -962,14 +962,15 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     int rc = SC_OK;
     double t0 = sc_now();
 
-    /* which texels are inside, which are unknown */
-    if ((rc = sc_seam_coverage_build(m, gr->material, g, &w.cov, err))) goto done;
-    if (sc_seam_texset_init(&w.unk, g->width, g->height)) {
+    /* which texels are inside, which are unknown, which are the seam texels
+     * (of cells seam edges pass through) */
+    if ((rc = sc_seam_coverage_build(m, gr->material, g, o->threads, &w.cov, err))) goto done;
+    if (sc_seam_texset_init(&w.unk, g->width, g->height) || sc_seam_texset_init(&w.seamset, g->width, g->height)) {
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
         goto done;
     }
-    if ((rc = sc_seam_mark_texels(m, seams, g, &w.unk, err))) goto done;
-    if (sc_seam_texset_finish(&w.unk) || sc_seam_texset_members(&w.unk, &w.ids)) {
+    if ((rc = sc_seam_mark_texels(m, seams, g, &w.unk, &w.seamset, o->threads, err))) goto done;
+    if (sc_seam_texset_finish(&w.unk) || sc_seam_texset_members(&w.unk, &w.ids) || sc_seam_texset_finish(&w.seamset)) {
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
         goto done;
     }
@@ -981,18 +982,9 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     }
     double w_change_texel = w.cov.ncovered > 0 ? o->w_change / (double)w.cov.ncovered : 0;
 
-    /* the seam texels (cells seam edges pass through) and the scale of M there */
-    if (sc_seam_texset_init(&w.seamset, g->width, g->height)) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        goto done;
-    }
+    /* the scale of M on the seam texels */
     sc_seam_set seams_only = *seams;
     seams_only.nsil = 0;
-    if ((rc = sc_seam_mark_texels(m, &seams_only, g, &w.seamset, err))) goto done;
-    if (sc_seam_texset_finish(&w.seamset)) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        goto done;
-    }
     double trace = 0;
     if ((rc = sc_seam_trace(m, seams, g, o->threads, &trace, err))) goto done;
     double w_pen = o->w_seam * (trace > 0 ? (double)w.seamset.count / trace : 1.0);

@@ -309,10 +309,25 @@ static bool edge_owns(const double *a, const double *b, double px, double py) {
     return dy < 0 || (dy == 0 && dx > 0);
 }
 
-static void cover_id(sc_seam_coverage *c, int32_t id) {
-    uint64_t bit = (uint64_t)1 << (id & 63), *w = &c->covered.bits[id >> 6];
-    if (*w & bit) c->shared.bits[id >> 6] |= bit;
-    else *w |= bit;
+/* Covered texels are gathered a 64-bit word at a time and put in with one
+ * atomic OR: a bit the word held already is covered twice, so shared. Faces
+ * are covered on several threads, and the sets come out the same. */
+typedef struct cover_word {
+    int64_t word;   /* -1: none yet */
+    uint64_t bits;
+} cover_word;
+
+static void cover_flush(sc_seam_coverage *c, cover_word *cw) {
+    if (cw->word < 0) return;
+    uint64_t old = __atomic_fetch_or(&c->covered.bits[cw->word], cw->bits, __ATOMIC_RELAXED);
+    if (old & cw->bits) __atomic_fetch_or(&c->shared.bits[cw->word], old & cw->bits, __ATOMIC_RELAXED);
+    cw->word = -1, cw->bits = 0;
+}
+
+static void cover_id(sc_seam_coverage *c, cover_word *cw, int32_t id) {
+    uint64_t bit = (uint64_t)1 << (id & 63);
+    if (cw->word != id >> 6 || (cw->bits & bit)) cover_flush(c, cw), cw->word = id >> 6;
+    cw->bits |= bit;
 }
 
 /* the texel centres x0..x1 (inclusive) of row iy, through the wrap modes */
@@ -320,33 +335,42 @@ static void cover_span(sc_seam_coverage *c, const sc_seam_grid *g, int64_t x0, i
     const int32_t W = g->width;
     if (g->wrap_v == SC_WRAP_CLAMP && (iy < 0 || iy >= g->height)) return;
     int32_t row = sc_seam_wrap(iy, g->height, g->wrap_v) * W;
+    cover_word cw = {-1, 0};
     if (g->wrap_u == SC_WRAP_CLAMP) {
         if (x0 < 0) x0 = 0;
         if (x1 > W - 1) x1 = W - 1;
-        for (int64_t x = x0; x <= x1; x++) cover_id(c, row + (int32_t)x);
+        for (int64_t x = x0; x <= x1; x++) cover_id(c, &cw, row + (int32_t)x);
     } else if (g->wrap_u == SC_WRAP_REPEAT) {
         int32_t i = sc_seam_wrap(x0, W, SC_WRAP_REPEAT);
         for (int64_t x = x0; x <= x1; x++) {
-            cover_id(c, row + i);
+            cover_id(c, &cw, row + i);
             if (++i == W) i = 0;
         }
     } else {
-        for (int64_t x = x0; x <= x1; x++) cover_id(c, row + sc_seam_wrap(x, W, g->wrap_u));
+        for (int64_t x = x0; x <= x1; x++) cover_id(c, &cw, row + sc_seam_wrap(x, W, g->wrap_u));
     }
+    cover_flush(c, &cw);
 }
 
-int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
-                           sc_seam_coverage *out, sc_error *err) {
-    memset(out, 0, sizeof *out);
-    if (sc_seam_texset_init(&out->covered, g->width, g->height) != SC_OK ||
-        sc_seam_texset_init(&out->shared, g->width, g->height) != SC_OK) {
-        sc_seam_coverage_free(out);
-        return sc_fail(err, SC_ENOMEM, "out of memory for a %dx%d coverage mask", (int)g->width,
-                       (int)g->height);
-    }
+#define COVER_FACES_PER_CHUNK 4096
+
+typedef struct cover_job {
+    const sc_mesh *m;
+    int32_t material;
+    const sc_seam_grid *g;
+    sc_seam_coverage *out;
+    int32_t *bad;   /* per chunk: its first face spanning too many textures (-1: none), then 1 (u) or 2 (v) */
+} cover_job;
+
+static int cover_chunk(void *ud, int32_t chunk) {
+    cover_job *job = ud;
+    const sc_mesh *m = job->m;
+    const sc_seam_grid *g = job->g;
     const double W = g->width, H = g->height;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (material >= 0 && m->FM[f] != material) continue;
+    int32_t f0 = chunk * COVER_FACES_PER_CHUNK, f1 = f0 + COVER_FACES_PER_CHUNK < m->nf ? f0 + COVER_FACES_PER_CHUNK : m->nf;
+    job->bad[2 * chunk] = -1;
+    for (int32_t f = f0; f < f1; f++) {
+        if (job->material >= 0 && m->FM[f] != job->material) continue;
         double P[3][2];
         for (int k = 0; k < 3; k++) {
             const double *uv = &m->U[2 * m->FU[3 * f + k]];
@@ -358,14 +382,11 @@ int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_gri
         const double *A = P[0], *B = area > 0 ? P[1] : P[2], *C = area > 0 ? P[2] : P[1];
         double xmin = fmin(A[0], fmin(B[0], C[0])), xmax = fmax(A[0], fmax(B[0], C[0]));
         double ymin = fmin(A[1], fmin(B[1], C[1])), ymax = fmax(A[1], fmax(B[1], C[1]));
-        if (g->wrap_u != SC_WRAP_CLAMP && xmax - xmin > 64.0 * W)
-            return sc_seam_coverage_free(out),
-                   sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 texture widths",
-                           (int)f);
-        if (g->wrap_v != SC_WRAP_CLAMP && ymax - ymin > 64.0 * H)
-            return sc_seam_coverage_free(out),
-                   sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 texture heights",
-                           (int)f);
+        bool wide_u = g->wrap_u != SC_WRAP_CLAMP && xmax - xmin > 64.0 * W;
+        if (wide_u || (g->wrap_v != SC_WRAP_CLAMP && ymax - ymin > 64.0 * H)) {
+            job->bad[2 * chunk] = f, job->bad[2 * chunk + 1] = wide_u ? 1 : 2;
+            return SC_EINPUT;
+        }
         double y0 = ceil(ymin), y1 = floor(ymax);
         if (g->wrap_v == SC_WRAP_CLAMP) y0 = fmax(y0, 0), y1 = fmin(y1, H - 1);
         const double *E[3][2] = {{A, B}, {B, C}, {C, A}};
@@ -388,9 +409,39 @@ int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_gri
                 x0++;
             while (x1 >= x0 && !(edge_owns(A, B, x1, y) && edge_owns(B, C, x1, y) && edge_owns(C, A, x1, y)))
                 x1--;
-            if (x0 <= x1) cover_span(out, g, (int64_t)x0, (int64_t)x1, (int64_t)y);
+            if (x0 <= x1) cover_span(job->out, g, (int64_t)x0, (int64_t)x1, (int64_t)y);
         }
     }
+    return SC_OK;
+}
+
+int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g, int threads,
+                           sc_seam_coverage *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    int32_t chunks = (m->nf + COVER_FACES_PER_CHUNK - 1) / COVER_FACES_PER_CHUNK;
+    cover_job job = {m, material, g, out, sc_alloc_array(2 * (size_t)chunks + 2, sizeof *job.bad)};
+    if (!job.bad || sc_seam_texset_init(&out->covered, g->width, g->height) != SC_OK ||
+        sc_seam_texset_init(&out->shared, g->width, g->height) != SC_OK) {
+        free(job.bad);
+        sc_seam_coverage_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory for a %dx%d coverage mask", (int)g->width,
+                       (int)g->height);
+    }
+    if (sc_parallel(threads, chunks, cover_chunk, &job) != SC_OK) {
+        for (int32_t c = 0; c < chunks; c++)
+            if (job.bad[2 * c] >= 0) {   /* the first face, in face order */
+                int32_t f = job.bad[2 * c];
+                bool u = job.bad[2 * c + 1] == 1;
+                free(job.bad);
+                sc_seam_coverage_free(out);
+                return sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 texture %s", (int)f,
+                               u ? "widths" : "heights");
+            }
+        free(job.bad);
+        sc_seam_coverage_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    free(job.bad);
     if (sc_seam_texset_finish(&out->covered) != SC_OK || sc_seam_texset_finish(&out->shared) != SC_OK) {
         sc_seam_coverage_free(out);
         return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -569,12 +620,22 @@ static bool piece_cell(const sc_seam_grid *g, const double *a0, const double *a1
     return true;
 }
 
+/* Marks the cells' texels in set and, when given, in seam_set, with atomic
+ * ORs: edges are marked on several threads, and the sets come out the same. */
 static void mark_pieces(const sc_seam_grid *g, const double *a0, const double *a1,
-                        const double *gm, int32_t n, sc_seam_texset *set) {
+                        const double *gm, int32_t n, sc_seam_texset *set, sc_seam_texset *seam_set) {
     sc_seam_cellpoly cp;
     for (int32_t i = 0; i + 1 < n; i++)
         if (piece_cell(g, a0, a1, gm, i, &cp))
-            for (int k = 0; k < 4; k++) sc_seam_texset_add(set, cp.id[k]);
+            for (int k = 0; k < 4; k++) {
+                int32_t id = cp.id[k];
+                uint64_t bit = (uint64_t)1 << (id & 63);
+                for (int t = 0; t < 2; t++) {
+                    sc_seam_texset *x = t ? seam_set : set;
+                    if (x && !(__atomic_load_n(&x->bits[id >> 6], __ATOMIC_RELAXED) & bit))
+                        __atomic_fetch_or(&x->bits[id >> 6], bit, __ATOMIC_RELAXED);
+                }
+            }
 }
 
 /* The pieces of edge q of s (seams split as pairs, exactly as the operator
@@ -601,23 +662,58 @@ static int32_t edge_pieces(const sc_mesh *m, const sc_seam_set *s, const sc_seam
     return n;
 }
 
-int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
-                        sc_seam_texset *set, sc_error *err) {
+#define MARK_ITEMS_PER_CHUNK 256
+
+typedef struct mark_job {
+    const sc_mesh *m;
+    const sc_seam_set *s;
+    const sc_seam_grid *g;
+    sc_seam_texset *set, *seam_set;
+    int32_t *bad;   /* per chunk: its first edge that could not be split, or -1 */
+} mark_job;
+
+static int mark_chunk(void *ud, int32_t chunk) {
+    mark_job *job = ud;
+    const sc_seam_set *s = job->s;
+    int32_t q0 = chunk * MARK_ITEMS_PER_CHUNK, q1 = q0 + MARK_ITEMS_PER_CHUNK;
+    if (q1 > s->nseams + s->nsil) q1 = s->nseams + s->nsil;
     walk w = {0};
-    for (int32_t q = 0; q < s->nseams + s->nsil; q++) {
+    job->bad[chunk] = -1;
+    for (int32_t q = q0; q < q1; q++) {
         const sc_seam_side *sd[2];
         const double *e[4];
-        int32_t n = edge_pieces(m, s, g, q, &w, sd, e, err);
+        int32_t n = edge_pieces(job->m, s, job->g, q, &w, sd, e, NULL);
         if (n < 0) {
-            free(w.gm);
-            return SC_EINPUT;
+            job->bad[chunk] = q;
+            break;
         }
         if (n == 0) continue;
-        mark_pieces(g, e[0], e[1], w.gm, n, set);
-        if (e[2]) mark_pieces(g, e[2], e[3], w.gm, n, set);
+        sc_seam_texset *seam_set = q < s->nseams ? job->seam_set : NULL;
+        mark_pieces(job->g, e[0], e[1], w.gm, n, job->set, seam_set);
+        if (e[2]) mark_pieces(job->g, e[2], e[3], w.gm, n, job->set, seam_set);
     }
     free(w.gm);
-    return SC_OK;
+    return job->bad[chunk] >= 0 ? SC_EINPUT : SC_OK;
+}
+
+int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                        sc_seam_texset *set, sc_seam_texset *seam_set, int threads, sc_error *err) {
+    int32_t chunks = (s->nseams + s->nsil + MARK_ITEMS_PER_CHUNK - 1) / MARK_ITEMS_PER_CHUNK;
+    mark_job job = {m, s, g, set, seam_set, sc_alloc_array((size_t)chunks + 1, sizeof *job.bad)};
+    if (!job.bad) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = sc_parallel(threads, chunks, mark_chunk, &job);
+    for (int32_t c = 0; rc != SC_OK && c < chunks; c++)
+        if (job.bad[c] >= 0) {   /* the first such edge names the problem */
+            walk w = {0};
+            const sc_seam_side *sd[2];
+            const double *e[4];
+            edge_pieces(m, s, g, job.bad[c], &w, sd, e, err);
+            free(w.gm);
+            break;
+        }
+    if (rc == SC_ENOMEM) sc_fail(err, SC_ENOMEM, "out of memory");
+    free(job.bad);
+    return rc;
 }
 
 /* The walk of sc_seam_mark_texels, recording for each texel of `index` the

@@ -145,7 +145,7 @@ typedef struct sc_seam_coverage {
     int64_t ncovered, nshared;
 } sc_seam_coverage;
 
-int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
+int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g, int threads,
                            sc_seam_coverage *out, sc_error *err);
 void sc_seam_coverage_free(sc_seam_coverage *c);
 
@@ -183,9 +183,10 @@ bool sc_seam_inward_normal(const sc_mesh *m, const sc_seam_grid *g, const sc_sea
 /* ---------------------------------------------------------------- operators */
 
 /* Which texels the operators touch: the four corners of every bilinear cell
- * a uv silhouette edge passes through (eq. 5 splitting). Adds to `set`. */
+ * a uv silhouette edge passes through (eq. 5 splitting). Adds to `set`, and
+ * those of the seam edges alone to `seam_set` (may be NULL). */
 int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
-                        sc_seam_texset *set, sc_error *err);
+                        sc_seam_texset *set, sc_seam_texset *seam_set, int threads, sc_error *err);
 
 /* Which edge each texel of `index` belongs to, for solvers that eliminate the
  * texels of one edge together: group[r] is the seam (0..nseams-1) or

@@ -961,12 +961,12 @@ SC_TEST(coverage_partitions_texels) {
     sc_seam_coverage cov;
     sc_error err = {0};
     m->nf = 2;
-    SC_CHECK_INT(sc_seam_coverage_build(m, 0, &g, &cov, &err), SC_OK);
+    SC_CHECK_INT(sc_seam_coverage_build(m, 0, &g, 2, &cov, &err), SC_OK);
     SC_CHECK_INT(cov.ncovered, 64);
     SC_CHECK_INT(cov.nshared, 0);
     sc_seam_coverage_free(&cov);
     m->nf = 4;
-    SC_CHECK_INT(sc_seam_coverage_build(m, 0, &g, &cov, &err), SC_OK);
+    SC_CHECK_INT(sc_seam_coverage_build(m, 0, &g, 2, &cov, &err), SC_OK);
     SC_CHECK_INT(cov.ncovered, 64);
     SC_CHECK_INT(cov.nshared, 64);
     sc_seam_coverage_free(&cov);
