@@ -273,6 +273,43 @@ static int cmp_keyed(const void *pa, const void *pb) {
     return a->index < b->index ? -1 : a->index > b->index;
 }
 
+/* plan's parallel parts, in fixed chunks: which unknowns are interface
+ * (pass 0), and each cluster's unknowns in key order (pass 1) */
+typedef struct plan_job {
+    const sc_sparse *a;
+    const int32_t *group;
+    uint8_t *is_if;
+    const sc_schur *f;
+    keyed *tmp;
+    int32_t per_chunk;
+    int pass;
+} plan_job;
+
+static int plan_chunk(void *ud, int32_t chunk) {
+    plan_job *job = ud;
+    int32_t i0 = chunk * job->per_chunk, i1 = i0 + job->per_chunk;
+    if (job->pass == 0) {
+        const sc_sparse *a = job->a;
+        if (i1 > a->n) i1 = a->n;
+        for (int32_t t = i0; t < i1; t++) {
+            int32_t gt = job->group[t];
+            bool itf = gt < 0;
+            for (int32_t p = a->colptr[t]; p < a->colptr[t + 1] && !itf; p++) {
+                if (!is_coupling(a, p, t)) continue;
+                int32_t gu = job->group[a->rowind[p]];
+                itf = gu >= 0 && gu != gt;
+            }
+            job->is_if[t] = itf;
+        }
+    } else {
+        const sc_schur *f = job->f;
+        if (i1 > f->nclusters) i1 = f->nclusters;
+        for (int32_t c = i0; c < i1; c++)
+            qsort(job->tmp + f->cstart[c], (size_t)(f->cstart[c + 1] - f->cstart[c]), sizeof *job->tmp, cmp_keyed);
+    }
+    return SC_OK;
+}
+
 /* Which unknowns are private, and where everything goes. */
 static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const double *key,
                 sc_error *err) {
@@ -280,17 +317,13 @@ static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const dou
     uint8_t *is_if = sc_alloc_array((size_t)n, 1);
     int32_t gmax = -1;
     if (!is_if) return sc_fail(err, SC_ENOMEM, "out of memory");
-    for (int32_t t = 0; t < n; t++) {
-        int32_t gt = group[t];
-        bool itf = gt < 0;
-        for (int32_t p = a->colptr[t]; p < a->colptr[t + 1] && !itf; p++) {
-            if (!is_coupling(a, p, t)) continue;
-            int32_t gu = group[a->rowind[p]];
-            itf = gu >= 0 && gu != gt;
-        }
-        is_if[t] = itf;
-        if (!itf && gt > gmax) gmax = gt;
+    plan_job job = {.a = a, .group = group, .is_if = is_if, .f = f, .per_chunk = ROW_CHUNK};
+    if (sc_parallel(f->threads, (n + ROW_CHUNK - 1) / ROW_CHUNK, plan_chunk, &job) != SC_OK) {
+        free(is_if);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
     }
+    for (int32_t t = 0; t < n; t++)
+        if (!is_if[t] && group[t] > gmax) gmax = group[t];
     int32_t *count = sc_calloc_array((size_t)gmax + 2, sizeof *count);
     f->order = sc_alloc_array((size_t)n, sizeof *f->order);
     f->position = sc_alloc_array((size_t)n, sizeof *f->position);
@@ -330,8 +363,11 @@ static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const dou
     keyed *tmp = sc_alloc_array(npriv ? (size_t)npriv : 1, sizeof *tmp);
     if (!tmp) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t k = 0; k < npriv; k++) tmp[k].key = key[f->order[k]], tmp[k].index = f->order[k];
-    for (int32_t c = 0; c < nclusters; c++)
-        qsort(tmp + f->cstart[c], (size_t)(f->cstart[c + 1] - f->cstart[c]), sizeof *tmp, cmp_keyed);
+    job.pass = 1, job.tmp = tmp, job.per_chunk = 256;
+    if (sc_parallel(f->threads, (nclusters + 255) / 256, plan_chunk, &job) != SC_OK) {
+        free(tmp);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
     for (int32_t k = 0; k < npriv; k++) f->order[k] = tmp[k].index;
     free(tmp);
     for (int32_t k = 0; k < n; k++) f->position[f->order[k]] = k;
