@@ -63,9 +63,9 @@
  *
  * Building the system (pizza: 16.6M seam triplets, 29.7M entries in Q's
  * full pattern). Q is kept in its full pattern (both triangles) only: the
- * edge-cluster solver reads its rows, conjugate gradients multiply by it
- * and the 8-bit rounding reads M = Q / w_pen from its seam rows, so no
- * upper triangle is kept beside it. sc_seam_assemble's chunks keep their
+ * edge-cluster solver reads its rows, its refinement multiplies by it and
+ * the 8-bit rounding reads M = Q / w_pen from its seam rows, so no upper
+ * triangle is kept beside it. sc_seam_assemble's chunks keep their
  * triplet lists (sc_triplet_parts: no copy into one list), and
  * sc_sparse_full_from_triplet_parts assembles them straight into the full
  * pattern, reserving the grid terms' entries (grid_pattern) as zeros;

@@ -68,7 +68,7 @@ void sc_schur_free(sc_schur *f);
  * before, 1.3e-11 after, as conjugate gradients on q preconditioned by A
  * reach). b (n x nrhs, column-major) is overwritten by X. */
 typedef struct sc_schur_pcg_result {
-    int32_t iterations;        /* the most any column took */
+    int32_t iterations;        /* the most any column took (both rounds) */
     double relative_residual;  /* the largest final residual ratio */
 } sc_schur_pcg_result;
 
