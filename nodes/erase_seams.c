@@ -735,18 +735,14 @@ static void preconditioner_restore(sc_sparse *full, const sc_triplets *apart, co
 
 /* Task 0: analyse and factor Q (supernodal where the factor is big,
  * simplicial where it is tiny), or, for the edge-cluster solver, its
- * preconditioner. */
+ * interface (prep_clusters did the rest). */
 static int prep_factor(prep_job *pj) {
     group_work *w = pj->ctx.w;
     if (w->use_schur) {
-        /* the preconditioner is made in Q itself, and Q put back after */
-        double *saved = NULL;
-        pj->rc_factor = preconditioner_apply(&w->q, &w->apart, &saved, &pj->err_factor);
-        if (pj->rc_factor == SC_OK)
-            pj->rc_factor = sc_schur_factor(&w->q, w->group, w->gamma, pj->ctx.o->threads, &w->schur, &pj->err_factor);
-        if (saved) preconditioner_restore(&w->q, &w->apart, saved);
-        free(saved);
+        if (pj->rc_factor == SC_OK) pj->rc_factor = sc_schur_factor_interface(w->schur, &pj->err_factor);
         if (pj->rc_factor != SC_OK && pj->ctx.o->solver == SOLVER_AUTO) {   /* CHOLMOD instead */
+            sc_schur_free(w->schur);
+            w->schur = NULL;
             w->fallback = true;
             sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
             pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
@@ -756,6 +752,20 @@ static int prep_factor(prep_job *pj) {
         pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
     }
     return pj->rc_factor;
+}
+
+/* Before the two tasks, on all threads: the edge-cluster solver's clusters
+ * and S, which read Q made the factored matrix in place (and put back
+ * after); its failure is task 0's to handle. */
+static void prep_clusters(prep_job *pj) {
+    group_work *w = pj->ctx.w;
+    double *saved = NULL;
+    pj->rc_factor = preconditioner_apply(&w->q, &w->apart, &saved, &pj->err_factor);
+    if (pj->rc_factor == SC_OK)
+        pj->rc_factor = sc_schur_factor_clusters(&w->q, w->group, w->gamma, pj->ctx.o->threads, &w->schur,
+                                                 &pj->err_factor);
+    if (saved) preconditioner_restore(&w->q, &w->apart, saved);
+    free(saved);
 }
 
 /* Task 1: the textures' residuals, the rows of M for rounding,
@@ -1052,14 +1062,17 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         want_round |= atlas->textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
                       o->quantize == QUANT_OPTIMAL;
 
-    /* the factorisation and everything else that needs only Q and the seams
-     * (the textures' residuals, M for rounding, the nullity) run side
-     * by side: two independent tasks, the same results on any thread count */
+    /* the factorisation (for the edge-cluster solver, of its interface
+     * alone, mostly on one thread) and everything else that needs only the
+     * seams (the textures' residuals, the rows of M for rounding, the
+     * nullity) run side by side: two independent tasks, the same results on
+     * any thread count */
     prep_job pj = {.ctx = {m, seams, &seams_only, g, atlas, gr, o, &w, &qterms, w_pen, w_change_texel},
                    .want_round = want_round,
                    .want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS,
                    .nullity = NAN};
     double tp0 = sc_now();
+    if (w.use_schur) prep_clusters(&pj);
     sc_seam_parallel(o->threads >= 2 ? 2 : 1, 2, prep_task, &pj);
     if ((rc = pj.rc_factor)) {
         if (err) *err = pj.err_factor;

@@ -486,8 +486,8 @@ done:
     return rc;
 }
 
-int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
-                    sc_schur **out, sc_error *err) {
+int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const double *key, int threads,
+                             sc_schur **out, sc_error *err) {
     *out = NULL;
     if (!a || a->n <= 0) return sc_fail(err, SC_EINPUT, "factorisation of an empty matrix");
     sc_schur *f = calloc(1, sizeof *f);
@@ -527,30 +527,11 @@ int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key,
     }
     for (int32_t c = 0; job.trip && c < nchunks; c++) sc_triplets_free(&job.trip[c]);
     free(job.trip), free(job.flops), free(job.bad);
-    double t1 = sc_now();
 
-    /* the interface */
+    /* the interface matrix S */
     if (rc == SC_OK && f->nif > 0) {
-        sc_sparse s;
-        rc = sc_sparse_from_triplet_parts(&sii, f->threads, &s, err);
-        sc_triplet_parts_free(&sii);
-        if (rc == SC_OK) {
-            f->stats.interface_nnz = (double)s.nnz;
-            /* simplicial unless S's supernodes are big (CHOLMOD's switch,
-             * 40 flops per entry, takes pizza's 58 supernodal: 1.3 s against
-             * simplicial's 1.0 s, and a slower solve per iteration) */
-            sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO,
-                                     .supernodal_from = 200, .definite = true};
-            rc = sc_sparse_chol_factor(&s, &opt, &f->s, err);
-            f->sii = s;
-        }
-        if (rc == SC_OK) {
-            sc_sparse_stats st;
-            sc_sparse_chol_stats(f->s, &st);
-            f->stats.interface_factor_nnz = st.factor_nnz;
-            f->stats.interface_flops = st.flops;
-            f->stats.peak_bytes = st.peak_bytes;
-        }
+        rc = sc_sparse_from_triplet_parts(&sii, f->threads, &f->sii, err);
+        if (rc == SC_OK) f->stats.interface_nnz = (double)f->sii.nnz;
     }
     sc_triplet_parts_free(&sii);
     if (rc != SC_OK) {
@@ -560,10 +541,39 @@ int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key,
     f->stats.clusters = f->nclusters;
     f->stats.private_unknowns = f->npriv;
     f->stats.interface_unknowns = f->nif;
-    f->stats.seconds_clusters = t1 - t0;
-    f->stats.seconds_interface = sc_now() - t1;
+    f->stats.seconds_clusters = sc_now() - t0;
     *out = f;
     return SC_OK;
+}
+
+int sc_schur_factor_interface(sc_schur *f, sc_error *err) {
+    if (f->nif == 0 || f->s) return SC_OK;
+    double t0 = sc_now();
+    /* simplicial unless S's supernodes are big (CHOLMOD's switch, 40 flops
+     * per entry, takes pizza's 58 supernodal: 1.3 s against simplicial's
+     * 1.0 s, and a slower solve per iteration) */
+    sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO, .supernodal_from = 200,
+                             .definite = true};
+    int rc = sc_sparse_chol_factor(&f->sii, &opt, &f->s, err);
+    if (rc == SC_OK) {
+        sc_sparse_stats st;
+        sc_sparse_chol_stats(f->s, &st);
+        f->stats.interface_factor_nnz = st.factor_nnz;
+        f->stats.interface_flops = st.flops;
+        f->stats.peak_bytes = st.peak_bytes;
+    }
+    f->stats.seconds_interface = sc_now() - t0;
+    return rc;
+}
+
+int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
+                    sc_schur **out, sc_error *err) {
+    int rc = sc_schur_factor_clusters(a, group, key, threads, out, err);
+    if (rc == SC_OK && (rc = sc_schur_factor_interface(*out, err))) {
+        sc_schur_free(*out);
+        *out = NULL;
+    }
+    return rc;
 }
 
 void sc_schur_get_stats(const sc_schur *f, sc_schur_stats *out) { *out = f->stats; }

@@ -43,6 +43,13 @@ typedef struct sc_schur_stats {
  * interface. Fails with SC_EINPUT when a is not positive definite. */
 int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
                     sc_schur **out, sc_error *err);
+/* The same in two steps, so that a caller can run other work beside the
+ * second: the clusters and S (on `threads` threads; they read a), then S's
+ * factorisation (CHOLMOD, mostly on the calling thread; a is not read).
+ * After a failed second step the caller frees f. */
+int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const double *key, int threads,
+                             sc_schur **out, sc_error *err);
+int sc_schur_factor_interface(sc_schur *f, sc_error *err);
 
 /* Solve A X = B for nrhs columns (b: n x nrhs, column-major, overwritten). */
 int sc_schur_solve(sc_schur *f, int32_t nrhs, double *b, sc_error *err);
