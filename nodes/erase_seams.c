@@ -399,7 +399,7 @@ static int grid_terms_chunk(void *ud, int32_t chunk) {
  * in the atlas) is also listed in apart_out, once, from the end that meets
  * it first. */
 static int grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
-                      const sc_seam_texset *covered, const options *o, double w_change_texel,
+                      const sc_seam_texset *covered, const options *o, int threads, double w_change_texel,
                       sc_sparse *q, const sc_image_data *p0, double *rhs, const int32_t *chart,
                       sc_triplets *apart_out, sc_error *err) {
     const int32_t n = unk->count, chunks = (n + GRID_ROWS_PER_CHUNK - 1) / GRID_ROWS_PER_CHUNK;
@@ -410,7 +410,7 @@ static int grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const in
         if (!job.apart) return sc_fail(err, SC_ENOMEM, "out of memory");
         for (int32_t c = 0; c < chunks; c++) sc_triplets_init(&job.apart[c], n);
     }
-    int rc = sc_parallel(o->threads, chunks, grid_terms_chunk, &job);
+    int rc = sc_parallel(threads, chunks, grid_terms_chunk, &job);
     for (int32_t c = 0; job.apart && c < chunks; c++) {
         if (rc == SC_OK) sc_triplets_append(apart_out, &job.apart[c]);
         sc_triplets_free(&job.apart[c]);
@@ -775,6 +775,9 @@ static int prep_side(prep_job *pj) {
     group_work *w = c->w;
     sc_error *err = &pj->err_side;
     const int32_t n = w->unk.count;
+    /* beside the edge-cluster solver's interface factorisation, one thread:
+     * the core it leaves free */
+    const int threads = w->use_schur ? 1 : c->o->threads;
     int rc = SC_OK;
     double t0 = sc_now();
     if (pj->want_round && !pj->want_nullity) {
@@ -797,9 +800,10 @@ static int prep_side(prep_job *pj) {
         rterms.p0 = img;
         rterms.vertex_values = w->vv[k];
         rterms.rhs = rhs;
-        if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, c->o->threads, NULL, err)))
+        if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, threads, NULL, err)))
             return pj->rc_side = rc;
-        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, c->w_change_texel, NULL, img, rhs, NULL, NULL, NULL);
+        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, threads, c->w_change_texel, NULL, img, rhs, NULL, NULL,
+                   NULL);
         col += img->channels;
     }
     double t2 = sc_now();
@@ -1051,7 +1055,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         }
     }
     if (w.use_schur) sc_triplets_init(&w.apart, n);
-    if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, w_change_texel, &w.q, NULL, NULL,
+    if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, o->threads, w_change_texel, &w.q, NULL, NULL,
                          w.group ? w.group + n : NULL, w.use_schur ? &w.apart : NULL, err)))
         goto done;
     /* the texels those couplings join are interface unknowns: the solve
