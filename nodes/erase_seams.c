@@ -100,19 +100,23 @@
  * pizza's 2.07M unknowns were all interface) there are no clusters, and
  * `auto` factors Q itself.
  *
- * Where pizza's erase goes now (2-core machine, one run of
- * bench_erase_seams, 6.1 s in all): texel sets and the trace 0.3 s; Q's
- * seam terms 1.1 s and its assembly 0.8 s (with the groups beside them);
- * the cluster plan, layout and elimination 1.0 s; the interface's CHOLMOD
- * analysis and factorisation 1.0 s (one thread, simplicial); the
- * iterations and the refinement 0.6 s; writing, measuring and rounding
- * 0.8 s. The preceding design (upper triangle plus a full copy, triplets
- * copied into one list, a BLAS helper thread spinning beside the solve,
- * supernodal interface, conjugate gradients on the whole system) took
- * 9.3-11.2 s in the same minutes.
+ * Where pizza's erase goes now (2-core machine, a calm stretch: 5.6-5.8 s
+ * in all, against 9.2-9.5 s for the design before, 5096414): the texel sets
+ * and the trace 0.2 s; Q's seam terms 0.75 s and its assembly into the full
+ * pattern 0.8 s (the edge groups found beside them); the grid terms 0.1 s;
+ * the cluster plan, layout and elimination 1.1 s; the interface's CHOLMOD
+ * factorisation 1.0 s on one thread, the side work (the seam residual, on
+ * the other) beside it; the iterations and the refinement 0.7 s; writing
+ * 0.25 s; the seam energies beside the optimal rounding 0.65 s; the energy
+ * before (run) 0.2 s. What changed, each measured in alternating runs:
+ * Q's full pattern alone, assembled from the chunks' own triplet lists
+ * (9.3-11.2 -> 7.5-7.9 s with the BLAS and memory changes below), the
+ * interface factored simplicial (7.5 -> 7.1 s), the iterations on the
+ * interface (7.0 -> 6.1 s), the side work placed beside the interface
+ * factorisation on the core it leaves free (6.0 -> 5.7 s).
  *
- * Memory (pizza): the resident set grows by ~880 MB during the erase, peak
- * ~1210 MB (was 1050-1100 MB and 1420 MB). The preconditioner is made in
+ * Memory (pizza): the resident set grows by 910-980 MB during the erase,
+ * peak 1240-1300 MB (5096414: 1100 MB and 1420-1435 MB). The preconditioner is made in
  * Q in place (each dropped grid coupling's four entries saved, zeroed, and
  * put back after the factorisation; sc_schur reads exact zeros as no
  * coupling). The seam energies of the float and naively rounded results
