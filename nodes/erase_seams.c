@@ -160,8 +160,9 @@
  *
  * Determinism. Assembly emits triplets in a fixed order for any thread count,
  * sums them in that order on any thread count, and then each unknown adds
- * its grid terms to its own row in the order of its links; the channels of the rounding are independent (a channel equal to an
- * earlier one at every seam texel, floats and bytes, copies its rounding);
+ * its grid terms to its own row in the order of its links; the channels of
+ * the rounding are independent (a channel equal to an earlier one at every
+ * seam texel, floats and bytes, copies its rounding);
  * the rounding revisits only texels whose gradient changed, which makes the
  * same choices in the same order as full sweeps; CHOLMOD is deterministic.
  */
@@ -307,7 +308,8 @@ typedef struct grid_job {
 
 static int grid_pattern_chunk(void *ud, int32_t chunk) {
     grid_job *job = ud;
-    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK < job->n ? r0 + GRID_ROWS_PER_CHUNK : job->n;
+    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK;
+    if (r1 > job->n) r1 = job->n;
     for (int32_t r = r0; r < r1; r++) {
         grid_link links[4];
         int nl = grid_links(job->g, job->unk, job->covered, job->o, job->ids[r],
@@ -363,7 +365,8 @@ static double *entry(sc_sparse *q, int32_t i, int32_t j) { return &q->val[sc_spa
 static int grid_terms_chunk(void *ud, int32_t chunk) {
     grid_job *job = ud;
     const int32_t n = job->n, C = job->p0 ? job->p0->channels : 0;
-    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK < n ? r0 + GRID_ROWS_PER_CHUNK : n;
+    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK;
+    if (r1 > n) r1 = n;
     sc_triplets *apart = job->apart ? &job->apart[chunk] : NULL;
     for (int32_t r = r0; r < r1; r++) {
         int32_t t = job->ids[r];
@@ -385,7 +388,8 @@ static int grid_terms_chunk(void *ud, int32_t chunk) {
                 sc_triplets_add(apart, r, r2, w);
             if (job->rhs && !l->keep_gradient)
                 for (int32_t c = 0; c < C; c++)
-                    job->rhs[(size_t)c * n + r] -= w * (sc_seam_texel(job->p0, t, c) - sc_seam_texel(job->p0, l->texel, c));
+                    job->rhs[(size_t)c * n + r] -=
+                        w * (sc_seam_texel(job->p0, t, c) - sc_seam_texel(job->p0, l->texel, c));
         }
         if (apart && apart->failed) return SC_ENOMEM;
     }
@@ -679,7 +683,7 @@ static bool looks_tangent_space(const sc_image_data *img) {
     return s[2] > 0.7 && fabs(s[0] - 0.5) < 0.15 && fabs(s[1] - 0.5) < 0.15;
 }
 
-/* What the preparation tasks share (read-only). */
+/* What the tasks that build and factor the system share (read-only). */
 typedef struct prep_ctx {
     const sc_mesh *m;
     const sc_seam_set *seams, *seams_only;
@@ -906,12 +910,7 @@ static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncol
 /* Q (full pattern) from the seam terms, with room for the grid terms
  * (task 0), and the edge-cluster solver's groups (task 1): independent. */
 typedef struct build_job {
-    const sc_mesh *m;
-    const sc_seam_set *seams;
-    const sc_seam_grid *g;
-    const options *o;
-    group_work *w;
-    const sc_seam_terms *qterms;
+    const prep_ctx *ctx;
     int rc[2];
     sc_error err[2];
 } build_job;
@@ -921,15 +920,16 @@ static int schur_groups(const sc_mesh *m, const sc_seam_set *seams, const sc_sea
 
 static int build_task(void *ud, int32_t task) {
     build_job *bj = ud;
-    group_work *w = bj->w;
+    const prep_ctx *c = bj->ctx;
+    group_work *w = c->w;
     sc_error *err = &bj->err[task];
-    if (task == 1) return bj->rc[1] = schur_groups(bj->m, bj->seams, bj->g, w, err);
+    if (task == 1) return bj->rc[1] = schur_groups(c->m, c->seams, c->g, w, err);
     sc_triplet_parts trip;
     sc_triplet_parts_init(&trip, w->unk.count);
-    int rc = sc_seam_assemble(bj->m, bj->seams, bj->g, &w->unk, bj->qterms, bj->o->threads, &trip, err);
+    int rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, c->qterms, c->o->threads, &trip, err);
     int32_t *grid_start = NULL, *grid_rows = NULL;
-    if (rc == SC_OK) rc = grid_pattern(bj->g, &w->unk, w->ids, &w->cov.covered, bj->o, &grid_start, &grid_rows, err);
-    if (rc == SC_OK) rc = sc_sparse_full_from_triplet_parts(&trip, grid_start, grid_rows, bj->o->threads, &w->q, err);
+    if (rc == SC_OK) rc = grid_pattern(c->g, &w->unk, w->ids, &w->cov.covered, c->o, &grid_start, &grid_rows, err);
+    if (rc == SC_OK) rc = sc_sparse_full_from_triplet_parts(&trip, grid_start, grid_rows, c->o->threads, &w->q, err);
     free(grid_start), free(grid_rows);
     sc_triplet_parts_free(&trip);
     return bj->rc[0] = rc;
@@ -1039,7 +1039,8 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
     }
     /* Q's seam terms, and the edge-cluster solver's groups, side by side */
     w.use_schur = o->solver == SOLVER_SCHUR || (o->solver == SOLVER_AUTO && n >= o->schur_from);
-    build_job bj = {.m = m, .seams = seams, .g = g, .o = o, .w = &w, .qterms = &qterms};
+    const prep_ctx pc = {m, seams, &seams_only, g, atlas, gr, o, &w, &qterms, w_pen, w_change_texel};
+    build_job bj = {.ctx = &pc};
     sc_seam_parallel(o->threads >= 2 && w.use_schur ? 2 : 1, w.use_schur ? 2 : 1, build_task, &bj);
     if ((rc = bj.rc[0] ? bj.rc[0] : bj.rc[1])) {
         if (err) *err = bj.err[bj.rc[0] ? 0 : 1];
@@ -1075,7 +1076,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
      * seams (the textures' residuals, the rows of M for rounding, the
      * nullity) run side by side: two independent tasks, the same results on
      * any thread count */
-    prep_job pj = {.ctx = {m, seams, &seams_only, g, atlas, gr, o, &w, &qterms, w_pen, w_change_texel},
+    prep_job pj = {.ctx = pc,
                    .want_round = want_round,
                    .want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS,
                    .nullity = NAN};

@@ -771,7 +771,8 @@ static int interface_cg(sc_schur *f, const sc_triplets *terms, const int32_t *ti
         if (it == max_iter) {
             double worst = 0, asked = 0;
             for (int32_t c = 0; c < nrhs; c++)
-                if (active[c] && sqrt(rz[c]) / scale[c] > worst) worst = sqrt(rz[c]) / scale[c], asked = target[c] / scale[c];
+                if (active[c] && sqrt(rz[c]) / scale[c] > worst)
+                    worst = sqrt(rz[c]) / scale[c], asked = target[c] / scale[c];
             rc = sc_fail(err, SC_EINPUT,
                          "conjugate gradients did not converge in %d iterations "
                          "(residual ratio %.3g, asked for %.3g)", (int)max_iter, worst, asked);
@@ -831,7 +832,8 @@ static int substructured_solve(sc_schur *f, const sc_triplets *terms, const int3
         for (int32_t k = 0; k < n; k++) x[(size_t)c * n + k] = b[(size_t)c * n + f->order[k]];
     solve_job job = {.f = f, .x = x, .nrhs = nrhs};
     if (run_phase(&job, 1) || run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
-    for (int32_t c = 0; c < nrhs; c++) memcpy(gi + (size_t)c * nif, x + (size_t)c * n + npriv, (size_t)nif * sizeof *gi);
+    for (int32_t c = 0; c < nrhs; c++)
+        memcpy(gi + (size_t)c * nif, x + (size_t)c * n + npriv, (size_t)nif * sizeof *gi);
     bool scaled = true;
     for (int32_t c = 0; c < nrhs; c++) scaled &= target[c] >= 0;
     if (!scaled) {

@@ -367,7 +367,8 @@ static int cover_chunk(void *ud, int32_t chunk) {
     const sc_mesh *m = job->m;
     const sc_seam_grid *g = job->g;
     const double W = g->width, H = g->height;
-    int32_t f0 = chunk * COVER_FACES_PER_CHUNK, f1 = f0 + COVER_FACES_PER_CHUNK < m->nf ? f0 + COVER_FACES_PER_CHUNK : m->nf;
+    int32_t f0 = chunk * COVER_FACES_PER_CHUNK, f1 = f0 + COVER_FACES_PER_CHUNK;
+    if (f1 > m->nf) f1 = m->nf;
     job->bad[2 * chunk] = -1;
     for (int32_t f = f0; f < f1; f++) {
         if (job->material >= 0 && m->FM[f] != job->material) continue;

@@ -348,7 +348,8 @@ static int assemble(const sc_triplets *src, int32_t nsrc, int32_t n, bool full, 
     if (n <= 0) return sc_fail(err, SC_EINPUT, "sparse matrix of size %d", (int)n);
     for (int32_t e = 0; extra_start && e < extra_start[n]; e++)
         if (extra_rows[e] < 0 || extra_rows[e] >= n)
-            return sc_fail(err, SC_EINPUT, "sparse row %d outside a %d x %d matrix", (int)extra_rows[e], (int)n, (int)n);
+            return sc_fail(err, SC_EINPUT, "sparse row %d outside a %d x %d matrix", (int)extra_rows[e], (int)n,
+                           (int)n);
     size_t placed = (full ? 2 * count : count) + (extra_start ? (size_t)extra_start[n] : 0);   /* an upper bound */
     if (placed > (size_t)INT32_MAX)
         return sc_fail(err, SC_ENOMEM, "sparse matrix with %zu entries is beyond the 2^31 limit",
