@@ -741,10 +741,12 @@ static void interface_multiply(const sc_schur *f, const sc_triplets *terms, cons
 /* Conjugate gradients on (S + E) x_i = g for every column of gi (nif x
  * nrhs, overwritten by x_i), S's factor as the preconditioner, until the
  * residual's S^-1 norm is at most target[c]; scale[c] scales the ratio
- * reported. */
+ * reported. A target < 0 is set here to tol scale[c], scale[c] being
+ * sqrt(b^T A^-1 b) = sqrt(bpy[c] + g^T S^-1 g) (the first preconditioned
+ * residual gives the second term). */
 static int interface_cg(sc_schur *f, const sc_triplets *terms, const int32_t *ti, int32_t nrhs, double *gi,
-                        const double *target, const double *scale, int32_t max_iter, sc_schur_pcg_result *res,
-                        sc_error *err) {
+                        double *target, double *scale, const double *bpy, double tol, int32_t max_iter,
+                        sc_schur_pcg_result *res, sc_error *err) {
     const int32_t nif = f->nif;
     const size_t len = (size_t)nif * (size_t)nrhs;
     double *x = sc_calloc_array(len, sizeof *x), *r = sc_alloc_array(len, sizeof *r);
@@ -762,6 +764,7 @@ static int interface_cg(sc_schur *f, const sc_triplets *terms, const int32_t *ti
     int32_t nactive = 0;
     for (int32_t c = 0; c < nrhs; c++) {
         rz[c] = dot(r + (size_t)c * nif, z + (size_t)c * nif, nif);
+        if (target[c] < 0) scale[c] = sqrt(bpy[c] + rz[c]), target[c] = tol * scale[c];
         active[c] = rz[c] > 0 && sqrt(rz[c]) > target[c];
         nactive += active[c];
     }
@@ -819,7 +822,7 @@ done:
  * x: the private unknowns eliminated, conjugate gradients on the interface
  * until each column's residual A^-1 norm is at most target[c], and back
  * substitution. A target < 0 becomes tol sqrt(b^T A^-1 b), and scale[c]
- * sqrt(b^T A^-1 b). */
+ * sqrt(b^T A^-1 b) (interface_cg). */
 static int substructured_solve(sc_schur *f, const sc_triplets *terms, const int32_t *ti, int32_t nrhs, double *b,
                                double *target, double *scale, double tol, int32_t max_iter,
                                sc_schur_pcg_result *res, sc_error *err) {
@@ -834,30 +837,21 @@ static int substructured_solve(sc_schur *f, const sc_triplets *terms, const int3
     if (run_phase(&job, 1) || run_phase(&job, 2)) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t c = 0; c < nrhs; c++)
         memcpy(gi + (size_t)c * nif, x + (size_t)c * n + npriv, (size_t)nif * sizeof *gi);
-    bool scaled = true;
-    for (int32_t c = 0; c < nrhs; c++) scaled &= target[c] >= 0;
-    if (!scaled) {
-        /* b^T A^-1 b = b_p^T y + g^T S^-1 g */
-        double *z = sc_alloc_array((size_t)nif * (size_t)nrhs + 1, sizeof *z);
-        if (!z) return sc_fail(err, SC_ENOMEM, "out of memory");
-        memcpy(z, gi, (size_t)nif * (size_t)nrhs * sizeof *z);
-        rc = sc_sparse_chol_solve(f->s, nrhs, z, err);
-        for (int32_t c = 0; rc == SC_OK && c < nrhs; c++) {
-            if (target[c] >= 0) continue;
-            double s = 0;
-            for (int32_t k0 = 0; k0 < npriv; k0 += ROW_CHUNK) {
-                int32_t k1 = k0 + ROW_CHUNK < npriv ? k0 + ROW_CHUNK : npriv;
-                double part = 0;
-                for (int32_t k = k0; k < k1; k++) part += b[(size_t)c * n + f->order[k]] * x[(size_t)c * n + k];
-                s += part;
-            }
-            scale[c] = sqrt(s + dot(gi + (size_t)c * nif, z + (size_t)c * nif, nif));
-            target[c] = tol * scale[c];
+    /* b_p^T y, the private part of b^T A^-1 b, where a target is still to set */
+    double *bpy = sc_calloc_array((size_t)nrhs, sizeof *bpy);
+    if (!bpy) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t c = 0; c < nrhs; c++) {
+        if (target[c] >= 0) continue;
+        for (int32_t k0 = 0; k0 < npriv; k0 += ROW_CHUNK) {
+            int32_t k1 = k0 + ROW_CHUNK < npriv ? k0 + ROW_CHUNK : npriv;
+            double part = 0;
+            for (int32_t k = k0; k < k1; k++) part += b[(size_t)c * n + f->order[k]] * x[(size_t)c * n + k];
+            bpy[c] += part;
         }
-        free(z);
-        if (rc) return rc;
     }
-    if ((rc = interface_cg(f, terms, ti, nrhs, gi, target, scale, max_iter, res, err))) return rc;
+    rc = interface_cg(f, terms, ti, nrhs, gi, target, scale, bpy, tol, max_iter, res, err);
+    free(bpy);
+    if (rc) return rc;
     /* x_p = y - A_pp^-1 A_pi x_i */
     for (int32_t c = 0; c < nrhs; c++) memcpy(x + (size_t)c * n + npriv, gi + (size_t)c * nif, (size_t)nif * sizeof *x);
     if (run_phase(&job, 3)) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -920,7 +914,7 @@ int sc_schur_solve_terms(sc_schur *f, const sc_sparse *q, const sc_triplets *ter
         /* one round of refinement on the residual of Q itself: the
          * factorisation of A is exact only to rounding, which Q's
          * conditioning (the seam penalty) turns into ~1e-10 of b */
-        for (int32_t c = 0; c < nrhs && rc == SC_OK; c++) {
+        for (int32_t c = 0; c < nrhs; c++) {
             full_rows fr = {q, x + (size_t)c * n, r + (size_t)c * n};
             int32_t chunks = (n + ROW_CHUNK - 1) / ROW_CHUNK;
             if (sc_parallel(f->threads, chunks, full_rows_chunk, &fr) != SC_OK)
@@ -928,7 +922,7 @@ int sc_schur_solve_terms(sc_schur *f, const sc_sparse *q, const sc_triplets *ter
             for (int32_t k = 0; k < n; k++) r[(size_t)c * n + k] = b[(size_t)c * n + k] - r[(size_t)c * n + k];
         }
         res->relative_residual = 0;
-        if (rc == SC_OK) rc = substructured_solve(f, terms, ti, nrhs, r, target, scale, tol, max_iter, res, err);
+        rc = substructured_solve(f, terms, ti, nrhs, r, target, scale, tol, max_iter, res, err);
         for (size_t i = 0; rc == SC_OK && i < len; i++) x[i] += r[i];
     }
     if (rc == SC_OK) memcpy(b, x, len * sizeof *b);
