@@ -71,15 +71,6 @@ void sc_seam_sample(const sc_seam_grid *g, const float *pixels, int32_t channels
     }
 }
 
-double sc_seam_texel(const sc_image_data *img, int32_t id, int32_t c) {
-    size_t k = (size_t)id * (size_t)img->channels + (size_t)c;
-    switch (img->pixel) {
-    case SC_PIXEL_U8: return ((const uint8_t *)img->pixels)[k] * (1.0f / 255.0f);
-    case SC_PIXEL_U16: return ((const uint16_t *)img->pixels)[k] * (1.0f / 65535.0f);
-    default: return ((const float *)img->pixels)[k];
-    }
-}
-
 /* ---------------------------------------------------------------- topology */
 
 typedef struct halfedge {
@@ -230,13 +221,6 @@ void sc_seam_set_free(sc_seam_set *s) {
 
 /* ---------------------------------------------------------------- texel sets */
 
-static inline int popcount64(uint64_t x) {
-    x = x - ((x >> 1) & 0x5555555555555555ull);
-    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
-    x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
-    return (int)((x * 0x0101010101010101ull) >> 56);
-}
-
 int sc_seam_texset_init(sc_seam_texset *s, int32_t width, int32_t height) {
     memset(s, 0, sizeof *s);
     if (width <= 0 || height <= 0) return SC_EINPUT;
@@ -260,17 +244,11 @@ int sc_seam_texset_finish(sc_seam_texset *s) {
     int64_t r = 0;
     for (int64_t w = 0; w < s->words; w++) {
         s->rank[w] = (int32_t)r;
-        r += popcount64(s->bits[w]);
+        r += sc_seam_popcount64(s->bits[w]);
     }
     s->rank[s->words] = (int32_t)r;
     s->count = (int32_t)r;
     return SC_OK;
-}
-
-int32_t sc_seam_texset_index(const sc_seam_texset *s, int32_t id) {
-    uint64_t word = s->bits[id >> 6], bit = (uint64_t)1 << (id & 63);
-    if (!(word & bit)) return -1;
-    return s->rank[id >> 6] + popcount64(word & (bit - 1));
 }
 
 int sc_seam_texset_members(const sc_seam_texset *s, int32_t **ids) {
@@ -461,11 +439,6 @@ void sc_seam_coverage_free(sc_seam_coverage *c) {
 
 /* ---------------------------------------------------------------- pieces */
 
-static int cmp_double(const void *pa, const void *pb) {
-    double a = *(const double *)pa, b = *(const double *)pb;
-    return a < b ? -1 : a > b;
-}
-
 static bool grow_gammas(double **buf, int32_t *cap, int64_t need) {
     if (need <= *cap) return true;
     int64_t nc = *cap ? *cap : 64;
@@ -477,7 +450,8 @@ static bool grow_gammas(double **buf, int32_t *cap, int64_t need) {
     return true;
 }
 
-/* gamma of every integer crossing of x0 -> x1 (exclusive of the ends) */
+/* gamma of every integer crossing of x0 -> x1 (exclusive of the ends), in
+ * increasing order */
 static int add_axis(double x0, double x1, double **buf, int32_t *cap, int32_t *n) {
     if (!(x0 != x1)) return 0;
     double lo = fmin(x0, x1), hi = fmax(x0, x1);
@@ -487,7 +461,8 @@ static int add_axis(double x0, double x1, double **buf, int32_t *cap, int32_t *n
     int32_t cnt = (int32_t)(k1 - k0 + 1);
     if (!grow_gammas(buf, cap, (int64_t)*n + cnt + 2)) return -1;
     double d = x1 - x0;
-    for (int32_t q = 0; q < cnt; q++) {
+    for (int32_t i = 0; i < cnt; i++) {
+        int32_t q = d > 0 ? i : cnt - 1 - i;
         double gmm = ((k0 + q) - x0) / d;
         if (gmm > 0 && gmm < 1) (*buf)[(*n)++] = gmm;
     }
@@ -497,20 +472,32 @@ static int add_axis(double x0, double x1, double **buf, int32_t *cap, int32_t *n
 int32_t sc_seam_crossings(const sc_seam_grid *g, const double a0[2], const double a1[2],
                           const double *b0, const double *b1, double **buf, int32_t *cap) {
     const double W = g->width, H = g->height;
-    int32_t n = 0;
+    int32_t n = 0, run[5], nrun = 0;   /* up to four increasing runs, one per side and axis */
     if (!grow_gammas(buf, cap, 2)) return -1;
     (*buf)[n++] = 0;
     for (int side = 0; side < 2; side++) {
         const double *p = side ? b0 : a0, *q = side ? b1 : a1;
         if (!p || !q) continue;
+        run[nrun++] = n;
         if (add_axis(p[0] * W - 0.5, q[0] * W - 0.5, buf, cap, &n) < 0) return -1;
+        run[nrun++] = n;
         if (add_axis(p[1] * H - 0.5, q[1] * H - 0.5, buf, cap, &n) < 0) return -1;
         if (n > SC_SEAM_MAX_CROSSINGS) return -1;
     }
-    if (!grow_gammas(buf, cap, (int64_t)n + 1)) return -1;
-    (*buf)[n++] = 1;
-    double *gm = *buf;
-    if (n > 3) qsort(gm + 1, (size_t)(n - 2), sizeof *gm, cmp_double);
+    run[nrun] = n;
+    /* merge the runs through the buffer's second half */
+    if (!grow_gammas(buf, cap, 2 * (int64_t)n + 1)) return -1;
+    double *gm = *buf, *merged = gm + n;
+    int32_t head[4];
+    for (int32_t r = 0; r < nrun; r++) head[r] = run[r];
+    for (int32_t k = 0; k < n - 1; k++) {
+        int32_t best = -1;
+        for (int32_t r = 0; r < nrun; r++)
+            if (head[r] < run[r + 1] && (best < 0 || gm[head[r]] < gm[head[best]])) best = r;
+        merged[k] = gm[head[best]++];
+    }
+    memcpy(gm + 1, merged, (size_t)(n - 1) * sizeof *gm);
+    gm[n++] = 1;
     /* merge near-duplicates (crossings of both sides at the same gamma, corners) */
     int32_t w = 1;
     for (int32_t i = 1; i < n - 1; i++)

@@ -128,8 +128,20 @@ static inline bool sc_seam_texset_has(const sc_seam_texset *s, int32_t id) {
 }
 /* Compute ranks; call once after the last add. */
 int sc_seam_texset_finish(sc_seam_texset *s);
-/* Rank of a member, -1 for a non-member. */
-int32_t sc_seam_texset_index(const sc_seam_texset *s, int32_t id);
+/* Set bits of x. */
+static inline int32_t sc_seam_popcount64(uint64_t x) {
+    x = x - ((x >> 1) & 0x5555555555555555ull);
+    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+    x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
+    return (int32_t)((x * 0x0101010101010101ull) >> 56);
+}
+/* Rank of a member, -1 for a non-member (inline: assembly asks it for
+ * every texel of every piece). */
+static inline int32_t sc_seam_texset_index(const sc_seam_texset *s, int32_t id) {
+    uint64_t word = s->bits[id >> 6], bit = (uint64_t)1 << (id & 63);
+    if (!(word & bit)) return -1;
+    return s->rank[id >> 6] + sc_seam_popcount64(word & (bit - 1));
+}
 /* Texel id of the member of rank r (linear in the number of words; use
  * sc_seam_texset_members for all of them). */
 int sc_seam_texset_members(const sc_seam_texset *s, int32_t **ids);
@@ -252,8 +264,16 @@ int sc_seam_trace(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
 double sc_seam_edge_energy(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
                            const sc_image_data *img);
 
-/* Texel `id`, channel c of an image of any pixel type, as in sc_image_texel. */
-double sc_seam_texel(const sc_image_data *img, int32_t id, int32_t c);
+/* Texel `id`, channel c of an image of any pixel type, as in sc_image_texel
+ * (inline: the energies read it for every tap of every piece). */
+static inline double sc_seam_texel(const sc_image_data *img, int32_t id, int32_t c) {
+    size_t k = (size_t)id * (size_t)img->channels + (size_t)c;
+    switch (img->pixel) {
+    case SC_PIXEL_U8: return ((const uint8_t *)img->pixels)[k] * (1.0f / 255.0f);
+    case SC_PIXEL_U16: return ((const uint16_t *)img->pixels)[k] * (1.0f / 65535.0f);
+    default: return ((const float *)img->pixels)[k];
+    }
+}
 
 /* ---------------------------------------------------------------- threads */
 
