@@ -76,29 +76,33 @@
  * first-touch page fault costs ~10 us (0.4 GB/s), and sc_alloc_array maps
  * blocks of 1 MB and more in one call (0.9 GB/s).
  *
- * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the
- * default, takes it from 500k unknowns). The texels that only one edge's
- * cells reach form that edge's cluster, ordered along it; texels shared by
- * two edges' cells, or coupled to another edge's texels, form the
- * interface. Grid couplings between texels of different charts that happen
- * to lie side by side in the atlas would join far-apart parts of the
- * interface: the factored matrix A is Q less those terms, whole (so it
- * stays positive definite; grid_terms lists them while it assembles Q),
- * with each cluster eliminated on its own and the interface factored by
- * CHOLMOD. The texels those terms join are made interface unknowns, so
- * that Q and A differ on the interface alone, and conjugate gradients take
- * the terms back in there (sc_schur_solve_terms: iterations on 275k
- * unknowns, not 2.07M, then one round of refinement on Q's own residual),
- * to a residual of 1e-12 of the start in A^-1's norm (auto falls back to
- * one CHOLMOD factorisation should that fail). On pizza they are only
- * 6,678 terms, but kept in A (274.5k interface texels instead of 270.8k)
- * they make its interface factor 2.8e7 entries and 5.7e10 flops instead
- * of 8.6e6 and 5e8: 3.8 s against the iterations' 0.6 s. Below ~500k
- * unknowns one factorisation is as fast and simpler. On BoomBox the two
- * agree to 3e-7 per texel. Where most texels lie in the cells of two or
- * more edges (a geometry image erased on a mesh and its levels in one uv:
- * pizza's 2.07M unknowns were all interface) there are no clusters, and
- * `auto` factors Q itself.
+ * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the default,
+ * takes it from 500k unknowns). Seam edges join end to end into chains where
+ * two of them go on in the same two charts (pizza: 19,232 edges in 10,723
+ * chains; most of its seam vertices are corners of three or more charts). The
+ * texels that only one chain's cells reach form that chain's cluster, ordered
+ * along it; texels shared by two chains' cells, or coupled to another chain's
+ * texels (or to their own chain's more than SCHUR_KEY_SPAN texels further
+ * along it), form the interface. Clusters of single edges made the texels
+ * around every seam vertex interface: 278k interface unknowns on pizza,
+ * against 158k for chains. Grid couplings between texels of different charts
+ * that happen to lie side by side in the atlas would join far-apart parts of
+ * the interface: the factored matrix A is Q less those terms, whole (so it
+ * stays positive definite; grid_terms lists them while it assembles Q), with
+ * each cluster eliminated on its own and the interface factored by CHOLMOD.
+ * The texels those terms join are made interface unknowns, so that Q and A
+ * differ on the interface alone, and conjugate gradients take the terms back
+ * in there (sc_schur_solve_terms: iterations on 158k unknowns, not 2.07M,
+ * then one round of refinement on Q's own residual), to a residual of 1e-12
+ * of the start in A^-1's norm (auto falls back to one CHOLMOD factorisation
+ * should that fail). On pizza they are only 6,678 terms, but kept in A (with
+ * single-edge clusters: 274.5k interface texels instead of 270.8k) they make
+ * its interface factor 2.8e7 entries and 5.7e10 flops instead of 8.6e6 and
+ * 5e8: 3.8 s against the iterations' 0.6 s. Below ~500k unknowns one
+ * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7 per
+ * texel. Where most texels lie in the cells of two or more edges (a geometry
+ * image erased on a mesh and its levels in one uv: pizza's 2.07M unknowns
+ * were all interface) there are no clusters, and `auto` factors Q itself.
  *
  * Where pizza's erase goes now (2-core machine, a calm stretch: 5.6-5.8 s
  * in all, against 9.2-9.5 s for the design before, 5096414): the texel sets
@@ -181,7 +185,8 @@
 #define NULLITY_MAX_TEXELS 100000
 #define ROUND_MAX_SWEEPS 64
 #define SCHUR_MIN_UNKNOWNS 500000  /* schur_from's default: solver auto takes the edge-cluster solver from here */
-#define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no edge's cluster */
+#define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no chain's cluster */
+#define SCHUR_KEY_SPAN 256.0      /* texels along a seam chain that one cluster's couplings may span */
 #define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
 #define PCG_MAX_ITERATIONS 500      /* pcg_iterations's default */
 
@@ -770,8 +775,8 @@ static void prep_clusters(prep_job *pj) {
     double *saved = NULL;
     pj->rc_factor = preconditioner_apply(&w->q, &w->apart, &saved, &pj->err_factor);
     if (pj->rc_factor == SC_OK)
-        pj->rc_factor = sc_schur_factor_clusters(&w->q, w->group, w->gamma, pj->ctx.o->threads, &w->schur,
-                                                 &pj->err_factor);
+        pj->rc_factor = sc_schur_factor_clusters(&w->q, w->group, w->gamma, SCHUR_KEY_SPAN, pj->ctx.o->threads,
+                                                 &w->schur, &pj->err_factor);
     if (saved) preconditioner_restore(&w->q, &w->apart, saved);
     free(saved);
 }
@@ -783,9 +788,10 @@ static int prep_side(prep_job *pj) {
     group_work *w = c->w;
     sc_error *err = &pj->err_side;
     const int32_t n = w->unk.count;
-    /* beside the edge-cluster solver's interface factorisation, one thread:
-     * the core it leaves free */
-    const int threads = w->use_schur ? 1 : c->o->threads;
+    /* all threads, even beside the edge-cluster solver's interface
+     * factorisation (one thread): with seam chains as its clusters, the
+     * interface is small and this is the longer task (pizza) */
+    const int threads = c->o->threads;
     int rc = SC_OK;
     double t0 = sc_now();
     if (pj->want_round && !pj->want_nullity) {
@@ -935,8 +941,8 @@ static int build_task(void *ud, int32_t task) {
     return bj->rc[0] = rc;
 }
 
-/* For the edge-cluster solver: per unknown, its edge (w->group[r], -1
- * when cells of several edges reach it), its place along the edge
+/* For the edge-cluster solver: per unknown, its seam chain (w->group[r],
+ * -1 when cells of several chains reach it), its place along the chain
  * (w->gamma[r]) and, in w->group + n, the chart (a connected piece of the
  * parameter mesh) of the face whose piece reaches it first. */
 static int schur_groups(const sc_mesh *m, const sc_seam_set *seams, const sc_seam_grid *g, group_work *w,
@@ -1047,7 +1053,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         goto done;
     }
     if (w.use_schur) {
-        /* texels that two edges' cells reach join no cluster: where they are
+        /* texels that two chains' cells reach join no cluster: where they are
          * most of the system (a geometry image of a mesh and its levels in
          * one uv), every unknown is interface, and one factorisation of Q
          * does what the edge-cluster solver would, without the iterations */
@@ -1671,7 +1677,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 5,
+    .version = 6,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -1159,7 +1159,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 4,
+    .version = 5,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -10,7 +10,9 @@
  *        [ A_ip  A_ii ]
  *    and S = A_ii - sum_c A_ic A_cc^-1 A_ci is the interface system.
  *  - Clusters. In key order a cluster's block is nearly banded (texels along
- *    an edge couple to texels a cell or two away), so each block is factored
+ *    a chain couple to texels a cell or two away; plan sends to the
+ *    interface the unknowns of a cluster whose couplings span more than
+ *    key_span, where a chain comes back near itself), so each block is factored
  *    in its envelope (row k stores columns first[k]..k; the envelope of L is
  *    that of A, so there is no fill outside it) by row Crout: inner loops are
  *    dot products of contiguous rows. Its Schur complement Z^T Z, with
@@ -20,7 +22,7 @@
  *    Only L_c is kept: a solve recomputes A_ci products from the couplings.
  *  - Interface. S is assembled from A_ii and every cluster's complement, in
  *    a fixed order, and factored by CHOLMOD (AMD, simplicial L L^T: its
- *    supernodes would be small). It is a small fraction of A (pizza: 271k
+ *    supernodes would be small). It is a small fraction of A (pizza: 158k
  *    of 2.07M unknowns) and carries what makes the whole system hard to
  *    order: where chains meet.
  *  - Layout (the blocks' envelopes, A_pi's couplings, A_ii's triplets) is
@@ -39,8 +41,8 @@
  *    place of the interface solve: conjugate gradients on the interface
  *    alone, S kept for its products and its factor the preconditioner, are
  *    conjugate gradients on A + E preconditioned by A restricted to where
- *    A + E and A differ (pizza: 13 iterations on 275k unknowns instead of
- *    on 2.07M, each a product with S (4.8M entries) and an interface solve
+ *    A + E and A differ (pizza: 16 iterations on 158k unknowns instead of
+ *    on 2.07M, each a product with S (2.9M entries) and an interface solve
  *    instead of one with the whole system and a whole solve). One round of
  *    refinement on the residual of A + E itself takes back what the
  *    factorisation's rounding loses.
@@ -278,6 +280,8 @@ static int cmp_keyed(const void *pa, const void *pb) {
 typedef struct plan_job {
     const sc_sparse *a;
     const int32_t *group;
+    const double *key;
+    double key_span;
     uint8_t *is_if;
     const sc_schur *f;
     keyed *tmp;
@@ -296,8 +300,8 @@ static int plan_chunk(void *ud, int32_t chunk) {
             bool itf = gt < 0;
             for (int32_t p = a->colptr[t]; p < a->colptr[t + 1] && !itf; p++) {
                 if (!is_coupling(a, p, t)) continue;
-                int32_t gu = job->group[a->rowind[p]];
-                itf = gu >= 0 && gu != gt;
+                int32_t u = a->rowind[p], gu = job->group[u];
+                itf = gu >= 0 && (gu != gt || fabs(job->key[u] - job->key[t]) > job->key_span);
             }
             job->is_if[t] = itf;
         }
@@ -311,13 +315,14 @@ static int plan_chunk(void *ud, int32_t chunk) {
 }
 
 /* Which unknowns are private, and where everything goes. */
-static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const double *key,
+static int plan(sc_schur *f, const sc_sparse *a, const int32_t *group, const double *key, double key_span,
                 sc_error *err) {
     const int32_t n = a->n;
     uint8_t *is_if = sc_alloc_array((size_t)n, 1);
     int32_t gmax = -1;
     if (!is_if) return sc_fail(err, SC_ENOMEM, "out of memory");
-    plan_job job = {.a = a, .group = group, .is_if = is_if, .f = f, .per_chunk = ROW_CHUNK};
+    plan_job job = {.a = a, .group = group, .key = key, .key_span = key_span, .is_if = is_if, .f = f,
+                    .per_chunk = ROW_CHUNK};
     if (sc_parallel(f->threads, (n + ROW_CHUNK - 1) / ROW_CHUNK, plan_chunk, &job) != SC_OK) {
         free(is_if);
         return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -486,8 +491,8 @@ done:
     return rc;
 }
 
-int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const double *key, int threads,
-                             sc_schur **out, sc_error *err) {
+int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const double *key, double key_span,
+                             int threads, sc_schur **out, sc_error *err) {
     *out = NULL;
     if (!a || a->n <= 0) return sc_fail(err, SC_EINPUT, "factorisation of an empty matrix");
     sc_schur *f = calloc(1, sizeof *f);
@@ -497,7 +502,7 @@ int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const dou
     double t0 = sc_now();
     /* the interface matrix's entries: layout's lists, then one per cluster chunk */
     sc_triplet_parts sii;
-    int rc = plan(f, a, group, key, err);
+    int rc = plan(f, a, group, key, key_span, err);
     sc_triplet_parts_init(&sii, f->nif);
     if (rc == SC_OK) rc = layout(f, a, &sii, err);
 
@@ -566,9 +571,9 @@ int sc_schur_factor_interface(sc_schur *f, sc_error *err) {
     return rc;
 }
 
-int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
+int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, double key_span, int threads,
                     sc_schur **out, sc_error *err) {
-    int rc = sc_schur_factor_clusters(a, group, key, threads, out, err);
+    int rc = sc_schur_factor_clusters(a, group, key, key_span, threads, out, err);
     if (rc == SC_OK && (rc = sc_schur_factor_interface(*out, err))) {
         sc_schur_free(*out);
         *out = NULL;

@@ -2,10 +2,10 @@
  * into short chains ("clusters") that meet only through a few shared
  * "interface" unknowns, and conjugate gradients preconditioned by them.
  *
- * erase_seams is the user: the texels of the cells along one seam edge (both
- * sides) form a cluster, ordered by the edge parameter; texels that the cells
- * of two edges share, or that couple to another edge's texels, form the
- * interface. Each cluster is factored on its own (a banded, "envelope"
+ * erase_seams is the user: the texels of the cells along one seam chain
+ * (seam edges joined end to end; both sides) form a cluster, ordered along
+ * it; texels that the cells of two chains share, or that couple to another
+ * chain's texels, form the interface. Each cluster is factored on its own (a banded, "envelope"
  * Cholesky factor in key order), its private unknowns are eliminated exactly
  * (a Schur complement onto the interface unknowns it touches), and the much
  * smaller interface system is factored by CHOLMOD. Nothing is approximated:
@@ -39,16 +39,19 @@ typedef struct sc_schur_stats {
 /* Factor the full-pattern SPD matrix a. group[i] >= 0 names unknown i's
  * cluster (-1: none, i.e. interface), key[i] orders it within the cluster
  * (ties by index). An unknown is private to its cluster when every unknown it
- * couples to is in the same cluster or in none; the others form the
- * interface. Fails with SC_EINPUT when a is not positive definite. */
-int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, int threads,
+ * couples to is in the same cluster, with a key at most key_span from its
+ * own, or in none; the others form the interface. key_span keeps each
+ * cluster's factor banded where a long cluster comes back near itself
+ * (INFINITY: no limit). Fails with SC_EINPUT when a is not positive
+ * definite. */
+int sc_schur_factor(const sc_sparse *a, const int32_t *group, const double *key, double key_span, int threads,
                     sc_schur **out, sc_error *err);
 /* The same in two steps, so that a caller can run other work beside the
  * second: the clusters and S (on `threads` threads; they read a), then S's
  * factorisation (CHOLMOD, mostly on the calling thread; a is not read).
  * After a failed second step the caller frees f. */
-int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const double *key, int threads,
-                             sc_schur **out, sc_error *err);
+int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const double *key, double key_span,
+                             int threads, sc_schur **out, sc_error *err);
 int sc_schur_factor_interface(sc_schur *f, sc_error *err);
 
 /* Solve A X = B for nrhs columns (b: n x nrhs, column-major, overwritten). */

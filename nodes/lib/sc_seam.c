@@ -15,6 +15,10 @@
  *    merges its own duplicates in a small hash, and chunks are appended in
  *    chunk order, so the triplets (and the sums CSC assembly makes of them)
  *    are the same for any thread count.
+ *  - Seam chains (for the edge-cluster solver's groups): seam edges join
+ *    end to end where two of them go on in the same two charts; a texel's
+ *    place along its chain is measured in texels of the longer side, so
+ *    that places along one chain compare across its edges.
  */
 #include "sc_seam.h"
 
@@ -704,13 +708,122 @@ int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_gr
     return rc;
 }
 
+/* The uv a seam edge's side uses at surface vertex v (one of its ends). */
+static const double *side_uv_at(const sc_mesh *m, const sc_seam_edge *e, int side, int32_t v) {
+    return uvp(m, v == e->v0 ? e->side[side].uv0 : e->side[side].uv1);
+}
+
+static bool same_point(const double *a, const double *b) { return a[0] == b[0] && a[1] == b[1]; }
+
+/* Seam edges a and b, both ending at v, go on in the same two charts there
+ * (the same two uvs at v). */
+static bool joined(const sc_mesh *m, const sc_seam_edge *a, const sc_seam_edge *b, int32_t v) {
+    const double *a0 = side_uv_at(m, a, 0, v), *a1 = side_uv_at(m, a, 1, v);
+    const double *b0 = side_uv_at(m, b, 0, v), *b1 = side_uv_at(m, b, 1, v);
+    return (same_point(a0, b0) && same_point(a1, b1)) || (same_point(a0, b1) && same_point(a1, b0));
+}
+
+/* Seam chains: seam edges joined end to end at surface vertices, two at a
+ * time, where both go on in the same two charts (the lowest such pair
+ * first, where more seam edges meet). Per edge: its chain (the
+ * chain's first edge), where along the chain it starts (`start`, in texels
+ * of the longer side, summed over the edges before it) and its length
+ * there, and whether it runs against the chain (from v1 to v0). A closed
+ * chain is cut at the second vertex of its lowest edge. */
+typedef struct chains {
+    int32_t *chain;
+    double *start, *len;
+    uint8_t *flip;
+} chains;
+
+static void chains_free(chains *c) { free(c->chain), free(c->start), free(c->len), free(c->flip); }
+
+static int make_chains(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g, chains *c) {
+    const int32_t ns = s->nseams;
+    memset(c, 0, sizeof *c);
+    c->chain = sc_alloc_array(ns ? (size_t)ns : 1, sizeof *c->chain);
+    c->start = sc_alloc_array(ns ? (size_t)ns : 1, sizeof *c->start);
+    c->len = sc_alloc_array(ns ? (size_t)ns : 1, sizeof *c->len);
+    c->flip = sc_alloc_array(ns ? (size_t)ns : 1, sizeof *c->flip);
+    int32_t *off = sc_calloc_array((size_t)m->nv + 2, sizeof *off);     /* seam edges at each vertex */
+    int32_t *inc = sc_alloc_array(2 * (size_t)ns + 1, sizeof *inc);
+    int32_t *link = sc_alloc_array(2 * (size_t)ns + 1, sizeof *link);   /* the edge after edge i at its v0, v1 end */
+    if (!c->chain || !c->start || !c->len || !c->flip || !off || !inc || !link) {
+        free(off), free(inc), free(link), chains_free(c);
+        return SC_ENOMEM;
+    }
+    for (int32_t i = 0; i < ns; i++) {
+        const sc_seam_edge *e = &s->seams[i];
+        c->chain[i] = -1;
+        link[2 * i] = link[2 * i + 1] = -1;
+        double l = 0;
+        for (int side = 0; side < 2; side++) {
+            const double *a = uvp(m, e->side[side].uv0), *b = uvp(m, e->side[side].uv1);
+            double du = (b[0] - a[0]) * g->width, dv = (b[1] - a[1]) * g->height;
+            l = fmax(l, sqrt(du * du + dv * dv));
+        }
+        c->len[i] = l;
+        if (e->v0 != e->v1) off[e->v0 + 2]++, off[e->v1 + 2]++;
+    }
+    for (int32_t v = 0; v < m->nv; v++) off[v + 2] += off[v + 1];
+    for (int32_t i = 0; i < ns; i++) {   /* edges at each vertex, in index order */
+        const sc_seam_edge *e = &s->seams[i];
+        if (e->v0 != e->v1) inc[off[e->v0 + 1]++] = i, inc[off[e->v1 + 1]++] = i;
+    }
+    for (int32_t v = 0; v < m->nv; v++)
+        for (int32_t a = off[v]; a < off[v + 1]; a++) {
+            int32_t i = inc[a], ei = v == s->seams[i].v0 ? 0 : 1;
+            if (link[2 * i + ei] >= 0) continue;
+            for (int32_t b = a + 1; b < off[v + 1]; b++) {
+                int32_t j = inc[b], ej = v == s->seams[j].v0 ? 0 : 1;
+                if (link[2 * j + ej] < 0 && joined(m, &s->seams[i], &s->seams[j], v)) {
+                    link[2 * i + ei] = j, link[2 * j + ej] = i;
+                    break;
+                }
+            }
+        }
+    free(off), free(inc);
+#define NEXT_AT(i, v) link[2 * (i) + ((v) == s->seams[i].v0 ? 0 : 1)]
+    for (int32_t i0 = 0; i0 < ns; i0++) {
+        if (c->chain[i0] >= 0) continue;
+        /* walk back from i0's v0 end to the chain's first edge (or round to i0) */
+        int32_t first = i0, back = s->seams[i0].v0;
+        for (int32_t steps = 0; steps < ns; steps++) {
+            int32_t prev = NEXT_AT(first, back);
+            if (prev < 0 || prev == i0) break;
+            const sc_seam_edge *pe = &s->seams[prev];
+            back = pe->v0 == back ? pe->v1 : pe->v0;
+            first = prev;
+        }
+        /* then forward, numbering */
+        int32_t e = first, entry = back;
+        double at = 0;
+        for (int32_t steps = 0; steps < ns && e >= 0 && c->chain[e] < 0; steps++) {
+            const sc_seam_edge *se = &s->seams[e];
+            c->chain[e] = first;
+            c->flip[e] = entry == se->v1;
+            c->start[e] = at;
+            at += c->len[e];
+            int32_t exit = entry == se->v0 ? se->v1 : se->v0;
+            int32_t next = exit == back && e != first ? -1 : NEXT_AT(e, exit);
+            entry = exit;
+            e = next;
+        }
+    }
+#undef NEXT_AT
+    free(link);
+    return SC_OK;
+}
+
 /* The walk of sc_seam_mark_texels, recording for each texel of `index` the
- * first piece that reaches it. */
+ * first piece that reaches it (and its seam chain). */
 int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                          const sc_seam_texset *index, int32_t *group, double *gamma,
                          int32_t *face, sc_error *err) {
     const int32_t n = index->count;
     for (int32_t r = 0; r < n; r++) group[r] = -1, gamma[r] = 0, face[r] = -1;
+    chains ch;
+    if (make_chains(m, s, g, &ch)) return sc_fail(err, SC_ENOMEM, "out of memory");
     walk w = {0};
     const int32_t multiple = -2;
     for (int32_t q = 0; q < s->nseams + s->nsil; q++) {
@@ -719,9 +832,11 @@ int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_g
         int32_t np = edge_pieces(m, s, g, q, &w, sd, e, err);
         if (np < 0) {
             free(w.gm);
+            chains_free(&ch);
             return SC_EINPUT;
         }
         if (np == 0) continue;
+        int32_t id = q < s->nseams ? ch.chain[q] : q;
         for (int side = 0; side < (sd[1] ? 2 : 1); side++) {
             const double *p0 = e[2 * side], *p1 = e[2 * side + 1];
             sc_seam_cellpoly cp;
@@ -731,8 +846,10 @@ int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_g
                     int32_t r = sc_seam_texset_index(index, cp.id[k]);
                     if (r < 0) continue;
                     if (group[r] == -1) {
-                        group[r] = q, gamma[r] = 0.5 * (w.gm[i] + w.gm[i + 1]), face[r] = sd[side]->face;
-                    } else if (group[r] != q) {
+                        double t = 0.5 * (w.gm[i] + w.gm[i + 1]);
+                        if (q < s->nseams) t = ch.start[q] + (ch.flip[q] ? 1 - t : t) * ch.len[q];
+                        group[r] = id, gamma[r] = t, face[r] = sd[side]->face;
+                    } else if (group[r] != id) {
                         group[r] = multiple;
                     }
                 }
@@ -740,6 +857,7 @@ int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_g
         }
     }
     free(w.gm);
+    chains_free(&ch);
     for (int32_t r = 0; r < n; r++)
         if (group[r] == multiple) group[r] = -1;
     return SC_OK;

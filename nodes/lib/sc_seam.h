@@ -200,12 +200,16 @@ bool sc_seam_inward_normal(const sc_mesh *m, const sc_seam_grid *g, const sc_sea
 int sc_seam_mark_texels(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                         sc_seam_texset *set, sc_seam_texset *seam_set, int threads, sc_error *err);
 
-/* Which edge each texel of `index` belongs to, for solvers that eliminate the
- * texels of one edge together: group[r] is the seam (0..nseams-1) or
- * nseams + the silhouette whose cells alone reach texel r (-1 when cells of
- * two or more edges reach it, or none), gamma[r] the edge parameter of the
- * first piece that reaches it (both sides of a seam share gamma), and
- * face[r] the face of that piece's side (-1 when none). */
+/* Which seam chain each texel of `index` belongs to, for solvers that
+ * eliminate the texels along a chain together. Seam edges join into chains
+ * end to end, two at a time at a surface vertex where both go on in the
+ * same two charts. group[r] is the chain (named by its first edge,
+ * 0..nseams-1) or nseams + the silhouette whose cells alone reach texel r
+ * (-1 when the cells of two or more chains or silhouettes reach it, or
+ * none); gamma[r] is where the first piece that reaches it lies: along its
+ * chain, in texels of the longer side from the chain's start (both sides
+ * of a seam share it), or a silhouette's edge parameter; face[r] is the
+ * face of that piece's side (-1 when none). */
 int sc_seam_texel_groups(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                          const sc_seam_texset *index, int32_t *group, double *gamma,
                          int32_t *face, sc_error *err);

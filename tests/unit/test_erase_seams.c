@@ -486,7 +486,7 @@ SC_TEST(schur_clusters_match_direct_solve) {
     double e = 0;
     /* the factorisation solves A directly: two columns at once */
     sc_schur *f = NULL;
-    SC_CHECK_INT(sc_schur_factor(&af, group, key, 2, &f, &err), SC_OK);
+    SC_CHECK_INT(sc_schur_factor(&af, group, key, INFINITY, 2, &f, &err), SC_OK);
     if (f) {
         sc_schur_stats st;
         sc_schur_get_stats(f, &st);
@@ -548,7 +548,7 @@ SC_TEST(schur_clusters_match_direct_solve) {
         sc_schur_free(f);
         f = NULL;
         for (int64_t k = 0; k < af.nnz; k++) af.val[k] = -af.val[k];
-        SC_CHECK(sc_schur_factor(&af, group, key, 2, &f, &err) != SC_OK);
+        SC_CHECK(sc_schur_factor(&af, group, key, INFINITY, 2, &f, &err) != SC_OK);
         sc_schur_free(f);
     }
     free(x), free(b), free(y);
@@ -1000,6 +1000,102 @@ SC_TEST(seam_finding_kinds) {
     m->U[0] = 0.1 + 0.8 * (2.0 / 3), m->U[1] = 0.1 + 0.8 * (2.0 / 3);
     SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
     SC_CHECK(s.nfoldover >= 1);
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+}
+
+/* A strip of k quads cut lengthwise into two charts: the k seam edges along
+ * the cut go on in the same two charts at every inner vertex, so they form
+ * one chain. Its texels are one group (the texels around the inner
+ * vertices too, which single-edge groups would leave to no group), and
+ * their place along the chain grows with x, from 0 to the chain's length
+ * in texels. On an open cube, whose seam vertices are corners of three
+ * charts, every edge is a chain of its own. */
+SC_TEST(seam_chains_group_texels) {
+    const int k = 6, W = 64;
+    sc_mesh *m = sc_mesh_alloc(3 * (k + 1), 4 * (k + 1), 0, 4 * k, 1);
+    for (int r = 0; r < 3; r++)
+        for (int i = 0; i <= k; i++) {
+            double *v = &m->V[3 * (r * (k + 1) + i)];
+            v[0] = i, v[1] = r, v[2] = 0;
+        }
+    /* uv rows: chart A uses rows 0, 1 at y 0.1, 0.3; chart B rows 1, 2 at 0.5, 0.7 */
+    const double row_y[4] = {0.1, 0.3, 0.5, 0.7};
+    for (int r = 0; r < 4; r++)
+        for (int i = 0; i <= k; i++) {
+            m->U[2 * (r * (k + 1) + i)] = 0.1 + 0.8 * i / k;
+            m->U[2 * (r * (k + 1) + i) + 1] = row_y[r];
+        }
+    int f = 0;
+    for (int c = 0; c < 2; c++)   /* chart c: surface rows c, c + 1; uv rows 2c, 2c + 1 */
+        for (int i = 0; i < k; i++) {
+            int32_t a = c * (k + 1) + i, b = a + 1, d = a + k + 1, e = d + 1;
+            int32_t ua = 2 * c * (k + 1) + i, ub = ua + 1, ud = ua + k + 1, ue = ud + 1;
+            const int32_t tv[2][3] = {{a, b, e}, {a, e, d}}, tu[2][3] = {{ua, ub, ue}, {ua, ue, ud}};
+            for (int t = 0; t < 2; t++, f++)
+                for (int q = 0; q < 3; q++) m->FV[3 * f + q] = tv[t][q], m->FU[3 * f + q] = tu[t][q];
+        }
+    m->materials[0] = sc_strdup("strip");
+    sc_seam_set s;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    SC_CHECK_INT(s.nseams, k);
+    sc_seam_grid g = {W, W, SC_WRAP_CLAMP, SC_WRAP_CLAMP};
+    sc_seam_texset set;
+    sc_seam_texset_init(&set, W, W);
+    SC_CHECK_INT(sc_seam_mark_texels(m, &s, &g, &set, NULL, 2, &err), SC_OK);
+    sc_seam_texset_finish(&set);
+    int32_t *ids = NULL;
+    sc_seam_texset_members(&set, &ids);
+    int32_t n = set.count, *group = malloc(sizeof *group * (size_t)n), *face = malloc(sizeof *face * (size_t)n);
+    double *gamma = malloc(sizeof *gamma * (size_t)n);
+    SC_CHECK_INT(sc_seam_texel_groups(m, &s, &g, &set, group, gamma, face, &err), SC_OK);
+    int32_t chain = -1, in_chain = 0, near_inner = 0;
+    bool one_chain = true, ordered = true;
+    double length = 0.8 * W, lo = 1e30, hi = -1e30;
+    for (int32_t r = 0; r < n; r++) {
+        double x = ids[r] % W;
+        if (group[r] < 0 || group[r] >= s.nseams) continue;
+        if (chain < 0) chain = group[r];
+        one_chain &= group[r] == chain;
+        in_chain++;
+        /* x in texel space runs 0.1 W - 0.5 .. 0.9 W - 0.5 along the chain (either direction) */
+        double along = x + 0.5 - 0.1 * W;
+        double d = fmin(fabs(gamma[r] - along), fabs(gamma[r] - (length - along)));
+        ordered &= d <= 2.0;
+        if (gamma[r] < lo) lo = gamma[r];
+        if (gamma[r] > hi) hi = gamma[r];
+        for (int i = 1; i < k; i++)
+            near_inner += fabs(x + 0.5 - (0.1 + 0.8 * i / k) * W) < 0.5;
+    }
+    SC_CHECK(in_chain > 0);
+    SC_CHECK(one_chain);
+    SC_CHECK(ordered);
+    SC_CHECK_MSG(lo >= 0 && hi <= length + 1e-9 && hi - lo > length - 4, "chain places %g .. %g of %g", lo, hi, length);
+    SC_CHECK(near_inner >= 2 * (k - 1));   /* the texels at the inner vertices joined the chain */
+    free(group), free(face), free(gamma), free(ids);
+    sc_seam_texset_free(&set);
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+
+    /* the open cube: every seam vertex is a corner of three charts */
+    m = cube_mesh(17, true);
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    sc_seam_grid g2 = {64, 64, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
+    sc_seam_texset_init(&set, 64, 64);
+    SC_CHECK_INT(sc_seam_mark_texels(m, &s, &g2, &set, NULL, 2, &err), SC_OK);
+    sc_seam_texset_finish(&set);
+    n = set.count;
+    group = malloc(sizeof *group * (size_t)n), face = malloc(sizeof *face * (size_t)n);
+    gamma = malloc(sizeof *gamma * (size_t)n);
+    SC_CHECK_INT(sc_seam_texel_groups(m, &s, &g2, &set, group, gamma, face, &err), SC_OK);
+    bool seen[64] = {false};
+    int32_t distinct = 0;
+    for (int32_t r = 0; r < n; r++)
+        if (group[r] >= 0 && group[r] < s.nseams && !seen[group[r]]) seen[group[r]] = true, distinct++;
+    SC_CHECK_INT(distinct, s.nseams);
+    free(group), free(face), free(gamma);
+    sc_seam_texset_free(&set);
     sc_seam_set_free(&s);
     sc_mesh_free(m);
 }
