@@ -781,6 +781,36 @@ static void prep_clusters(prep_job *pj) {
     free(saved);
 }
 
+/* The channels of img that copy no earlier one (same: sc_seam_same_channels),
+ * as an image of their own; NULL when out of memory. */
+static sc_image_data *unique_channels(const sc_image_data *img, const int32_t *same) {
+    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = 0;
+    for (int32_t c = 0; c < img->channels; c++)
+        if (same[c] < 0) keep[nu++] = c;
+    sc_image_data *u = sc_image_alloc(img->width, img->height, nu, img->pixel);
+    if (!u) return NULL;
+    const size_t texels = (size_t)img->width * (size_t)img->height, bytes = (size_t)img->pixel;
+    const uint8_t *src = img->pixels;
+    uint8_t *dst = u->pixels;
+    for (size_t t = 0; t < texels; t++)
+        for (int32_t j = 0; j < nu; j++)
+            memcpy(dst + (t * (size_t)nu + (size_t)j) * bytes, src + (t * (size_t)img->channels + (size_t)keep[j]) * bytes,
+                   bytes);
+    return u;
+}
+
+/* Right-hand sides made for unique_channels' image (its channels in the
+ * first columns of rhs, n rows each) spread to all `channels` columns. */
+static void spread_columns(double *rhs, int32_t n, int32_t channels, const int32_t *same) {
+    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = 0;
+    for (int32_t c = 0; c < channels; c++)
+        if (same[c] < 0) keep[nu++] = c;
+    for (int32_t j = nu - 1; j >= 0; j--)
+        if (keep[j] != j) memcpy(rhs + (size_t)keep[j] * n, rhs + (size_t)j * n, (size_t)n * sizeof *rhs);
+    for (int32_t c = 0; c < channels; c++)
+        if (same[c] >= 0) memcpy(rhs + (size_t)c * n, rhs + (size_t)same[c] * n, (size_t)n * sizeof *rhs);
+}
+
 /* Task 1: the textures' residuals, the rows of M for rounding,
  * and the nullity of M. It does not read Q, which task 0 changes in place. */
 static int prep_side(prep_job *pj) {
@@ -810,14 +840,24 @@ static int prep_side(prep_job *pj) {
     for (int32_t k = 0, col = 0; k < c->gr->ntex; k++) {
         const sc_image_data *img = c->atlas->textures[c->gr->tex[k]].image->as.image;
         double *rhs = w->rhs + (size_t)col * n;
+        /* channels that copy an earlier one (a grey image stored as RGB)
+         * take that channel's residual: one channel's work, the same bits */
+        int32_t same[SC_SEAM_MAX_CHANNELS];
+        sc_image_data *uniq = NULL;
+        if (!w->vv[k] && img->channels <= SC_SEAM_MAX_CHANNELS && sc_seam_same_channels(img, same) < img->channels)
+            uniq = unique_channels(img, same);
         sc_seam_terms rterms = *c->qterms;
-        rterms.p0 = img;
+        rterms.p0 = uniq ? uniq : img;
         rterms.vertex_values = w->vv[k];
         rterms.rhs = rhs;
-        if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, threads, NULL, err)))
+        if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, threads, NULL, err))) {
+            sc_image_free(uniq);
             return pj->rc_side = rc;
-        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, threads, c->w_change_texel, NULL, img, rhs, NULL, NULL,
-                   NULL);
+        }
+        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, threads, c->w_change_texel, NULL, rterms.p0, rhs,
+                   NULL, NULL, NULL);
+        if (uniq) spread_columns(rhs, n, img->channels, same);
+        sc_image_free(uniq);
         col += img->channels;
     }
     double t2 = sc_now();

@@ -1353,6 +1353,7 @@ typedef struct energy_job {
     const sc_seam_set *s;
     const sc_seam_grid *g;
     const sc_image_data *const *imgs;
+    int32_t same[SC_SEAM_ENERGY_IMAGES][SC_SEAM_MAX_CHANNELS];   /* sc_seam_same_channels of each image */
     int count;
     double *d;   /* per image, per seam */
     double *gap; /* per image, per seam */
@@ -1362,9 +1363,41 @@ typedef struct energy_job {
 /* D of one seam edge (eq. 9 before weighting, summed over channels) and its
  * largest sampled gap, for each of `count` images of the grid's size: the
  * pieces are found once and read in every image. */
+/* Channels of img equal to an earlier channel at every texel: src[c] names
+ * that channel (-1: none). Grey images stored as RGB are common (gloss,
+ * roughness and occlusion maps); the energies then take each piece's
+ * integral once and add it once per channel, in the same order: the same
+ * bits. Stops at the first difference, so colour images cost little. */
+int32_t sc_seam_same_channels(const sc_image_data *img, int32_t src[SC_SEAM_MAX_CHANNELS]) {
+    const int32_t C = img->channels < SC_SEAM_MAX_CHANNELS ? img->channels : SC_SEAM_MAX_CHANNELS;
+    const size_t texels = (size_t)img->width * (size_t)img->height, stride = (size_t)img->channels;
+    int32_t unique = 0;
+    for (int32_t c = 0; c < C; c++) {
+        src[c] = -1;
+        for (int32_t e = 0; e < c && src[c] < 0; e++) {
+            if (src[e] >= 0) continue;
+            size_t t = 0;
+            if (img->pixel == SC_PIXEL_U8) {
+                const uint8_t *p = img->pixels;
+                while (t < texels && p[t * stride + c] == p[t * stride + e]) t++;
+            } else if (img->pixel == SC_PIXEL_U16) {
+                const uint16_t *p = img->pixels;
+                while (t < texels && p[t * stride + c] == p[t * stride + e]) t++;
+            } else {
+                const float *p = img->pixels;   /* bit patterns: -0 and +0 (or two NaNs) differ */
+                while (t < texels && memcmp(&p[t * stride + c], &p[t * stride + e], sizeof *p) == 0) t++;
+            }
+            if (t == texels) src[c] = e;
+        }
+        unique += src[c] < 0;
+    }
+    for (int32_t c = C; c < SC_SEAM_MAX_CHANNELS; c++) src[c] = -1;
+    return unique + (img->channels > C ? img->channels - C : 0);
+}
+
 static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
-                            const sc_image_data *const *imgs, int count, walk *w, double *d_out,
-                            double *gap_out, bool *ok) {
+                            const sc_image_data *const *imgs, const int32_t (*same)[SC_SEAM_MAX_CHANNELS], int count,
+                            walk *w, double *d_out, double *gap_out, bool *ok) {
     const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
     const double *b0 = uvp(m, e->side[1].uv0), *b1 = uvp(m, e->side[1].uv1);
     int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w->gm, &w->gcap);
@@ -1382,7 +1415,12 @@ static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_se
         for (int im = 0; im < count; im++) {
             const sc_image_data *img = imgs[im];
             double d = d_out[im], gap = gap_out[im];
+            double vch[SC_SEAM_MAX_CHANNELS];
             for (int32_t c = 0; c < img->channels; c++) {
+                if (c < SC_SEAM_MAX_CHANNELS && same[im][c] >= 0) {   /* the same integral as its channel's */
+                    d += h * vch[same[im][c]];
+                    continue;
+                }
                 double q[3] = {0, 0, 0};
                 for (int side = 0; side < 2; side++)
                     for (int k = 0; k < 4; k++) {
@@ -1393,6 +1431,7 @@ static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_se
                 double v = 0;
                 for (int x = 0; x < 3; x++)
                     for (int y = 0; y < 3; y++) v += q[x] * q[y] * G3[x][y];
+                if (c < SC_SEAM_MAX_CHANNELS) vch[c] = v;
                 d += h * v;
                 for (int k = 0; k <= 4; k++) {
                     double tau = 0.25 * k, val = fabs(q[0] + tau * (q[1] + tau * q[2]));
@@ -1477,7 +1516,8 @@ double sc_seam_edge_energy(const sc_mesh *m, const sc_seam_edge *e, const sc_sea
     walk w = {0};
     bool ok;
     double d, gap;
-    edge_energy_gap(m, e, g, &img, 1, &w, &d, &gap, &ok);
+    const int32_t none[1][SC_SEAM_MAX_CHANNELS] = {{-1, -1, -1, -1}};
+    edge_energy_gap(m, e, g, &img, none, 1, &w, &d, &gap, &ok);
     free(w.gm);
     return ok ? d : NAN;
 }
@@ -1491,7 +1531,7 @@ static int energy_chunk(void *ud, int32_t chunk) {
     for (int32_t i = i0; i < i1; i++) {
         bool ok;
         double d[SC_SEAM_ENERGY_IMAGES], gap[SC_SEAM_ENERGY_IMAGES];
-        edge_energy_gap(job->m, &job->s->seams[i], job->g, job->imgs, job->count, &w, d, gap, &ok);
+        edge_energy_gap(job->m, &job->s->seams[i], job->g, job->imgs, job->same, job->count, &w, d, gap, &ok);
         for (int im = 0; im < job->count; im++) {
             job->d[(size_t)im * job->s->nseams + i] = d[im];
             job->gap[(size_t)im * job->s->nseams + i] = gap[im];
@@ -1517,7 +1557,8 @@ int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
         if (max_gap) max_gap[im] = 0;
     }
     if (s->nseams == 0) return SC_OK;
-    energy_job job = {m, s, g, imgs, count, NULL, NULL, -1};
+    energy_job job = {.m = m, .s = s, .g = g, .imgs = imgs, .count = count, .failed_face = -1};
+    for (int im = 0; im < count; im++) sc_seam_same_channels(imgs[im], job.same[im]);
     size_t len = (size_t)s->nseams * (size_t)count;
     job.d = sc_alloc_array(len, sizeof *job.d);
     job.gap = sc_alloc_array(len, sizeof *job.gap);

@@ -251,6 +251,13 @@ int sc_seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g
                    const sc_image_data *img, int threads, double *energy, double *max_gap,
                    sc_error *err);
 
+/* Channels of img equal to an earlier channel at every texel (a grey image
+ * stored as RGB): src[c] is that channel, or -1 (channels from
+ * SC_SEAM_MAX_CHANNELS on are never matched). Returns the number of
+ * channels that are not copies. */
+#define SC_SEAM_MAX_CHANNELS 4
+int32_t sc_seam_same_channels(const sc_image_data *img, int32_t src[SC_SEAM_MAX_CHANNELS]);
+
 /* The same for `count` images (at most SC_SEAM_ENERGY_IMAGES) of one grid,
  * in one pass over the pieces: energy[i] and max_gap[i] (either may be NULL)
  * are those sc_seam_energy gives image i, to the bit. */

@@ -1100,6 +1100,41 @@ SC_TEST(seam_chains_group_texels) {
     sc_mesh_free(m);
 }
 
+/* Channels that copy an earlier one are found (bit for bit: -0 is not +0),
+ * and the seam energy of a grey image stored as RGB, which takes each
+ * piece's integral once for all three channels, is three times that of the
+ * grey channel alone. */
+SC_TEST(same_channels_and_grey_energy) {
+    sc_image_data *im = sc_image_alloc(8, 8, 4, SC_PIXEL_F32);
+    float *p = im->pixels;
+    for (int t = 0; t < 64; t++) p[4 * t] = p[4 * t + 1] = p[4 * t + 3] = (float)t, p[4 * t + 2] = (float)(t % 5);
+    int32_t same[SC_SEAM_MAX_CHANNELS];
+    SC_CHECK_INT(sc_seam_same_channels(im, same), 2);
+    SC_CHECK(same[0] == -1 && same[1] == 0 && same[2] == -1 && same[3] == 0);
+    p[0] = 0.0f, p[1] = -0.0f;
+    SC_CHECK_INT(sc_seam_same_channels(im, same), 3);
+    SC_CHECK(same[1] == -1 && same[3] == 0);
+    sc_image_free(im);
+
+    sc_mesh *m = cube_mesh(17, true);
+    sc_seam_set s;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    sc_image_data *grey = noise_image(64, 64, 1, SC_PIXEL_U8, -1), *rgb = sc_image_alloc(64, 64, 3, SC_PIXEL_U8);
+    for (int t = 0; t < 64 * 64; t++)
+        for (int c = 0; c < 3; c++) ((uint8_t *)rgb->pixels)[3 * t + c] = ((uint8_t *)grey->pixels)[t];
+    sc_seam_grid g = {64, 64, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
+    double e1 = 0, e3 = 0, g1 = 0, g3 = 0;
+    SC_CHECK_INT(sc_seam_energy(m, &s, &g, grey, 2, &e1, &g1, &err), SC_OK);
+    SC_CHECK_INT(sc_seam_energy(m, &s, &g, rgb, 2, &e3, &g3, &err), SC_OK);
+    SC_CHECK(e1 > 0);
+    SC_CHECK_NEAR(e3, 3 * e1, 1e-12 * e1);
+    SC_CHECK(g3 == g1);
+    sc_image_free(grey), sc_image_free(rgb);
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+}
+
 /* ================================================================ the node, synthetic */
 
 static void check_erased(sc_ctx *ctx, const char *what, double gap_limit) {
