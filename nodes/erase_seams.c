@@ -184,6 +184,7 @@
 #define TIKHONOV 1e-8
 #define NULLITY_MAX_TEXELS 100000
 #define ROUND_MAX_SWEEPS 64
+#define ROUND_ROWS_PER_CHUNK 16384
 #define SCHUR_MIN_UNKNOWNS 500000  /* schur_from's default: solver auto takes the edge-cluster solver from here */
 #define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no chain's cluster */
 #define SCHUR_KEY_SPAN 256.0      /* texels along a seam chain that one cluster's couplings may span */
@@ -479,6 +480,7 @@ typedef struct round_job {
     uint8_t *bytes;          /* quantised image, changed in place */
     int32_t channels;
     const int32_t *chan;     /* the channel of each chunk */
+    int threads;             /* for each channel's start (fewer channels than threads) */
 } round_job;
 
 static inline bool round_row(const round_job *job, int32_t k) { return !job->rows || job->rows[k]; }
@@ -504,6 +506,60 @@ static int32_t round_unique_channels(const round_job *job, int32_t *src, int32_t
     return nu;
 }
 
+/* A channel's start, in fixed chunks of rows: its bounds and first choice
+ * (pass 0), then the gradient g = M q and M's diagonal (pass 1), row by
+ * row: M's full pattern holds row i as column i, and summing its entries
+ * in column order is the order a column sweep adds them to g[i] in. */
+typedef struct round_start {
+    const round_job *job;
+    int32_t c;
+    int32_t *q, *lo, *hi;
+    double *g, *dg;
+    uint8_t *dirty;
+    int pass;
+} round_start;
+
+static int round_start_chunk(void *ud, int32_t chunk) {
+    const round_start *rs = ud;
+    const round_job *job = rs->job;
+    const sc_sparse *mf = job->mf;
+    const int32_t C = job->channels, c = rs->c;
+    int32_t k0 = chunk * ROUND_ROWS_PER_CHUNK, k1 = k0 + ROUND_ROWS_PER_CHUNK < mf->n ? k0 + ROUND_ROWS_PER_CHUNK : mf->n;
+    int32_t *q = rs->q, *lo = rs->lo, *hi = rs->hi;
+    for (int32_t k = k0; k < k1; k++) {
+        if (!round_row(job, k)) {
+            if (rs->pass == 0) q[k] = lo[k] = hi[k] = 0;
+            else rs->g[k] = rs->dg[k] = 0, rs->dirty[k] = 0;
+            continue;
+        }
+        if (rs->pass == 0) {
+            size_t at = (size_t)job->ids[k] * (size_t)C + (size_t)c;
+            double x = job->x[at] * 255.0;
+            if (!(x > 0)) x = 0;
+            if (x > 255) x = 255;
+            int32_t f = (int32_t)floor(x);
+            lo[k] = f, hi[k] = f < 255 ? f + 1 : 255;
+            if ((double)f == x) hi[k] = f; /* exact: nothing to choose */
+            q[k] = job->bytes[at];
+            if (q[k] < lo[k] || q[k] > hi[k]) q[k] = (int32_t)lrint(x);
+            continue;
+        }
+        double s = 0, d = 0;
+        for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) {
+            int32_t j = mf->rowind[p];
+            if (!round_row(job, j)) continue;
+            s += mf->val[p] * q[j];
+            if (j == k) d = mf->val[p];
+        }
+        rs->g[k] = s, rs->dg[k] = d;
+        /* a texel is looked at again only when its gradient changed since
+         * it was last looked at (otherwise the test gives the same "stay"):
+         * the same choices, in the same order, as full sweeps */
+        rs->dirty[k] = lo[k] != hi[k];
+    }
+    return SC_OK;
+}
+
 /* Greedy coordinate descent on q^T M q over q_k in {floor(255 x_k), +1}
  * (rows that are not seam texels take no part). */
 static int round_channel(void *ud, int32_t chunk) {
@@ -513,41 +569,17 @@ static int round_channel(void *ud, int32_t chunk) {
     int32_t n = mf->n, C = job->channels;
     int32_t *q = sc_alloc_array((size_t)n, sizeof *q), *lo = sc_alloc_array((size_t)n, sizeof *lo);
     int32_t *hi = sc_alloc_array((size_t)n, sizeof *hi);
-    double *g = sc_calloc_array((size_t)n, sizeof *g), *dg = sc_alloc_array((size_t)n, sizeof *dg);
+    double *g = sc_alloc_array((size_t)n, sizeof *g), *dg = sc_alloc_array((size_t)n, sizeof *dg);
     uint8_t *dirty = sc_alloc_array((size_t)n, sizeof *dirty);
     if (!q || !lo || !hi || !g || !dg || !dirty) {
         free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
         return SC_ENOMEM;
     }
-    for (int32_t k = 0; k < n; k++) {
-        if (!round_row(job, k)) {
-            q[k] = lo[k] = hi[k] = 0;
-            continue;
-        }
-        size_t at = (size_t)job->ids[k] * (size_t)C + (size_t)c;
-        double x = job->x[at] * 255.0;
-        if (!(x > 0)) x = 0;
-        if (x > 255) x = 255;
-        int32_t f = (int32_t)floor(x);
-        lo[k] = f, hi[k] = f < 255 ? f + 1 : 255;
-        if ((double)f == x) hi[k] = f; /* exact: nothing to choose */
-        q[k] = job->bytes[at];
-        if (q[k] < lo[k] || q[k] > hi[k]) q[k] = (int32_t)lrint(x);
-    }
-    for (int32_t j = 0; j < n; j++) {
-        dg[j] = 0;
-        if (!round_row(job, j)) continue;
-        for (int32_t p = mf->colptr[j]; p < mf->colptr[j + 1]; p++) {
-            int32_t i = mf->rowind[p];
-            if (!round_row(job, i)) continue;
-            g[i] += mf->val[p] * q[j];
-            if (i == j) dg[j] = mf->val[p];
-        }
-    }
-    /* a texel is looked at again only when its gradient changed since it was
-     * last looked at (otherwise the test gives the same "stay"): the same
-     * choices, in the same order, as full sweeps */
-    for (int32_t k = 0; k < n; k++) dirty[k] = lo[k] != hi[k];
+    round_start rs = {job, c, q, lo, hi, g, dg, dirty, 0};
+    int32_t chunks = (n + ROUND_ROWS_PER_CHUNK - 1) / ROUND_ROWS_PER_CHUNK;
+    sc_parallel(job->threads, chunks, round_start_chunk, &rs);
+    rs.pass = 1;
+    sc_parallel(job->threads, chunks, round_start_chunk, &rs);
     for (int sweep = 0; sweep < ROUND_MAX_SWEEPS; sweep++) {
         int64_t moved = 0;
         for (int32_t k = 0; k < n; k++) {
@@ -606,6 +638,7 @@ static int measure_task(void *ud, int32_t chunk) {
     round_job *rj = j->round;
     int32_t C = rj->channels;
     int32_t nu = round_unique_channels(rj, j->src, j->chan);
+    rj->threads = nu < j->threads ? j->threads : 1;
     int rc = sc_seam_parallel(j->threads, nu, round_channel, rj);
     for (int32_t c = 0; c < C && rc == SC_OK; c++)
         if (j->src[c] >= 0)
