@@ -1228,7 +1228,7 @@ static int erase_group(sc_ctx *ctx, const sc_mesh *m, const sc_seam_set *seams,
         const sc_image_data *img = tx->image->as.image;
         const int32_t C = img->channels;
         const char *pre = st[ti].prefix;
-        sc_image_data *out = sc_image_to_f32(img);
+        sc_image_data *out = sc_image_to_f32_threads(img, o->threads);
         if (!out) {
             rc = sc_fail(err, SC_ENOMEM, "out of memory");
             goto done;

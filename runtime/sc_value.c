@@ -154,22 +154,41 @@ float sc_image_texel(const sc_image_data *im, int32_t i, int32_t j, int32_t c) {
     return 0;
 }
 
-sc_image_data *sc_image_to_f32(const sc_image_data *im) {
+typedef struct to_f32_job {
+    const sc_image_data *in;
+    float *dst;
+    size_t n;
+} to_f32_job;
+
+#define TO_F32_CHUNK ((size_t)1 << 20)
+
+static int to_f32_chunk(void *ud, int32_t chunk) {
+    const to_f32_job *j = ud;
+    size_t k0 = (size_t)chunk * TO_F32_CHUNK, k1 = k0 + TO_F32_CHUNK < j->n ? k0 + TO_F32_CHUNK : j->n;
+    float *dst = j->dst;
+    if (j->in->pixel == SC_PIXEL_F32) {
+        memcpy(dst + k0, (const float *)j->in->pixels + k0, (k1 - k0) * sizeof(float));
+    } else if (j->in->pixel == SC_PIXEL_U8) {
+        const uint8_t *src = j->in->pixels;
+        for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 255.0f);
+    } else {
+        const uint16_t *src = j->in->pixels;
+        for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 65535.0f);
+    }
+    return SC_OK;
+}
+
+sc_image_data *sc_image_to_f32(const sc_image_data *im) { return sc_image_to_f32_threads(im, 1); }
+
+sc_image_data *sc_image_to_f32_threads(const sc_image_data *im, int threads) {
     sc_image_data *out = sc_image_alloc(im->width, im->height, im->channels, SC_PIXEL_F32);
     if (!out) return NULL;
     out->colorspace = im->colorspace;
     memcpy(out->format, im->format, sizeof out->format);
-    size_t n = (size_t)im->width * (size_t)im->height * (size_t)im->channels;
-    float *dst = out->pixels;
-    if (im->pixel == SC_PIXEL_F32) {
-        memcpy(dst, im->pixels, n * sizeof(float));
-    } else if (im->pixel == SC_PIXEL_U8) {
-        const uint8_t *src = im->pixels;
-        for (size_t k = 0; k < n; k++) dst[k] = src[k] * (1.0f / 255.0f);
-    } else {
-        const uint16_t *src = im->pixels;
-        for (size_t k = 0; k < n; k++) dst[k] = src[k] * (1.0f / 65535.0f);
-    }
+    to_f32_job j = {im, out->pixels, (size_t)im->width * (size_t)im->height * (size_t)im->channels};
+    int32_t chunks = (int32_t)((j.n + TO_F32_CHUNK - 1) / TO_F32_CHUNK);
+    if (sc_parallel(threads, chunks, to_f32_chunk, &j) != SC_OK)
+        for (int32_t c = 0; c < chunks; c++) to_f32_chunk(&j, c);
     return out;
 }
 

@@ -100,6 +100,8 @@ void sc_image_free(sc_image_data *im);
 float sc_image_texel(const sc_image_data *im, int32_t i, int32_t j, int32_t c);
 /* A new f32 copy (same size, channels, colour space). NULL when out of memory. */
 sc_image_data *sc_image_to_f32(const sc_image_data *im);
+/* The same on up to `threads` threads (the same bytes). */
+sc_image_data *sc_image_to_f32_threads(const sc_image_data *im, int threads);
 
 /* ---------------------------------------------------------------- atlas */
 
