@@ -104,27 +104,33 @@
  * image erased on a mesh and its levels in one uv: pizza's 2.07M unknowns
  * were all interface) there are no clusters, and `auto` factors Q itself.
  *
- * Where pizza's erase goes now (2-core machine, a calm stretch: 5.6-5.8 s
- * in all, against 9.2-9.5 s for the design before, 5096414): the texel sets
- * and the trace 0.2 s; Q's seam terms 0.75 s and its assembly into the full
- * pattern 0.8 s (the edge groups found beside them); the grid terms 0.1 s;
- * the cluster plan, layout and elimination 1.1 s; the interface's CHOLMOD
- * factorisation 1.0 s on one thread, the side work (the seam residual, on
- * the other) beside it; the iterations and the refinement 0.7 s; writing
- * 0.25 s; the seam energies beside the optimal rounding 0.65 s; the energy
- * before (run) 0.2 s. What changed, each measured in alternating runs:
- * Q's full pattern alone, assembled from the chunks' own triplet lists
- * (9.3-11.2 -> 7.5-7.9 s with the BLAS and memory changes below), the
- * interface factored simplicial (7.5 -> 7.1 s), the iterations on the
- * interface (7.0 -> 6.1 s), the side work placed beside the interface
- * factorisation on the core it leaves free (6.0 -> 5.7 s).
+ * Where pizza's erase goes now (2-core machine, a medium stretch: 4.9-5.2 s
+ * in all, against 5.8-6.2 s for aa66f2c in the same minutes and 9.2-9.5 s in
+ * calm ones for 5096414): finding the seams and the energy before 0.11 s; the
+ * texel sets 0.19 s and the trace 0.06 s; Q's seam terms 0.7 s (the chain
+ * groups found beside them) and its assembly into the full pattern 0.9 s with
+ * the grid pattern; the grid terms 0.07 s; the cluster plan and layout
+ * 0.47 s, their elimination 0.7 s; the interface's CHOLMOD factorisation
+ * 0.45 s on one thread beside the side work (the seam residual, on all
+ * threads); the iterations and the refinement 0.48 s; writing 0.2 s; the seam
+ * energies beside the optimal rounding 0.45 s. What changed, each measured in
+ * alternating runs: Q's full pattern alone, assembled from the chunks' own
+ * triplet lists (9.3-11.2 -> 7.5-7.9 s with the BLAS and memory changes
+ * below), the interface factored simplicial (7.5 -> 7.1 s), the iterations on
+ * the interface (7.0 -> 6.1 s), the side work placed beside the interface
+ * factorisation (6.0 -> 5.7 s); then crossings merged instead of sorted and
+ * the per-tap helpers inline (7.03 -> 6.53 s in a slow stretch), -O3 (5.81 ->
+ * 5.53 s), seam chains as clusters (6.96 -> 6.35 s, slow), grey-as-RGB
+ * channels measured once (6.66 -> 6.45 s, slow), the rounding's start on all
+ * threads and the float copy on all threads (5.37 -> 5.00 s).
  *
- * Memory (pizza): the resident set grows by 910-980 MB during the erase,
- * peak 1240-1300 MB (5096414: 1100 MB and 1420-1435 MB). The preconditioner is made in
+ * Memory (pizza): the resident set grows by 900-1000 MB during the erase,
+ * peak 1220-1330 MB (5096414: 1100 MB and 1420-1435 MB); the interface factor
+ * is 111 MB (175 MB with single-edge clusters). The preconditioner is made in
  * Q in place (each dropped grid coupling's four entries saved, zeroed, and
  * put back after the factorisation; sc_schur reads exact zeros as no
- * coupling). The seam energies of the float and naively rounded results
- * are measured while the optimal rounding runs.
+ * coupling). The seam energies of the float and naively rounded results are
+ * measured while the optimal rounding runs.
  *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
  * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
@@ -524,7 +530,8 @@ static int round_start_chunk(void *ud, int32_t chunk) {
     const round_job *job = rs->job;
     const sc_sparse *mf = job->mf;
     const int32_t C = job->channels, c = rs->c;
-    int32_t k0 = chunk * ROUND_ROWS_PER_CHUNK, k1 = k0 + ROUND_ROWS_PER_CHUNK < mf->n ? k0 + ROUND_ROWS_PER_CHUNK : mf->n;
+    int32_t k0 = chunk * ROUND_ROWS_PER_CHUNK;
+    int32_t k1 = k0 + ROUND_ROWS_PER_CHUNK < mf->n ? k0 + ROUND_ROWS_PER_CHUNK : mf->n;
     int32_t *q = rs->q, *lo = rs->lo, *hi = rs->hi;
     for (int32_t k = k0; k < k1; k++) {
         if (!round_row(job, k)) {
@@ -827,8 +834,8 @@ static sc_image_data *unique_channels(const sc_image_data *img, const int32_t *s
     uint8_t *dst = u->pixels;
     for (size_t t = 0; t < texels; t++)
         for (int32_t j = 0; j < nu; j++)
-            memcpy(dst + (t * (size_t)nu + (size_t)j) * bytes, src + (t * (size_t)img->channels + (size_t)keep[j]) * bytes,
-                   bytes);
+            memcpy(dst + (t * (size_t)nu + (size_t)j) * bytes,
+                   src + (t * (size_t)img->channels + (size_t)keep[j]) * bytes, bytes);
     return u;
 }
 
