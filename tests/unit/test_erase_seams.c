@@ -335,6 +335,46 @@ static sc_mesh *grid_mesh(int n) {
     return m;
 }
 
+/* A pillow: two n x n sheets, bulging apart, sewn along their common
+ * border, each its own chart (side by side in uv, the second mirrored). The
+ * seam is the border: one closed loop whose every vertex joins two seam
+ * edges in the same two charts. */
+static sc_mesh *pillow_mesh(int n) {
+    int per = (n + 1) * (n + 1), inner = (n - 1) * (n - 1);
+    sc_mesh *m = sc_mesh_alloc(per + inner, 2 * per, 0, 4 * n * n, 1);
+    int32_t *bottom = malloc(sizeof *bottom * (size_t)per);   /* the second sheet's vertex at each grid point */
+    for (int j = 0; j <= n; j++)
+        for (int i = 0; i <= n; i++) {
+            int v = j * (n + 1) + i, b = v;
+            bool border = i == 0 || j == 0 || i == n || j == n;
+            double bulge = border ? 0 : 0.3 * sin(M_PI * i / n) * sin(M_PI * j / n);
+            m->V[3 * v] = i, m->V[3 * v + 1] = j, m->V[3 * v + 2] = bulge * n;
+            if (!border) {
+                b = per + (j - 1) * (n - 1) + (i - 1);
+                m->V[3 * b] = i, m->V[3 * b + 1] = j, m->V[3 * b + 2] = -bulge * n;
+            }
+            bottom[v] = b;
+            m->U[2 * v] = 0.05 + 0.4 * i / n, m->U[2 * v + 1] = 0.05 + 0.4 * j / n;
+            m->U[2 * (per + v)] = 0.95 - 0.4 * i / n, m->U[2 * (per + v) + 1] = 0.05 + 0.4 * j / n;
+        }
+    int f = 0;
+    for (int sheet = 0; sheet < 2; sheet++)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) {
+                int a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
+                int t[2][3] = {{a, b, c}, {a, c, d}};
+                for (int q = 0; q < 2; q++, f++)
+                    for (int k = 0; k < 3; k++) {
+                        int g = t[q][sheet ? 2 - k : k];   /* the second sheet faces the other way */
+                        m->FV[3 * f + k] = sheet ? bottom[g] : g;
+                        m->FU[3 * f + k] = sheet * per + g;
+                    }
+            }
+    free(bottom);
+    m->materials[0] = sc_strdup("pillow");
+    return m;
+}
+
 static sc_value *atlas_of(sc_mesh *m, sc_value **images, const char **slots, int n, sc_wrap wrap) {
     sc_atlas *a = sc_atlas_new(sc_value_new_mesh(m));
     for (int i = 0; i < n; i++) sc_atlas_add_texture(a, slots[i], 0, wrap, wrap, "", images[i]);
@@ -1428,7 +1468,7 @@ SC_TEST(node_several_textures_and_params) {
  * reference sampler, and agree texel by texel; the same bytes on any thread
  * count. BoomBox's charts lie side by side in its atlas, so the couplings
  * the preconditioner leaves out are many. */
-static void schur_against_cholmod(const char *what, sc_value *atlas, const char *slots) {
+static void schur_against_cholmod(const char *what, sc_value *atlas, const char *slots, double bound) {
     const char *kv_s[] = {"solver", "schur", "textures", slots, NULL}, *kv_c[] = {"solver", "cholmod", "textures", slots, NULL};
     sc_error err = {0};
     sc_ctx *s = run_erase(atlas, kv_s, 2, &err), *c = run_erase(atlas, kv_c, 2, &err), *s1 = run_erase(atlas, kv_s, 1, &err);
@@ -1449,8 +1489,7 @@ static void schur_against_cholmod(const char *what, sc_value *atlas, const char 
             printf("     %s %s: schur D %.3g -> %.3g, gap %.3g, %g pcg iterations, largest texel difference to "
                    "cholmod %.3g\n", what, a->textures[i].name, b, af, g, sc_ctx_metric_value(s, "pcg_iterations"), diff);
             SC_CHECK_MSG(af <= 1e-6 * b && g <= 1e-4, "%s: D %g -> %g, gap %g", what, b, af, g);
-            /* 6e-6 without the refinement on Q (the factorisation's rounding) */
-            SC_CHECK_MSG(diff <= 2e-6, "%s: schur and cholmod differ by %g", what, diff);
+            SC_CHECK_MSG(diff <= bound, "%s: schur and cholmod differ by %g", what, diff);
         }
     }
     sc_ctx_free(s), sc_ctx_free(c), sc_ctx_free(s1);
@@ -1458,7 +1497,45 @@ static void schur_against_cholmod(const char *what, sc_value *atlas, const char 
 
 SC_TEST(node_schur_solver_synthetic_cube) {
     sc_value *atlas = one_texture_atlas(cube_mesh(17, true), noise_image(64, 64, 3, SC_PIXEL_F32, -1), SC_WRAP_REPEAT);
-    schur_against_cholmod("cube", atlas, "all");
+    schur_against_cholmod("cube", atlas, "all", 2e-6);   /* 6.2e-6 without the refinement on Q */
+    sc_value_release(atlas);
+}
+
+/* A closed seam chain (the pillow's border, cut at one vertex): its texels
+ * are one group whose places run the loop's length, the texels at the cut
+ * couple both ends of it (more than SCHUR_KEY_SPAN apart at 512^2: the
+ * interface takes them), and the edge-cluster solver agrees with CHOLMOD. */
+SC_TEST(node_schur_solver_closed_chain) {
+    const int W = 512;
+    sc_mesh *m = pillow_mesh(8);
+    sc_seam_set s;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    SC_CHECK_INT(s.nseams, 32);
+    sc_seam_grid g = {W, W, SC_WRAP_CLAMP, SC_WRAP_CLAMP};
+    sc_seam_texset set;
+    sc_seam_texset_init(&set, W, W);
+    SC_CHECK_INT(sc_seam_mark_texels(m, &s, &g, &set, NULL, 2, &err), SC_OK);
+    sc_seam_texset_finish(&set);
+    int32_t n = set.count, *group = malloc(sizeof *group * (size_t)n), *face = malloc(sizeof *face * (size_t)n);
+    double *key = malloc(sizeof *key * (size_t)n), hi = 0;
+    SC_CHECK_INT(sc_seam_texel_groups(m, &s, &g, &set, group, key, face, &err), SC_OK);
+    bool one = true;
+    for (int32_t r = 0; r < n; r++) {
+        if (group[r] < 0) continue;
+        one &= group[r] == group[0 < n && group[0] >= 0 ? 0 : r];
+        if (key[r] > hi) hi = key[r];
+    }
+    double loop = 4 * 0.4 * W;   /* the border's length in texels */
+    SC_CHECK(one);
+    SC_CHECK_MSG(hi > loop - 4 && hi <= loop + 1e-9, "places up to %g of %g", hi, loop);
+    free(group), free(face), free(key);
+    sc_seam_texset_free(&set);
+    sc_seam_set_free(&s);
+    sc_value *atlas = one_texture_atlas(m, noise_image(W, W, 3, SC_PIXEL_F32, -1), SC_WRAP_CLAMP);
+    /* 5.2e-6 here, and 4.7e-6 with single-edge clusters as well: the
+     * bound is the pillow's, not the chains' */
+    schur_against_cholmod("pillow", atlas, "all", 1e-5);
     sc_value_release(atlas);
 }
 
@@ -1528,7 +1605,7 @@ SC_TEST(corpus_boombox_schur_solver) {
         return;
     }
     sc_value *atlas = sc_test_load_corpus("BoomBox/BoomBox_welded.obj", NULL, NULL);
-    if (atlas) schur_against_cholmod("BoomBox", atlas, "color");
+    if (atlas) schur_against_cholmod("BoomBox", atlas, "color", 2e-6);   /* 3.2e-6 without the refinement */
     sc_value_release(atlas);
 }
 
