@@ -821,12 +821,18 @@ static void prep_clusters(prep_job *pj) {
     free(saved);
 }
 
-/* The channels of img that copy no earlier one (same: sc_seam_same_channels),
- * as an image of their own; NULL when out of memory. */
-static sc_image_data *unique_channels(const sc_image_data *img, const int32_t *same) {
-    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = 0;
-    for (int32_t c = 0; c < img->channels; c++)
+/* The channels that copy no earlier one (same: sc_seam_same_channels) into
+ * keep, in order; returns how many. */
+static int32_t kept_channels(const int32_t *same, int32_t channels, int32_t keep[SC_SEAM_MAX_CHANNELS]) {
+    int32_t nu = 0;
+    for (int32_t c = 0; c < channels; c++)
         if (same[c] < 0) keep[nu++] = c;
+    return nu;
+}
+
+/* Those channels of img as an image of their own; NULL when out of memory. */
+static sc_image_data *unique_channels(const sc_image_data *img, const int32_t *same) {
+    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = kept_channels(same, img->channels, keep);
     sc_image_data *u = sc_image_alloc(img->width, img->height, nu, img->pixel);
     if (!u) return NULL;
     const size_t texels = (size_t)img->width * (size_t)img->height, bytes = (size_t)img->pixel;
@@ -842,9 +848,7 @@ static sc_image_data *unique_channels(const sc_image_data *img, const int32_t *s
 /* Right-hand sides made for unique_channels' image (its channels in the
  * first columns of rhs, n rows each) spread to all `channels` columns. */
 static void spread_columns(double *rhs, int32_t n, int32_t channels, const int32_t *same) {
-    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = 0;
-    for (int32_t c = 0; c < channels; c++)
-        if (same[c] < 0) keep[nu++] = c;
+    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = kept_channels(same, channels, keep);
     for (int32_t j = nu - 1; j >= 0; j--)
         if (keep[j] != j) memcpy(rhs + (size_t)keep[j] * n, rhs + (size_t)j * n, (size_t)n * sizeof *rhs);
     for (int32_t c = 0; c < channels; c++)
@@ -1731,7 +1735,7 @@ static const sc_param_desc params[] = {
             "rounding that minimises the quantised seam energy)"},
     {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = solver_choices,
      .doc = "cholmod: one direct factorisation of the whole system; schur: the texels along each "
-            "edge eliminated on their own and the rest factored by CHOLMOD, the couplings between "
+            "seam chain eliminated on their own and the rest factored by CHOLMOD, the couplings between "
             "charts this leaves out taken back in by conjugate gradients on the rest (to 1e-12); "
             "auto: schur from schur_from "
             "unknowns unless most texels lie in the cells of two or more edges, falling back to cholmod "

@@ -2,15 +2,15 @@
  * into short chains ("clusters") that meet only through a few shared
  * "interface" unknowns, and conjugate gradients preconditioned by them.
  *
- * erase_seams is the user: the texels of the cells along one seam chain
- * (seam edges joined end to end; both sides) form a cluster, ordered along
- * it; texels that the cells of two chains share, or that couple to another
- * chain's texels, form the interface. Each cluster is factored on its own (a banded, "envelope"
- * Cholesky factor in key order), its private unknowns are eliminated exactly
- * (a Schur complement onto the interface unknowns it touches), and the much
- * smaller interface system is factored by CHOLMOD. Nothing is approximated:
- * solving with the factorisation is a direct solve of A; the order only
- * decides how cheap it is.
+ * erase_seams is the user: the texels of the cells along one seam chain (seam
+ * edges joined end to end; both sides) form a cluster, ordered along it;
+ * texels that the cells of two chains share, or that couple to another
+ * chain's texels, form the interface. Each cluster is factored on its own (a
+ * banded, "envelope" Cholesky factor in key order), its private unknowns are
+ * eliminated exactly (a Schur complement onto the interface unknowns it
+ * touches), and the much smaller interface system is factored by CHOLMOD.
+ * Nothing is approximated: solving with the factorisation is a direct solve
+ * of A; the order only decides how cheap it is.
  *
  * Input matrices here are full-pattern symmetric matrices (sc_sparse_full:
  * both triangles, so a column is also a row); an entry stored as an exact

@@ -1360,9 +1360,6 @@ typedef struct energy_job {
     int failed_face;
 } energy_job;
 
-/* D of one seam edge (eq. 9 before weighting, summed over channels) and its
- * largest sampled gap, for each of `count` images of the grid's size: the
- * pieces are found once and read in every image. */
 /* Channels of img equal to an earlier channel at every texel: src[c] names
  * that channel (-1: none). Grey images stored as RGB are common (gloss,
  * roughness and occlusion maps); the energies then take each piece's
@@ -1395,9 +1392,12 @@ int32_t sc_seam_same_channels(const sc_image_data *img, int32_t src[SC_SEAM_MAX_
     return unique + (img->channels > C ? img->channels - C : 0);
 }
 
+/* D of one seam edge (eq. 9 before weighting, summed over channels) and its
+ * largest sampled gap, for each of `count` images of the grid's size: the
+ * pieces are found once and read in every image. */
 static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
-                            const sc_image_data *const *imgs, const int32_t (*same)[SC_SEAM_MAX_CHANNELS], int count,
-                            walk *w, double *d_out, double *gap_out, bool *ok) {
+                            const sc_image_data *const *imgs, const int32_t (*same)[SC_SEAM_MAX_CHANNELS],
+                            int count, walk *w, double *d_out, double *gap_out, bool *ok) {
     const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
     const double *b0 = uvp(m, e->side[1].uv0), *b1 = uvp(m, e->side[1].uv1);
     int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w->gm, &w->gcap);
