@@ -1,10 +1,10 @@
 /* runs.h - repeated benchmark runs, each in a process of its own.
  *
  * On the 2-core machine the cost of fresh memory swings by 10x from one
- * minute to the next: a process's first ~1 GB of new pages maps at 7-9
- * GB/s, but past what the machine has used recently pages come at 0.5-1.3
- * GB/s (measured: 475 MB mapped in 0.05 s after 10 MB, in 0.06-0.94 s
- * after 700 MB), and pizza's erase fills ~0.9 GB after its load. A
+ * minute to the next once a process holds more than the machine used
+ * recently (bench_memory: 475 MiB mapped in 0.08-0.10 s by a process
+ * holding 10 MiB, in 0.05-0.93 s by one holding 700 MiB, five runs each in
+ * the same minute), and pizza's erase fills ~0.9 GB after its load. A
  * benchmark that states a target therefore runs each case several times
  * (-r), each in a new process (so no run inherits another's heap), and sums
  * the runs up as a median, a range and how many met the target. */
