@@ -100,7 +100,7 @@
  * its interface factor 2.8e7 entries and 5.7e10 flops instead of 8.6e6 and
  * 5e8: 3.8 s against the iterations' 0.6 s. Below ~500k unknowns one
  * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7 per
- * texel. Where most texels lie in the cells of two or more edges (a geometry
+ * texel. Where most texels lie in the cells of two or more chains (a geometry
  * image erased on a mesh and its levels in one uv: pizza's 2.07M unknowns
  * were all interface) there are no clusters, and `auto` factors Q itself.
  *
@@ -584,9 +584,13 @@ static int round_channel(void *ud, int32_t chunk) {
     }
     round_start rs = {job, c, q, lo, hi, g, dg, dirty, 0};
     int32_t chunks = (n + ROUND_ROWS_PER_CHUNK - 1) / ROUND_ROWS_PER_CHUNK;
-    sc_parallel(job->threads, chunks, round_start_chunk, &rs);
+    int rc = sc_parallel(job->threads, chunks, round_start_chunk, &rs);
     rs.pass = 1;
-    sc_parallel(job->threads, chunks, round_start_chunk, &rs);
+    if (rc == SC_OK) rc = sc_parallel(job->threads, chunks, round_start_chunk, &rs);
+    if (rc != SC_OK) {   /* sc_parallel ran nothing: out of memory */
+        free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
+        return SC_ENOMEM;
+    }
     for (int sweep = 0; sweep < ROUND_MAX_SWEEPS; sweep++) {
         int64_t moved = 0;
         for (int32_t k = 0; k < n; k++) {
@@ -1738,7 +1742,7 @@ static const sc_param_desc params[] = {
             "seam chain eliminated on their own and the rest factored by CHOLMOD, the couplings between "
             "charts this leaves out taken back in by conjugate gradients on the rest (to 1e-12); "
             "auto: schur from schur_from "
-            "unknowns unless most texels lie in the cells of two or more edges, falling back to cholmod "
+            "unknowns unless most texels lie in the cells of two or more seam chains, falling back to cholmod "
             "should it fail"},
     {.name = "schur_from", .type = SC_PARAM_INTEGER, .def = SCHUR_MIN_UNKNOWNS, .min = 0, .max = 2147483647,
      .doc = "solver auto takes the edge-cluster solver (schur) for a system of this many unknowns or more"},
