@@ -63,6 +63,18 @@
  *    from seams or next to another (a fold, a real crack, or a sliver along
  *    a seam that runs through a row of pixel centres: visible as a line).
  *    The main job's test (main_job_lod_chain) holds such a pinhole.
+ *  - Folds: a position map can fold the surface over itself (blub's fins in
+ *    a 64^2 geometry image of its 1% level), and the back faces of a fold
+ *    away from a contour look like a crack. When a position pass's seam gap
+ *    is under a pixel and a view has crack pixels, the view is drawn again
+ *    welded (SC_WELD in the shaders: every corner of a vertex samples the
+ *    map at one uv, its first corner's, and every point on a seam edge at
+ *    the edge's side-0 uvs, blended from the same products on both faces,
+ *    so no seam can open; weld_uvs). A crack pixel that shows a back face
+ *    in the welded picture too is lod<k>.<pass>.fold_pixels, not a crack:
+ *    welding moved nothing by more than the gap, under a pixel, so the two
+ *    pictures differ only where a seam opens. A wider gap is not welded:
+ *    moving a seam's sides by more than a pixel can fold a strip along it.
  *  - Views: orthographic, all framing one bounding sphere (the box of every
  *    level's and the reference's vertices, each also where the position
  *    modes draw it: the geometry image at its uv, itself plus the
@@ -117,6 +129,7 @@
 #define SHEET_THUMB 128        /* contact-sheet thumbnails are at most this wide */
 #define SHEET_GAP 2
 #define EDGE_COORD_EPS 1e-6f   /* a tessellation coordinate this small is on an edge */
+#define CORNER_FLOATS 11       /* per face corner: x y z, u v, the welded pass's uvs (weld_uvs) */
 
 enum { POS_BASE = 0, POS_GEOMETRY = 1, POS_DISPLACED = 2 };
 enum { MODE_TEXTURED, MODE_GEOMETRY, MODE_DISPLACED, MODE_TESSELLATED, MODE_COUNT };
@@ -185,12 +198,13 @@ typedef struct renderer {
     sc_gl *gl;
     sc_gl_target target;
     int32_t size;
-    GLuint programs[3][2];      /* [pos][tessellated] */
+    GLuint programs[3][2][2];   /* [pos][tessellated][welded] */
     GLuint seam_programs[3];
     GLuint samplers[3][3];      /* [wrap_u][wrap_v] */
     uploaded *textures;
     int32_t ntextures;
     uint8_t *rgba, *flags;      /* size*size*4, size*size */
+    int32_t *cracks;            /* size*size: the crack pixels of the current picture */
     float *depth;               /* size*size */
     seam_trace trace;           /* the current pass's seam sides as drawn */
     int subpixel_bits;          /* GL_SUBPIXEL_BITS: the rasteriser's vertex grid is 2^-bits pixels */
@@ -206,7 +220,7 @@ typedef struct outcome {
     sc_report *report;
     encoder *enc;
     const char *folder;          /* report files go under it: "render" */
-    double crack_total, pinhole_total, gap_max, vertex_gap_max;
+    double crack_total, pinhole_total, fold_total, gap_max, vertex_gap_max;
     int32_t renders, skipped;
 } outcome;
 
@@ -406,10 +420,11 @@ static int get_texture(renderer *R, const sc_value *image, GLuint *out, sc_error
     return SC_OK;
 }
 
-static int build_program(renderer *R, int pos, bool tess, bool seam, GLuint *out, sc_error *err) {
+static int build_program(renderer *R, int pos, bool tess, bool seam, bool weld, GLuint *out, sc_error *err) {
     static const char *const pos_defines[3] = {"#define SC_POS 0\n", "#define SC_POS 1\n", "#define SC_POS 2\n"};
     const char *version = "#version 450 core\n";
-    const char *tess_define = tess ? "#define SC_TESS 1\n" : "";
+    const char *tess_define = tess ? (weld ? "#define SC_TESS 1\n#define SC_WELD 1\n" : "#define SC_TESS 1\n")
+                                   : weld ? "#define SC_WELD 1\n" : "";
     const char *common = sc_shader_source("render_common.glsl");
     const char *names[5] = {"render_vs.glsl", "render_tcs.glsl", "render_tes.glsl", "render_fs.glsl",
                             "seam_vs.glsl"};
@@ -423,7 +438,8 @@ static int build_program(renderer *R, int pos, bool tess, bool seam, GLuint *out
     sc_gl_stage stages[4];
     int n = 0;
     char label[64];
-    snprintf(label, sizeof label, "%s%s (%s)", seam ? "seam probe" : "render", tess ? ", tessellated" : "",
+    snprintf(label, sizeof label, "%s%s%s (%s)", seam ? "seam probe" : "render", tess ? ", tessellated" : "",
+             weld ? ", welded" : "",
              pos == POS_BASE ? "base" : pos == POS_GEOMETRY ? "geometry image" : "displacement");
     if (seam) {
         stages[n++] = (sc_gl_stage){GL_VERTEX_SHADER, names[4], {version, pos_defines[pos], common, src[4], NULL}};
@@ -444,18 +460,18 @@ static int build_program(renderer *R, int pos, bool tess, bool seam, GLuint *out
     return sc_gl_program(label, stages, n, tess ? feedback : NULL, tess ? 3 : 0, out, err);
 }
 
-static int get_program(renderer *R, int pos, bool tess, GLuint *out, sc_error *err) {
-    if (!R->programs[pos][tess]) {
-        int rc = build_program(R, pos, tess, false, &R->programs[pos][tess], err);
+static int get_program(renderer *R, int pos, bool tess, bool weld, GLuint *out, sc_error *err) {
+    if (!R->programs[pos][tess][weld]) {
+        int rc = build_program(R, pos, tess, false, weld, &R->programs[pos][tess][weld], err);
         if (rc != SC_OK) return rc;
     }
-    *out = R->programs[pos][tess];
+    *out = R->programs[pos][tess][weld];
     return SC_OK;
 }
 
 static int get_seam_program(renderer *R, int pos, GLuint *out, sc_error *err) {
     if (!R->seam_programs[pos]) {
-        int rc = build_program(R, pos, false, true, &R->seam_programs[pos], err);
+        int rc = build_program(R, pos, false, true, false, &R->seam_programs[pos], err);
         if (rc != SC_OK) return rc;
     }
     *out = R->seam_programs[pos];
@@ -469,8 +485,8 @@ static void renderer_free(renderer *R) {
     if (!R->gl) return;
     sc_gl_target_destroy(&R->target);
     for (int p = 0; p < 3; p++) {
-        for (int t = 0; t < 2; t++)
-            if (R->programs[p][t]) glDeleteProgram(R->programs[p][t]);
+        for (int t = 0; t < 4; t++)
+            if (R->programs[p][t / 2][t % 2]) glDeleteProgram(R->programs[p][t / 2][t % 2]);
         if (R->seam_programs[p]) glDeleteProgram(R->seam_programs[p]);
         for (int q = 0; q < 3; q++)
             if (R->samplers[p][q]) glDeleteSamplers(1, &R->samplers[p][q]);
@@ -479,6 +495,7 @@ static void renderer_free(renderer *R) {
     free(R->textures);
     free(R->rgba);
     free(R->flags);
+    free(R->cracks);
     free(R->depth);
     sc_gl_close(R->gl);
     memset(R, 0, sizeof *R);
@@ -508,6 +525,43 @@ static int bind_slot(renderer *R, const sc_atlas *a, int32_t material, const cha
     return SC_OK;
 }
 
+/* The welded pass's uvs, 6 floats per face corner (NULL when out of
+ * memory): the uv every corner of the corner's vertex samples at (its first
+ * corner's, in face order), then the uvs at this corner's and the next
+ * corner's vertex of the edge between them as the edge's canonical side has
+ * them: the face's own, except on side 1 of a seam, which takes side 0's. */
+static float *weld_uvs(const sc_mesh *m, const level_gl *L) {
+    float *w = sc_alloc_array((size_t)m->nf * 3, 6 * sizeof(float));
+    int32_t *first = sc_alloc_array((size_t)m->nv + 1, sizeof *first);
+    if (!w || !first) {
+        free(w), free(first);
+        return NULL;
+    }
+    for (int32_t v = 0; v < m->nv; v++) first[v] = -1;
+    for (int32_t k = 0; k < 3 * m->nf; k++)
+        if (first[m->FV[k]] < 0) first[m->FV[k]] = m->FU[k];
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int c = 0; c < 3; c++) {
+            float *o = w + 6 * ((size_t)f * 3 + c);
+            const double *vu = m->U + 2 * first[m->FV[3 * f + c]];
+            const double *a = m->U + 2 * m->FU[3 * f + c], *b = m->U + 2 * m->FU[3 * f + (c + 1) % 3];
+            o[0] = (float)vu[0], o[1] = (float)vu[1];
+            o[2] = (float)a[0], o[3] = (float)a[1], o[4] = (float)b[0], o[5] = (float)b[1];
+        }
+    for (int32_t e = 0; e < L->seams.nseams; e++) {
+        const sc_seam_edge *se = &L->seams.seams[e];
+        const seam_corner *c0 = &L->corners[2 * e], *c1 = &L->corners[2 * e + 1];
+        int32_t f0 = se->side[0].face, f1 = se->side[1].face;
+        const double *u0 = m->U + 2 * m->FU[3 * f0 + c0->k0], *u1 = m->U + 2 * m->FU[3 * f0 + c0->k1];
+        bool forward = (c1->k0 + 1) % 3 == c1->k1;   /* side 1's edge runs from v0 to v1 */
+        float *o = w + 6 * ((size_t)f1 * 3 + (forward ? c1->k0 : c1->k1));
+        const double *a = forward ? u0 : u1, *b = forward ? u1 : u0;
+        o[2] = (float)a[0], o[3] = (float)a[1], o[4] = (float)b[0], o[5] = (float)b[1];
+    }
+    free(first);
+    return w;
+}
+
 static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, level_gl *L, sc_error *err) {
     memset(L, 0, sizeof *L);
     L->atlas = atlas;
@@ -520,56 +574,6 @@ static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, lev
     double ext[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
     L->diag = vlen(ext);
     if (!(L->diag > 0)) L->diag = 1;
-
-    /* faces grouped by material (stable), three corners each: x y z u v */
-    int32_t nmat = m->nmat;
-    int32_t *count = calloc((size_t)nmat + 1, sizeof *count);
-    float *data = sc_alloc_array((size_t)m->nf * 3, 5 * sizeof(float));
-    L->materials = calloc((size_t)nmat, sizeof *L->materials);
-    L->groups = calloc((size_t)nmat, sizeof *L->groups);
-    if (!count || !data || !L->materials || !L->groups) {
-        free(count);
-        free(data);
-        return sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    for (int32_t f = 0; f < m->nf; f++) count[m->FM[f] + 1]++;
-    for (int32_t i = 0; i < nmat; i++) count[i + 1] += count[i];
-    for (int32_t i = 0; i < nmat; i++)
-        if (count[i + 1] > count[i])
-            L->groups[L->ngroups++] = (group){i, 3 * count[i], 3 * (count[i + 1] - count[i])};
-    for (int32_t f = 0; f < m->nf; f++) {
-        int32_t slot = count[m->FM[f]]++;
-        for (int c = 0; c < 3; c++) {
-            float *v = data + 5 * ((size_t)slot * 3 + c);
-            const double *p = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
-            v[0] = (float)p[0], v[1] = (float)p[1], v[2] = (float)p[2];
-            v[3] = (float)uv[0], v[4] = (float)uv[1];
-        }
-    }
-    free(count);
-    glGenVertexArrays(1, &L->vao);
-    glGenBuffers(1, &L->vbo);
-    glBindVertexArray(L->vao);
-    glBindBuffer(GL_ARRAY_BUFFER, L->vbo);
-    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->nf * 3 * 5 * sizeof(float)), data, GL_STATIC_DRAW);
-    free(data);
-    glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)0);
-    glEnableVertexAttribArray(1);
-    glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)(3 * sizeof(float)));
-    glBindVertexArray(0);
-    rc = sc_gl_check("uploading a mesh", err);
-    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
-
-    for (int32_t i = 0; i < nmat && rc == SC_OK; i++) {
-        material_gl *mg = &L->materials[i];
-        rc = bind_slot(R, atlas, i, "color", &mg->color, &mg->color_sampler, err);
-        if (rc == SC_OK)
-            rc = bind_slot(R, atlas, i, "geometry_image", &mg->geometry, &mg->geometry_sampler, err);
-        if (rc == SC_OK)
-            rc = bind_slot(R, atlas, i, "displacement", &mg->displacement, &mg->displacement_sampler, err);
-    }
-    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
 
     rc = sc_seam_find(m, -1, &L->seams, err);
     if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
@@ -591,6 +595,65 @@ static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, lev
                                se->v0, se->v1, se->side[s].face);
             c->k2 = 3 - c->k0 - c->k1;
         }
+
+    /* faces grouped by material (stable), three corners each: x y z u v,
+     * then the welded pass's uvs (weld_uvs) */
+    float *weld = weld_uvs(m, L);
+    if (!weld) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int32_t nmat = m->nmat;
+    int32_t *count = calloc((size_t)nmat + 1, sizeof *count);
+    float *data = sc_alloc_array((size_t)m->nf * 3, CORNER_FLOATS * sizeof(float));
+    L->materials = calloc((size_t)nmat, sizeof *L->materials);
+    L->groups = calloc((size_t)nmat, sizeof *L->groups);
+    if (!count || !data || !L->materials || !L->groups) {
+        free(count);
+        free(data);
+        free(weld);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t f = 0; f < m->nf; f++) count[m->FM[f] + 1]++;
+    for (int32_t i = 0; i < nmat; i++) count[i + 1] += count[i];
+    for (int32_t i = 0; i < nmat; i++)
+        if (count[i + 1] > count[i])
+            L->groups[L->ngroups++] = (group){i, 3 * count[i], 3 * (count[i + 1] - count[i])};
+    for (int32_t f = 0; f < m->nf; f++) {
+        int32_t slot = count[m->FM[f]]++;
+        for (int c = 0; c < 3; c++) {
+            float *v = data + CORNER_FLOATS * ((size_t)slot * 3 + c);
+            const double *p = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
+            v[0] = (float)p[0], v[1] = (float)p[1], v[2] = (float)p[2];
+            v[3] = (float)uv[0], v[4] = (float)uv[1];
+            memcpy(v + 5, weld + 6 * ((size_t)f * 3 + c), 6 * sizeof(float));
+        }
+    }
+    free(count);
+    free(weld);
+    glGenVertexArrays(1, &L->vao);
+    glGenBuffers(1, &L->vbo);
+    glBindVertexArray(L->vao);
+    glBindBuffer(GL_ARRAY_BUFFER, L->vbo);
+    const GLsizei stride = CORNER_FLOATS * sizeof(float);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->nf * 3 * stride), data, GL_STATIC_DRAW);
+    free(data);
+    static const GLint sizes[4] = {3, 2, 2, 4}, offsets[4] = {0, 3, 5, 7};
+    for (GLuint a = 0; a < 4; a++) {
+        glEnableVertexAttribArray(a);
+        glVertexAttribPointer(a, sizes[a], GL_FLOAT, GL_FALSE, stride, (void *)(offsets[a] * sizeof(float)));
+    }
+    glBindVertexArray(0);
+    rc = sc_gl_check("uploading a mesh", err);
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
+
+    for (int32_t i = 0; i < nmat && rc == SC_OK; i++) {
+        material_gl *mg = &L->materials[i];
+        rc = bind_slot(R, atlas, i, "color", &mg->color, &mg->color_sampler, err);
+        if (rc == SC_OK)
+            rc = bind_slot(R, atlas, i, "geometry_image", &mg->geometry, &mg->geometry_sampler, err);
+        if (rc == SC_OK)
+            rc = bind_slot(R, atlas, i, "displacement", &mg->displacement, &mg->displacement_sampler, err);
+    }
+    if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
+
     return SC_OK;
 }
 
@@ -646,9 +709,9 @@ static void draw_patches(int32_t first, int32_t count, int level) {
         glDrawArrays(GL_PATCHES, first + i, count - i < chunk ? count - i : chunk);
 }
 
-static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, sc_error *err) {
+static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, bool weld, sc_error *err) {
     GLuint program = 0;
-    int rc = get_program(R, ps->pos, ps->level > 0, &program, err);
+    int rc = get_program(R, ps->pos, ps->level > 0, weld, &program, err);
     if (rc != SC_OK) return rc;
     glBindFramebuffer(GL_FRAMEBUFFER, R->target.fbo);
     glViewport(0, 0, R->size, R->size);
@@ -987,7 +1050,7 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
             v[3] = (float)uv[0], v[4] = (float)uv[1];
         }
     GLuint program = 0, vao = 0, vbo = 0;
-    int rc = get_program(R, ps->pos, true, &program, err);
+    int rc = get_program(R, ps->pos, true, false, &program, err);
     if (rc == SC_OK) {
         glGenVertexArrays(1, &vao);
         glGenBuffers(1, &vbo);
@@ -1349,8 +1412,9 @@ static bool lone_back_face(const uint8_t *flags, int32_t size, int32_t x, int32_
  * pixel with no back face among its 8 neighbours, within a pixel of a seam
  * side as drawn, is a pinhole instead (*pinholes): the two sides' vertices,
  * equal but for float rounding, fell on neighbouring grid points, and a
- * sliver that thin holds one pixel centre at most. */
-static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, int v, bool gap_below_grid,
+ * sliver that thin holds one pixel centre at most. The crack pixels' indices
+ * go to R->cracks. */
+static int64_t count_cracks(renderer *R, const level_gl *L, const job *J, int v, bool gap_below_grid,
                             int64_t *pinholes) {
     int32_t s = J->size;
     size_t n = (size_t)s * (size_t)s;
@@ -1374,7 +1438,7 @@ static int64_t count_cracks(const renderer *R, const level_gl *L, const job *J, 
                 }
             if (contour) continue;
             if (gap_below_grid && lone_back_face(f, s, x, y) && near_seam(R, &J->views[v], x, y)) (*pinholes)++;
-            else count++;
+            else R->cracks[count++] = (int32_t)i;
         }
     return count;
 }
@@ -1397,33 +1461,55 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                        k->human, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
                        gap.edge_t);
     }
-    int64_t total = 0, worst = -1, pinholes = 0;
+    int64_t total = 0, worst = -1, pinholes = 0, folds = 0;
     int worst_view = 0;
     /* sides a rounding apart (not 0: equal vertices rasterise watertight) */
     bool gap_below_grid = gap.gap > 0 && gap.gap * L->diag * J->pixels_per_unit < R->subpixel;
+    /* welding moves no point by more than the gap: under a pixel, the welded
+     * picture differs from this one only where a seam opens (a wider gap,
+     * welded, could fold a strip along the seam itself) */
+    bool weld_check = ps->pos != POS_BASE && (L->closed || J->reference) &&
+                      gap.gap * L->diag * J->pixels_per_unit < 1.0;
     for (int v = 0; v < J->nviews; v++) {
         t0 = sc_now();
-        rc = draw(R, L, ps, &J->views[v], err);
+        rc = draw(R, L, ps, &J->views[v], false, err);
         if (rc == SC_OK) rc = read_target(R, err);
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s, view %s", k->human, ps->name, J->views[v].name);
         int64_t cracks = count_cracks(R, L, J, v, gap_below_grid, &pinholes);
-        total += cracks;
-        if (cracks > worst) worst = cracks, worst_view = v;
         char path[200];
         snprintf(path, sizeof path, "%s/%s_%s_%s.png", o->folder, k->file, ps->name, J->views[v].name);
         rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err);
         if (rc != SC_OK) return rc;
         sheet_put(sh, row, v, R->rgba, J->size);
         o->renders++;
+        if (cracks > 0 && weld_check) {
+            /* the same pass with every seam welded shut: a crack pixel that
+             * shows a back face there too is a fold, not an opening seam */
+            t0 = sc_now();
+            rc = draw(R, L, ps, &J->views[v], true, err);
+            if (rc == SC_OK) rc = read_target(R, err);
+            R->t_render += sc_now() - t0;
+            if (rc != SC_OK)
+                return sc_error_prefix(err, "%s, mode %s, view %s, welded", k->human, ps->name, J->views[v].name);
+            int64_t kept = 0;
+            for (int64_t c = 0; c < cracks; c++)
+                if (R->flags[R->cracks[c]] == 2) folds++;
+                else kept++;
+            cracks = kept;
+        }
+        total += cracks;
+        if (cracks > worst) worst = cracks, worst_view = v;
     }
     *gap_out = gap;
     o->crack_total += (double)total;
     o->pinhole_total += (double)pinholes;
+    o->fold_total += (double)folds;
     o->gap_max = fmax(o->gap_max, gap.gap);
     o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
     if (metricf(o, (double)total, "%s.%s.crack_pixels", k->metric, ps->name) ||
         metricf(o, (double)pinholes, "%s.%s.pinhole_pixels", k->metric, ps->name) ||
+        metricf(o, (double)folds, "%s.%s.fold_pixels", k->metric, ps->name) ||
         metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
         metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name))
         return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1458,7 +1544,7 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
     int v = 0;
     for (; v < J->nviews && rc == SC_OK; v++) {
         double t0 = sc_now();
-        rc = draw(R, &L, &ps, &J->views[v], err);
+        rc = draw(R, &L, &ps, &J->views[v], false, err);
         if (rc == SC_OK) rc = read_target(R, err);
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) break;
@@ -1782,7 +1868,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         R.rgba = malloc((size_t)J.size * (size_t)J.size * 4);
         R.flags = malloc((size_t)J.size * (size_t)J.size);
         R.depth = malloc(sizeof(float) * (size_t)J.size * (size_t)J.size);
-        if (!R.rgba || !R.flags || !R.depth) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        R.cracks = malloc(sizeof(int32_t) * (size_t)J.size * (size_t)J.size);
+        if (!R.rgba || !R.flags || !R.depth || !R.cracks) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
     if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
     if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);
@@ -1817,6 +1904,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         (metric(&o, "levels", nlevels) || metric(&o, "views", J.nviews) || metric(&o, "size", J.size) ||
          metric(&o, "renders", o.renders) || metric(&o, "skipped_modes", o.skipped) ||
          metric(&o, "crack_pixels", o.crack_total) || metric(&o, "pinhole_pixels", o.pinhole_total) ||
+         metric(&o, "fold_pixels", o.fold_total) ||
          metric(&o, "subpixel_bits", R.subpixel_bits) || metric(&o, "max_seam_gap", o.gap_max) ||
          metric(&o, "max_vertex_gap", o.vertex_gap_max)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1882,7 +1970,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 5,
+    .version = 6,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -4,14 +4,20 @@ layout(vertices = 3) out;
 
 in vec3 tc_base[];
 in vec2 tc_uv[];
+in vec2 tc_weld_uv[];
+in vec4 tc_edge_uv[];
 out vec3 te_base[];
 out vec2 te_uv[];
+out vec2 te_weld_uv[];
+out vec4 te_edge_uv[];
 
 uniform float u_level;
 
 void main() {
     te_base[gl_InvocationID] = tc_base[gl_InvocationID];
     te_uv[gl_InvocationID] = tc_uv[gl_InvocationID];
+    te_weld_uv[gl_InvocationID] = tc_weld_uv[gl_InvocationID];
+    te_edge_uv[gl_InvocationID] = tc_edge_uv[gl_InvocationID];
     if (gl_InvocationID == 0) {
         gl_TessLevelOuter[0] = u_level;
         gl_TessLevelOuter[1] = u_level;

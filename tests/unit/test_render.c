@@ -29,7 +29,8 @@ enum {
     CUBE_DISP_SEAMS = 2,   /* per-chart offset in the displacement */
     CUBE_SPLIT = 4,        /* face 0 has its own vertices, slid by 0.08 along y */
     CUBE_OPEN = 8,         /* face 0 removed */
-    CUBE_NO_POSITIONS = 16 /* colour texture only */
+    CUBE_NO_POSITIONS = 16,/* colour texture only */
+    CUBE_HAIRLINE = 32     /* with CUBE_GI_SEAMS: a tenth of the offset */
 };
 
 static const int face_origin[6][3] = {{1, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 0, 0}, {0, 0, 1}, {0, 0, 0}};
@@ -80,7 +81,7 @@ static cube_textures cube_textures_make(int flags) {
             c[1] = (uint8_t)(200 - 20 * f);
             c[2] = (uint8_t)(120 + 50 * check);
             float *g = (float *)geom->pixels + 3 * t, *d = (float *)disp->pixels + 4 * t;
-            double off_g = (flags & CUBE_GI_SEAMS) ? 0.02 * (f + 1) : 0.0;
+            double off_g = (flags & CUBE_GI_SEAMS) ? ((flags & CUBE_HAIRLINE) ? 0.002 : 0.02) * (f + 1) : 0.0;
             double off_d = (flags & CUBE_DISP_SEAMS) ? 0.02 * (f + 1) : 0.0;
             for (int k = 0; k < 3; k++) {
                 g[k] = (float)(p[k] + off_g);
@@ -254,6 +255,80 @@ SC_TEST(geometry_image_with_seams_has_gap_and_cracks) {
     SC_CHECK(M(&r, "lod0.tessellated2.crack_pixels") > 0);
     SC_CHECK(M(&r, "lod0.textured.max_seam_gap") == 0);
     SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+/* Seams open by less than a pixel still crack, and welding closes them: the
+ * crack check draws a pass again with every seam welded shut when its gap
+ * is under a pixel, and takes a crack pixel for a fold only if the welded
+ * picture shows a back face there too. Here none may be taken. */
+SC_TEST(hairline_seams_crack_and_are_no_folds) {
+    cube_textures tex = cube_textures_make(CUBE_GI_SEAMS | CUBE_HAIRLINE);
+    sc_value *cube = cube_atlas(4, 0, &tex);
+    run_result r = render(NULL, cube, NULL,
+                          (const char *const[]){"size", "128", "views", "26", "tess_levels", "1,4",
+                                                "modes", "geometry_image,tessellated", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    const char *modes[] = {"geometry_image", "tessellated1", "tessellated4"};
+    /* pixels per unit: at most 128 / (2 sqrt 3), the views framing at least
+     * the cube's bounding sphere; so every gap below is under a pixel */
+    double px = 128 / (2 * sqrt(3.0));
+    for (int i = 0; i < 3; i++) {
+        char name[96];
+        snprintf(name, sizeof name, "lod0.%s.max_seam_gap", modes[i]);
+        double gap_px = M(&r, name) * 2 * sqrt(3.0) * px;
+        SC_CHECK_MSG(gap_px > 0.2 && gap_px < 1, "%s: %g pixels", name, gap_px);
+        snprintf(name, sizeof name, "lod0.%s.crack_pixels", modes[i]);
+        printf("     %s: gap at most %.2f pixels, %g crack pixels\n", modes[i], gap_px, M(&r, name));
+        SC_CHECK_MSG(M(&r, name) > 20, "%s = %g", name, M(&r, name));
+        snprintf(name, sizeof name, "lod0.%s.fold_pixels", modes[i]);
+        SC_CHECK_MSG(M(&r, name) == 0, "%s = %g", name, M(&r, name));
+    }
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+/* A fold is not a crack: the geometry image of face 0 (x = +1) pushes a disk
+ * of texels, far from every seam, through the cube to x = -2.5, so the
+ * position modes draw a spike whose back faces stick out of face 3
+ * (x = -1). Those back-face pixels lie behind no front face and are not on a
+ * contour; they stay when the pass is drawn with every seam welded shut, so
+ * they are fold pixels, and the seams, free of gaps, crack nowhere. */
+SC_TEST(fold_is_not_a_crack) {
+    cube_textures tex = cube_textures_make(0);
+    sc_image_data *g = tex.geometry->as.image;
+    double side = CELL - 2 * PAD;
+    int pushed = 0;
+    for (int j = 0; j < CELL; j++)
+        for (int i = 0; i < CELL; i++) {
+            double a = (i + 0.5 - PAD) / side, b = (j + 0.5 - PAD) / side;
+            if ((a - 0.5) * (a - 0.5) + (b - 0.5) * (b - 0.5) > 0.2 * 0.2) continue;
+            ((float *)g->pixels)[3 * ((size_t)j * g->width + i)] = -2.5f;
+            pushed++;
+        }
+    SC_CHECK(pushed > 20);
+    sc_value *cube = cube_atlas(4, 0, &tex);
+    run_result r = render(NULL, cube, NULL,
+                          (const char *const[]){"size", "128", "views", "10", "tess_levels", "1,4",
+                                                "modes", "textured,geometry_image,tessellated", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.closed") == 1);
+    const char *modes[] = {"geometry_image", "tessellated1", "tessellated4"};
+    for (int i = 0; i < 3; i++) {
+        char name[96];
+        snprintf(name, sizeof name, "lod0.%s.fold_pixels", modes[i]);
+        SC_CHECK_MSG(M(&r, name) > 10, "%s = %g", name, M(&r, name));
+        snprintf(name, sizeof name, "lod0.%s.crack_pixels", modes[i]);
+        SC_CHECK_MSG(M(&r, name) == 0, "%s = %g", name, M(&r, name));
+        snprintf(name, sizeof name, "lod0.%s.max_seam_gap", modes[i]);
+        SC_CHECK_MSG(M(&r, name) <= 1e-6, "%s = %g", name, M(&r, name));
+    }
+    SC_CHECK(M(&r, "lod0.textured.fold_pixels") == 0 && M(&r, "lod0.textured.crack_pixels") == 0);
+    SC_CHECK(M(&r, "crack_pixels") == 0);
+    SC_CHECK(M(&r, "fold_pixels") > 30);
     sc_ctx_free(r.ctx);
     sc_value_release(cube);
     cube_textures_free(&tex);
