@@ -70,7 +70,7 @@
  *    welded (SC_WELD in the shaders: every corner of a vertex samples the
  *    map at one uv, its first corner's, and every point on a seam edge at
  *    the edge's side-0 uvs, blended from the same products on both faces,
- *    so no seam can open; weld_uvs). A crack pixel that shows a back face
+ *    so no seam can open; corner_data). A crack pixel that shows a back face
  *    in the welded picture too is lod<k>.<pass>.fold_pixels, not a crack:
  *    welding moved nothing by more than the gap, under a pixel, so the two
  *    pictures differ only where a seam opens. A wider gap is not welded:
@@ -129,7 +129,7 @@
 #define SHEET_THUMB 128        /* contact-sheet thumbnails are at most this wide */
 #define SHEET_GAP 2
 #define EDGE_COORD_EPS 1e-6f   /* a tessellation coordinate this small is on an edge */
-#define CORNER_FLOATS 11       /* per face corner: x y z, u v, the welded pass's uvs (weld_uvs) */
+#define CORNER_FLOATS 11       /* per face corner: x y z, u v, the welded pass's uvs (corner_data) */
 
 enum { POS_BASE = 0, POS_GEOMETRY = 1, POS_DISPLACED = 2 };
 enum { MODE_TEXTURED, MODE_GEOMETRY, MODE_DISPLACED, MODE_TESSELLATED, MODE_COUNT };
@@ -485,8 +485,9 @@ static void renderer_free(renderer *R) {
     if (!R->gl) return;
     sc_gl_target_destroy(&R->target);
     for (int p = 0; p < 3; p++) {
-        for (int t = 0; t < 4; t++)
-            if (R->programs[p][t / 2][t % 2]) glDeleteProgram(R->programs[p][t / 2][t % 2]);
+        for (int t = 0; t < 2; t++)
+            for (int w = 0; w < 2; w++)
+                if (R->programs[p][t][w]) glDeleteProgram(R->programs[p][t][w]);
         if (R->seam_programs[p]) glDeleteProgram(R->seam_programs[p]);
         for (int q = 0; q < 3; q++)
             if (R->samplers[p][q]) glDeleteSamplers(1, &R->samplers[p][q]);
@@ -525,41 +526,41 @@ static int bind_slot(renderer *R, const sc_atlas *a, int32_t material, const cha
     return SC_OK;
 }
 
-/* The welded pass's uvs, 6 floats per face corner (NULL when out of
- * memory): the uv every corner of the corner's vertex samples at (its first
- * corner's, in face order), then the uvs at this corner's and the next
- * corner's vertex of the edge between them as the edge's canonical side has
- * them: the face's own, except on side 1 of a seam, which takes side 0's. */
-static float *weld_uvs(const sc_mesh *m, const level_gl *L) {
-    float *w = sc_alloc_array((size_t)m->nf * 3, 6 * sizeof(float));
+/* The vertex data: per face corner (CORNER_FLOATS), x y z and u v, then the
+ * welded pass's uvs: the uv every corner of the corner's vertex samples at
+ * (its first corner's, in face order), and the uvs at this corner's and the
+ * next corner's vertex of the edge between them as the edge's canonical
+ * side has them: the face's own, except on side 1 of a seam, which takes
+ * side 0's. slot[f] is face f's place in data. Returns false when out of
+ * memory. */
+static bool corner_data(const sc_mesh *m, const level_gl *L, const int32_t *slot, float *data) {
     int32_t *first = sc_alloc_array((size_t)m->nv + 1, sizeof *first);
-    if (!w || !first) {
-        free(w), free(first);
-        return NULL;
-    }
+    if (!first) return false;
     for (int32_t v = 0; v < m->nv; v++) first[v] = -1;
     for (int32_t k = 0; k < 3 * m->nf; k++)
         if (first[m->FV[k]] < 0) first[m->FV[k]] = m->FU[k];
     for (int32_t f = 0; f < m->nf; f++)
         for (int c = 0; c < 3; c++) {
-            float *o = w + 6 * ((size_t)f * 3 + c);
-            const double *vu = m->U + 2 * first[m->FV[3 * f + c]];
-            const double *a = m->U + 2 * m->FU[3 * f + c], *b = m->U + 2 * m->FU[3 * f + (c + 1) % 3];
-            o[0] = (float)vu[0], o[1] = (float)vu[1];
-            o[2] = (float)a[0], o[3] = (float)a[1], o[4] = (float)b[0], o[5] = (float)b[1];
+            float *v = data + CORNER_FLOATS * ((size_t)slot[f] * 3 + c);
+            const double *p = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
+            const double *vu = m->U + 2 * first[m->FV[3 * f + c]], *next = m->U + 2 * m->FU[3 * f + (c + 1) % 3];
+            v[0] = (float)p[0], v[1] = (float)p[1], v[2] = (float)p[2];
+            v[3] = (float)uv[0], v[4] = (float)uv[1];
+            v[5] = (float)vu[0], v[6] = (float)vu[1];
+            v[7] = (float)uv[0], v[8] = (float)uv[1], v[9] = (float)next[0], v[10] = (float)next[1];
         }
+    free(first);
     for (int32_t e = 0; e < L->seams.nseams; e++) {
         const sc_seam_edge *se = &L->seams.seams[e];
         const seam_corner *c0 = &L->corners[2 * e], *c1 = &L->corners[2 * e + 1];
         int32_t f0 = se->side[0].face, f1 = se->side[1].face;
         const double *u0 = m->U + 2 * m->FU[3 * f0 + c0->k0], *u1 = m->U + 2 * m->FU[3 * f0 + c0->k1];
         bool forward = (c1->k0 + 1) % 3 == c1->k1;   /* side 1's edge runs from v0 to v1 */
-        float *o = w + 6 * ((size_t)f1 * 3 + (forward ? c1->k0 : c1->k1));
+        float *v = data + CORNER_FLOATS * ((size_t)slot[f1] * 3 + (forward ? c1->k0 : c1->k1));
         const double *a = forward ? u0 : u1, *b = forward ? u1 : u0;
-        o[2] = (float)a[0], o[3] = (float)a[1], o[4] = (float)b[0], o[5] = (float)b[1];
+        v[7] = (float)a[0], v[8] = (float)a[1], v[9] = (float)b[0], v[10] = (float)b[1];
     }
-    free(first);
-    return w;
+    return true;
 }
 
 static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, level_gl *L, sc_error *err) {
@@ -596,19 +597,15 @@ static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, lev
             c->k2 = 3 - c->k0 - c->k1;
         }
 
-    /* faces grouped by material (stable), three corners each: x y z u v,
-     * then the welded pass's uvs (weld_uvs) */
-    float *weld = weld_uvs(m, L);
-    if (!weld) return sc_fail(err, SC_ENOMEM, "out of memory");
+    /* faces grouped by material (stable), three corners each (corner_data) */
     int32_t nmat = m->nmat;
     int32_t *count = calloc((size_t)nmat + 1, sizeof *count);
+    int32_t *slot = sc_alloc_array((size_t)m->nf, sizeof *slot);
     float *data = sc_alloc_array((size_t)m->nf * 3, CORNER_FLOATS * sizeof(float));
     L->materials = calloc((size_t)nmat, sizeof *L->materials);
     L->groups = calloc((size_t)nmat, sizeof *L->groups);
-    if (!count || !data || !L->materials || !L->groups) {
-        free(count);
-        free(data);
-        free(weld);
+    if (!count || !slot || !data || !L->materials || !L->groups) {
+        free(count), free(slot), free(data);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     for (int32_t f = 0; f < m->nf; f++) count[m->FM[f] + 1]++;
@@ -616,18 +613,14 @@ static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, lev
     for (int32_t i = 0; i < nmat; i++)
         if (count[i + 1] > count[i])
             L->groups[L->ngroups++] = (group){i, 3 * count[i], 3 * (count[i + 1] - count[i])};
-    for (int32_t f = 0; f < m->nf; f++) {
-        int32_t slot = count[m->FM[f]]++;
-        for (int c = 0; c < 3; c++) {
-            float *v = data + CORNER_FLOATS * ((size_t)slot * 3 + c);
-            const double *p = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
-            v[0] = (float)p[0], v[1] = (float)p[1], v[2] = (float)p[2];
-            v[3] = (float)uv[0], v[4] = (float)uv[1];
-            memcpy(v + 5, weld + 6 * ((size_t)f * 3 + c), 6 * sizeof(float));
-        }
-    }
+    for (int32_t f = 0; f < m->nf; f++) slot[f] = count[m->FM[f]]++;
     free(count);
-    free(weld);
+    bool filled = corner_data(m, L, slot, data);
+    free(slot);
+    if (!filled) {
+        free(data);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
     glGenVertexArrays(1, &L->vao);
     glGenBuffers(1, &L->vbo);
     glBindVertexArray(L->vao);
@@ -1463,13 +1456,13 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     }
     int64_t total = 0, worst = -1, pinholes = 0, folds = 0;
     int worst_view = 0;
+    double gap_pixels = gap.gap * L->diag * J->pixels_per_unit;
     /* sides a rounding apart (not 0: equal vertices rasterise watertight) */
-    bool gap_below_grid = gap.gap > 0 && gap.gap * L->diag * J->pixels_per_unit < R->subpixel;
+    bool gap_below_grid = gap.gap > 0 && gap_pixels < R->subpixel;
     /* welding moves no point by more than the gap: under a pixel, the welded
      * picture differs from this one only where a seam opens (a wider gap,
      * welded, could fold a strip along the seam itself) */
-    bool weld_check = ps->pos != POS_BASE && (L->closed || J->reference) &&
-                      gap.gap * L->diag * J->pixels_per_unit < 1.0;
+    bool weld_check = ps->pos != POS_BASE && (L->closed || J->reference) && gap_pixels < 1.0;
     for (int v = 0; v < J->nviews; v++) {
         t0 = sc_now();
         rc = draw(R, L, ps, &J->views[v], false, err);
