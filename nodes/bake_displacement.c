@@ -2181,7 +2181,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_bake_displacement = {
     .type = "bake_displacement",
-    .version = 7,
+    .version = 8,
     .summary = "bakes a geometry image and a vector displacement map per level of detail (Liu et al. 2017 §7)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -112,7 +112,8 @@
  * the grid pattern; the grid terms 0.07 s; the cluster plan and layout
  * 0.47 s, their elimination 0.7 s; the interface's CHOLMOD factorisation
  * 0.45 s on one thread beside the side work (the seam residual, on all
- * threads); the iterations and the refinement 0.48 s; writing 0.2 s; the seam
+ * threads); the iterations and the refinement 0.48 s (0.35 s since they
+ * run on both threads: sc_schur.c); writing 0.2 s; the seam
  * energies beside the optimal rounding 0.45 s. What changed, each measured in
  * alternating runs: Q's full pattern alone, assembled from the chunks' own
  * triplet lists (9.3-11.2 -> 7.5-7.9 s with the BLAS and memory changes
@@ -1765,7 +1766,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 6,
+    .version = 7,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

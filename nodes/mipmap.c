@@ -987,7 +987,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 8,
+    .version = 9,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

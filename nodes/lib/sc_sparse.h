@@ -97,6 +97,9 @@ int sc_sparse_submatrix(const sc_sparse *a, const int32_t *keep, int32_t count, 
 
 /* y = A x for the symmetric A (x, y of length n; y is overwritten). */
 void sc_sparse_symv(const sc_sparse *a, const double *x, double *y);
+/* y += the part of A x that the upper columns [c0, c1) hold (both of their
+ * triangles): sums over column ranges that cover 0..n make A x. */
+void sc_sparse_symv_columns(const sc_sparse *a, int32_t c0, int32_t c1, const double *x, double *y);
 /* x^T A x. */
 double sc_sparse_quadform(const sc_sparse *a, const double *x);
 /* Diagonal entry A(i, i) (0 when not stored). */
@@ -134,6 +137,8 @@ typedef struct sc_sparse_stats {
     double peak_bytes;             /* CHOLMOD's peak memory */
     int ordering_used;             /* CHOLMOD ordering code */
     bool supernodal;
+    double split_share;            /* entries of L in the halves sc_sparse_chol_solve_threads
+                                      runs side by side (0: not split, or not yet solved with) */
 } sc_sparse_stats;
 
 typedef struct sc_sparse_chol sc_sparse_chol;
@@ -146,6 +151,12 @@ int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt,
 /* Solve A X = B for nrhs right-hand sides at once: b holds n x nrhs values,
  * column-major (one column per right-hand side), and is overwritten by X. */
 int sc_sparse_chol_solve(sc_sparse_chol *f, int32_t nrhs, double *b, sc_error *err);
+/* The same on up to `threads` threads for a simplicial L L^T factor (its
+ * elimination tree split in two fixed halves: the bits do not depend on the
+ * thread count, but differ from sc_sparse_chol_solve's); other factors go
+ * to sc_sparse_chol_solve. Like it, one call at a time per factor (the
+ * plan and its scratch are kept in f). */
+int sc_sparse_chol_solve_threads(sc_sparse_chol *f, int32_t nrhs, double *b, int threads, sc_error *err);
 void sc_sparse_chol_stats(const sc_sparse_chol *f, sc_sparse_stats *out);
 void sc_sparse_chol_free(sc_sparse_chol *f);
 

@@ -463,6 +463,75 @@ SC_TEST(sparse_assembly_and_solve) {
     sc_triplets_free(&t);
 }
 
+/* sc_sparse_chol_solve_threads on a 2D grid Laplacian plus 0.01 I (its
+ * elimination tree splits well): x back to 1e-10 from b = A x formed here
+ * from the stencil, the same bits on one thread and two, close to
+ * cholmod_solve's; a supernodal factor takes cholmod_solve's path. */
+SC_TEST(sparse_tree_split_solve) {
+    const int side = 40, n = side * side;
+    sc_triplets t;
+    sc_triplets_init(&t, n);
+    double *x = malloc(sizeof(double) * n), *b = malloc(sizeof(double) * 2 * n);
+    double *b1 = malloc(sizeof(double) * 2 * n), *b2 = malloc(sizeof(double) * 2 * n);
+    for (int i = 0; i < n; i++) x[i] = cos(0.37 * i) + 0.1 * (i % 7);
+    for (int r = 0; r < side; r++)
+        for (int c = 0; c < side; c++) {
+            int i = r * side + c;
+            double bi = 0.01 * x[i];
+            sc_triplets_add(&t, i, i, 0.01);
+            int nb[2] = {c + 1 < side ? i + 1 : -1, r + 1 < side ? i + side : -1};
+            for (int k = 0; k < 2; k++) {
+                if (nb[k] < 0) continue;
+                sc_triplets_add(&t, i, i, 1.0), sc_triplets_add(&t, nb[k], nb[k], 1.0);
+                sc_triplets_add(&t, i, nb[k], -1.0);
+            }
+            int nbr[4] = {c > 0 ? i - 1 : -1, c + 1 < side ? i + 1 : -1, r > 0 ? i - side : -1,
+                          r + 1 < side ? i + side : -1};
+            for (int k = 0; k < 4; k++)
+                if (nbr[k] >= 0) bi += x[i] - x[nbr[k]];
+            b[i] = bi, b[n + i] = -2 * bi;
+        }
+    sc_sparse a;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_sparse_from_triplets(&t, &a, &err), SC_OK);
+    sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_SIMPLICIAL, .definite = true};
+    sc_sparse_chol *f = NULL;
+    SC_CHECK_INT(sc_sparse_chol_factor(&a, &opt, &f, &err), SC_OK);
+    if (f) {
+        memcpy(b1, b, sizeof(double) * 2 * n), memcpy(b2, b, sizeof(double) * 2 * n);
+        SC_CHECK_INT(sc_sparse_chol_solve_threads(f, 2, b1, 1, &err), SC_OK);
+        SC_CHECK_INT(sc_sparse_chol_solve_threads(f, 2, b2, 2, &err), SC_OK);
+        SC_CHECK(memcmp(b1, b2, sizeof(double) * 2 * n) == 0);
+        sc_sparse_stats st;
+        sc_sparse_chol_stats(f, &st);
+        SC_CHECK_MSG(st.split_share > 0.6, "split share %g", st.split_share);
+        double e = 0, d = 0;
+        for (int i = 0; i < n; i++) e = fmax(e, fmax(fabs(b2[i] - x[i]), fabs(b2[n + i] + 2 * x[i])));
+        SC_CHECK_MSG(e < 1e-10, "error %g", e);
+        memcpy(b1, b, sizeof(double) * 2 * n);
+        SC_CHECK_INT(sc_sparse_chol_solve(f, 2, b1, &err), SC_OK);
+        for (int i = 0; i < 2 * n; i++) d = fmax(d, fabs(b1[i] - b2[i]));
+        SC_CHECK_MSG(d < 1e-12, "against cholmod_solve %g", d);
+        sc_sparse_chol_free(f);
+    }
+    opt.kind = SC_SPARSE_SUPERNODAL;
+    SC_CHECK_INT(sc_sparse_chol_factor(&a, &opt, &f, &err), SC_OK);
+    if (f) {
+        memcpy(b2, b, sizeof(double) * 2 * n);
+        SC_CHECK_INT(sc_sparse_chol_solve_threads(f, 2, b2, 2, &err), SC_OK);
+        double e = 0;
+        for (int i = 0; i < n; i++) e = fmax(e, fmax(fabs(b2[i] - x[i]), fabs(b2[n + i] + 2 * x[i])));
+        SC_CHECK_MSG(e < 1e-10, "supernodal: error %g", e);
+        sc_sparse_stats st;
+        sc_sparse_chol_stats(f, &st);
+        SC_CHECK(st.split_share == 0);
+        sc_sparse_chol_free(f);
+    }
+    sc_sparse_free(&a);
+    sc_triplets_free(&t);
+    free(x), free(b), free(b1), free(b2);
+}
+
 /* sc_schur against CHOLMOD on one matrix: chains of unknowns (clusters, as
  * the texels along an edge) that couple along themselves, a few unknowns
  * of no cluster joining chains, and weak couplings between chains (and one
