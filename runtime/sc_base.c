@@ -22,7 +22,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -520,6 +522,33 @@ int sc_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk)
     for (int32_t c = 0; c < nchunks && rc == SC_OK; c++) rc = rcs[c];
     free(rcs);
     return rc;
+}
+
+typedef struct behind {
+    void (*fn)(void *ud);
+    void *ud;
+} behind;
+
+static void *behind_main(void *arg) {
+    behind *b = arg;
+#ifdef __linux__
+    /* this thread only: a thread's nice value is its own on Linux */
+    (void)setpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid), SC_BEHIND_NICE);
+#endif
+    b->fn(b->ud);
+    return NULL;
+}
+
+void sc_run_beside(int threads, void (*front)(void *ud), void (*back)(void *ud), void *ud) {
+    behind b = {back, ud};
+    pthread_t tid;
+    if (threads >= 2 && pthread_create(&tid, NULL, behind_main, &b) == 0) {
+        front(ud);
+        pthread_join(tid, NULL);
+        return;
+    }
+    front(ud);
+    back(ud);
 }
 
 struct sc_pipe {

@@ -165,6 +165,15 @@ void sc_release_memory(void);
  * chunk order, SC_OK when every chunk succeeded, or SC_ENOMEM. */
 int sc_parallel(int threads, int32_t nchunks, int (*fn)(void *ud, int32_t chunk), void *ud);
 
+/* Run front(ud) on the calling thread and back(ud) beside it, on a thread
+ * of its own at a lower scheduling priority (Linux: nice SC_BEHIND_NICE;
+ * the threads its own sc_parallel calls start inherit it), so that when the
+ * two together ask for more threads than there are cores, the front - the
+ * longer path - keeps its core. With threads < 2 (or no thread to start)
+ * back runs after front. Results go through ud. */
+#define SC_BEHIND_NICE 10
+void sc_run_beside(int threads, void (*front)(void *ud), void (*back)(void *ud), void *ud);
+
 /* A worker that runs fn(ud, item) for the items handed over, one at a time
  * in hand-over order, while the caller goes on: a stage that overlaps the
  * next one's work. With threads <= 1 (or no thread to be had) there is no

@@ -1,8 +1,15 @@
 /* test_value.c - values: digests, canonical bytes, round trips through the
- * serialisation, parts shared by digest, and malformed bytes rejected. */
+ * serialisation, parts shared by digest, and malformed bytes rejected; and
+ * sc_run_beside, which the solvers use to run side work behind them. */
 #include "sc_test.h"
 
+#include <stdatomic.h>
 #include <stdlib.h>
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
 
 #include "sc_value.h"
 
@@ -46,6 +53,58 @@ static sc_value *round_trip(const sc_value *v, table *t) {
     SC_CHECK_MSG(back != NULL, "deserialize failed: %s", err.message);
     sc_buf_free(&b);
     return back;
+}
+
+/* sc_run_beside: front on the calling thread, back on another one at
+ * SC_BEHIND_NICE more (Linux), both run; on one thread, back after front on
+ * the caller. */
+typedef struct beside_log {
+    long tid[2];
+    int nice[2];
+    int stamp[2];   /* the order they ran in */
+    atomic_int ran;
+} beside_log;
+
+static long this_thread(void) {
+#ifdef __linux__
+    return (long)syscall(SYS_gettid);
+#else
+    return 0;
+#endif
+}
+
+static int this_nice(void) {
+#ifdef __linux__
+    return getpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid));
+#else
+    return 0;
+#endif
+}
+
+static void beside_record(beside_log *l, int which) {
+    l->tid[which] = this_thread();
+    l->nice[which] = this_nice();
+    l->stamp[which] = atomic_fetch_add(&l->ran, 1);
+}
+static void beside_front(void *ud) { beside_record(ud, 0); }
+static void beside_back(void *ud) { beside_record(ud, 1); }
+
+SC_TEST(run_beside_puts_the_back_behind) {
+    beside_log one = {{-1, -1}, {0, 0}, {-1, -1}, 0};
+    sc_run_beside(1, beside_front, beside_back, &one);
+    SC_CHECK_INT(atomic_load(&one.ran), 2);
+    SC_CHECK(one.stamp[0] == 0 && one.stamp[1] == 1);
+    SC_CHECK(one.tid[0] == this_thread() && one.tid[1] == this_thread());
+    beside_log two = {{-1, -1}, {0, 0}, {-1, -1}, 0};
+    sc_run_beside(2, beside_front, beside_back, &two);
+    SC_CHECK_INT(atomic_load(&two.ran), 2);
+    SC_CHECK(two.tid[0] == this_thread());
+#ifdef __linux__
+    SC_CHECK(two.tid[1] != this_thread());
+    int want = this_nice() + SC_BEHIND_NICE > 19 ? 19 : this_nice() + SC_BEHIND_NICE;
+    SC_CHECK_INT(two.nice[0], this_nice());
+    SC_CHECK_INT(two.nice[1], want);
+#endif
 }
 
 SC_TEST(digest_is_sha256_of_canonical_bytes) {
