@@ -706,18 +706,52 @@ static int reserve_work(sc_schur *f, int32_t nrhs, sc_error *err) {
     return SC_OK;
 }
 
+/* Work over chunks of ROW_CHUNK positions, on all threads: b (unknown
+ * order) gathered into x (positions) or x scattered back, and the private
+ * rows' b^T y per chunk (part[c * chunks + chunk], for the columns whose
+ * target is still to set), which the caller sums in chunk order. */
+typedef enum rows_op { ROWS_GATHER, ROWS_SCATTER, ROWS_BPY } rows_op;
+
+typedef struct rows_job {
+    const sc_schur *f;
+    int32_t nrhs, rows, chunks;
+    double *b, *x, *part;
+    const double *target;
+    rows_op op;
+} rows_job;
+
+static int rows_chunk(void *ud, int32_t chunk) {
+    const rows_job *j = ud;
+    const int32_t n = j->f->n, *order = j->f->order;
+    int32_t k0 = chunk * ROW_CHUNK, k1 = k0 + ROW_CHUNK < j->rows ? k0 + ROW_CHUNK : j->rows;
+    for (int32_t c = 0; c < j->nrhs; c++) {
+        double *b = j->b + (size_t)c * n, *x = j->x + (size_t)c * n;
+        if (j->op == ROWS_GATHER) {
+            for (int32_t k = k0; k < k1; k++) x[k] = b[order[k]];
+        } else if (j->op == ROWS_SCATTER) {
+            for (int32_t k = k0; k < k1; k++) b[order[k]] = x[k];
+        } else if (j->target[c] < 0) {
+            double part = 0;
+            for (int32_t k = k0; k < k1; k++) part += b[order[k]] * x[k];
+            j->part[(size_t)c * j->chunks + chunk] = part;
+        }
+    }
+    return SC_OK;
+}
+
+static int run_rows(rows_job *j, rows_op op, int32_t rows) {
+    j->op = op, j->rows = rows, j->chunks = (rows + ROW_CHUNK - 1) / ROW_CHUNK;
+    return sc_parallel(j->f->threads, j->chunks, rows_chunk, j);
+}
+
 int sc_schur_solve(sc_schur *f, int32_t nrhs, double *b, sc_error *err) {
     if (nrhs <= 0) return SC_OK;
     int rc = reserve_work(f, nrhs, err);
     if (rc) return rc;
-    const int32_t n = f->n;
-    double *x = f->work;
-    for (int32_t c = 0; c < nrhs; c++)
-        for (int32_t k = 0; k < n; k++) x[(size_t)c * n + k] = b[(size_t)c * n + f->order[k]];
-    rc = solve_positions(f, nrhs, x, err);
-    if (rc == SC_OK)
-        for (int32_t c = 0; c < nrhs; c++)
-            for (int32_t k = 0; k < n; k++) b[(size_t)c * n + f->order[k]] = x[(size_t)c * n + k];
+    rows_job rj = {.f = f, .nrhs = nrhs, .b = b, .x = f->work};
+    if (run_rows(&rj, ROWS_GATHER, f->n)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    rc = solve_positions(f, nrhs, f->work, err);
+    if (rc == SC_OK && run_rows(&rj, ROWS_SCATTER, f->n)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     return rc;
 }
 
@@ -861,44 +895,6 @@ static int interface_cg(sc_schur *f, const sc_triplets *terms, const int32_t *ti
 done:
     free(x), free(r), free(z), free(p), free(q), free(rz), free(halves), free(active);
     return rc;
-}
-
-/* Work over chunks of ROW_CHUNK positions, on all threads: b (unknown
- * order) gathered into x (positions) or x scattered back, and the private
- * rows' b^T y per chunk (part[c * chunks + chunk], for the columns whose
- * target is still to set), which the caller sums in chunk order. */
-typedef enum rows_op { ROWS_GATHER, ROWS_SCATTER, ROWS_BPY } rows_op;
-
-typedef struct rows_job {
-    const sc_schur *f;
-    int32_t nrhs, rows, chunks;
-    double *b, *x, *part;
-    const double *target;
-    rows_op op;
-} rows_job;
-
-static int rows_chunk(void *ud, int32_t chunk) {
-    const rows_job *j = ud;
-    const int32_t n = j->f->n, *order = j->f->order;
-    int32_t k0 = chunk * ROW_CHUNK, k1 = k0 + ROW_CHUNK < j->rows ? k0 + ROW_CHUNK : j->rows;
-    for (int32_t c = 0; c < j->nrhs; c++) {
-        double *b = j->b + (size_t)c * n, *x = j->x + (size_t)c * n;
-        if (j->op == ROWS_GATHER) {
-            for (int32_t k = k0; k < k1; k++) x[k] = b[order[k]];
-        } else if (j->op == ROWS_SCATTER) {
-            for (int32_t k = k0; k < k1; k++) b[order[k]] = x[k];
-        } else if (j->target[c] < 0) {
-            double part = 0;
-            for (int32_t k = k0; k < k1; k++) part += b[order[k]] * x[k];
-            j->part[(size_t)c * j->chunks + chunk] = part;
-        }
-    }
-    return SC_OK;
-}
-
-static int run_rows(rows_job *j, rows_op op, int32_t rows) {
-    j->op = op, j->rows = rows, j->chunks = (rows + ROW_CHUNK - 1) / ROW_CHUNK;
-    return sc_parallel(j->f->threads, j->chunks, rows_chunk, j);
 }
 
 /* One solve of (A + E) x = b, b (n x nrhs, unknown order) overwritten by

@@ -874,6 +874,11 @@ static int cmp_weighed(const void *pa, const void *pb) {
     return (a->root > b->root) - (a->root < b->root);
 }
 
+static bool heavier(const double *weight, int32_t a, int32_t b) {
+    weighed wa = {weight[a], a}, wb = {weight[b], b};
+    return cmp_weighed(&wa, &wb) < 0;
+}
+
 /* The plan, or NULL where there is none to make (not simplicial L L^T, no
  * good split, out of memory): the caller then uses cholmod_solve. */
 static tree_split *tree_split_make(const cholmod_factor *L, double *share) {
@@ -915,10 +920,8 @@ static tree_split *tree_split_make(const cholmod_factor *L, double *share) {
     ok = ok && order;
     while (ok) {
         int32_t heaviest = 0;
-        for (int32_t k = 1; k < ncand; k++) {
-            weighed a = {weight[cand[k]], cand[k]}, b = {weight[cand[heaviest]], cand[heaviest]};
-            if (cmp_weighed(&a, &b) < 0) heaviest = k;
-        }
+        for (int32_t k = 1; k < ncand; k++)
+            if (heavier(weight, cand[k], cand[heaviest])) heaviest = k;
         if (ncand > 1 && weight[cand[heaviest]] <= (total - top) / 2) {
             for (int32_t k = 0; k < ncand; k++) order[k] = (weighed){weight[cand[k]], cand[k]};
             qsort(order, (size_t)ncand, sizeof *order, cmp_weighed);
@@ -988,48 +991,46 @@ static void backward_columns(const cholmod_factor *L, const int32_t *c0, const i
     }
 }
 
+/* L y = x over the columns [c0, c1) of part h (a half, or -1: the top),
+ * in order: updates to rows of part h go to x, the others (the top's,
+ * from a half) to acc. */
+static void forward_columns(const cholmod_factor *L, const tree_split *t, const int32_t *c0, const int32_t *c1,
+                            int h, double *x, double *acc) {
+    const int32_t *lp = L->p, *li = L->i, *lnz = L->nz;
+    const double *lx = L->x;
+    for (const int32_t *c = c0; c < c1; c++) {
+        int32_t col = *c, p0 = lp[col], p1 = p0 + lnz[col];
+        double v = x[col] / lx[p0];
+        x[col] = v;
+        for (int32_t p = p0 + 1; p < p1; p++) {
+            int32_t i = li[p];
+            if (t->half[i] == h) x[i] -= lx[p] * v;
+            else acc[i] -= lx[p] * v;
+        }
+    }
+}
+
 /* L y = x over half h's columns (updates to the top's rows into its acc), or
  * L^T y = x over them, the top's values known. */
 static int split_half(void *ud, int32_t h) {
     const split_job *j = ud;
     const tree_split *t = j->t;
-    const int32_t *lp = j->L->p, *li = j->L->i, *lnz = j->L->nz;
-    const double *lx = j->L->x;
-    double *x = j->x, *acc = t->acc + (size_t)h * (size_t)t->n;
     const int32_t *c0 = t->cols + t->start[h], *c1 = t->cols + t->start[h + 1];
-    if (j->forward) {
-        for (const int32_t *c = c0; c < c1; c++) {
-            int32_t col = *c, p0 = lp[col], p1 = p0 + lnz[col];
-            double v = x[col] / lx[p0];
-            x[col] = v;
-            for (int32_t p = p0 + 1; p < p1; p++) {
-                int32_t i = li[p];
-                if (t->half[i] == h) x[i] -= lx[p] * v;
-                else acc[i] -= lx[p] * v;
-            }
-        }
-    } else {
-        backward_columns(j->L, c0, c1, x);
-    }
+    if (j->forward) forward_columns(j->L, t, c0, c1, h, j->x, t->acc + (size_t)h * (size_t)t->n);
+    else backward_columns(j->L, c0, c1, j->x);
     return SC_OK;
 }
 
 /* x <- L^-T L^-1 x (permuted order) for one column. */
 static int split_solve(const cholmod_factor *L, tree_split *t, double *x, int threads) {
-    const int32_t n = t->n, *lp = L->p, *li = L->i, *lnz = L->nz;
-    const double *lx = L->x;
+    const int32_t n = t->n;
     const int32_t *top0 = t->cols + t->start[SPLIT_HALVES], *top1 = t->cols + t->start[SPLIT_HALVES + 1];
     memset(t->acc, 0, (size_t)SPLIT_HALVES * (size_t)n * sizeof *t->acc);
     split_job job = {L, t, x, true};
     if (sc_parallel(threads, SPLIT_HALVES, split_half, &job) != SC_OK) return SC_ENOMEM;
     for (const int32_t *c = top0; c < top1; c++)
         for (int h = 0; h < SPLIT_HALVES; h++) x[*c] += t->acc[(size_t)h * (size_t)n + *c];
-    for (const int32_t *c = top0; c < top1; c++) {
-        int32_t col = *c, p0 = lp[col], p1 = p0 + lnz[col];
-        double v = x[col] / lx[p0];
-        x[col] = v;
-        for (int32_t p = p0 + 1; p < p1; p++) x[li[p]] -= lx[p] * v;
-    }
+    forward_columns(L, t, top0, top1, -1, x, NULL);   /* the top's rows are all the top's */
     backward_columns(L, top0, top1, x);
     job.forward = false;
     return sc_parallel(threads, SPLIT_HALVES, split_half, &job) == SC_OK ? SC_OK : SC_ENOMEM;
