@@ -44,9 +44,13 @@ end
 -- face target without that stops short (blocked_max_error) instead of
 -- flattening what its seams leave collapsible (BoomBox at 10%: 1,016 faces
 -- 8.7% off unbounded, 1,113 faces 1.9% off with 0.02). 0: no bound.
+-- map_size: decimate for displacement maps of that size (bake_size, say):
+-- collapses cost more where a texel spans much of the surface (squeezed
+-- charts), whose detail a map cannot bring back. 0: off.
 local lods = decimate{ name = "lods", mesh = shared,
                        ratio = numbers(param("ratios", "0.5,0.1,0.01")),
-                       max_error = param("max_error", 0.02) }
+                       max_error = param("max_error", 0.02),
+                       map_size = param("map_size", 0) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = shared }
 save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset") }
 
