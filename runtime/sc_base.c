@@ -542,13 +542,10 @@ static void *behind_main(void *arg) {
 void sc_run_beside(int threads, void (*front)(void *ud), void (*back)(void *ud), void *ud) {
     behind b = {back, ud};
     pthread_t tid;
-    if (threads >= 2 && pthread_create(&tid, NULL, behind_main, &b) == 0) {
-        front(ud);
-        pthread_join(tid, NULL);
-        return;
-    }
+    bool beside = threads >= 2 && pthread_create(&tid, NULL, behind_main, &b) == 0;
     front(ud);
-    back(ud);
+    if (beside) pthread_join(tid, NULL);
+    else back(ud);
 }
 
 struct sc_pipe {

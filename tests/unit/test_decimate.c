@@ -1013,33 +1013,30 @@ SC_TEST(map_size_keeps_the_squeezed_detail) {
     double half[3] = {0, 0, 0}, whole[3] = {0, 0, 0};
     int faces[3] = {0, 0, 0};
     const char *sizes[3] = {"0", "64", "64"}, *texels[3] = {"0.02", "0.02", "1"};
+    const sc_mesh *level[3] = {NULL, NULL, NULL};
+    node_run runs[3];
     for (int k = 0; k < 3; k++) {
         const char *params[] = {"ratio", "0.15", "hausdorff_samples", "0", "map_size", sizes[k], "map_texel", texels[k], NULL};
-        node_run r = run_node(&sc_node_decimate, params, "mesh", sq);
-        SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
-        if (r.rc == SC_OK) {
-            const sc_mesh *m = level_mesh(r.out, 0);
-            check_level(in, m, LEVEL_SILHOUETTES, sizes[k]);
-            half[k] = squeezed_half_distance(in, m), whole[k] = brute_hausdorff(in, m), faces[k] = m->nf;
-            if (k == 2) {   /* every importance 1: the very same level as without map_size */
-                const sc_mesh *off = NULL;
-                node_run o = run_node(&sc_node_decimate, (const char *[]){"ratio", "0.15", "hausdorff_samples", "0", NULL},
-                                      "mesh", sq);
-                if (o.rc == SC_OK) off = level_mesh(o.out, 0);
-                SC_CHECK(off && off->nf == m->nf && !memcmp(off->V, m->V, sizeof(double) * 3 * (size_t)m->nv) &&
-                         !memcmp(off->FV, m->FV, sizeof(int32_t) * 3 * (size_t)m->nf));
-                run_free(&o);
-            }
-        }
-        run_free(&r);
+        runs[k] = run_node(&sc_node_decimate, params, "mesh", sq);
+        SC_CHECK_MSG(runs[k].rc == SC_OK, "decimate: %s", runs[k].err.message);
+        if (runs[k].rc != SC_OK) continue;
+        const sc_mesh *m = level[k] = level_mesh(runs[k].out, 0);
+        check_level(in, m, LEVEL_SILHOUETTES, sizes[k]);
+        half[k] = squeezed_half_distance(in, m), whole[k] = brute_hausdorff(in, m), faces[k] = m->nf;
     }
+    /* every importance 1 (map_texel 1): the very same level as without map_size */
+    const sc_mesh *off = level[0], *ones = level[2];
+    SC_CHECK(off && ones && off->nf == ones->nf && off->nv == ones->nv &&
+             !memcmp(off->V, ones->V, sizeof(double) * 3 * (size_t)off->nv) &&
+             !memcmp(off->FV, ones->FV, sizeof(int32_t) * 3 * (size_t)off->nf));
+    for (int k = 0; k < 3; k++) run_free(&runs[k]);
     printf("     squeezed half at 15%%: off %d faces, squeezed half %.4f, whole %.4f; map_size 64: %d faces, %.4f, %.4f\n",
            faces[0], half[0], whole[0], faces[1], half[1], whole[1]);
     SC_CHECK_INT(faces[1], faces[0]);
     /* measured: 0.0040 -> 0.0030 on the squeezed half, the whole 0.0028 ->
      * 0.0033 (the left half, where a map restores what it loses, pays).
      * Not monotonic in the squeeze: at 300 and 1000 the squeezed half got
-     * worse (0.0043, 0.0084), the left half collapsing into it */
+     * worse (0.0043, 0.0084; not looked into) */
     SC_CHECK_MSG(half[1] < 0.85 * half[0], "squeezed half: %g with map_size against %g", half[1], half[0]);
     SC_CHECK_MSG(whole[1] < 1.5 * whole[0], "whole: %g with map_size against %g", whole[1], whole[0]);
     sc_value_release(sq);
