@@ -202,6 +202,9 @@
  * whose right half is squeezed along u (test_decimate), at 15% of the
  * faces the squeezed half comes 0.0040 -> 0.0030 closer at a squeeze of
  * 100, but 0.0043 and 0.0084 at 300 and 1000 (not looked into further).
+ * A level drawn without its map pays: bench_decimate on blub with
+ * map_size=1024, Hausdorff 0.071/0.280/1.41% -> 0.082/0.338/4.77% at
+ * 50/10/1% (meshoptimizer 3.62% at 1%), so it is off by default.
  *
  * Levels. One continuous decimation; a snapshot is taken each time the face
  * count reaches the next target, so level k is the previous level decimated
