@@ -203,8 +203,31 @@
  * faces the squeezed half comes 0.0040 -> 0.0030 closer at a squeeze of
  * 100, but 0.0043 and 0.0084 at 300 and 1000 (not looked into further).
  * A level drawn without its map pays: bench_decimate on blub with
- * map_size=1024, Hausdorff 0.071/0.280/1.41% -> 0.082/0.338/4.77% at
- * 50/10/1% (meshoptimizer 3.62% at 1%), so it is off by default.
+ * map_size=1024, Hausdorff 0.071/0.280/1.41% -> 0.082/0.382/8.65% at
+ * 50/10/1% (meshoptimizer 3.62% at 1%; at 1% the bounds below stop the
+ * level at 254 faces), so it is off by default.
+ *   Two things a map cannot restore are refused outright with map_size.
+ * (1) uv slivers: a surviving face may not stretch (uv_stretch: the largest
+ * singular value of uv -> surface, over map_size the longest surface span
+ * of one texel) beyond STRETCH_SLACK (2) x the larger of map_texel's unit
+ * and the largest stretch of the input faces its corners stand for (tracked
+ * per vertex, like importance), unless it shrinks. BoomBox at 10% made a
+ * face with three nearly collinear uv corners whose texels spanned 10% of
+ * the diagonal; its map, bilinear across it, was 1.4% off next to it.
+ * (2) seams: erase_seams makes the two sides of a seam agree on a function
+ * both texel grids can hold, which along a seam crossing the grids at
+ * different places is little more than linear: the drawn seam is the
+ * level's own seam, bent a little. So the input's vertices on uv
+ * silhouettes, at each of their uvs, must stay within seam_error (5e-4 of
+ * the diagonal) of the level at the same uv (seam_kept: measured on the
+ * faces a collapse changes, for keep's, gone's and their silhouette
+ * neighbours' input vertices; a level vertex at a seam's tip, with one uv,
+ * moved 1.8% of the diagonal was the worst case before). On BoomBox at
+ * 1024^2 (test_bake) the displaced levels then reconstruct the input within
+ * 1e-3 of the diagonal: level 0.1 1.1e-2 -> 9.7e-4, level 0.5 1.7e-3 ->
+ * 5.9e-4 (main job's path: 1.7e-2 -> 9.2e-4 and 7.6e-4 -> 7.8e-4). The
+ * price is faces: level 0.1 stops at 1,159 of 6,036 faces instead of
+ * 1,013 (blocked_texel_stretch and blocked_seam_error in the census).
  *
  * Levels. One continuous decimation; a snapshot is taken each time the face
  * count reaches the next target, so level k is the previous level decimated
@@ -258,6 +281,8 @@ typedef enum block_reason {
     BLOCK_NORMAL_TURN,          /* a face's normal would turn by more than normal_turn */
     BLOCK_UV_FLIP,
     BLOCK_MAX_ERROR,            /* the level would leave the input by more than max_error */
+    BLOCK_TEXEL_STRETCH,        /* with map_size: a face's texels would span too much surface */
+    BLOCK_SEAM_ERROR,           /* with map_size: an input seam point would leave the level by more than seam_error */
     BLOCK_COUNT
 } block_reason;
 
@@ -265,6 +290,7 @@ static const char *const block_names[BLOCK_COUNT] = {
     "none", "nonmanifold_vertex", "silhouette_endpoints", "seam_corner", "seam_not_collinear",
     "seam_length_ratio", "boundary_corner", "boundary_not_collinear", "fixed_silhouette", "placement",
     "link_surface", "link_uv", "valence", "surface_flip", "normal_turn", "uv_flip", "max_error",
+    "texel_stretch", "seam_error",
 };
 
 enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8 };
@@ -363,6 +389,11 @@ typedef struct state {
     int32_t *near_face;          /* per surface vertex: an input face near it, where queries start */
     double map_texel_length;     /* map_texel x diagonal x map_size: the importance's unit of h x map_size; 0: off */
     double *importance;          /* per surface vertex: the largest importance of the input faces it stands for */
+    double *stretch;             /* per surface vertex: the largest stretch (uv_stretch) of the input faces it stands for */
+    double seam_error2;          /* with map_size: squared bound of seam_kept; 0: off */
+    int32_t *input_z_first;      /* per input vertex on a seam: its first input Z, or -1 (seam_kept) */
+    int32_t *input_z_next;       /* per input Z: the next of the same vertex, or -1 */
+    double *input_zuv;           /* per input Z: its uv in the input */
     int64_t tracking_from;       /* tracking is on while the face count is at most this */
     double tracking_scale;       /* error_weight x the mean area per vertex at the current target */
     struct fan_face *fan;        /* scratch: the new fan of a collapse */
@@ -997,6 +1028,39 @@ static const double *moved_uv(const collapse_plan *p, int32_t z) {
     return NULL;
 }
 
+/* The stretch of the map uv -> surface on a triangle: the largest singular
+ * value of its Jacobian (surface length per unit of uv in the direction it
+ * is largest), HUGE_VAL on a triangle flat in uv. Over map_size it is the
+ * longest surface length one texel of the map spans there. */
+static double uv_stretch(const double *const P[3], const double *const W[3]) {
+    double du1 = W[1][0] - W[0][0], dv1 = W[1][1] - W[0][1], du2 = W[2][0] - W[0][0], dv2 = W[2][1] - W[0][1];
+    double det = du1 * dv2 - du2 * dv1, E = 0, F = 0, G = 0;
+    if (det == 0) return HUGE_VAL;
+    for (int k = 0; k < 3; k++) {
+        double e1 = P[1][k] - P[0][k], e2 = P[2][k] - P[0][k];
+        double ju = (e1 * dv2 - e2 * dv1) / det, jv = (e2 * du1 - e1 * du2) / det;
+        E += ju * ju, F += ju * jv, G += jv * jv;
+    }
+    return sqrt(0.5 * (E + G + sqrt((E - G) * (E - G) + 4 * F * F)));
+}
+
+/* With map_size (design note): surviving face f may not stretch beyond
+ * STRETCH_SLACK x the larger of the map texel's unit and the largest stretch
+ * of the input faces its corners stand for, unless it stretched more before
+ * the collapse and does not grow. */
+#define STRETCH_SLACK 2.0
+static bool stretch_ok(const state *st, const collapse_plan *p, int32_t f, const double *const oldP[3],
+                       const double *const oldW[3], const double *const P[3], const double *const W[3]) {
+    double after = uv_stretch(P, W);
+    double limit = st->map_texel_length;
+    for (int k = 0; k < 3; k++) {
+        int32_t x = st->fv[3 * f + k];
+        limit = fmax(limit, st->stretch[x]);
+        if (x == p->keep || x == p->gone) limit = fmax(limit, fmax(st->stretch[p->keep], st->stretch[p->gone]));
+    }
+    return after <= STRETCH_SLACK * limit || after <= uv_stretch(oldP, oldW);
+}
+
 static block_reason flips_ok(state *st, const collapse_plan *p) {
     for (int side = 0; side < 2; side++) {
         int32_t v = side == 0 ? p->keep : p->gone;
@@ -1035,6 +1099,7 @@ static block_reason flips_ok(state *st, const collapse_plan *p) {
                 if (d <= 0) return BLOCK_SURFACE_FLIP;
                 if (d <= st->normal_cos * l0 * l1) return BLOCK_NORMAL_TURN;
             }
+            if (st->stretch && !stretch_ok(st, p, f, oldP, oldW, P, W)) return BLOCK_TEXEL_STRETCH;
             /* uv */
             if (!uv_moves) continue;
             double a0 = uv_area2(oldW[0], oldW[1], oldW[2]), a1 = uv_area2(W[0], W[1], W[2]);
@@ -1050,13 +1115,93 @@ static block_reason flips_ok(state *st, const collapse_plan *p) {
     return BLOCK_NONE;
 }
 
+/* The level's point at input uv `uv` after plan p: the surviving face
+ * around keep or gone whose uv triangle holds it best (barycentrics
+ * clamped to the face), as placed by the plan. False when none holds it
+ * (it lies in faces the plan does not change). */
+static bool point_after(state *st, const collapse_plan *p, const double uv[2], double at[3]) {
+    double best = -HUGE_VAL;
+    for (int side = 0; side < 2; side++) {
+        int32_t n;
+        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
+        for (int32_t j = 0; j < n; j++) {
+            int32_t f = list[j];
+            if (is_removed(p, f)) continue;
+            const double *P[3], *W[3];
+            for (int k = 0; k < 3; k++) {
+                int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
+                const double *w = moved_uv(p, z);
+                P[k] = (x == p->keep || x == p->gone) ? p->xyz : st->pos + 3 * x;
+                W[k] = w ? w : st->zuv + 2 * z;
+            }
+            double d = uv_area2(W[0], W[1], W[2]);
+            if (d == 0) continue;
+            double l[3] = {uv_area2(uv, W[1], W[2]) / d, uv_area2(W[0], uv, W[2]) / d, 0};
+            l[2] = 1 - l[0] - l[1];
+            double worst = fmin(l[0], fmin(l[1], l[2]));
+            if (!(worst > best)) continue;
+            best = worst;
+            double sum = 0;
+            for (int k = 0; k < 3; k++) l[k] = fmax(l[k], 0), sum += l[k];
+            for (int k = 0; k < 3; k++) at[k] = (l[0] * P[0][k] + l[1] * P[1][k] + l[2] * P[2][k]) / sum;
+        }
+    }
+    return best > -1e-6;
+}
+
+/* Whether the input silhouette vertices that surface vertex v stands for
+ * stay within seam_error of the level after plan p, at each of their uvs
+ * that the plan's faces hold. */
+static bool owned_silhouette_kept(state *st, const collapse_plan *p, int32_t v) {
+    const double *c = st->center;
+    for (int32_t i = st->owned_head[v]; i >= 0; i = st->owned_next[i])
+        for (int32_t z = st->input_z_first[i]; z >= 0; z = st->input_z_next[z]) {
+            double at[3];
+            if (!point_after(st, p, st->input_zuv + 2 * z, at)) continue;
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) {
+                double e = st->input->V[3 * (size_t)i + k] - c[k] - at[k];
+                d2 += e * e;
+            }
+            if (d2 > st->seam_error2) return false;
+        }
+    return true;
+}
+
+/* With map_size (design note): the input's vertices on uv silhouettes stay
+ * within seam_error of the level at the same uv. The plan changes the faces
+ * around keep and gone, so it is measured on the vertices those faces stand
+ * for: keep's, gone's and their neighbours' (those on a silhouette: an
+ * input silhouette vertex is only ever merged into one). */
+static bool seam_kept(state *st, const collapse_plan *p) {
+    if (!owned_silhouette_kept(st, p, p->keep) || !owned_silhouette_kept(st, p, p->gone)) return false;
+    int32_t seen[64], nseen = 0;
+    for (int side = 0; side < 2; side++) {
+        int32_t n;
+        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
+        for (int32_t j = 0; j < n; j++)
+            for (int k = 0; k < 3; k++) {
+                int32_t x = st->fv[3 * list[j] + k], z = st->fz[3 * list[j] + k];
+                if (x == p->keep || x == p->gone || !(st->zflags[z] & Z_SILHOUETTE)) continue;
+                bool again = false;
+                for (int32_t s = 0; s < nseen && !again; s++) again = seen[s] == x;
+                if (again) continue;
+                if (nseen < 64) seen[nseen++] = x;
+                if (!owned_silhouette_kept(st, p, x)) return false;
+            }
+    }
+    return true;
+}
+
 static block_reason check_plan(state *st, const collapse_plan *p) {
     if (!link_surface_ok(st, p)) return BLOCK_LINK_SURFACE;
     for (int i = 0; i < p->nhalf; i++)
         if (!link_uv_ok(st, p, &p->h[i])) return BLOCK_LINK_UV;
     if (!tip_merge_ok(st, p)) return BLOCK_LINK_UV;
     if (!valence_ok(st, p)) return BLOCK_VALENCE;
-    return flips_ok(st, p);
+    block_reason r = flips_ok(st, p);
+    if (r == BLOCK_NONE && st->seam_error2 > 0 && !seam_kept(st, p)) r = BLOCK_SEAM_ERROR;
+    return r;
 }
 
 /* ---------------------------------------------------------------- applying */
@@ -1147,6 +1292,7 @@ static bool apply_plan(state *st, const collapse_plan *p) {
     }
     memcpy(st->pos + 3 * keep, p->xyz, sizeof p->xyz);
     if (st->importance && st->importance[gone] > st->importance[keep]) st->importance[keep] = st->importance[gone];
+    if (st->stretch && st->stretch[gone] > st->stretch[keep]) st->stretch[keep] = st->stretch[gone];
     if (st->owned_head && st->owned_head[gone] >= 0) {   /* keep stands for gone's input vertices too */
         if (st->owned_head[keep] < 0) st->owned_head[keep] = st->owned_head[gone];
         else st->owned_next[st->owned_tail[keep]] = st->owned_head[gone];
@@ -1461,7 +1607,7 @@ static void state_free(state *st) {
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
     free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
-    free(st->importance);
+    free(st->importance), free(st->stretch), free(st->input_z_first), free(st->input_z_next), free(st->input_zuv);
 }
 
 static int32_t find_root(int32_t *parent, int32_t x) {
@@ -1745,6 +1891,18 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         if (!(st->importance = sc_alloc_array((size_t)nv, sizeof(double))))
             return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
         for (int32_t v = 0; v < nv; v++) st->importance[v] = 1;
+        if (!(st->stretch = sc_alloc_array((size_t)nv, sizeof(double))))
+            return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+        for (int32_t v = 0; v < nv; v++) st->stretch[v] = 0;
+        for (int32_t f = 0; f < nf; f++) {
+            const double *P[3], *W[3];
+            for (int k = 0; k < 3; k++) P[k] = st->pos + 3 * st->fv[3 * f + k], W[k] = st->zuv + 2 * st->fz[3 * f + k];
+            double sigma = uv_stretch(P, W);
+            for (int k = 0; k < 3; k++) {
+                int32_t v = st->fv[3 * f + k];
+                if (sigma > st->stretch[v]) st->stretch[v] = sigma;
+            }
+        }
     }
     for (int32_t f = 0; f < nf; f++) {
         double P[3][QDIM];
@@ -1793,7 +1951,7 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
 
     /* error tracking: every input vertex stands for itself */
     st->input_area = area3;
-    if (st->error_weight > 0 || st->max_error2 > 0) {
+    if (st->error_weight > 0 || st->max_error2 > 0 || st->seam_error2 > 0) {
         st->owned_head = sc_alloc_array((size_t)nv, sizeof(int32_t));
         st->owned_tail = sc_alloc_array((size_t)nv, sizeof(int32_t));
         st->owned_next = sc_alloc_array((size_t)nv, sizeof(int32_t));
@@ -1804,6 +1962,21 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
             st->owned_head[v] = st->owned_tail[v] = v;
             st->owned_next[v] = -1;
             st->near_face[v] = st->vf_len[v] > 0 ? st->pool[st->vf_off[v]] : -1;
+        }
+    }
+    if (st->seam_error2 > 0) {   /* seam_kept: the input Zs of every seam vertex, with their uv */
+        st->input_z_first = sc_alloc_array((size_t)nv, sizeof(int32_t));
+        st->input_z_next = sc_alloc_array((size_t)nz, sizeof(int32_t));
+        st->input_zuv = sc_alloc_array((size_t)nz * 2, sizeof(double));
+        if (!st->input_z_first || !st->input_z_next || !st->input_zuv)
+            return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+        memcpy(st->input_zuv, st->zuv, sizeof(double) * 2 * (size_t)nz);
+        for (int32_t v = 0; v < nv; v++) st->input_z_first[v] = -1;
+        for (int32_t z = nz - 1; z >= 0; z--) st->input_z_next[z] = st->input_z_first[st->zv[z]], st->input_z_first[st->zv[z]] = z;
+        for (int32_t v = 0; v < nv; v++) {   /* kept for vertices on a uv silhouette only */
+            bool silhouette = false;
+            for (int32_t z = st->input_z_first[v]; z >= 0; z = st->input_z_next[z]) silhouette |= (st->zflags[z] & Z_SILHOUETTE) != 0;
+            if (!silhouette) st->input_z_first[v] = -1;
         }
     }
     return SC_OK;
@@ -2423,6 +2596,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const double diagonal = sc_hausdorff_bbox_diagonal(&input_mesh);
     if (max_error > 0 && diagonal > 0) st.max_error2 = (diagonal * max_error) * (diagonal * max_error);
     st.map_texel_length = sc_ctx_number(ctx, "map_texel") * diagonal * (double)sc_ctx_integer(ctx, "map_size");
+    const double seam_error = sc_ctx_number(ctx, "seam_error") * diagonal;
+    if (st.map_texel_length > 0) st.seam_error2 = seam_error * seam_error;
     if (st.error_weight > 0 || st.max_error2 > 0 || samples > 0) input_bvh_start(&st, threads);
     rc = setup(&st, in, uv_weight, err);
     if (rc == SC_OK) {
@@ -2569,10 +2744,14 @@ static const sc_param_desc params[] = {
             "cannot reach its target stops there (blocked_max_error). 0: no bound"},
     {.name = "map_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 65536,
      .doc = "size of the displacement maps that will restore the levels' detail (bake_displacement's size): "
-            "collapses cost more where one of their texels spans more than map_texel of the surface; 0: off"},
+            "collapses cost more where one of their texels spans more than map_texel of the surface, and none "
+            "makes a uv sliver or moves a uv silhouette by more than seam_error; 0: off"},
     {.name = "map_texel", .type = SC_PARAM_NUMBER, .def = 2e-3, .min = 1e-9, .max = 1,
      .doc = "with map_size: the texel length (fraction of the bounding-box diagonal) above which a face's "
             "collapses cost more, by the square of the ratio"},
+    {.name = "seam_error", .type = SC_PARAM_NUMBER, .def = 5e-4, .min = 1e-9, .max = 1,
+     .doc = "with map_size: the largest distance (fraction of the bounding-box diagonal) between an input vertex "
+            "on a uv silhouette and the level at the same uv (a seam-free map cannot restore a seam)"},
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
     {.name = "hausdorff_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 0, .max = 1e8,
@@ -2590,7 +2769,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 2,
+    .version = 3,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -650,6 +650,120 @@ static sc_value *two_material_copy(const sc_mesh *in) {
 
 static double metric_of(const node_run *r, const char *name) { return sc_ctx_metric_value(r->ctx, name); }
 
+/* The largest stretch of uv -> surface over the faces of m: the largest
+ * singular value of each face's Jacobian, HUGE_VAL on a face flat in uv. */
+static double largest_stretch(const sc_mesh *m) {
+    double worst = 0;
+    for (int f = 0; f < m->nf; f++) {
+        const double *a = m->U + 2 * m->FU[3 * f], *b = m->U + 2 * m->FU[3 * f + 1], *c = m->U + 2 * m->FU[3 * f + 2];
+        double du1 = b[0] - a[0], dv1 = b[1] - a[1], du2 = c[0] - a[0], dv2 = c[1] - a[1], det = du1 * dv2 - du2 * dv1;
+        if (det == 0) return HUGE_VAL;
+        double g[2][2] = {{0, 0}, {0, 0}};   /* J^T J */
+        for (int k = 0; k < 3; k++) {
+            double e1 = m->V[3 * m->FV[3 * f + 1] + k] - m->V[3 * m->FV[3 * f] + k];
+            double e2 = m->V[3 * m->FV[3 * f + 2] + k] - m->V[3 * m->FV[3 * f] + k];
+            double ju = (e1 * dv2 - e2 * dv1) / det, jv = (e2 * du1 - e1 * du2) / det;
+            g[0][0] += ju * ju, g[0][1] += ju * jv, g[1][1] += jv * jv;
+        }
+        double tr = g[0][0] + g[1][1], dt = g[0][0] * g[1][1] - g[0][1] * g[0][1];
+        worst = fmax(worst, sqrt(0.5 * tr + sqrt(fmax(0, 0.25 * tr * tr - dt))));
+    }
+    return worst;
+}
+
+/* The largest distance, over the input's vertices on uv silhouettes (uv
+ * edges with one face) at each of their uvs there, to the level's point at
+ * the same uv (the level face holding it best, by brute force), over the
+ * input's diagonal. */
+static double silhouette_same_uv_distance(const sc_mesh *in, const sc_mesh *level) {
+    seg2 *segs = NULL;
+    int nseg = boundary_segments(in, &segs);
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, worst = 0;
+    for (int v = 0; v < in->nv; v++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], in->V[3 * v + k]), hi[k] = fmax(hi[k], in->V[3 * v + k]);
+    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    for (int i = 0; i < 3 * in->nf; i++) {
+        const double *uv = in->U + 2 * in->FU[i], *p = in->V + 3 * in->FV[i];
+        if (!near_any(uv, segs, nseg, 0)) continue;
+        double best = -HUGE_VAL, q[3] = {0, 0, 0};
+        for (int f = 0; f < level->nf; f++) {
+            const double *a = level->U + 2 * level->FU[3 * f], *b = level->U + 2 * level->FU[3 * f + 1],
+                         *c = level->U + 2 * level->FU[3 * f + 2];
+            double d = (b[1] - c[1]) * (a[0] - c[0]) + (c[0] - b[0]) * (a[1] - c[1]);
+            if (d == 0) continue;
+            double l0 = ((b[1] - c[1]) * (uv[0] - c[0]) + (c[0] - b[0]) * (uv[1] - c[1])) / d;
+            double l1 = ((c[1] - a[1]) * (uv[0] - c[0]) + (a[0] - c[0]) * (uv[1] - c[1])) / d, l2 = 1 - l0 - l1;
+            if (!(fmin(l0, fmin(l1, l2)) > best)) continue;
+            best = fmin(l0, fmin(l1, l2));
+            for (int k = 0; k < 3; k++)
+                q[k] = l0 * level->V[3 * level->FV[3 * f] + k] + l1 * level->V[3 * level->FV[3 * f + 1] + k] +
+                       l2 * level->V[3 * level->FV[3 * f + 2] + k];
+        }
+        worst = fmax(worst, sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2])));
+    }
+    free(segs);
+    return worst / diag;
+}
+
+/* With map_size, no level face stretches beyond twice the larger of the map
+ * texel's unit and the input's largest stretch, and the level keeps the
+ * input's uv silhouettes within seam_error at the same uv (a seam-free map
+ * cannot restore them). BoomBox as the main job cooks it (straightened,
+ * max_error 0.02): without map_size its level 0.1 breaks both (a uv sliver
+ * 12.6x the bound, silhouettes 3.3% of the diagonal off), which cost its
+ * 1024^2 map 1.7e-2 of the diagonal in test_bake. */
+static void map_size_bounds(sc_value *asset, const char *what, const char *max_error, bool broken_without) {
+    const sc_mesh *in = asset->as.atlas->mesh->as.mesh;
+    const double input_stretch = largest_stretch(in);
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (int v = 0; v < in->nv; v++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], in->V[3 * v + k]), hi[k] = fmax(hi[k], in->V[3 * v + k]);
+    const double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    const double unit = 2e-3 * diag * 1024;   /* map_texel's default x diagonal x map_size */
+    double seam[2][2] = {{0, 0}, {0, 0}}, stretch[2][2] = {{0, 0}, {0, 0}};
+    for (int on = 0; on < 2; on++) {
+        const char *params[] = {"ratio", "0.5,0.1", "hausdorff_samples", "0", "max_error", max_error,
+                                "map_size", on ? "1024" : "0", NULL};
+        node_run r = run_node(&sc_node_decimate, params, "mesh", asset);
+        SC_CHECK_MSG(r.rc == SC_OK, "%s: decimate: %s", what, r.err.message);
+        for (int k = 0; k < 2 && r.rc == SC_OK; k++) {
+            const sc_mesh *m = level_mesh(r.out, k);
+            check_level(in, m, LEVEL_SILHOUETTES, what);
+            seam[on][k] = silhouette_same_uv_distance(in, m), stretch[on][k] = largest_stretch(m);
+            printf("     %s, map_size %s, level %d: %d faces, silhouettes at the same uv %.3g of the diagonal, largest "
+                   "stretch %.3g of the bound\n", what, on ? "1024" : "0", k, m->nf, seam[on][k],
+                   stretch[on][k] / (2 * fmax(unit, input_stretch)));
+        }
+        run_free(&r);
+    }
+    for (int k = 0; k < 2; k++) {
+        SC_CHECK_MSG(seam[1][k] <= 5e-4 * (1 + 1e-9), "%s level %d: silhouettes %g off", what, k, seam[1][k]);
+        SC_CHECK_MSG(stretch[1][k] <= 2 * fmax(unit, input_stretch) * (1 + 1e-9), "%s level %d: stretch %g", what, k,
+                     stretch[1][k]);
+    }
+    if (broken_without)   /* the bounds are not met by chance: level 0.1 without map_size breaks both */
+        SC_CHECK(seam[0][1] > 10 * 5e-4 && stretch[0][1] > 2 * fmax(unit, input_stretch));
+}
+
+SC_TEST(map_size_bounds_stretch_and_silhouettes) {
+    sc_value *p = procedural(24, 64, 0);
+    if (p) map_size_bounds(p, "procedural", "0", false);
+    sc_value_release(p);
+    if (!sc_test_corpus()) {
+        printf("     corpus absent: skipped BoomBox\n");
+        return;
+    }
+    /* the main job's path (straightened seams, max_error 0.02) */
+    sc_value *b = sc_test_load_corpus("BoomBox/BoomBox_welded.obj", NULL, NULL);
+    const char *none[] = {NULL};
+    node_run e = b ? run_node(&sc_node_erase_seams, none, "atlas", b) : (node_run){0};
+    node_run s = e.out ? run_node(&sc_node_straighten, none, "atlas", e.out) : (node_run){0};
+    SC_CHECK_MSG(s.out, "BoomBox: erase_seams %s, straighten %s", e.err.message, s.err.message);
+    if (s.out) map_size_bounds(s.out, "BoomBox", "0.02", true);
+    run_free(&s), run_free(&e);
+    sc_value_release(b);
+}
+
 static node_run decimate(sc_value *input, const char *ratio, const char *mode, const char *more_key,
                          const char *more_value) {
     const char *params[] = {"ratio", ratio, "seam_mode", mode, "hausdorff_samples", "20000",
@@ -1012,11 +1126,12 @@ SC_TEST(map_size_keeps_the_squeezed_detail) {
     const sc_mesh *in = sq->as.mesh;
     double half[3] = {0, 0, 0}, whole[3] = {0, 0, 0};
     int faces[3] = {0, 0, 0};
-    const char *sizes[3] = {"0", "64", "64"}, *texels[3] = {"0.02", "0.02", "1"};
+    const char *sizes[3] = {"0", "64", "64"}, *texels[3] = {"0.02", "0.02", "1"}, *seams[3] = {"5e-4", "5e-4", "1"};
     const sc_mesh *level[3] = {NULL, NULL, NULL};
     node_run runs[3];
     for (int k = 0; k < 3; k++) {
-        const char *params[] = {"ratio", "0.15", "hausdorff_samples", "0", "map_size", sizes[k], "map_texel", texels[k], NULL};
+        const char *params[] = {"ratio", "0.15", "hausdorff_samples", "0", "map_size", sizes[k], "map_texel", texels[k],
+                                "seam_error", seams[k], NULL};
         runs[k] = run_node(&sc_node_decimate, params, "mesh", sq);
         SC_CHECK_MSG(runs[k].rc == SC_OK, "decimate: %s", runs[k].err.message);
         if (runs[k].rc != SC_OK) continue;
@@ -1024,7 +1139,8 @@ SC_TEST(map_size_keeps_the_squeezed_detail) {
         check_level(in, m, LEVEL_SILHOUETTES, sizes[k]);
         half[k] = squeezed_half_distance(in, m), whole[k] = brute_hausdorff(in, m), faces[k] = m->nf;
     }
-    /* every importance 1 (map_texel 1): the very same level as without map_size */
+    /* every importance 1 (map_texel 1), no stretch or seam bound that can
+     * bind (map_texel 1, seam_error 1): the very same level as without map_size */
     const sc_mesh *off = level[0], *ones = level[2];
     SC_CHECK(off && ones && off->nf == ones->nf && off->nv == ones->nv &&
              !memcmp(off->V, ones->V, sizeof(double) * 3 * (size_t)off->nv) &&
