@@ -819,19 +819,22 @@ SC_TEST(procedural_aware_levels) {
 SC_TEST(deterministic_bytes_for_any_thread_count) {
     sc_value *atlas = procedural(12, 64, 0.0);
     if (!atlas) return;
-    sc_digest d[3];
-    for (int t = 0; t < 3; t++) {
-        sc_ctx *ctx = sc_ctx_new(&sc_node_decimate, NULL, NULL);
-        sc_error err;
-        sc_ctx_set_param(ctx, "ratio", "0.3,0.05", &err);
-        sc_ctx_set_input(ctx, "mesh", atlas);
-        sc_ctx_set_threads(ctx, t == 2 ? 2 : 1);
-        SC_CHECK(sc_ctx_run(ctx, &err) == SC_OK);
-        d[t] = sc_ctx_output(ctx, 0) ? sc_ctx_output(ctx, 0)->digest : (sc_digest){{0}};
-        sc_ctx_free(ctx);
+    for (int with_map = 0; with_map < 2; with_map++) {   /* map_size's bounds and weights too */
+        sc_digest d[3];
+        for (int t = 0; t < 3; t++) {
+            sc_ctx *ctx = sc_ctx_new(&sc_node_decimate, NULL, NULL);
+            sc_error err;
+            sc_ctx_set_param(ctx, "ratio", "0.3,0.05", &err);
+            sc_ctx_set_param(ctx, "map_size", with_map ? "256" : "0", &err);
+            sc_ctx_set_input(ctx, "mesh", atlas);
+            sc_ctx_set_threads(ctx, t == 2 ? 2 : 1);
+            SC_CHECK(sc_ctx_run(ctx, &err) == SC_OK);
+            d[t] = sc_ctx_output(ctx, 0) ? sc_ctx_output(ctx, 0)->digest : (sc_digest){{0}};
+            sc_ctx_free(ctx);
+        }
+        SC_CHECK(sc_digest_equal(&d[0], &d[1]));
+        SC_CHECK(sc_digest_equal(&d[0], &d[2]));
     }
-    SC_CHECK(sc_digest_equal(&d[0], &d[1]));
-    SC_CHECK(sc_digest_equal(&d[0], &d[2]));
     sc_value_release(atlas);
 }
 
