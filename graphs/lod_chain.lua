@@ -46,10 +46,11 @@ end
 -- 8.7% off unbounded, 1,113 faces 1.9% off with 0.02). 0: no bound.
 -- map_size: decimate for displacement maps of that size (bake_size, say):
 -- collapses cost more where a texel spans much of the surface (squeezed
--- charts), and none makes a uv sliver or moves a uv silhouette more than
--- 5e-4 of the diagonal: what a seam-free map cannot bring back (BoomBox,
--- level 0.1 at 1024^2: displaced within 9.2e-4 of the diagonal instead of
--- 1.7e-2, at 1,148 faces instead of 886). 0: off.
+-- charts), and none makes a uv sliver, moves a uv silhouette more than
+-- 5e-4 of the diagonal or leaves a crease too sharp for the map's texels:
+-- what a seam-free map cannot bring back (BoomBox, level 0.1 at 1024^2:
+-- displaced within 8.9e-4 of the diagonal instead of 1.7e-2, at 1,170
+-- faces instead of 886). 0: off.
 local lods = decimate{ name = "lods", mesh = shared,
                        ratio = numbers(param("ratios", "0.5,0.1,0.01")),
                        max_error = param("max_error", 0.02),

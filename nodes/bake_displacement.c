@@ -75,7 +75,9 @@
  *    diagonal), no bilinear map follows the surface: the RMS residual of the
  *    best bilinear fit of each cell on its own bounds the max error from
  *    below by 1.1e-3 (blub, level 0.5) and 4.3e-3 (level 0.1). Erasure next
- *    to such charts moves texels further.
+ *    to such charts moves texels further. Levels decimated for the maps
+ *    (decimate's map_size) keep what no map restores - seams, uv slivers,
+ *    creases sharper than a texel follows - and then meet 1e-3 as surfaces.
  *  - Outputs. `atlas`: the input mesh, its textures (slots geometry_image and
  *    displacement dropped) plus "geometry_image" per material. `lods`: every
  *    level (or the input alone when `lods` is unconnected) with its own

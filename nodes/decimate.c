@@ -206,7 +206,7 @@
  * map_size=1024, Hausdorff 0.071/0.280/1.41% -> 0.082/0.382/8.65% at
  * 50/10/1% (meshoptimizer 3.62% at 1%; at 1% the bounds below stop the
  * level at 254 faces), so it is off by default.
- *   Two things a map cannot restore are refused outright with map_size.
+ *   Three things a map cannot restore are refused outright with map_size.
  * (1) uv slivers: a surviving face may not stretch (uv_stretch: the largest
  * singular value of uv -> surface, over map_size the longest surface span
  * of one texel) beyond STRETCH_SLACK (2) x the larger of map_texel's unit
@@ -221,13 +221,29 @@
  * silhouettes, at each of their uvs, must stay within seam_error (5e-4 of
  * the diagonal) of the level at the same uv (seam_kept: measured on the
  * faces a collapse changes, for keep's, gone's and their silhouette
- * neighbours' input vertices; a level vertex at a seam's tip, with one uv,
- * moved 1.8% of the diagonal was the worst case before). On BoomBox at
- * 1024^2 (test_bake) the displaced levels then reconstruct the input within
- * 1e-3 of the diagonal: level 0.1 1.1e-2 -> 9.7e-4, level 0.5 1.7e-3 ->
- * 5.9e-4 (main job's path: 1.7e-2 -> 9.2e-4 and 7.6e-4 -> 7.8e-4). The
- * price is faces: level 0.1 stops at 1,159 of 6,036 faces instead of
- * 1,013 (blocked_texel_stretch and blocked_seam_error in the census).
+ * neighbours' input vertices, a point up to 1% of a face outside them
+ * measured at its nearest: a border moved within the uv's storage slack; a
+ * level vertex at a seam's tip, with one uv, moved 1.8% of the diagonal
+ * was the worst case before).
+ * (3) creases inside a chart: the displacement is the input minus the
+ * level, so every crease of the level is one the map must hold, and a
+ * bilinear cell rounds it off by a fraction of its texel length times the
+ * angle. Every edge a collapse changes whose two faces share its uv keeps
+ * dihedral angle (radians) x texel length (uv_stretch / map_size) within
+ * map_crease (4e-3 of the diagonal; creases_ok). This is what limited blub
+ * at 1024^2 once its seams were kept: the worst points sat next to level
+ * edges, before erasure as after, where a texel spans ~5e-3 of the
+ * diagonal. map_crease 2e-3 / 4e-3 / 6e-3 / 8e-3: level 0.1 stops at
+ * 3,078 / 2,086 / 1,750 / 1,446 faces, displaced within 5.6e-4 / 9.2e-4 /
+ * 1.1e-3 / 1.5e-3. (Exempting edges whose crease does not grow let blub
+ * reach 1,420 faces at 1.9e-3.)
+ *   Measured at 1024^2 (test_bake, the displaced level's surface distance
+ * to the input over the diagonal, levels 0.5 and 0.1): BoomBox 1.7e-3 /
+ * 1.1e-2 -> 5.9e-4 / 7.4e-4, on the main job's path 7.6e-4 / 1.7e-2 ->
+ * 7.8e-4 / 8.9e-4; blub 4.9e-4 / 1.4e-3 -> 4.9e-4 / 9.2e-4. The price is
+ * faces: level 0.1 stops at 1,185 of BoomBox's 6,036 (1,013 without) and
+ * 2,096 of blub's 14,208 (blocked_texel_stretch, blocked_seam_error and
+ * blocked_texel_crease in the census).
  *
  * Levels. One continuous decimation; a snapshot is taken each time the face
  * count reaches the next target, so level k is the previous level decimated
@@ -283,6 +299,7 @@ typedef enum block_reason {
     BLOCK_MAX_ERROR,            /* the level would leave the input by more than max_error */
     BLOCK_TEXEL_STRETCH,        /* with map_size: a face's texels would span too much surface */
     BLOCK_SEAM_ERROR,           /* with map_size: an input seam point would leave the level by more than seam_error */
+    BLOCK_TEXEL_CREASE,         /* with map_size: a crease inside a chart would be too sharp for the map's texels */
     BLOCK_COUNT
 } block_reason;
 
@@ -290,7 +307,7 @@ static const char *const block_names[BLOCK_COUNT] = {
     "none", "nonmanifold_vertex", "silhouette_endpoints", "seam_corner", "seam_not_collinear",
     "seam_length_ratio", "boundary_corner", "boundary_not_collinear", "fixed_silhouette", "placement",
     "link_surface", "link_uv", "valence", "surface_flip", "normal_turn", "uv_flip", "max_error",
-    "texel_stretch", "seam_error",
+    "texel_stretch", "seam_error", "texel_crease",
 };
 
 enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8 };
@@ -391,6 +408,8 @@ typedef struct state {
     double *importance;          /* per surface vertex: the largest importance of the input faces it stands for */
     double *stretch;             /* per surface vertex: the largest stretch (uv_stretch) of the input faces it stands for */
     double seam_error2;          /* with map_size: squared bound of seam_kept; 0: off */
+    double map_size;             /* with map_size: the map's size (creases_ok) */
+    double crease_limit;         /* with map_size: map_crease x diagonal (creases_ok); 0: off */
     int32_t *input_z_first;      /* per input vertex on a seam: its first input Z, or -1 (seam_kept) */
     int32_t *input_z_next;       /* per input Z: the next of the same vertex, or -1 */
     double *input_zuv;           /* per input Z: its uv in the input */
@@ -1117,8 +1136,8 @@ static block_reason flips_ok(state *st, const collapse_plan *p) {
 
 /* The level's point at input uv `uv` after plan p: the surviving face
  * around keep or gone whose uv triangle holds it best (barycentrics
- * clamped to the face), as placed by the plan. False when none holds it
- * (it lies in faces the plan does not change). */
+ * clamped to the face), as placed by the plan. False when none comes within
+ * 1% of holding it (it lies in faces the plan does not change). */
 static bool point_after(state *st, const collapse_plan *p, const double uv[2], double at[3]) {
     double best = -HUGE_VAL;
     for (int side = 0; side < 2; side++) {
@@ -1146,7 +1165,7 @@ static bool point_after(state *st, const collapse_plan *p, const double uv[2], d
             for (int k = 0; k < 3; k++) at[k] = (l[0] * P[0][k] + l[1] * P[1][k] + l[2] * P[2][k]) / sum;
         }
     }
-    return best > -1e-6;
+    return best > -1e-2;
 }
 
 /* Whether the input silhouette vertices that surface vertex v stands for
@@ -1193,6 +1212,69 @@ static bool seam_kept(state *st, const collapse_plan *p) {
     return true;
 }
 
+/* Face f's corners after plan p: positions and uvs. */
+static void planned_face(const state *st, const collapse_plan *p, int32_t f, const double *P[3], const double *W[3]) {
+    for (int k = 0; k < 3; k++) {
+        int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
+        const double *w = moved_uv(p, z);
+        P[k] = (x == p->keep || x == p->gone) ? p->xyz : st->pos + 3 * x;
+        W[k] = w ? w : st->zuv + 2 * z;
+    }
+}
+
+/* The surviving face other than f on surface edge (x, y) after plan p, or
+ * -1 (a border, or more than one). An endpoint that is keep or gone stands
+ * for both. */
+static int32_t face_across(const state *st, const collapse_plan *p, int32_t f, int32_t x, int32_t y) {
+    bool xm = x == p->keep || x == p->gone, ym = y == p->keep || y == p->gone, merged = xm || ym;
+    if (xm && ym) return -1;
+    int32_t found = -1, faces[3], other = xm ? y : x;
+    for (int e = 0; e < (merged ? 2 : 1); e++) {
+        int n = merged ? edge_faces(st, e ? p->gone : p->keep, other, faces) : edge_faces(st, x, y, faces);
+        for (int i = 0; i < n && i < 3; i++) {
+            if (faces[i] == f || is_removed(p, faces[i])) continue;
+            if (found >= 0 && found != faces[i]) return -1;
+            found = faces[i];
+        }
+    }
+    return found;
+}
+
+/* With map_size (design note): every edge of the faces around keep and
+ * gone after plan p whose two faces share its uv (a seam is no crease to
+ * either side's texels) keeps its dihedral angle (radians) times the longer
+ * texel span of the two faces (uv_stretch / map_size) within crease_limit. */
+static bool creases_ok(state *st, const collapse_plan *p) {
+    for (int side = 0; side < 2; side++) {
+        int32_t n;
+        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
+        for (int32_t j = 0; j < n; j++) {
+            int32_t f = list[j];
+            if (is_removed(p, f)) continue;
+            const double *P[3], *W[3], *Q[3], *X[3];
+            planned_face(st, p, f, P, W);
+            double nf[3];
+            triangle_normal(P[0], P[1], P[2], nf);
+            for (int k = 0; k < 3; k++) {
+                int32_t g = face_across(st, p, f, st->fv[3 * f + k], st->fv[3 * f + (k + 1) % 3]);
+                if (g < 0) continue;
+                planned_face(st, p, g, Q, X);
+                const double *wa = W[k], *wb = W[(k + 1) % 3];
+                int shared = 0;
+                for (int i = 0; i < 3; i++)
+                    shared += (X[i][0] == wa[0] && X[i][1] == wa[1]) + (X[i][0] == wb[0] && X[i][1] == wb[1]);
+                if (shared < 2) continue;
+                double ng[3], c[3];
+                triangle_normal(Q[0], Q[1], Q[2], ng);
+                c[0] = nf[1] * ng[2] - nf[2] * ng[1], c[1] = nf[2] * ng[0] - nf[0] * ng[2], c[2] = nf[0] * ng[1] - nf[1] * ng[0];
+                double angle = atan2(sqrt(dot3(c, c)), dot3(nf, ng));
+                if (angle * fmax(uv_stretch(P, W), uv_stretch(Q, X)) / st->map_size > st->crease_limit) return false;
+            }
+        }
+    }
+    return true;
+}
+
 static block_reason check_plan(state *st, const collapse_plan *p) {
     if (!link_surface_ok(st, p)) return BLOCK_LINK_SURFACE;
     for (int i = 0; i < p->nhalf; i++)
@@ -1200,6 +1282,7 @@ static block_reason check_plan(state *st, const collapse_plan *p) {
     if (!tip_merge_ok(st, p)) return BLOCK_LINK_UV;
     if (!valence_ok(st, p)) return BLOCK_VALENCE;
     block_reason r = flips_ok(st, p);
+    if (r == BLOCK_NONE && st->crease_limit > 0 && !creases_ok(st, p)) r = BLOCK_TEXEL_CREASE;
     if (r == BLOCK_NONE && st->seam_error2 > 0 && !seam_kept(st, p)) r = BLOCK_SEAM_ERROR;
     return r;
 }
@@ -2597,7 +2680,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (max_error > 0 && diagonal > 0) st.max_error2 = (diagonal * max_error) * (diagonal * max_error);
     st.map_texel_length = sc_ctx_number(ctx, "map_texel") * diagonal * (double)sc_ctx_integer(ctx, "map_size");
     const double seam_error = sc_ctx_number(ctx, "seam_error") * diagonal;
-    if (st.map_texel_length > 0) st.seam_error2 = seam_error * seam_error;
+    if (st.map_texel_length > 0) {
+        st.seam_error2 = seam_error * seam_error;
+        st.map_size = (double)sc_ctx_integer(ctx, "map_size");
+        st.crease_limit = sc_ctx_number(ctx, "map_crease") * diagonal;
+    }
     if (st.error_weight > 0 || st.max_error2 > 0 || samples > 0) input_bvh_start(&st, threads);
     rc = setup(&st, in, uv_weight, err);
     if (rc == SC_OK) {
@@ -2752,6 +2839,10 @@ static const sc_param_desc params[] = {
     {.name = "seam_error", .type = SC_PARAM_NUMBER, .def = 5e-4, .min = 1e-9, .max = 1,
      .doc = "with map_size: the largest distance (fraction of the bounding-box diagonal) between an input vertex "
             "on a uv silhouette and the level at the same uv (a seam-free map cannot restore a seam)"},
+    {.name = "map_crease", .type = SC_PARAM_NUMBER, .def = 4e-3, .min = 0, .max = 1e9,
+     .doc = "with map_size: the sharpest crease a collapse may leave inside a chart, as the texel length "
+            "(fraction of the bounding-box diagonal) times the dihedral angle (radians), which a bilinear map "
+            "rounds off; 0: no bound"},
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
     {.name = "hausdorff_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 0, .max = 1e8,

@@ -451,24 +451,23 @@ static void error_stats(const sc_mesh *in, const sc_atlas *level, int stride, do
  *  - surface distance: the drawn surface against the input surface as
  *    surfaces, both ways (drawn_distance here, at a tessellation of one
  *    texel; the node's lod<k>.reconstruction_error, sampled by area).
- * Both meet 1e-3 on BoomBox (both paths) and on the procedural asset, at
- * both levels. map_size is what makes BoomBox's level 0.1 restorable: its
- * decimation then keeps the input's uv silhouettes within 5e-4 of the
- * diagonal at the same uv (an erased map cannot restore a seam: both sides
- * must agree on a function the two texel grids share, so the seam's
- * position comes from the level) and makes no uv sliver (one had texels
- * spanning 10% of the diagonal); without it level 0.1 measured 1.1e-2
- * (1.7e-2 on the main job's path), level 0.5 1.7e-3 (7.6e-4). The price
- * is faces: BoomBox's level 0.1 stops at 1,158 faces of 6,036 (1,148 on
- * the main job's path, against 886).
- *   blub's level 0.1 does not meet 1e-3 (1.5e-3): charts whose uv is
- * squeezed far below a texel per face (near texel (313, 124): faces of 0.01
- * texel, a texel spanning ~5% of the diagonal), where no bilinear map
- * follows the surface. A lower bound, the RMS residual of the best bilinear
- * fit of each cell on its own, was 4.3e-3 at level 0.1 decimated without
- * map_size, whose importance weighting took the surface distance there
- * from 4.2e-3 to 1.4e-3; keeping those charts' same-uv error within 5e-4
- * too stalled the level at 2,114 faces and still measured 1.9e-3. */
+ * The surface distance meets 1e-3 on all three assets at both levels, and
+ * so does the same-uv error on BoomBox and the procedural asset. map_size
+ * is what makes the corpus levels restorable (decimate's design note): the
+ * decimation keeps the input's uv silhouettes within 5e-4 of the diagonal
+ * at the same uv (an erased map cannot restore a seam: both sides must
+ * agree on a function the two texel grids share, so the seam's position
+ * comes from the level), makes no uv sliver (one had texels spanning 10%
+ * of the diagonal) and no crease inside a chart sharper than the map's
+ * texels can follow. Without those, BoomBox measured 1.7e-3 / 1.1e-2 at
+ * levels 0.5 / 0.1 (7.6e-4 / 1.7e-2 on the main job's path) and blub 4.9e-4
+ * / 1.4e-3. The price is faces: level 0.1 keeps at most 20% of BoomBox's
+ * (1,185 of 6,036; 1,013 without) and 15% of blub's (2,096 of 14,208).
+ *   blub's same-uv error stays above 1e-3 (1.6e-3 and 2.9e-3): charts whose
+ * uv is squeezed far below a texel per face (near texel (313, 124): faces
+ * of 0.01 texel, a texel spanning ~5% of the diagonal), where no bilinear
+ * map follows the surface point for point; the surface as a whole stays
+ * within 1e-3 of the input. */
 typedef struct corpus_bar {
     double max, rms, p99;   /* same-uv error (error_stats) */
     double surface;         /* surface distance: drawn_distance's and the node's */
@@ -526,8 +525,8 @@ static void corpus_bake(const char *rel, const corpus_bar bars[2], double max_fa
 }
 
 SC_TEST(corpus_blub_1024) {
-    const corpus_bar bars[2] = {{2.5e-3, 1.5e-4, 7e-4, 8e-4}, {8e-3, 5e-4, 2e-3, 2e-3}};
-    corpus_bake("blub/blub.obj", bars, 0.101);
+    const corpus_bar bars[2] = {{2e-3, 1e-4, 5e-4, 8e-4}, {4e-3, 3e-4, 1.2e-3, 1e-3}};
+    corpus_bake("blub/blub.obj", bars, 0.15);
 }
 
 SC_TEST(corpus_boombox_1024) {

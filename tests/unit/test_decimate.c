@@ -650,24 +650,101 @@ static sc_value *two_material_copy(const sc_mesh *in) {
 
 static double metric_of(const node_run *r, const char *name) { return sc_ctx_metric_value(r->ctx, name); }
 
-/* The largest stretch of uv -> surface over the faces of m: the largest
- * singular value of each face's Jacobian, HUGE_VAL on a face flat in uv. */
+/* The stretch of uv -> surface on face f of m: the largest singular value
+ * of its Jacobian, HUGE_VAL on a face flat in uv. */
+static double face_stretch(const sc_mesh *m, int f) {
+    const double *a = m->U + 2 * m->FU[3 * f], *b = m->U + 2 * m->FU[3 * f + 1], *c = m->U + 2 * m->FU[3 * f + 2];
+    double du1 = b[0] - a[0], dv1 = b[1] - a[1], du2 = c[0] - a[0], dv2 = c[1] - a[1], det = du1 * dv2 - du2 * dv1;
+    if (det == 0) return HUGE_VAL;
+    double g[2][2] = {{0, 0}, {0, 0}};   /* J^T J */
+    for (int k = 0; k < 3; k++) {
+        double e1 = m->V[3 * m->FV[3 * f + 1] + k] - m->V[3 * m->FV[3 * f] + k];
+        double e2 = m->V[3 * m->FV[3 * f + 2] + k] - m->V[3 * m->FV[3 * f] + k];
+        double ju = (e1 * dv2 - e2 * dv1) / det, jv = (e2 * du1 - e1 * du2) / det;
+        g[0][0] += ju * ju, g[0][1] += ju * jv, g[1][1] += jv * jv;
+    }
+    double tr = g[0][0] + g[1][1], dt = g[0][0] * g[1][1] - g[0][1] * g[0][1];
+    return sqrt(0.5 * tr + sqrt(fmax(0, 0.25 * tr * tr - dt)));
+}
+
 static double largest_stretch(const sc_mesh *m) {
     double worst = 0;
-    for (int f = 0; f < m->nf; f++) {
-        const double *a = m->U + 2 * m->FU[3 * f], *b = m->U + 2 * m->FU[3 * f + 1], *c = m->U + 2 * m->FU[3 * f + 2];
-        double du1 = b[0] - a[0], dv1 = b[1] - a[1], du2 = c[0] - a[0], dv2 = c[1] - a[1], det = du1 * dv2 - du2 * dv1;
-        if (det == 0) return HUGE_VAL;
-        double g[2][2] = {{0, 0}, {0, 0}};   /* J^T J */
-        for (int k = 0; k < 3; k++) {
-            double e1 = m->V[3 * m->FV[3 * f + 1] + k] - m->V[3 * m->FV[3 * f] + k];
-            double e2 = m->V[3 * m->FV[3 * f + 2] + k] - m->V[3 * m->FV[3 * f] + k];
-            double ju = (e1 * dv2 - e2 * dv1) / det, jv = (e2 * du1 - e1 * du2) / det;
-            g[0][0] += ju * ju, g[0][1] += ju * jv, g[1][1] += jv * jv;
-        }
-        double tr = g[0][0] + g[1][1], dt = g[0][0] * g[1][1] - g[0][1] * g[0][1];
-        worst = fmax(worst, sqrt(0.5 * tr + sqrt(fmax(0, 0.25 * tr * tr - dt))));
+    for (int f = 0; f < m->nf; f++) worst = fmax(worst, face_stretch(m, f));
+    return worst;
+}
+
+/* A face as 15 numbers: its corners' uvs (kept exactly by the decimation),
+ * then their positions (which come back through a centring, so only within
+ * rounding). */
+static void face_key(const sc_mesh *m, int f, double key[15]) {
+    for (int k = 0; k < 3; k++) {
+        memcpy(key + 2 * k, m->U + 2 * m->FU[3 * f + k], sizeof(double) * 2);
+        memcpy(key + 6 + 3 * k, m->V + 3 * m->FV[3 * f + k], sizeof(double) * 3);
     }
+}
+
+static int compare_key(const void *p, const void *q) {   /* the uvs only */
+    const double *a = p, *b = q;
+    for (int i = 0; i < 6; i++)
+        if (a[i] != b[i]) return a[i] < b[i] ? -1 : 1;
+    return 0;
+}
+
+/* Whether face f of level is one of the input's (sorted keys): the same uvs,
+ * positions within 1e-9 of the diagonal. */
+static bool input_face(const double (*keys)[15], int n, const sc_mesh *level, int f, double diag) {
+    double k[15];
+    face_key(level, f, k);
+    const double (*hit)[15] = bsearch(k, keys, (size_t)n, sizeof(*keys), compare_key);
+    if (!hit) return false;
+    while (hit > keys && !compare_key(hit - 1, k)) hit--;
+    for (; hit < keys + n && !compare_key(hit, k); hit++) {
+        bool same = true;
+        for (int i = 6; i < 15 && same; i++) same = fabs((*hit)[i] - k[i]) <= 1e-9 * diag;
+        if (same) return true;
+    }
+    return false;
+}
+
+static double face_normal_angle(const sc_mesh *m, int f, int g) {
+    double n[2][3];
+    for (int i = 0; i < 2; i++) {
+        const int32_t *c = m->FV + 3 * (i ? g : f);
+        double e1[3], e2[3];
+        for (int k = 0; k < 3; k++) e1[k] = m->V[3 * c[1] + k] - m->V[3 * c[0] + k], e2[k] = m->V[3 * c[2] + k] - m->V[3 * c[0] + k];
+        n[i][0] = e1[1] * e2[2] - e1[2] * e2[1], n[i][1] = e1[2] * e2[0] - e1[0] * e2[2], n[i][2] = e1[0] * e2[1] - e1[1] * e2[0];
+    }
+    double x[3] = {n[0][1] * n[1][2] - n[0][2] * n[1][1], n[0][2] * n[1][0] - n[0][0] * n[1][2], n[0][0] * n[1][1] - n[0][1] * n[1][0]};
+    return atan2(sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]), n[0][0] * n[1][0] + n[0][1] * n[1][1] + n[0][2] * n[1][2]);
+}
+
+/* The sharpest crease the level made inside its charts: over its edges
+ * whose two faces share the edge's uv indices, unless both faces are the
+ * input's own (same positions and uvs), the dihedral angle (radians) times
+ * the longer texel span of the two faces (stretch / map_size), over diag. */
+static double sharpest_new_crease(const sc_mesh *in, const sc_mesh *level, double map_size, double diag) {
+    double (*keys)[15] = malloc(sizeof(*keys) * (size_t)in->nf);
+    int32_t (*e)[3] = malloc(sizeof(*e) * 3 * (size_t)level->nf);
+    double worst = keys && e ? 0 : INFINITY;
+    for (int f = 0; keys && f < in->nf; f++) face_key(in, f, keys[f]);
+    if (keys) qsort(keys, (size_t)in->nf, sizeof(*keys), compare_key);
+    for (int f = 0; e && f < level->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int32_t x = level->FU[3 * f + k], y = level->FU[3 * f + (k + 1) % 3];
+            e[3 * f + k][0] = x < y ? x : y, e[3 * f + k][1] = x < y ? y : x, e[3 * f + k][2] = f;
+        }
+    const int n = 3 * level->nf;
+    if (e) qsort(e, (size_t)n, sizeof(*e), compare_uv_edge);
+    for (int i = 0; keys && e && i + 1 < n; i++) {
+        if (e[i][0] != e[i + 1][0] || e[i][1] != e[i + 1][1] || (i + 2 < n && e[i + 2][0] == e[i][0] && e[i + 2][1] == e[i][1]))
+            continue;
+        int f = e[i][2], g = e[i + 1][2];
+        if (input_face((const double(*)[15])keys, in->nf, level, f, diag) &&
+            input_face((const double(*)[15])keys, in->nf, level, g, diag))
+            continue;
+        worst = fmax(worst, face_normal_angle(level, f, g) * fmax(face_stretch(level, f), face_stretch(level, g)) / map_size / diag);
+    }
+    free(keys), free(e);
     return worst;
 }
 
@@ -706,13 +783,15 @@ static double silhouette_same_uv_distance(const sc_mesh *in, const sc_mesh *leve
 }
 
 /* With map_size, no level face stretches beyond twice the larger of the map
- * texel's unit and the input's largest stretch, and the level keeps the
- * input's uv silhouettes within seam_error at the same uv (a seam-free map
- * cannot restore them). BoomBox as the main job cooks it (straightened,
- * max_error 0.02): without map_size its level 0.1 breaks both (a uv sliver
- * 12.6x the bound, silhouettes 3.3% of the diagonal off), which cost its
- * 1024^2 map 1.7e-2 of the diagonal in test_bake. */
-static void map_size_bounds(sc_value *asset, const char *what, const char *max_error, bool broken_without) {
+ * texel's unit and the input's largest stretch, the level keeps the input's
+ * uv silhouettes within seam_error at the same uv (a seam-free map cannot
+ * restore them), and no edge inside a chart that is not the input's own
+ * creases sharper than map_crease (angle x texel length). BoomBox as the
+ * main job cooks it (straightened, max_error 0.02): without map_size its
+ * level 0.1 breaks all three (a uv sliver 12.6x the bound, silhouettes 3.3%
+ * of the diagonal off, a crease of 0.35), which cost its 1024^2 map 1.7e-2
+ * of the diagonal in test_bake. */
+static void map_size_bounds(sc_value *asset, const char *what, const char *max_error, int kept, bool broken_without) {
     const sc_mesh *in = asset->as.atlas->mesh->as.mesh;
     const double input_stretch = largest_stretch(in);
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
@@ -720,7 +799,7 @@ static void map_size_bounds(sc_value *asset, const char *what, const char *max_e
         for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], in->V[3 * v + k]), hi[k] = fmax(hi[k], in->V[3 * v + k]);
     const double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
     const double unit = 2e-3 * diag * 1024;   /* map_texel's default x diagonal x map_size */
-    double seam[2][2] = {{0, 0}, {0, 0}}, stretch[2][2] = {{0, 0}, {0, 0}};
+    double seam[2][2] = {{0, 0}, {0, 0}}, stretch[2][2] = {{0, 0}, {0, 0}}, crease[2][2] = {{0, 0}, {0, 0}};
     for (int on = 0; on < 2; on++) {
         const char *params[] = {"ratio", "0.5,0.1", "hausdorff_samples", "0", "max_error", max_error,
                                 "map_size", on ? "1024" : "0", NULL};
@@ -728,11 +807,12 @@ static void map_size_bounds(sc_value *asset, const char *what, const char *max_e
         SC_CHECK_MSG(r.rc == SC_OK, "%s: decimate: %s", what, r.err.message);
         for (int k = 0; k < 2 && r.rc == SC_OK; k++) {
             const sc_mesh *m = level_mesh(r.out, k);
-            check_level(in, m, LEVEL_SILHOUETTES, what);
+            check_level(in, m, kept, what);
             seam[on][k] = silhouette_same_uv_distance(in, m), stretch[on][k] = largest_stretch(m);
+            crease[on][k] = sharpest_new_crease(in, m, 1024, diag);
             printf("     %s, map_size %s, level %d: %d faces, silhouettes at the same uv %.3g of the diagonal, largest "
-                   "stretch %.3g of the bound\n", what, on ? "1024" : "0", k, m->nf, seam[on][k],
-                   stretch[on][k] / (2 * fmax(unit, input_stretch)));
+                   "stretch %.3g of the bound, sharpest crease %.3g\n", what, on ? "1024" : "0", k, m->nf, seam[on][k],
+                   stretch[on][k] / (2 * fmax(unit, input_stretch)), crease[on][k]);
         }
         run_free(&r);
     }
@@ -740,14 +820,15 @@ static void map_size_bounds(sc_value *asset, const char *what, const char *max_e
         SC_CHECK_MSG(seam[1][k] <= 5e-4 * (1 + 1e-9), "%s level %d: silhouettes %g off", what, k, seam[1][k]);
         SC_CHECK_MSG(stretch[1][k] <= 2 * fmax(unit, input_stretch) * (1 + 1e-9), "%s level %d: stretch %g", what, k,
                      stretch[1][k]);
+        SC_CHECK_MSG(crease[1][k] <= 4e-3 * (1 + 1e-6), "%s level %d: crease %g", what, k, crease[1][k]);
     }
     if (broken_without)   /* the bounds are not met by chance: level 0.1 without map_size breaks both */
-        SC_CHECK(seam[0][1] > 10 * 5e-4 && stretch[0][1] > 2 * fmax(unit, input_stretch));
+        SC_CHECK(seam[0][1] > 10 * 5e-4 && stretch[0][1] > 2 * fmax(unit, input_stretch) && crease[0][1] > 10 * 4e-3);
 }
 
 SC_TEST(map_size_bounds_stretch_and_silhouettes) {
     sc_value *p = procedural(24, 64, 0);
-    if (p) map_size_bounds(p, "procedural", "0", false);
+    if (p) map_size_bounds(p, "procedural", "0", LEVEL_SILHOUETTES, false);
     sc_value_release(p);
     if (!sc_test_corpus()) {
         printf("     corpus absent: skipped BoomBox\n");
@@ -759,9 +840,12 @@ SC_TEST(map_size_bounds_stretch_and_silhouettes) {
     node_run e = b ? run_node(&sc_node_erase_seams, none, "atlas", b) : (node_run){0};
     node_run s = e.out ? run_node(&sc_node_straighten, none, "atlas", e.out) : (node_run){0};
     SC_CHECK_MSG(s.out, "BoomBox: erase_seams %s, straighten %s", e.err.message, s.err.message);
-    if (s.out) map_size_bounds(s.out, "BoomBox", "0.02", true);
+    if (s.out) map_size_bounds(s.out, "BoomBox", "0.02", LEVEL_SILHOUETTES, true);
     run_free(&s), run_free(&e);
     sc_value_release(b);
+    sc_value *blub = sc_test_load_corpus("blub/blub.obj", NULL, NULL);
+    if (blub) map_size_bounds(blub, "blub", "0", LEVEL_CHARTS, false);   /* seams within the OBJ's 6 digits */
+    sc_value_release(blub);
 }
 
 static node_run decimate(sc_value *input, const char *ratio, const char *mode, const char *more_key,
@@ -1123,7 +1207,9 @@ static double squeezed_half_distance(const sc_mesh *in, const sc_mesh *level) {
 SC_TEST(map_size_keeps_the_squeezed_detail) {
     /* 32 x 32 cells, map 64^2, map_texel 2% of the diagonal: a texel spans
      * 1.1% of the diagonal on the left (importance 1), 10x that on the
-     * right (100x along x; importance ~31) */
+     * right (100x along x; importance ~31). The importance alone: with
+     * map_crease's bound the squeezed half, whose bumps no texel there
+     * follows, keeps every face (0.0000; the level stops at 1,155 faces) */
     sc_value *sq = half_squeezed_square(32, 100);
     if (!sq) return;
     const sc_mesh *in = sq->as.mesh;
@@ -1134,7 +1220,7 @@ SC_TEST(map_size_keeps_the_squeezed_detail) {
     node_run runs[3];
     for (int k = 0; k < 3; k++) {
         const char *params[] = {"ratio", "0.15", "hausdorff_samples", "0", "map_size", sizes[k], "map_texel", texels[k],
-                                "seam_error", seams[k], NULL};
+                                "seam_error", seams[k], "map_crease", "0", NULL};
         runs[k] = run_node(&sc_node_decimate, params, "mesh", sq);
         SC_CHECK_MSG(runs[k].rc == SC_OK, "decimate: %s", runs[k].err.message);
         if (runs[k].rc != SC_OK) continue;
