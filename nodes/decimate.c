@@ -1134,6 +1134,16 @@ static block_reason flips_ok(state *st, const collapse_plan *p) {
     return BLOCK_NONE;
 }
 
+/* Face f's corners after plan p: positions and uvs. */
+static void planned_face(const state *st, const collapse_plan *p, int32_t f, const double *P[3], const double *W[3]) {
+    for (int k = 0; k < 3; k++) {
+        int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
+        const double *w = moved_uv(p, z);
+        P[k] = (x == p->keep || x == p->gone) ? p->xyz : st->pos + 3 * x;
+        W[k] = w ? w : st->zuv + 2 * z;
+    }
+}
+
 /* The level's point at input uv `uv` after plan p: the surviving face
  * around keep or gone whose uv triangle holds it best (barycentrics
  * clamped to the face), as placed by the plan. False when none comes within
@@ -1147,12 +1157,7 @@ static bool point_after(state *st, const collapse_plan *p, const double uv[2], d
             int32_t f = list[j];
             if (is_removed(p, f)) continue;
             const double *P[3], *W[3];
-            for (int k = 0; k < 3; k++) {
-                int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
-                const double *w = moved_uv(p, z);
-                P[k] = (x == p->keep || x == p->gone) ? p->xyz : st->pos + 3 * x;
-                W[k] = w ? w : st->zuv + 2 * z;
-            }
+            planned_face(st, p, f, P, W);
             double d = uv_area2(W[0], W[1], W[2]);
             if (d == 0) continue;
             double l[3] = {uv_area2(uv, W[1], W[2]) / d, uv_area2(W[0], uv, W[2]) / d, 0};
@@ -1210,16 +1215,6 @@ static bool seam_kept(state *st, const collapse_plan *p) {
             }
     }
     return true;
-}
-
-/* Face f's corners after plan p: positions and uvs. */
-static void planned_face(const state *st, const collapse_plan *p, int32_t f, const double *P[3], const double *W[3]) {
-    for (int k = 0; k < 3; k++) {
-        int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
-        const double *w = moved_uv(p, z);
-        P[k] = (x == p->keep || x == p->gone) ? p->xyz : st->pos + 3 * x;
-        W[k] = w ? w : st->zuv + 2 * z;
-    }
 }
 
 /* The surviving face other than f on surface edge (x, y) after plan p, or
