@@ -298,14 +298,14 @@ SC_TEST(levels_below_erase_min_size_are_not_erased) {
  * left a gap of 1.24e-5 here, and mipmap's 1e12 1.3e-6. (lod_chain.lua's 1% level of blub
  * shows back faces at a fin from 128^2 to 32^2 in geometry_image mode: a
  * fold, not a seam, which the render node counts as fold pixels.) */
-static void corpus_every_mip_level(const char *what, const char *model, const char *texture) {
+static void corpus_every_mip_level(const char *what, const char *model, const char *texture, const char *map_size) {
     if (!sc_test_corpus() || sc_test_sanitized()) {
         printf("     %s: skipped\n", sc_test_corpus() ? "under the sanitizers" : "corpus absent");
         return;
     }
     sc_value *atlas = sc_test_load_corpus(model, texture, NULL);
     if (!atlas) return;
-    const char *dp[] = {"ratio", "0.5,0.1", "hausdorff_samples", "0", "max_error", "0.02", NULL};
+    const char *dp[] = {"ratio", "0.5,0.1", "hausdorff_samples", "0", "max_error", "0.02", "map_size", map_size, NULL};
     sc_test_run r = sc_test_run_node(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL);
     sc_value *lods = take(&r, 0, "decimate"), *baked = NULL, *levels = NULL;
     const char *bp[] = {"size", "1024", NULL};
@@ -347,7 +347,8 @@ static void corpus_every_mip_level(const char *what, const char *model, const ch
         int rc = render_check(levels, atlas, "geometry_image,displaced,tessellated", &cracks, &gap, msg, sizeof msg,
                               NULL);
         SC_CHECK_MSG(rc == SC_OK, "render: %s", msg);
-        printf("     %s, 2 LODs x %d mip levels: %.0f crack pixels, max seam gap %.3g\n", what, nmip, cracks, gap);
+        printf("     %s (map_size %s), 2 LODs x %d mip levels: %.0f crack pixels, max seam gap %.3g\n", what, map_size, nmip,
+               cracks, gap);
         SC_CHECK_MSG(gap <= 1e-5, "max seam gap %g", gap);
         SC_CHECK_MSG(cracks == 0, "%g crack pixels", cracks);
     }
@@ -357,8 +358,12 @@ static void corpus_every_mip_level(const char *what, const char *model, const ch
     sc_value_release(atlas);
 }
 
+/* Each asset twice: levels decimated as the main job does by default, and
+ * for their maps (map_size 1024, the levels test_bake reconstructs within
+ * 1e-3 of the diagonal; blub: max seam gap 2.8e-6, BoomBox 6.5e-6). */
 SC_TEST(corpus_blub_every_mip_level_seam_free) {
-    corpus_every_mip_level("blub", "blub/blub.obj", "blub/blub_texture.png");
+    corpus_every_mip_level("blub", "blub/blub.obj", "blub/blub_texture.png", "0");
+    corpus_every_mip_level("blub", "blub/blub.obj", "blub/blub_texture.png", "1024");
 }
 
 /* BoomBox: as blub. Decimated with max_error 0.02 (as the main job does;
@@ -370,7 +375,8 @@ SC_TEST(corpus_blub_every_mip_level_seam_free) {
  * the shell under the buttons' open cylinders and showed 176 back-face
  * pixels, from mip 0 on. */
 SC_TEST(corpus_boombox_every_mip_level_seam_free) {
-    corpus_every_mip_level("BoomBox", "BoomBox/BoomBox_welded.obj", NULL);
+    corpus_every_mip_level("BoomBox", "BoomBox/BoomBox_welded.obj", NULL, "0");
+    corpus_every_mip_level("BoomBox", "BoomBox/BoomBox_welded.obj", NULL, "1024");
 }
 
 int main(void) { return sc_test_main(); }
