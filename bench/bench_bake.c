@@ -1,9 +1,10 @@
 /* bench_bake.c - bake_displacement and mipmap on the corpus.
  *
- *   bench_bake [-j N] [-r RUNS] [ASSET...]
+ *   bench_bake [-j N] [-r RUNS] [-m] [ASSET...]
  *
  * For blub (2048^2) and pizza (4096^2) from ../shared/corpus (or $SC_CORPUS):
- * load, decimate to three levels (0.5, 0.1, 0.01; not timed), then time
+ * load, decimate to three levels (0.5, 0.1, 0.01; not timed; with -m for
+ * the maps: decimate's map_size = the bake size), then time
  * bake_displacement (one geometry image + one displacement map per level,
  * all erased) and mipmap on its levels (every chain, every level erased),
  * and print the reconstruction errors and the worst seam energy (pizza's
@@ -76,6 +77,7 @@ typedef struct run_args {
     const asset *as;
     const char *corpus;
     int threads;
+    bool for_maps;   /* -m */
 } run_args;
 
 /* Loads and decimates the asset, times bake and mipmap, prints its lines;
@@ -94,7 +96,7 @@ static int run_asset(void *ud, int out) {
         return 1;
     }
     sc_value *atlas = sc_ctx_output(load, 0);
-    const char *dp[] = {"ratio", "0.5,0.1,0.01", "hausdorff_samples", "0", NULL};
+    const char *dp[] = {"ratio", "0.5,0.1,0.01", "hausdorff_samples", "0", "map_size", ra->for_maps ? as->size : "0", NULL};
     sc_ctx *dec = run(&sc_node_decimate, dp, "mesh", atlas, NULL, NULL, threads, NULL, NULL);
     double t_bake = 0, t_mip = 0, c_bake = 0, c_mip = 0;
     const char *bp[] = {"size", as->size, NULL};
@@ -120,15 +122,16 @@ static int run_asset(void *ud, int out) {
                m(bake, "fit_cells_inexact"), m(bake, "seconds_fit_solve"), m(bake, "fit_cells_solved"),
                m(bake, "fit_iterations"), m(bake, "seconds_erase"), m(bake, "seconds_metrics"));
     for (int k = 0; bake && k < 3; k++) {
-        char n[6][80];
+        char n[6][80], faces[32];
         const char *suffix[6] = {"reconstruction_error", "reconstruction_error_to_input",
                                  "reconstruction_error_from_input", "same_uv_error", "same_uv_error_rms",
                                  "samples_missed"};
         for (int i = 0; i < 6; i++) snprintf(n[i], sizeof n[i], "lod%d.%s", k, suffix[i]);
-        printf("       lod %d: surface distance %.3g (to input %.3g, from input %.3g); same-uv error max %.3g rms %.3g "
-               "(%.0f samples outside the level)\n",
-               k, m(bake, n[0]), m(bake, n[1]), m(bake, n[2]),
-               m(bake, n[3]), m(bake, n[4]), m(bake, n[5]));
+        snprintf(faces, sizeof faces, "lod%d.faces", k);
+        printf("       lod %d (%.0f faces): surface distance %.3g (to input %.3g, from input %.3g); same-uv error max "
+               "%.3g rms %.3g (%.0f samples outside the level)\n",
+               k, m(dec, faces), m(bake, n[0]), m(bake, n[1]), m(bake, n[2]), m(bake, n[3]), m(bake, n[4]),
+               m(bake, n[5]));
     }
     if (mip)
         printf("       mipmap: groups %.2f s (side by side; summed over them: erase %.2f s in %.0f erase_seams runs, "
@@ -172,11 +175,13 @@ static int run_asset(void *ud, int out) {
 int main(int argc, char **argv) {
     sc_tune_allocator();   /* as the command line runs */
     int threads = 2, runs = 1;
+    bool for_maps = false;
     const char *only[8];
     int nonly = 0;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "-j") == 0 && i + 1 < argc) threads = atoi(argv[++i]);
         else if (strcmp(argv[i], "-r") == 0 && i + 1 < argc) runs = atoi(argv[++i]);
+        else if (strcmp(argv[i], "-m") == 0) for_maps = true;
         else if (nonly < 8) only[nonly++] = argv[i];
     }
     if (runs < 1 || runs > 100) runs = 1;
@@ -197,7 +202,7 @@ int main(int argc, char **argv) {
         double totals[100];
         int done = 0;
         for (int r = 0; r < runs; r++) {
-            run_args ra = {as, corpus, threads};
+            run_args ra = {as, corpus, threads, for_maps};
             if (bench_in_child(run_asset, &ra, &totals[done]) == 0) done++;
             else failed++;
         }
