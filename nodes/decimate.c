@@ -1080,56 +1080,71 @@ static bool stretch_ok(const state *st, const collapse_plan *p, int32_t f, const
     return after <= STRETCH_SLACK * limit || after <= uv_stretch(oldP, oldW);
 }
 
-static block_reason flips_ok(state *st, const collapse_plan *p) {
-    for (int side = 0; side < 2; side++) {
-        int32_t v = side == 0 ? p->keep : p->gone;
-        int32_t n;
-        const int32_t *list = vfaces(st, v, &n);
-        for (int32_t i = 0; i < n; i++) {
-            int32_t f = list[i];
-            if (is_removed(p, f)) continue;
-            const double *P[3], *W[3];
-            const double *oldP[3], *oldW[3];
-            bool uv_moves = false;
-            for (int k = 0; k < 3; k++) {
-                int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
-                oldP[k] = st->pos + 3 * x;
-                oldW[k] = st->zuv + 2 * z;
-                P[k] = (x == p->keep || x == p->gone) ? p->xyz : oldP[k];
-                const double *w = moved_uv(p, z);
-                W[k] = w ? w : oldW[k];
-                if (w && (w[0] != oldW[k][0] || w[1] != oldW[k][1])) uv_moves = true;
-            }
-            /* surface */
-            double n0[3], n1[3];
-            triangle_normal(oldP[0], oldP[1], oldP[2], n0);
-            triangle_normal(P[0], P[1], P[2], n1);
-            double l0 = sqrt(dot3(n0, n0)), l1 = sqrt(dot3(n1, n1));
-            double emax = 0;
-            for (int k = 0; k < 3; k++) {
-                const double *q = P[k], *r = P[(k + 1) % 3];
-                double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
-                double e = dot3(d, d);
-                if (e > emax) emax = e;
-            }
-            if (!(l1 > 1e-12 * emax)) return BLOCK_SURFACE_FLIP;
-            if (l0 > 0) {
-                double d = dot3(n0, n1);
-                if (d <= 0) return BLOCK_SURFACE_FLIP;
-                if (d <= st->normal_cos * l0 * l1) return BLOCK_NORMAL_TURN;
-            }
-            if (st->stretch && !stretch_ok(st, p, f, oldP, oldW, P, W)) return BLOCK_TEXEL_STRETCH;
-            /* uv */
-            if (!uv_moves) continue;
-            double a0 = uv_area2(oldW[0], oldW[1], oldW[2]), a1 = uv_area2(W[0], W[1], W[2]);
-            double umax = 0;
-            for (int k = 0; k < 3; k++) {
-                double e = dist2d(W[k], W[(k + 1) % 3]);
-                if (e > umax) umax = e;
-            }
-            if (!(fabs(a1) > 1e-10 * umax * umax)) return BLOCK_UV_FLIP;
-            if (!(a0 * a1 > 0)) return BLOCK_UV_FLIP;
+/* The faces around keep, then gone, that survive plan p, one at a time:
+ *     fan_walk w = {0};
+ *     for (int32_t f; (f = fan_next(st, p, &w)) >= 0;) ... */
+typedef struct fan_walk {
+    int side;
+    int32_t next, count;
+    const int32_t *list;
+} fan_walk;
+
+static int32_t fan_next(const state *st, const collapse_plan *p, fan_walk *w) {
+    for (;;) {
+        if (!w->list) w->list = vfaces(st, w->side ? p->gone : p->keep, &w->count), w->next = 0;
+        while (w->next < w->count) {
+            int32_t f = w->list[w->next++];
+            if (!is_removed(p, f)) return f;
         }
+        if (w->side++ == 1) return -1;
+        w->list = NULL;
+    }
+}
+
+static block_reason flips_ok(state *st, const collapse_plan *p) {
+    fan_walk walk = {0};
+    for (int32_t f; (f = fan_next(st, p, &walk)) >= 0;) {
+        const double *P[3], *W[3];
+        const double *oldP[3], *oldW[3];
+        bool uv_moves = false;
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * f + k], z = st->fz[3 * f + k];
+            oldP[k] = st->pos + 3 * x;
+            oldW[k] = st->zuv + 2 * z;
+            P[k] = (x == p->keep || x == p->gone) ? p->xyz : oldP[k];
+            const double *w = moved_uv(p, z);
+            W[k] = w ? w : oldW[k];
+            if (w && (w[0] != oldW[k][0] || w[1] != oldW[k][1])) uv_moves = true;
+        }
+        /* surface */
+        double n0[3], n1[3];
+        triangle_normal(oldP[0], oldP[1], oldP[2], n0);
+        triangle_normal(P[0], P[1], P[2], n1);
+        double l0 = sqrt(dot3(n0, n0)), l1 = sqrt(dot3(n1, n1));
+        double emax = 0;
+        for (int k = 0; k < 3; k++) {
+            const double *q = P[k], *r = P[(k + 1) % 3];
+            double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
+            double e = dot3(d, d);
+            if (e > emax) emax = e;
+        }
+        if (!(l1 > 1e-12 * emax)) return BLOCK_SURFACE_FLIP;
+        if (l0 > 0) {
+            double d = dot3(n0, n1);
+            if (d <= 0) return BLOCK_SURFACE_FLIP;
+            if (d <= st->normal_cos * l0 * l1) return BLOCK_NORMAL_TURN;
+        }
+        if (st->stretch && !stretch_ok(st, p, f, oldP, oldW, P, W)) return BLOCK_TEXEL_STRETCH;
+        /* uv */
+        if (!uv_moves) continue;
+        double a0 = uv_area2(oldW[0], oldW[1], oldW[2]), a1 = uv_area2(W[0], W[1], W[2]);
+        double umax = 0;
+        for (int k = 0; k < 3; k++) {
+            double e = dist2d(W[k], W[(k + 1) % 3]);
+            if (e > umax) umax = e;
+        }
+        if (!(fabs(a1) > 1e-10 * umax * umax)) return BLOCK_UV_FLIP;
+        if (!(a0 * a1 > 0)) return BLOCK_UV_FLIP;
     }
     return BLOCK_NONE;
 }
@@ -1150,25 +1165,20 @@ static void planned_face(const state *st, const collapse_plan *p, int32_t f, con
  * 1% of holding it (it lies in faces the plan does not change). */
 static bool point_after(state *st, const collapse_plan *p, const double uv[2], double at[3]) {
     double best = -HUGE_VAL;
-    for (int side = 0; side < 2; side++) {
-        int32_t n;
-        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
-        for (int32_t j = 0; j < n; j++) {
-            int32_t f = list[j];
-            if (is_removed(p, f)) continue;
-            const double *P[3], *W[3];
-            planned_face(st, p, f, P, W);
-            double d = uv_area2(W[0], W[1], W[2]);
-            if (d == 0) continue;
-            double l[3] = {uv_area2(uv, W[1], W[2]) / d, uv_area2(W[0], uv, W[2]) / d, 0};
-            l[2] = 1 - l[0] - l[1];
-            double worst = fmin(l[0], fmin(l[1], l[2]));
-            if (!(worst > best)) continue;
-            best = worst;
-            double sum = 0;
-            for (int k = 0; k < 3; k++) l[k] = fmax(l[k], 0), sum += l[k];
-            for (int k = 0; k < 3; k++) at[k] = (l[0] * P[0][k] + l[1] * P[1][k] + l[2] * P[2][k]) / sum;
-        }
+    fan_walk walk = {0};
+    for (int32_t f; (f = fan_next(st, p, &walk)) >= 0;) {
+        const double *P[3], *W[3];
+        planned_face(st, p, f, P, W);
+        double d = uv_area2(W[0], W[1], W[2]);
+        if (d == 0) continue;
+        double l[3] = {uv_area2(uv, W[1], W[2]) / d, uv_area2(W[0], uv, W[2]) / d, 0};
+        l[2] = 1 - l[0] - l[1];
+        double worst = fmin(l[0], fmin(l[1], l[2]));
+        if (!(worst > best)) continue;
+        best = worst;
+        double sum = 0;
+        for (int k = 0; k < 3; k++) l[k] = fmax(l[k], 0), sum += l[k];
+        for (int k = 0; k < 3; k++) at[k] = (l[0] * P[0][k] + l[1] * P[1][k] + l[2] * P[2][k]) / sum;
     }
     return best > -1e-2;
 }
@@ -1199,18 +1209,15 @@ static bool owned_silhouette_kept(state *st, const collapse_plan *p, int32_t v) 
  * input silhouette vertex is only ever merged into one). */
 static bool seam_kept(state *st, const collapse_plan *p) {
     if (!owned_silhouette_kept(st, p, p->keep) || !owned_silhouette_kept(st, p, p->gone)) return false;
-    int32_t seen[64], nseen = 0;
+    uint32_t mark = st->vstamp += 3;   /* each neighbour once; link_surface_ok leaves marks up to vstamp + 2 */
     for (int side = 0; side < 2; side++) {
         int32_t n;
         const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
         for (int32_t j = 0; j < n; j++)
             for (int k = 0; k < 3; k++) {
                 int32_t x = st->fv[3 * list[j] + k], z = st->fz[3 * list[j] + k];
-                if (x == p->keep || x == p->gone || !(st->zflags[z] & Z_SILHOUETTE)) continue;
-                bool again = false;
-                for (int32_t s = 0; s < nseen && !again; s++) again = seen[s] == x;
-                if (again) continue;
-                if (nseen < 64) seen[nseen++] = x;
+                if (x == p->keep || x == p->gone || !(st->zflags[z] & Z_SILHOUETTE) || st->vmark[x] == mark) continue;
+                st->vmark[x] = mark;
                 if (!owned_silhouette_kept(st, p, x)) return false;
             }
     }
@@ -1240,31 +1247,26 @@ static int32_t face_across(const state *st, const collapse_plan *p, int32_t f, i
  * either side's texels) keeps its dihedral angle (radians) times the longer
  * texel span of the two faces (uv_stretch / map_size) within crease_limit. */
 static bool creases_ok(state *st, const collapse_plan *p) {
-    for (int side = 0; side < 2; side++) {
-        int32_t n;
-        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
-        for (int32_t j = 0; j < n; j++) {
-            int32_t f = list[j];
-            if (is_removed(p, f)) continue;
-            const double *P[3], *W[3], *Q[3], *X[3];
-            planned_face(st, p, f, P, W);
-            double nf[3];
-            triangle_normal(P[0], P[1], P[2], nf);
-            for (int k = 0; k < 3; k++) {
-                int32_t g = face_across(st, p, f, st->fv[3 * f + k], st->fv[3 * f + (k + 1) % 3]);
-                if (g < 0) continue;
-                planned_face(st, p, g, Q, X);
-                const double *wa = W[k], *wb = W[(k + 1) % 3];
-                int shared = 0;
-                for (int i = 0; i < 3; i++)
-                    shared += (X[i][0] == wa[0] && X[i][1] == wa[1]) + (X[i][0] == wb[0] && X[i][1] == wb[1]);
-                if (shared < 2) continue;
-                double ng[3], c[3];
-                triangle_normal(Q[0], Q[1], Q[2], ng);
-                c[0] = nf[1] * ng[2] - nf[2] * ng[1], c[1] = nf[2] * ng[0] - nf[0] * ng[2], c[2] = nf[0] * ng[1] - nf[1] * ng[0];
-                double angle = atan2(sqrt(dot3(c, c)), dot3(nf, ng));
-                if (angle * fmax(uv_stretch(P, W), uv_stretch(Q, X)) / st->map_size > st->crease_limit) return false;
-            }
+    fan_walk walk = {0};
+    for (int32_t f; (f = fan_next(st, p, &walk)) >= 0;) {
+        const double *P[3], *W[3], *Q[3], *X[3];
+        planned_face(st, p, f, P, W);
+        double nf[3], stretch_f = uv_stretch(P, W);
+        triangle_normal(P[0], P[1], P[2], nf);
+        for (int k = 0; k < 3; k++) {
+            int32_t g = face_across(st, p, f, st->fv[3 * f + k], st->fv[3 * f + (k + 1) % 3]);
+            if (g < 0) continue;
+            planned_face(st, p, g, Q, X);
+            const double *wa = W[k], *wb = W[(k + 1) % 3];
+            int shared = 0;
+            for (int i = 0; i < 3; i++)
+                shared += (X[i][0] == wa[0] && X[i][1] == wa[1]) + (X[i][0] == wb[0] && X[i][1] == wb[1]);
+            if (shared < 2) continue;
+            double ng[3], c[3];
+            triangle_normal(Q[0], Q[1], Q[2], ng);
+            cross3(nf, ng, c);
+            double angle = atan2(sqrt(dot3(c, c)), dot3(nf, ng));
+            if (angle * fmax(stretch_f, uv_stretch(Q, X)) / st->map_size > st->crease_limit) return false;
         }
     }
     return true;

@@ -752,13 +752,10 @@ static double sharpest_new_crease(const sc_mesh *in, const sc_mesh *level, doubl
  * edges with one face) at each of their uvs there, to the level's point at
  * the same uv (the level face holding it best, by brute force), over the
  * input's diagonal. */
-static double silhouette_same_uv_distance(const sc_mesh *in, const sc_mesh *level) {
+static double silhouette_same_uv_distance(const sc_mesh *in, const sc_mesh *level, double diag) {
     seg2 *segs = NULL;
     int nseg = boundary_segments(in, &segs);
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, worst = 0;
-    for (int v = 0; v < in->nv; v++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], in->V[3 * v + k]), hi[k] = fmax(hi[k], in->V[3 * v + k]);
-    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    double worst = 0;
     for (int i = 0; i < 3 * in->nf; i++) {
         const double *uv = in->U + 2 * in->FU[i], *p = in->V + 3 * in->FV[i];
         if (!near_any(uv, segs, nseg, 0)) continue;
@@ -794,10 +791,8 @@ static double silhouette_same_uv_distance(const sc_mesh *in, const sc_mesh *leve
 static void map_size_bounds(sc_value *asset, const char *what, const char *max_error, int kept, bool broken_without) {
     const sc_mesh *in = asset->as.atlas->mesh->as.mesh;
     const double input_stretch = largest_stretch(in);
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-    for (int v = 0; v < in->nv; v++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], in->V[3 * v + k]), hi[k] = fmax(hi[k], in->V[3 * v + k]);
-    const double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    const sc_hausdorff_mesh hm = {in->V, in->nv, in->FV, in->nf};
+    const double diag = sc_hausdorff_bbox_diagonal(&hm);
     const double unit = 2e-3 * diag * 1024;   /* map_texel's default x diagonal x map_size */
     double seam[2][2] = {{0, 0}, {0, 0}}, stretch[2][2] = {{0, 0}, {0, 0}}, crease[2][2] = {{0, 0}, {0, 0}};
     for (int on = 0; on < 2; on++) {
@@ -808,7 +803,7 @@ static void map_size_bounds(sc_value *asset, const char *what, const char *max_e
         for (int k = 0; k < 2 && r.rc == SC_OK; k++) {
             const sc_mesh *m = level_mesh(r.out, k);
             check_level(in, m, kept, what);
-            seam[on][k] = silhouette_same_uv_distance(in, m), stretch[on][k] = largest_stretch(m);
+            seam[on][k] = silhouette_same_uv_distance(in, m, diag), stretch[on][k] = largest_stretch(m);
             crease[on][k] = sharpest_new_crease(in, m, 1024, diag);
             printf("     %s, map_size %s, level %d: %d faces, silhouettes at the same uv %.3g of the diagonal, largest "
                    "stretch %.3g of the bound, sharpest crease %.3g\n", what, on ? "1024" : "0", k, m->nf, seam[on][k],
