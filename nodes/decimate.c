@@ -361,7 +361,7 @@ typedef struct state {
     uint8_t *vflags;
     uint32_t *version;
     uint32_t *vmark;
-    uint32_t vstamp;
+    uint32_t vstamp;   /* the last mark taken (fresh_mark) */
     /* vertex -> live faces, lists in one pool */
     int64_t *vf_off;
     int32_t *vf_len, *vf_cap;
@@ -930,11 +930,15 @@ static void solve_plan(state *st, collapse_plan *p) {
 
 /* ---------------------------------------------------------------- validity */
 
+/* A vertex mark no vertex carries yet: callers may leave mark, mark + 1 and
+ * mark + 2 behind (link_surface_ok does), so each takes three. */
+static uint32_t fresh_mark(state *st) { return st->vstamp += 3; }
+
 /* Surface link condition (with one virtual vertex joined to all borders). */
 static bool link_surface_ok(state *st, const collapse_plan *p) {
     int32_t a = p->keep, b = p->gone;
     if (p->nfaces == 2 && (st->vflags[a] & V_BOUNDARY) && (st->vflags[b] & V_BOUNDARY)) return false;
-    uint32_t mark = st->vstamp += 3;
+    uint32_t mark = fresh_mark(st);
     int32_t n;
     const int32_t *list = vfaces(st, a, &n);
     for (int32_t i = 0; i < n; i++)
@@ -1209,7 +1213,7 @@ static bool owned_silhouette_kept(state *st, const collapse_plan *p, int32_t v) 
  * input silhouette vertex is only ever merged into one). */
 static bool seam_kept(state *st, const collapse_plan *p) {
     if (!owned_silhouette_kept(st, p, p->keep) || !owned_silhouette_kept(st, p, p->gone)) return false;
-    uint32_t mark = st->vstamp += 3;   /* each neighbour once; link_surface_ok leaves marks up to vstamp + 2 */
+    uint32_t mark = fresh_mark(st);   /* each neighbour once */
     for (int side = 0; side < 2; side++) {
         int32_t n;
         const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
@@ -1576,7 +1580,7 @@ static int32_t vertex_neighbours(state *st, int32_t v, int32_t at) {
     vfaces(st, v, &n);
     if (!grow_scratch(st, at + 2 * n + 2)) return 0;
     const int32_t *list = vfaces(st, v, &n);
-    uint32_t mark = ++st->vstamp;
+    uint32_t mark = fresh_mark(st);
     int32_t count = 0;
     for (int32_t i = 0; i < n; i++)
         for (int k = 0; k < 3; k++) {
@@ -1621,7 +1625,7 @@ static void requeue_around(state *st, int32_t keep, bool silhouette_changed) {
     }
     int32_t *set = st->touched, nt = 0;
     set[nt++] = keep;
-    uint32_t mark = ++st->vstamp;
+    uint32_t mark = fresh_mark(st);
     /* after an interior collapse only marked neighbours join keep: no need
      * to classify the spokes */
     for (int32_t i = 0; i < ns && !silhouette_changed; i++) {
@@ -2857,7 +2861,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 3,
+    .version = 4,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
