@@ -1246,10 +1246,17 @@ static int32_t face_across(const state *st, const collapse_plan *p, int32_t f, i
     return found;
 }
 
+static bool in_fan(const state *st, const collapse_plan *p, int32_t f) {
+    for (int k = 0; k < 3; k++)
+        if (st->fv[3 * f + k] == p->keep || st->fv[3 * f + k] == p->gone) return true;
+    return false;
+}
+
 /* With map_size (design note): every edge of the faces around keep and
  * gone after plan p whose two faces share its uv (a seam is no crease to
  * either side's texels) keeps its dihedral angle (radians) times the longer
- * texel span of the two faces (uv_stretch / map_size) within crease_limit. */
+ * texel span of the two faces (uv_stretch / map_size) within crease_limit.
+ * An edge between two faces of the fan is measured from the lower one. */
 static bool creases_ok(state *st, const collapse_plan *p) {
     fan_walk walk = {0};
     for (int32_t f; (f = fan_next(st, p, &walk)) >= 0;) {
@@ -1259,7 +1266,7 @@ static bool creases_ok(state *st, const collapse_plan *p) {
         triangle_normal(P[0], P[1], P[2], nf);
         for (int k = 0; k < 3; k++) {
             int32_t g = face_across(st, p, f, st->fv[3 * f + k], st->fv[3 * f + (k + 1) % 3]);
-            if (g < 0) continue;
+            if (g < 0 || (g < f && in_fan(st, p, g))) continue;
             planned_face(st, p, g, Q, X);
             const double *wa = W[k], *wb = W[(k + 1) % 3];
             int shared = 0;
@@ -1975,20 +1982,16 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         if (!(st->importance = sc_alloc_array((size_t)nv, sizeof(double))))
             return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
         for (int32_t v = 0; v < nv; v++) st->importance[v] = 1;
-        if (!(st->stretch = sc_alloc_array((size_t)nv, sizeof(double))))
+        if (!(st->stretch = sc_calloc_array((size_t)nv, sizeof(double))))
             return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
-        for (int32_t v = 0; v < nv; v++) st->stretch[v] = 0;
-        for (int32_t f = 0; f < nf; f++) {
-            const double *P[3], *W[3];
-            for (int k = 0; k < 3; k++) P[k] = st->pos + 3 * st->fv[3 * f + k], W[k] = st->zuv + 2 * st->fz[3 * f + k];
-            double sigma = uv_stretch(P, W);
-            for (int k = 0; k < 3; k++) {
-                int32_t v = st->fv[3 * f + k];
-                if (sigma > st->stretch[v]) st->stretch[v] = sigma;
-            }
-        }
     }
     for (int32_t f = 0; f < nf; f++) {
+        if (st->stretch) {   /* every face, flat ones too */
+            const double *S[3], *W[3];
+            for (int k = 0; k < 3; k++) S[k] = st->pos + 3 * st->fv[3 * f + k], W[k] = st->zuv + 2 * st->fz[3 * f + k];
+            double sigma = uv_stretch(S, W);
+            for (int k = 0; k < 3; k++) st->stretch[st->fv[3 * f + k]] = fmax(st->stretch[st->fv[3 * f + k]], sigma);
+        }
         double P[3][QDIM];
         for (int k = 0; k < 3; k++) scaled_point(st, st->fz[3 * f + k], P[k]);
         double n[3];

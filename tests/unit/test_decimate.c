@@ -817,7 +817,7 @@ static void map_size_bounds(sc_value *asset, const char *what, const char *max_e
                      stretch[1][k]);
         SC_CHECK_MSG(crease[1][k] <= 4e-3 * (1 + 1e-6), "%s level %d: crease %g", what, k, crease[1][k]);
     }
-    if (broken_without)   /* the bounds are not met by chance: level 0.1 without map_size breaks both */
+    if (broken_without)   /* the bounds are not met by chance: level 0.1 without map_size breaks all three */
         SC_CHECK(seam[0][1] > 10 * 5e-4 && stretch[0][1] > 2 * fmax(unit, input_stretch) && crease[0][1] > 10 * 4e-3);
 }
 
