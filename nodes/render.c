@@ -75,6 +75,17 @@
  *    welding moved nothing by more than the gap, under a pixel, so the two
  *    pictures differ only where a seam opens. A wider gap is not welded:
  *    moving a seam's sides by more than a pixel can fold a strip along it.
+ *    A pass whose seam gap is exactly 0 (every side at the same vertices:
+ *    the textured pass) of a level whose topology is the reference's (Euler
+ *    characteristic, components, boundary loops and non-manifold edges over
+ *    the faces' vertex indices: lod<k>.same_topology) has no seam open and no
+ *    hole the reference lacks, so nothing to see through: its back-face
+ *    pixels are fold_pixels too. Decimation keeps topology (its link
+ *    conditions), and its coarse levels do fold: BoomBox's 10% level tips a
+ *    thin open sheet on the lid over the silhouette, WaterBottle's 1% level
+ *    pushes its cap's ring through the body. A split or a hole changes the
+ *    topology (test_render: split_mesh_shows_cracks), and those back faces
+ *    stay cracks.
  *  - Views: orthographic, all framing one bounding sphere (the box of every
  *    level's and the reference's vertices, each also where the position
  *    modes draw it: the geometry image at its uv, itself plus the
@@ -176,6 +187,15 @@ typedef struct seam_trace {
 } seam_trace;
 
 /* One level, uploaded. */
+/* The surface's topology through its faces' vertex indices (seams share
+ * vertices, so they are no boundary): Euler characteristic V - E + F over
+ * the vertices faces use, connected components, boundary loops (components
+ * of the boundary edges' graph) and non-manifold edges. */
+typedef struct topology {
+    int64_t euler;
+    int32_t components, boundary_loops, nonmanifold_edges;
+} topology;
+
 typedef struct level_gl {
     const sc_atlas *atlas;
     const sc_mesh *mesh;
@@ -187,6 +207,7 @@ typedef struct level_gl {
     seam_corner *corners;       /* 2 per seam edge */
     bool closed;
     double diag;
+    topology topo;
 } level_gl;
 
 typedef struct uploaded {
@@ -563,6 +584,67 @@ static bool corner_data(const sc_mesh *m, const level_gl *L, const int32_t *slot
     return true;
 }
 
+static int32_t find_root(int32_t *parent, int32_t v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+}
+
+static int compare_i64(const void *a, const void *b) {
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The topology of m's faces (see topology); SC_ENOMEM when out of memory. */
+static int surface_topology(const sc_mesh *m, topology *t, sc_error *err) {
+    memset(t, 0, sizeof *t);
+    size_t ne = 3 * (size_t)m->nf;
+    int64_t *edges = malloc(ne * sizeof *edges);
+    int32_t *all = malloc(sizeof(int32_t) * (size_t)m->nv), *bnd = malloc(sizeof(int32_t) * (size_t)m->nv);
+    uint8_t *used = calloc((size_t)m->nv, 1);
+    if (!edges || !all || !bnd || !used) {
+        free(edges), free(all), free(bnd), free(used);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t v = 0; v < m->nv; v++) all[v] = bnd[v] = v;
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int q = 0; q < 3; q++) {
+            int32_t a = m->FV[3 * f + q], b = m->FV[3 * f + (q + 1) % 3];
+            used[a] = 1;
+            edges[3 * (size_t)f + q] = (int64_t)(a < b ? a : b) * m->nv + (a < b ? b : a);
+        }
+    qsort(edges, ne, sizeof *edges, compare_i64);
+    int64_t nedges = 0, nused = 0;
+    for (size_t i = 0, j; i < ne; i = j) {
+        for (j = i + 1; j < ne && edges[j] == edges[i]; j++) {}
+        int32_t a = (int32_t)(edges[i] / m->nv), b = (int32_t)(edges[i] % m->nv);
+        nedges++;
+        all[find_root(all, a)] = find_root(all, b);
+        if (j - i == 1) bnd[find_root(bnd, a)] = find_root(bnd, b);
+        if (j - i > 2) t->nonmanifold_edges++;
+    }
+    /* loops: the distinct roots in bnd of the boundary edges' ends (marked 2
+     * in used once counted) */
+    for (size_t i = 0, j; i < ne; i = j) {
+        for (j = i + 1; j < ne && edges[j] == edges[i]; j++) {}
+        if (j - i != 1) continue;
+        int32_t r = find_root(bnd, (int32_t)(edges[i] / m->nv));
+        if (used[r] == 1) used[r] = 2, t->boundary_loops++;
+    }
+    for (int32_t v = 0; v < m->nv; v++) {
+        if (!used[v]) continue;
+        nused++;
+        if (find_root(all, v) == v) t->components++;
+    }
+    t->euler = nused - nedges + m->nf;
+    free(edges), free(all), free(bnd), free(used);
+    return SC_OK;
+}
+
+static bool topology_equal(const topology *a, const topology *b) {
+    return a->euler == b->euler && a->components == b->components && a->boundary_loops == b->boundary_loops &&
+           a->nonmanifold_edges == b->nonmanifold_edges;
+}
+
 static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, level_gl *L, sc_error *err) {
     memset(L, 0, sizeof *L);
     L->atlas = atlas;
@@ -579,6 +661,7 @@ static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, lev
     rc = sc_seam_find(m, -1, &L->seams, err);
     if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
     L->closed = L->seams.nboundary == 0 && L->seams.nnonmanifold == 0;
+    if ((rc = surface_topology(m, &L->topo, err))) return sc_error_prefix(err, "%s", who);
     L->corners = calloc((size_t)L->seams.nseams * 2 + 1, sizeof *L->corners);
     if (!L->corners) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t e = 0; e < L->seams.nseams; e++)
@@ -1382,6 +1465,7 @@ typedef struct job {
     double max_cracks, max_gap;
     double pixels_per_unit;   /* view scale: size / (2 radius) */
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
+    topology reference_topology;   /* when reference is not NULL */
 } job;
 
 /* Whether pixel (x, y) is the only back-face pixel of its 3 x 3 block. */
@@ -1463,6 +1547,10 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
      * picture differs from this one only where a seam opens (a wider gap,
      * welded, could fold a strip along the seam itself) */
     bool weld_check = ps->pos != POS_BASE && (L->closed || J->reference) && gap_pixels < 1.0;
+    /* no seam open (the gap is exactly 0: every side at the same vertices)
+     * and no hole the reference lacks (its topology): nothing to see
+     * through, so back faces come from folds */
+    bool no_opening = gap.gap == 0 && J->reference && topology_equal(&L->topo, &J->reference_topology);
     for (int v = 0; v < J->nviews; v++) {
         t0 = sc_now();
         rc = draw(R, L, ps, &J->views[v], false, err);
@@ -1476,7 +1564,10 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         if (rc != SC_OK) return rc;
         sheet_put(sh, row, v, R->rgba, J->size);
         o->renders++;
-        if (cracks > 0 && weld_check) {
+        if (no_opening) {
+            folds += cracks;
+            cracks = 0;
+        } else if (cracks > 0 && weld_check) {
             /* the same pass with every seam welded shut: a crack pixel that
              * shows a back face there too is a fold, not an opening seam */
             t0 = sc_now();
@@ -1527,6 +1618,7 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
         return rc;
     }
     size_t n = (size_t)J->size * (size_t)J->size;
+    J->reference_topology = L.topo;
     J->reference = calloc((size_t)J->nviews, n);
     if (!J->reference) {
         level_free(&L);
@@ -1673,7 +1765,9 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
         return rc;
     }
     if (metricf(o, L.mesh->nf, "%s.faces", k->metric) || metricf(o, L.seams.nseams, "%s.seam_edges", k->metric) ||
-        metricf(o, L.closed ? 1 : 0, "%s.closed", k->metric)) {
+        metricf(o, L.closed ? 1 : 0, "%s.closed", k->metric) ||
+        (J->reference && metricf(o, topology_equal(&L.topo, &J->reference_topology) ? 1 : 0,
+                                 "%s.same_topology", k->metric))) {
         level_free(&L);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
@@ -1963,7 +2057,7 @@ static const sc_port_desc outputs[] = {
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 6,
+    .version = 7,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

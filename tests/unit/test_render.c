@@ -30,7 +30,9 @@ enum {
     CUBE_SPLIT = 4,        /* face 0 has its own vertices, slid by 0.08 along y */
     CUBE_OPEN = 8,         /* face 0 removed */
     CUBE_NO_POSITIONS = 16,/* colour texture only */
-    CUBE_HAIRLINE = 32     /* with CUBE_GI_SEAMS: a tenth of the offset */
+    CUBE_HAIRLINE = 32,    /* with CUBE_GI_SEAMS: a tenth of the offset */
+    CUBE_FOLD = 64         /* one cell of face 1 (x = -1) turned over (its two triangles
+                              wound the other way): a fold, the same topology */
 };
 
 static const int face_origin[6][3] = {{1, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 0, 0}, {0, 0, 1}, {0, 0, 0}};
@@ -137,7 +139,9 @@ static sc_value *cube_atlas(int n, int flags, const cube_textures *tex) {
         for (int b = 0; b < n; b++)
             for (int a = 0; a < n; a++) {
                 int c[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
+                bool turned = (flags & CUBE_FOLD) && f == 1 && a == n / 2 && b == n / 2;
                 int tri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+                if (turned) tri[0][1] = 2, tri[0][2] = 1, tri[1][1] = 3, tri[1][2] = 2;
                 for (int t = 0; t < 2; t++, face++)
                     for (int k = 0; k < 3; k++) {
                         int q = tri[t][k];
@@ -366,7 +370,19 @@ SC_TEST(split_mesh_shows_cracks) {
     SC_CHECK_MSG(M(&r, "lod0.textured.crack_pixels") > 50, "%g", M(&r, "lod0.textured.crack_pixels"));
     /* split along a boundary: no longer closed */
     SC_CHECK(M(&r, "lod0.closed") == 0);
+    double alone = M(&r, "lod0.textured.crack_pixels");
     sc_ctx_free(r.ctx);
+
+    /* against the unsplit cube: a boundary the reference lacks, so the
+     * textured pass's gap of 0 hides nothing */
+    sc_value *whole = cube_atlas(4, CUBE_NO_POSITIONS, &tex);
+    r = render(NULL, cube, whole, (const char *const[]){"size", "128", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.same_topology") == 0);
+    SC_CHECK_MSG(M(&r, "lod0.textured.crack_pixels") == alone, "%g", M(&r, "lod0.textured.crack_pixels"));
+    SC_CHECK(M(&r, "lod0.textured.fold_pixels") == 0);
+    sc_ctx_free(r.ctx);
+    sc_value_release(whole);
 
     /* the limit fails the cook and names the LOD, the mode and the view */
     r = render(NULL, cube, NULL, (const char *const[]){"size", "128", "max_crack_pixels", "0", NULL});
@@ -377,6 +393,54 @@ SC_TEST(split_mesh_shows_cracks) {
     SC_CHECK(sc_ctx_output(r.ctx, 0) == NULL);
     sc_ctx_free(r.ctx);
     sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
+/* Faces turned over with nothing opened (the textured pass's gap is 0, the
+ * topology the reference's) show back faces: folds, not cracks. */
+SC_TEST(fold_with_the_references_topology_is_not_a_crack) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *closed = cube_atlas(4, CUBE_NO_POSITIONS, &tex);
+    sc_value *folded = cube_atlas(4, CUBE_NO_POSITIONS | CUBE_FOLD, &tex);
+    const char *const p[] = {"size", "128", NULL};
+
+    /* alone, its back faces count */
+    run_result r = render(NULL, folded, NULL, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    double alone = M(&r, "lod0.textured.crack_pixels");
+    SC_CHECK_MSG(alone > 10, "%g", alone);
+    SC_CHECK(M(&r, "lod0.closed") == 1);
+    sc_ctx_free(r.ctx);
+
+    /* against the unfolded cube: the same pixels, as folds */
+    r = render(NULL, folded, closed, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.same_topology") == 1);
+    SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
+    SC_CHECK_MSG(M(&r, "lod0.textured.fold_pixels") == alone, "%g", M(&r, "lod0.textured.fold_pixels"));
+    sc_ctx_free(r.ctx);
+
+    /* the same fold in an open cube, against the open cube */
+    sc_value *open = cube_atlas(4, CUBE_NO_POSITIONS | CUBE_OPEN, &tex);
+    sc_value *open_folded = cube_atlas(4, CUBE_NO_POSITIONS | CUBE_OPEN | CUBE_FOLD, &tex);
+    r = render(NULL, open_folded, open, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.closed") == 0 && M(&r, "lod0.same_topology") == 1);
+    SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
+    SC_CHECK_MSG(M(&r, "lod0.textured.fold_pixels") > 10, "%g", M(&r, "lod0.textured.fold_pixels"));
+    sc_ctx_free(r.ctx);
+
+    /* against a reference of another topology (the open cube has a hole the
+     * folded closed one lacks) the rule does not apply */
+    r = render(NULL, folded, open, p);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.same_topology") == 0);
+    SC_CHECK_MSG(M(&r, "lod0.textured.crack_pixels") == alone, "%g", M(&r, "lod0.textured.crack_pixels"));
+    sc_ctx_free(r.ctx);
+    sc_value_release(open_folded);
+    sc_value_release(open);
+    sc_value_release(folded);
+    sc_value_release(closed);
     cube_textures_free(&tex);
 }
 
