@@ -40,8 +40,17 @@
  *  - Levels not erased. Where an atlas's charts fall under a texel, the
  *    seams tie texels all over the level together and no ordering keeps
  *    the factor sparse: pizza's 4,740 charts at 1024^2 (440k unknowns, 4M
- *    entries) would need a factor of 2.0e9 entries under AMD, 1.2e9 under
- *    METIS (~10 GB, 3e13 flops), past CHOLMOD's 32-bit limit. Such a level
+ *    entries) would need a factor of 2.0e9 entries under AMD, 1.24e9 under
+ *    METIS (~20 GB, 2.8e13 flops); at 512^2 (159k unknowns) METIS's 8.3e8
+ *    entries took 294 s and 14.3 GB; both are past sc_sparse's limit of
+ *    6e8 entries. 256^2 (50k unknowns) factors with METIS in 61 s (2.8e8
+ *    entries; AMD: 184 s), 128^2 in 12 s. Iterations do not reach the same
+ *    answer in less: conjugate gradients with Jacobi (and every component's
+ *    constant deflated, which the penalty's rounding leaves behind) match
+ *    the factorisation to 1e-6 at 128^2 and 256^2 (13k iterations), but at
+ *    512^2 stall at a residual of 1e-7 after 20k; incomplete Cholesky needs
+ *    a large shift and gains less than 2x, and factors of Q with its weak
+ *    couplings dropped fill as badly. Such a level
  *    fails with a message naming `erase_min_size`: levels whose sides are
  *    both below it are box-averaged (DATA maps as above) but not erased
  *    (counted: levels_not_erased); their seam energies are reported like

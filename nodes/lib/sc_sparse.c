@@ -719,6 +719,16 @@ static int cholmod_status_error(const cholmod_common *c, const char *what, sc_er
  * OpenBLAS's result does not depend on its thread count. Found once; a BLAS
  * without these entry points is left as it is. */
 #define BLAS_THREADS_FROM 1e10
+/* AMD ordering: where its factorisation would take more flops than this, or
+ * does not fit CHOLMOD's 32-bit sizes, METIS is tried as well (pizza's
+ * 1024^2 mip level: AMD 2.0e9 entries, too large; METIS 1.24e9, 2.8e13
+ * flops. Its 256^2 level: AMD 5.8e12 flops, 184 s; METIS 3.6e12, 61 s) */
+#define METIS_FROM_FLOPS 1e12
+/* The most entries a factor may hold: CHOLMOD's supernodal factorisation
+ * peaks at ~17 bytes an entry (pizza's 512^2 level, 8.3e8 entries: 14.3 GB,
+ * 294 s), and a factor past this would not fit beside the rest on a 24 GB
+ * machine; such a system fails as too large instead of running out of memory */
+#define MAX_FACTOR_ENTRIES 6e8
 
 static void (*blas_set_threads)(int);
 static int blas_threads_default = 1;
@@ -774,8 +784,32 @@ int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt, sc_s
     cholmod_sparse A;
     header(a, &A);
     f->L = cholmod_analyze(&A, &f->common);
+    double fl = f->common.fl, lnz = f->common.lnz;
+    bool amd = opt && opt->ordering == SC_SPARSE_ORDER_AMD;
+    if (amd && (f->L ? fl > METIS_FROM_FLOPS : f->common.status == CHOLMOD_TOO_LARGE)) {
+        /* AMD's factor is huge or past CHOLMOD's 32-bit sizes: METIS too,
+         * and the cheaper of the two */
+        int keep_status = f->common.status;
+        f->common.method[0].ordering = CHOLMOD_METIS;
+        f->common.status = CHOLMOD_OK;
+        cholmod_factor *L2 = cholmod_analyze(&A, &f->common);
+        if (L2 && (!f->L || f->common.fl < fl)) {
+            if (f->L) cholmod_free_factor(&f->L, &f->common);
+            f->L = L2, fl = f->common.fl, lnz = f->common.lnz;
+        } else {
+            if (L2) cholmod_free_factor(&L2, &f->common);
+            if (!f->L) f->common.status = keep_status;
+        }
+        f->common.fl = fl, f->common.lnz = lnz;
+    }
     if (!f->L) {
         int rc = cholmod_status_error(&f->common, "sparse analysis", err);
+        sc_sparse_chol_free(f);
+        return rc;
+    }
+    if (lnz > MAX_FACTOR_ENTRIES) {
+        int rc = sc_fail(err, SC_ENOMEM, "sparse analysis: problem too large (a factor of %.3g entries, %.3g flops; "
+                         "the limit is %.3g entries)", lnz, fl, MAX_FACTOR_ENTRIES);
         sc_sparse_chol_free(f);
         return rc;
     }
@@ -1064,6 +1098,11 @@ void sc_sparse_chol_free(sc_sparse_chol *f) {
     free(f);
 }
 
+/* The inertia count's L D L^T is simplicial (one thread, ~1 Gflop/s): past
+ * this it declines (pizza's 256^2 mip level: its 50k seam texels tie the
+ * level together, and the count ran for over 20 minutes) */
+#define INERTIA_MAX_FLOPS 2e10
+
 int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count, sc_error *err) {
     *count = 0;
     if (!a || a->n <= 0) return SC_OK;
@@ -1077,6 +1116,13 @@ int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count,
     cholmod_factor *L = cholmod_analyze(&A, &c);
     if (!L) {
         int rc = cholmod_status_error(&c, "inertia analysis", err);
+        cholmod_finish(&c);
+        return rc;
+    }
+    if (c.fl > INERTIA_MAX_FLOPS) {
+        int rc = sc_fail(err, SC_ENOMEM, "inertia: the factorisation would take %.3g flops (limit %.3g)", c.fl,
+                         INERTIA_MAX_FLOPS);
+        cholmod_free_factor(&L, &c);
         cholmod_finish(&c);
         return rc;
     }

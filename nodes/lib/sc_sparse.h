@@ -145,7 +145,11 @@ typedef struct sc_sparse_chol sc_sparse_chol;
 
 /* Analyse and factor A (n x n, symmetric positive definite; its upper
  * triangle, or a full pattern, whose lower entries are not read). opt may be
- * NULL for the defaults. On failure *out is NULL and err says why. */
+ * NULL for the defaults. With the AMD ordering, METIS is tried too where
+ * AMD's factorisation would take over 1e12 flops or not fit CHOLMOD's
+ * 32-bit sizes, and the cheaper one is kept. A factor of more than 6e8
+ * entries is refused (SC_ENOMEM, "problem too large") before it is made.
+ * On failure *out is NULL and err says why. */
 int sc_sparse_chol_factor(const sc_sparse *a, const sc_sparse_options *opt,
                           sc_sparse_chol **out, sc_error *err);
 /* Solve A X = B for nrhs right-hand sides at once: b holds n x nrhs values,
@@ -162,7 +166,9 @@ void sc_sparse_chol_free(sc_sparse_chol *f);
 
 /* Inertia count: the number of eigenvalues of the symmetric A that are below
  * `shift` (Sylvester's law on an LDL^T factorisation of A - shift I). Used to
- * measure numerical null spaces (nullity = eigenvalues below a tolerance). */
+ * measure numerical null spaces (nullity = eigenvalues below a tolerance).
+ * Declines (SC_ENOMEM) where the factorisation would take more than 2e10
+ * flops. */
 int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count, sc_error *err);
 
 /* An upper bound of the largest |eigenvalue| (largest absolute row sum). */

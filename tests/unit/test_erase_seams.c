@@ -790,6 +790,37 @@ SC_TEST(sparse_not_positive_definite) {
     sc_triplets_free(&t);
 }
 
+/* A graph of random links (an expander: no ordering keeps its factor
+ * sparse) is refused before its factorisation, by the factor's size and by
+ * the inertia count's flops, with messages that say why. */
+SC_TEST(sparse_expander_is_too_large) {
+    const int32_t n = 100000;   /* AMD: 7.3e8 entries, 1.8e13 flops; METIS: 8.8e8 */
+    sc_triplets t;
+    sc_triplets_init(&t, n);
+    uint64_t state = 12345;
+    for (int32_t i = 0; i < n; i++) {
+        sc_triplets_add(&t, i, i, 7.0);
+        for (int k = 0; k < 3; k++) {
+            state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+            int32_t j = (int32_t)((state >> 33) % (uint64_t)n);
+            if (j != i) sc_triplets_add(&t, i, j, -1.0);
+        }
+    }
+    sc_sparse a;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_sparse_from_triplets(&t, &a, &err), SC_OK);
+    sc_triplets_free(&t);
+    sc_sparse_chol *f = NULL;
+    sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+    SC_CHECK_INT(sc_sparse_chol_factor(&a, &opt, &f, &err), SC_ENOMEM);
+    SC_CHECK(f == NULL);
+    SC_CHECK_MSG(strstr(err.message, "problem too large") && strstr(err.message, "entries"), "%s", err.message);
+    int64_t below = -1;
+    SC_CHECK_INT(sc_sparse_count_eigs_below(&a, 1.0, &below, &err), SC_ENOMEM);
+    SC_CHECK_MSG(strstr(err.message, "flops") != NULL, "%s", err.message);
+    sc_sparse_free(&a);
+}
+
 /* ================================================================ analytic D */
 
 typedef struct pair_case {
