@@ -114,10 +114,12 @@ static int run_asset(void *ud, int out) {
                atlas->as.atlas->mesh->as.mesh->nf, t_bake, t_mip, t_bake + t_mip, m(bake, "reconstruction_error"),
                m(mip, "seam_energy"));
     if (bake)
-        printf("       bake: geometry image error %.3g, texels %.0f covered %.0f shared; raster %.2f s, fit %.2f s "
+        printf("       bake: geometry image same-uv error max %.3g p99 %.3g rms %.3g, texels %.0f covered %.0f shared; "
+               "raster %.2f s, fit %.2f s "
                "(sampling %.2f s: %.0f samples in %.0f cells, solve %.2f s: %.0f cells, %.0f iterations), erase "
                "%.2f s, metrics %.2f s\n",
-               m(bake, "geometry_image_error"), m(bake, "texels_covered"), m(bake, "texels_shared"),
+               m(bake, "geometry_image_error"), m(bake, "geometry_image_error_p99"),
+               m(bake, "geometry_image_error_rms"), m(bake, "texels_covered"), m(bake, "texels_shared"),
                m(bake, "seconds_raster"), m(bake, "seconds_fit"), m(bake, "seconds_fit_sample"), m(bake, "fit_samples"),
                m(bake, "fit_cells_inexact"), m(bake, "seconds_fit_solve"), m(bake, "fit_cells_solved"),
                m(bake, "fit_iterations"), m(bake, "seconds_erase"), m(bake, "seconds_metrics"));
