@@ -1701,11 +1701,6 @@ static void state_free(state *st) {
     free(st->importance), free(st->stretch), free(st->input_z_first), free(st->input_z_next), free(st->input_zuv);
 }
 
-static int32_t find_root(int32_t *parent, int32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-}
-
 /* Classify the fan of n faces around a centre; face i's two spokes (the ids
  * of its other corners) are spokes[2i], spokes[2i + 1]. Returns the number
  * of boundary spokes (0 or 2), or -1 when the fan is not a single disk or
@@ -1719,7 +1714,7 @@ static int classify_fan(const int32_t *spokes, int32_t n, int32_t *count, int32_
         count[x]++;
         if (first[x] < 0) first[x] = j / 2;
         else {
-            int32_t r1 = find_root(parent, j / 2), r2 = find_root(parent, first[x]);
+            int32_t r1 = sc_set_root(parent, j / 2), r2 = sc_set_root(parent, first[x]);
             if (r1 != r2) parent[r1 > r2 ? r1 : r2] = r1 < r2 ? r1 : r2;
         }
     }

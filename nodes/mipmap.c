@@ -197,11 +197,6 @@ static bool inside(const double x[3], const double y[3], double d, double px, do
     return d > 0 ? (e0 >= 0 && e1 >= 0 && e2 >= 0) : (e0 <= 0 && e1 <= 0 && e2 <= 0);
 }
 
-static int32_t uf_find(int32_t *parent, int32_t a) {
-    while (parent[a] != a) parent[a] = parent[parent[a]], a = parent[a];
-    return a;
-}
-
 /* The nearest-face pass of data_band0 on texel rows [chunk * BAND_ROWS, ...):
  * every face in face order, so each texel sees the serial sequence of
  * updates (ties to the lower face) on any thread count. A texel held at
@@ -276,7 +271,7 @@ static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_
     for (int32_t f = 0; f < m->nf; f++)
         if (m->FM[f] == material)
             for (int k = 1; k < 3; k++) {
-                int32_t a = uf_find(parent, m->FU[3 * f]), b = uf_find(parent, m->FU[3 * f + k]);
+                int32_t a = sc_set_root(parent, m->FU[3 * f]), b = sc_set_root(parent, m->FU[3 * f + k]);
                 if (a != b) parent[a > b ? a : b] = a < b ? a : b;
             }
     /* copies of one chart (levels of detail in a union) overlap: texel centres
@@ -298,14 +293,14 @@ static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_
             for (int64_t i = i0; i <= i1; i++) {
                 if (!inside(x, y, d, (double)i, (double)j)) continue;
                 size_t t = (size_t)sc_seam_wrap(j, H, wv) * W + sc_seam_wrap(i, W, wu);
-                int32_t a = uf_find(parent, m->FU[3 * f]), b = label[t] >= 0 ? uf_find(parent, label[t]) : a;
+                int32_t a = sc_set_root(parent, m->FU[3 * f]), b = label[t] >= 0 ? sc_set_root(parent, label[t]) : a;
                 if (a != b) parent[a > b ? a : b] = a < b ? a : b;
                 label[t] = a < b ? a : b;
             }
         }
     }
     for (int32_t f = 0; f < m->nf; f++) {
-        int32_t root = m->FM[f] == material ? uf_find(parent, m->FU[3 * f]) : -1;
+        int32_t root = m->FM[f] == material ? sc_set_root(parent, m->FU[3 * f]) : -1;
         if (root >= 0 && chart[root] < 0) chart[root] = f;
     }
     int32_t *fid = malloc(((size_t)m->nf + 1) * sizeof *fid);   /* each face's chart */
@@ -313,7 +308,7 @@ static int32_t *data_band0(const sc_mesh *m, int32_t material, int32_t W, int32_
         free(label), free(best), free(parent), free(chart);
         return NULL;
     }
-    for (int32_t f = 0; f < m->nf; f++) fid[f] = m->FM[f] == material ? chart[uf_find(parent, m->FU[3 * f])] : -1;
+    for (int32_t f = 0; f < m->nf; f++) fid[f] = m->FM[f] == material ? chart[sc_set_root(parent, m->FU[3 * f])] : -1;
     for (size_t t = 0; t < (size_t)W * H; t++) label[t] = -1, best[t] = INFINITY;
     band_job job = {m, material, W, H, wu, wv, r, fid, label, best};
     int rc = sc_seam_parallel(threads, (H + BAND_ROWS - 1) / BAND_ROWS, band_rows, &job);

@@ -584,11 +584,6 @@ static bool corner_data(const sc_mesh *m, const level_gl *L, const int32_t *slot
     return true;
 }
 
-static int32_t find_root(int32_t *parent, int32_t v) {
-    while (parent[v] != v) v = parent[v] = parent[parent[v]];
-    return v;
-}
-
 static int compare_i64(const void *a, const void *b) {
     int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
     return (x > y) - (x < y);
@@ -600,16 +595,16 @@ static int surface_topology(const sc_mesh *m, topology *t, sc_error *err) {
     size_t ne = 3 * (size_t)m->nf;
     int64_t *edges = malloc(ne * sizeof *edges);
     int32_t *all = malloc(sizeof(int32_t) * (size_t)m->nv), *bnd = malloc(sizeof(int32_t) * (size_t)m->nv);
-    uint8_t *used = calloc((size_t)m->nv, 1);
-    if (!edges || !all || !bnd || !used) {
-        free(edges), free(all), free(bnd), free(used);
+    uint8_t *use = calloc((size_t)m->nv, 1);   /* 1: a face uses it, 2: a boundary edge too */
+    if (!edges || !all || !bnd || !use) {
+        free(edges), free(all), free(bnd), free(use);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     for (int32_t v = 0; v < m->nv; v++) all[v] = bnd[v] = v;
     for (int32_t f = 0; f < m->nf; f++)
         for (int q = 0; q < 3; q++) {
             int32_t a = m->FV[3 * f + q], b = m->FV[3 * f + (q + 1) % 3];
-            used[a] = 1;
+            use[a] = 1;
             edges[3 * (size_t)f + q] = (int64_t)(a < b ? a : b) * m->nv + (a < b ? b : a);
         }
     qsort(edges, ne, sizeof *edges, compare_i64);
@@ -618,25 +613,22 @@ static int surface_topology(const sc_mesh *m, topology *t, sc_error *err) {
         for (j = i + 1; j < ne && edges[j] == edges[i]; j++) {}
         int32_t a = (int32_t)(edges[i] / m->nv), b = (int32_t)(edges[i] % m->nv);
         nedges++;
-        all[find_root(all, a)] = find_root(all, b);
-        if (j - i == 1) bnd[find_root(bnd, a)] = find_root(bnd, b);
+        all[sc_set_root(all, a)] = sc_set_root(all, b);
+        if (j - i == 1) {
+            bnd[sc_set_root(bnd, a)] = sc_set_root(bnd, b);
+            use[a] = use[b] = 2;
+        }
         if (j - i > 2) t->nonmanifold_edges++;
     }
-    /* loops: the distinct roots in bnd of the boundary edges' ends (marked 2
-     * in used once counted) */
-    for (size_t i = 0, j; i < ne; i = j) {
-        for (j = i + 1; j < ne && edges[j] == edges[i]; j++) {}
-        if (j - i != 1) continue;
-        int32_t r = find_root(bnd, (int32_t)(edges[i] / m->nv));
-        if (used[r] == 1) used[r] = 2, t->boundary_loops++;
-    }
+    /* boundary loops: the sets of bnd that hold a boundary edge */
     for (int32_t v = 0; v < m->nv; v++) {
-        if (!used[v]) continue;
+        if (!use[v]) continue;
         nused++;
-        if (find_root(all, v) == v) t->components++;
+        if (sc_set_root(all, v) == v) t->components++;
+        if (use[v] == 2 && sc_set_root(bnd, v) == v) t->boundary_loops++;
     }
     t->euler = nused - nedges + m->nf;
-    free(edges), free(all), free(bnd), free(used);
+    free(edges), free(all), free(bnd), free(use);
     return SC_OK;
 }
 

@@ -336,24 +336,19 @@ static int64_t count_collapsible(const topology *t, const double *U) {
 
 /* ---------------------------------------------------------------- charts */
 
-static int32_t find_root(int32_t *parent, int32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-}
-
 /* chart[u]: the smallest uv index of u's connected component of the
  * parameter mesh (faces joined through shared uv indices). */
 static void uv_charts(const sc_mesh *m, int32_t *chart) {
     for (int32_t u = 0; u < m->nu; u++) chart[u] = u;
     for (int32_t f = 0; f < m->nf; f++) {
-        int32_t r0 = find_root(chart, m->FU[3 * f]);
+        int32_t r0 = sc_set_root(chart, m->FU[3 * f]);
         for (int k = 1; k < 3; k++) {
-            int32_t r = find_root(chart, m->FU[3 * f + k]);
+            int32_t r = sc_set_root(chart, m->FU[3 * f + k]);
             if (r < r0) chart[r0] = r, r0 = r;
             else if (r > r0) chart[r] = r0;
         }
     }
-    for (int32_t u = 0; u < m->nu; u++) chart[u] = find_root(chart, u);
+    for (int32_t u = 0; u < m->nu; u++) chart[u] = sc_set_root(chart, u);
 }
 
 /* ---------------------------------------------------------------- chains and RDP */

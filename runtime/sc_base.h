@@ -3,6 +3,7 @@
  *   sc_error   an error as a value: a code and a message, filled by the callee.
  *   sc_buf     a growable byte buffer, owned by the caller (sc_buf_free).
  *   sc_digest  a SHA-256 digest (OpenSSL), printed as 64 lower-case hex digits.
+ *   sc_set_root  union-find over an int32 parent array.
  *
  * Convention: a function that can fail returns int (0 = ok, non-zero = the
  * error code) and takes `sc_error *err` last; on failure it fills err. err may
@@ -55,6 +56,15 @@ char *sc_strdup(const char *s);
 char *sc_strndup(const char *s, size_t n);
 /* printf into a new heap string (caller frees). */
 char *sc_strprintf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* ---------------------------------------------------------------- disjoint sets */
+
+/* The root of x's set in a union-find forest (parent[i] == i at a root),
+ * halving the path on the way; join two sets by parent[root_a] = root_b. */
+static inline int32_t sc_set_root(int32_t *parent, int32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+}
 
 /* ---------------------------------------------------------------- buffer */
 
