@@ -17,7 +17,7 @@
 #ifndef SC_CACHE_H
 #define SC_CACHE_H
 
-#include "../runtime/sc_base.h"
+#include "sc_base.h"
 
 typedef struct sc_cache sc_cache;
 

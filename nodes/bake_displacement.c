@@ -113,7 +113,6 @@
 #include <string.h>
 
 #include "sc_atlas_ops.h"
-#include "sc_exec.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
@@ -1249,10 +1248,6 @@ static sc_value *atlas_with(const sc_atlas *src, const char *slot_a, sc_value *c
     return sc_value_new_atlas(a);
 }
 
-/* erase_seams's terms for positions: no E_C1 (the two sides of a seam map
- * uv to the surface with their own Jacobians, so a geometry image has no
- * reason to be C1 across it). */
-static const char *const erase_params[] = {"w_c1", "0", NULL};
 
 /* Erase images[0..nmat) (one per material) on `mesh`; replaces them. */
 static int erase_maps(sc_value *mesh, sc_value **images, const sc_seam_grid *grids, int32_t nmat,
@@ -1262,7 +1257,15 @@ static int erase_maps(sc_value *mesh, sc_value **images, const sc_seam_grid *gri
     int rc = maps && out ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t k = 0; k < nmat && rc == SC_OK; k++)
         maps[k] = (sc_atlas_ops_map){k, grids[k].wrap_u, grids[k].wrap_v, images[k]};
-    if (rc == SC_OK) rc = sc_atlas_ops_erase(mesh, maps, nmat, gap_tolerance, "none", erase_params, threads, out, NULL, err);
+    /* erase_seams's terms for positions, less E_C1: the two sides of a seam map
+     * uv to the surface with their own Jacobians, so a geometry image has no
+     * reason to be C1 across it */
+    sc_erase_options o;
+    sc_erase_defaults(&o);
+    o.w_c1 = 0;
+    o.gap_tolerance = gap_tolerance;
+    o.quantize = SC_ERASE_QUANTIZE_NONE;
+    if (rc == SC_OK) rc = sc_atlas_ops_erase(mesh->as.mesh, maps, nmat, &o, threads, out, NULL, err);
     for (int32_t k = 0; k < nmat && rc == SC_OK; k++) {
         sc_value_release(images[k]);
         images[k] = out[k];
@@ -2181,6 +2184,8 @@ static const sc_port_desc outputs[] = {
      .doc = "every level plus the shared geometry_image and its own displacement (f32 RGB, original - level)"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_hausdorff, &sc_kernel_seam, NULL};
+
 const sc_node_desc sc_node_bake_displacement = {
     .type = "bake_displacement",
     .version = 8,
@@ -2192,4 +2197,5 @@ const sc_node_desc sc_node_bake_displacement = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

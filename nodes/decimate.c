@@ -2857,6 +2857,8 @@ static const sc_port_desc outputs[] = {
      .doc = "one textureless atlas per target, each decimated from the one before, all in the input's uv layout"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quadric, NULL};
+
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
     .version = 4,
@@ -2868,4 +2870,5 @@ const sc_node_desc sc_node_decimate = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

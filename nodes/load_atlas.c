@@ -483,6 +483,8 @@ static const sc_port_desc outputs[] = {
     {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the mesh and its textures"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, &sc_kernel_obj, NULL};
+
 const sc_node_desc sc_node_load_atlas = {
     .type = "load_atlas",
     .version = 1,
@@ -492,4 +494,5 @@ const sc_node_desc sc_node_load_atlas = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

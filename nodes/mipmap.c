@@ -103,7 +103,6 @@
 #include <string.h>
 
 #include "sc_atlas_ops.h"
-#include "sc_exec.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
@@ -508,7 +507,7 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
 typedef struct erase_settings {
     int32_t min_size;            /* erase_min_size */
     double gap_tolerance, level0_gap;
-    const char *const *params;   /* erase_seams's own: w_seam */
+    sc_erase_options erase;      /* sc_erase's: the defaults, with w_seam and gap_tolerance */
     int threads;
 } erase_settings;
 
@@ -564,8 +563,7 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
     }
     if (seams_material >= 0) sc_seam_set_free(&seams);
     if (rc == SC_OK && nerase > 0) {
-        rc = sc_atlas_ops_erase(mesh, maps, nerase, es->gap_tolerance, NULL, es->params, es->threads, f32, native,
-                                err);
+        rc = sc_atlas_ops_erase(mesh->as.mesh, maps, nerase, &es->erase, es->threads, f32, native, err);
         if (rc == SC_OK) {
             counts->runs++;
             for (int i = 0; i < nerase; i++) chains[which[i]]->f32[m] = f32[i], chains[which[i]]->native[m] = native[i];
@@ -753,11 +751,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (nsrc < 1) return sc_fail(err, SC_EINPUT, "lods: the list is empty");
     const int32_t min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
     const int threads = sc_ctx_threads(ctx);
-    char stiffness[64];
-    snprintf(stiffness, sizeof stiffness, "%.17g", sc_ctx_number(ctx, "w_seam"));
-    const char *const erase_params[] = {"w_seam", stiffness, NULL};
-    const erase_settings es = {(int32_t)sc_ctx_integer(ctx, "erase_min_size"), sc_ctx_number(ctx, "gap_tolerance"),
-                               sc_ctx_number(ctx, "level0_gap"), erase_params, threads};
+    erase_settings es = {(int32_t)sc_ctx_integer(ctx, "erase_min_size"), sc_ctx_number(ctx, "gap_tolerance"),
+                         sc_ctx_number(ctx, "level0_gap"), .threads = threads};
+    sc_erase_defaults(&es.erase);
+    es.erase.w_seam = sc_ctx_number(ctx, "w_seam");
+    es.erase.gap_tolerance = es.gap_tolerance;
     const sc_atlas **src = calloc((size_t)nsrc, sizeof *src);
     if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
     int rc = SC_OK;
@@ -989,6 +987,8 @@ static const sc_port_desc outputs[] = {
      .doc = "mip/<material>_<slot>.exr (tiled, mip-mapped), mip/<material>_<slot>_level<m>.png, seam energies"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imageio, &sc_kernel_seam, NULL};
+
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
     .version = 9,
@@ -1000,4 +1000,5 @@ const sc_node_desc sc_node_mipmap = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

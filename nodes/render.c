@@ -2047,6 +2047,8 @@ static const sc_port_desc outputs[] = {
      .doc = "render/lod<k>_<mode>_<view>.png, render/lod<k>_sheet.png, crack and seam-gap metrics"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, &sc_kernel_imageio, &sc_kernel_seam, NULL};
+
 const sc_node_desc sc_node_render = {
     .type = "render",
     .version = 7,
@@ -2058,4 +2060,5 @@ const sc_node_desc sc_node_render = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

@@ -409,6 +409,8 @@ static const sc_port_desc outputs[] = {
     {.name = "files", .kind = SC_KIND_REPORT, .doc = "the files, for the engine to write into --out"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_imageio, NULL};
+
 const sc_node_desc sc_node_save = {
     .type = "save",
     .version = 1,
@@ -420,4 +422,5 @@ const sc_node_desc sc_node_save = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

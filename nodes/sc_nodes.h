@@ -1,5 +1,5 @@
 /* sc_nodes.h - the node descriptors seamcook ships. Each is defined in its own
- * file in nodes/ and listed once in runtime/sc_registry.c. */
+ * file in nodes/ and listed once in app/sc_registry.c. */
 #ifndef SC_NODES_H
 #define SC_NODES_H
 

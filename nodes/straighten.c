@@ -113,7 +113,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_exec.h"
+#include "sc_erase.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
 #include "sc_sparse.h"
@@ -914,16 +914,16 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
     return m;
 }
 
-static int erase_atlas(sc_value *atlas, int threads, sc_value **out, sc_error *err) {
-    sc_ctx *ctx = sc_ctx_new(&sc_node_erase_seams, NULL, NULL);
-    if (!ctx) return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-    int rc = sc_ctx_set_input(ctx, "atlas", atlas);
-    if (rc == SC_OK) rc = sc_ctx_set_param(ctx, "quantize", "none", err);
-    if (rc == SC_OK) sc_ctx_set_threads(ctx, threads);
-    if (rc == SC_OK) rc = sc_ctx_run(ctx, err);
-    if (rc == SC_OK) *out = sc_value_retain(sc_ctx_output(ctx, 0));
-    else sc_error_prefix(err, "straighten: erase_seams");
-    sc_ctx_free(ctx);
+static int erase_atlas(const sc_value *atlas, int threads, sc_value **out, sc_error *err) {
+    sc_erase_options o;
+    sc_erase_defaults(&o);
+    o.quantize = SC_ERASE_QUANTIZE_NONE;
+    const sc_atlas *a = atlas->as.atlas;
+    sc_erase_result r;
+    int rc = sc_erase(a->mesh->as.mesh, a->textures, a->ntex, &o, threads, &r, err);
+    if (rc == SC_OK && !(*out = sc_erase_result_atlas(atlas, &r, false))) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc != SC_OK) sc_error_prefix(err, "straighten: erase_seams");
+    sc_erase_result_free(&r);
     return rc;
 }
 
@@ -1152,6 +1152,8 @@ static const sc_port_desc outputs[] = {
             "(f32); the input itself when nothing moves"},
 };
 
+static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, NULL};
+
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
     .version = 5,
@@ -1163,4 +1165,5 @@ const sc_node_desc sc_node_straighten = {
     .params = params,
     .nparams = SC_COUNT(params),
     .run = run,
+    .kernels = kernels,
 };

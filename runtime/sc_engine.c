@@ -219,6 +219,28 @@ static bool wants_mesh_only(engine *e, int i, int port) {
            gnode(e, p)->desc->outputs[k].kind == SC_KIND_ATLAS;
 }
 
+/* Every kernel a node's descriptor reaches (its own and, transitively, the
+ * ones they build on), each once, sorted by name. */
+#define MAX_KERNELS 64
+static void kernel_add(const sc_kernel *k, const sc_kernel **out, int *n) {
+    for (int i = 0; i < *n; i++)
+        if (out[i] == k) return;
+    if (*n == MAX_KERNELS) return;   /* a programming error: test_graph checks every shipped node stays under */
+    out[(*n)++] = k;
+    for (int i = 0; k->uses && k->uses[i]; i++) kernel_add(k->uses[i], out, n);
+}
+
+static int kernel_name_order(const void *a, const void *b) {
+    return strcmp((*(const sc_kernel *const *)a)->name, (*(const sc_kernel *const *)b)->name);
+}
+
+static int kernel_closure(const sc_node_desc *d, const sc_kernel **out) {
+    int n = 0;
+    for (int i = 0; d->kernels && d->kernels[i]; i++) kernel_add(d->kernels[i], out, &n);
+    qsort(out, (size_t)n, sizeof *out, kernel_name_order);
+    return n;
+}
+
 /* The canonical action text: its SHA-256 is the key. */
 static char *canonical_action(engine *e, int i) {
     const sc_graph_node *n = gnode(e, i);
@@ -227,6 +249,9 @@ static char *canonical_action(engine *e, int i) {
     sc_buf_init(&params);
     sc_buf_printf(&b, "seamcook action\nformat %d.%d\ntype %s\nversion %d\n", SC_ENGINE_FORMAT,
                   SC_VALUE_FORMAT, n->desc->type, n->desc->version);
+    const sc_kernel *kernels[MAX_KERNELS];
+    int nkernels = kernel_closure(n->desc, kernels);
+    for (int k = 0; k < nkernels; k++) sc_buf_printf(&b, "kernel %s %d\n", kernels[k]->name, kernels[k]->version);
     sc_graph_canonical_params(n, &params);
     /* prefix each parameter line, so explain can tell lines apart */
     const char *p = params.data ? (const char *)params.data : "";
@@ -362,6 +387,17 @@ static char *explain(engine *e, int i, const char *now, const char *before) {
     if (a && b && (la != lb || strncmp(a, b, la) != 0))
         sc_buf_printf(&why, "node version %.*s -> %.*s; ", (int)(la - 8), a + 8, (int)(lb - 8), b + 8);
     const sc_graph_node *n = gnode(e, i);
+    const sc_kernel *kernels[MAX_KERNELS];
+    int nkernels = kernel_closure(n->desc, kernels);
+    for (int k = 0; k < nkernels; k++) {
+        const char *name = kernels[k]->name;
+        a = find_line(before, "kernel", name, &la);
+        b = find_line(now, "kernel", name, &lb);
+        if (a && b && la == lb && strncmp(a, b, la) == 0) continue;
+        size_t skip = 7 + strlen(name) + 1;
+        sc_buf_printf(&why, "kernel %s version %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
+                      a ? a + skip : "(unset)", (int)(lb - skip), b + skip);
+    }
     for (int k = 0; k < n->desc->nparams; k++) {
         const char *name = n->desc->params[k].name;
         a = find_line(before, "param", name, &la);

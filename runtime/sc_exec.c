@@ -10,6 +10,7 @@
 #include "sc_exec.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -28,7 +29,14 @@ struct sc_ctx {
     dep *deps;
     int ndeps;
     int threads;
+    char misuse[160];   /* the first parameter or port name run() got wrong, or "" */
 };
+
+/* Remember the first name run() asks for that its descriptor does not
+ * declare (or declares as another type): sc_ctx_run fails on it. */
+static void misuse(sc_ctx *ctx, const char *what, const char *name) {
+    if (!ctx->misuse[0]) snprintf(ctx->misuse, sizeof ctx->misuse, "%s '%s'", what, name);
+}
 
 static int copy_param(sc_param_value *dst, const sc_param_value *src) {
     *dst = *src;
@@ -169,7 +177,11 @@ int sc_ctx_run(sc_ctx *ctx, sc_error *err) {
             return sc_fail(err, SC_EINPUT, "input '%s' is not connected", ctx->desc->inputs[i].name);
     sc_error local = {0};
     if (!err) err = &local;
+    ctx->misuse[0] = 0;
     int rc = ctx->desc->run(ctx, err);
+    if (ctx->misuse[0])   /* a programming error in the node, whatever run() returned */
+        rc = sc_fail(err, SC_EINPUT, "node %s asked for %s, which its descriptor does not declare", ctx->desc->type,
+                     ctx->misuse);
     if (rc == SC_OK) {
         for (int i = 0; i < ctx->desc->noutputs; i++)
             if (!ctx->outputs[i]) {
@@ -204,7 +216,10 @@ const sc_digest *sc_ctx_dep_digest(const sc_ctx *ctx, int i) { return &ctx->deps
 
 const sc_value *sc_ctx_input(sc_ctx *ctx, const char *port) {
     int i = sc_desc_input(ctx->desc, port);
-    if (i < 0) return NULL;
+    if (i < 0) {
+        misuse(ctx, "input", port);
+        return NULL;
+    }
     const sc_value *v = ctx->inputs[i];
     /* a mesh port fed an atlas sees the atlas's mesh */
     if (v && ctx->desc->inputs[i].kind == SC_KIND_MESH && v->kind == SC_KIND_ATLAS)
@@ -222,13 +237,37 @@ TYPED_INPUT(sc_ctx_atlas, sc_atlas, SC_KIND_ATLAS, atlas)
 TYPED_INPUT(sc_ctx_image, sc_image_data, SC_KIND_IMAGE, image)
 TYPED_INPUT(sc_ctx_lods, sc_lods, SC_KIND_LODS, lods)
 
-static const sc_param_value *param(sc_ctx *ctx, const char *name) {
+typedef enum param_use { USE_NUMBER, USE_STRING, USE_NUMBERS } param_use;
+
+static bool used_as(sc_param_type t, param_use use) {
+    switch (t) {
+    case SC_PARAM_NUMBER:
+    case SC_PARAM_INTEGER:
+    case SC_PARAM_BOOL:
+        return use == USE_NUMBER;
+    case SC_PARAM_STRING:
+    case SC_PARAM_ENUM:
+    case SC_PARAM_PATH:
+        return use == USE_STRING;
+    case SC_PARAM_NUMBERS:
+        return use == USE_NUMBERS;
+    }
+    return false;
+}
+
+/* The parameter `name` read as `use`; NULL (and the misuse noted) when the
+ * descriptor has no such parameter of that type. */
+static const sc_param_value *param(sc_ctx *ctx, const char *name, param_use use) {
     int i = sc_desc_param(ctx->desc, name);
-    return i < 0 ? NULL : &ctx->params[i];
+    if (i < 0 || !used_as(ctx->desc->params[i].type, use)) {
+        misuse(ctx, i < 0 ? "parameter" : "parameter (as another type)", name);
+        return NULL;
+    }
+    return &ctx->params[i];
 }
 
 double sc_ctx_number(sc_ctx *ctx, const char *name) {
-    const sc_param_value *p = param(ctx, name);
+    const sc_param_value *p = param(ctx, name, USE_NUMBER);
     return p ? p->number : 0;
 }
 
@@ -239,12 +278,12 @@ int64_t sc_ctx_integer(sc_ctx *ctx, const char *name) {
 bool sc_ctx_bool(sc_ctx *ctx, const char *name) { return sc_ctx_number(ctx, name) != 0; }
 
 const char *sc_ctx_string(sc_ctx *ctx, const char *name) {
-    const sc_param_value *p = param(ctx, name);
+    const sc_param_value *p = param(ctx, name, USE_STRING);
     return (p && p->string) ? p->string : "";
 }
 
 const double *sc_ctx_numbers(sc_ctx *ctx, const char *name, int *count) {
-    const sc_param_value *p = param(ctx, name);
+    const sc_param_value *p = param(ctx, name, USE_NUMBERS);
     *count = p ? p->count : 0;
     return p ? p->numbers : NULL;
 }
@@ -267,6 +306,7 @@ int sc_ctx_read_file(sc_ctx *ctx, const char *path, size_t max_bytes, sc_buf *ou
 void sc_ctx_set_output(sc_ctx *ctx, const char *port, sc_value *value) {
     int i = sc_desc_output(ctx->desc, port);
     if (i < 0) {
+        misuse(ctx, "output", port);
         sc_value_release(value);
         return;
     }

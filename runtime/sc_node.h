@@ -2,14 +2,15 @@
  *
  * A node is a pure function (inputs, params) -> (outputs, metrics). It is
  * described by one constant sc_node_desc, exported from its file in nodes/ and
- * listed in the registry (runtime/sc_registry.c). A node knows nothing of
+ * listed in the registry (app/sc_registry.c). A node knows nothing of
  * graphs, scheduling, Lua, the cache or the command line: it reads its inputs
  * and parameters through sc_ctx, and sets its outputs and metrics there.
  *
  * Purity rules: no global mutable state, no clock in outputs, no environment,
  * no file access except sc_ctx_read_file (which records the file as a
  * dependency so the cache can notice when it changes). Bump `version`
- * whenever the output bytes for the same inputs can change.
+ * whenever the node's own code can change its output bytes for the same
+ * inputs; a change in a kernel it lists bumps that kernel's version instead.
  */
 #ifndef SC_NODE_H
 #define SC_NODE_H
@@ -60,13 +61,18 @@ typedef struct sc_node_desc {
      * The message should name the parameter or input at fault; the engine
      * prefixes it with the node's name and graph file:line. */
     int (*run)(sc_ctx *ctx, sc_error *err);
+    /* The kernels (nodes/lib) run calls, NULL-terminated, or NULL: the
+     * action key hashes each one's name and version and those of the
+     * kernels it builds on, so a kernel change re-keys this node. */
+    const sc_kernel *const *kernels;
 } sc_node_desc;
 
 #define SC_COUNT(a) ((int)(sizeof(a) / sizeof((a)[0])))
 
 /* ---------------------------------------------------------------- inputs */
 
-/* The value on an input port, or NULL for an unconnected optional port.
+/* The value on an input port, or NULL for an unconnected optional port (an
+ * undeclared port name fails the run, see the parameters below).
  * The ctx keeps the reference; retain it to keep it past run(). An input port
  * of kind MESH fed by an ATLAS output receives that atlas's mesh. */
 const sc_value *sc_ctx_input(sc_ctx *ctx, const char *port);
@@ -80,7 +86,9 @@ const sc_lods *sc_ctx_lods(sc_ctx *ctx, const char *port);
 /* ---------------------------------------------------------------- params */
 
 /* Validated parameter values (defaults filled in). Asking for a name the
- * descriptor does not declare is a programming error and returns 0/"". */
+ * descriptor does not declare, or through the call of another type, is a
+ * programming error: it returns 0/"" and fails the run (sc_ctx_run names
+ * it), as does asking for an undeclared input or output port. */
 double sc_ctx_number(sc_ctx *ctx, const char *name);
 int64_t sc_ctx_integer(sc_ctx *ctx, const char *name);
 bool sc_ctx_bool(sc_ctx *ctx, const char *name);

@@ -4,9 +4,8 @@
  * Design note. The union keeps every mesh's face order and its materials, so
  * face f of mesh i is face f + (faces of meshes 0..i-1) of the union: the
  * seams of the union are exactly the seams of the parts. The erase helper
- * builds an atlas of the mesh and the maps (slots "map<i>") and runs the
- * erase_seams node through sc_ctx, a pure function of its inputs and
- * parameters, so the result is the node's, byte for byte.
+ * gives sc_erase the maps as slots "map<i>", so its results are erase_seams's
+ * for the same options, byte for byte.
  */
 #include "sc_atlas_ops.h"
 
@@ -14,9 +13,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sc_exec.h"
+static const sc_kernel *const atlas_ops_uses[] = {&sc_kernel_erase, NULL};
+const sc_kernel sc_kernel_atlas_ops = {"atlas_ops", SC_ATLAS_OPS_VERSION, atlas_ops_uses};
 
-extern const sc_node_desc sc_node_erase_seams;
 
 sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *ms, int n) {
     if (n < 1 || !ms) return NULL;
@@ -67,52 +66,26 @@ sc_value *sc_atlas_ops_mesh_union_distinct(const sc_value *const *meshes, int n)
     return u;
 }
 
-int sc_atlas_ops_erase(sc_value *mesh, const sc_atlas_ops_map *maps, int n, double gap_tolerance,
-                       const char *quantize, const char *const *params, int threads, sc_value **f32_out,
-                       sc_value **native_out, sc_error *err) {
-    sc_atlas *a = sc_atlas_new(sc_value_retain(mesh));
-    if (!a) return sc_fail(err, SC_ENOMEM, "out of memory");
+int sc_atlas_ops_erase(const sc_mesh *mesh, const sc_atlas_ops_map *maps, int n, const sc_erase_options *o,
+                       int threads, sc_value **f32_out, sc_value **native_out, sc_error *err) {
+    sc_texture *textures = calloc(n > 0 ? (size_t)n : 1, sizeof *textures);
+    char (*names)[32] = calloc(n > 0 ? (size_t)n : 1, sizeof *names);
+    if (!textures || !names) {
+        free(textures), free(names);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
     for (int i = 0; i < n; i++) {
-        char name[32];
-        snprintf(name, sizeof name, "map%d", i);
-        if (sc_atlas_add_texture(a, name, maps[i].material, maps[i].wrap_u, maps[i].wrap_v, "",
-                                 sc_value_retain(maps[i].image)) != SC_OK) {
-            sc_atlas_free(a);
-            return sc_fail(err, SC_ENOMEM, "out of memory");
-        }
+        snprintf(names[i], sizeof names[i], "map%d", i);
+        textures[i] = (sc_texture){.name = names[i], .material = maps[i].material, .wrap_u = maps[i].wrap_u,
+                                   .wrap_v = maps[i].wrap_v, .source = "", .image = maps[i].image};
     }
-    sc_value *av = sc_value_new_atlas(a);
-    if (!av) return sc_fail(err, SC_ENOMEM, "out of memory");
-    sc_ctx *ctx = sc_ctx_new(&sc_node_erase_seams, NULL, NULL);
-    int rc = ctx ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
-    char tol[64];
-    snprintf(tol, sizeof tol, "%.17g", gap_tolerance);
-    if (rc == SC_OK) rc = sc_ctx_set_input(ctx, "atlas", av);
-    if (rc == SC_OK) rc = sc_ctx_set_param(ctx, "gap_tolerance", tol, err);
-    if (rc == SC_OK && quantize) rc = sc_ctx_set_param(ctx, "quantize", quantize, err);
-    for (int i = 0; rc == SC_OK && params && params[i] && params[i + 1]; i += 2)
-        rc = sc_ctx_set_param(ctx, params[i], params[i + 1], err);
-    if (rc == SC_OK) sc_ctx_set_threads(ctx, threads);
-    if (rc == SC_OK) rc = sc_ctx_run(ctx, err);
-    if (rc == SC_OK) {
-        const sc_atlas *f32 = sc_ctx_output(ctx, 0)->as.atlas, *native = sc_ctx_output(ctx, 1)->as.atlas;
-        for (int i = 0; i < n && rc == SC_OK; i++) {
-            char name[32];
-            snprintf(name, sizeof name, "map%d", i);
-            if (sc_atlas_find_texture(f32, maps[i].material, name) < 0 ||
-                sc_atlas_find_texture(native, maps[i].material, name) < 0)
-                rc = sc_fail(err, SC_EINPUT, "erase_seams lost image %d", i);
-        }
-        for (int i = 0; i < n && rc == SC_OK; i++) {
-            char name[32];
-            snprintf(name, sizeof name, "map%d", i);
-            if (f32_out) f32_out[i] = sc_value_retain(f32->textures[sc_atlas_find_texture(f32, maps[i].material, name)].image);
-            if (native_out)
-                native_out[i] =
-                    sc_value_retain(native->textures[sc_atlas_find_texture(native, maps[i].material, name)].image);
-        }
+    sc_erase_result r;
+    int rc = sc_erase(mesh, textures, n, o, threads, &r, err);
+    for (int i = 0; i < n && rc == SC_OK; i++) {
+        if (f32_out) f32_out[i] = sc_value_retain(r.f32[i]);
+        if (native_out) native_out[i] = sc_value_retain(r.native[i]);
     }
-    sc_ctx_free(ctx);
-    sc_value_release(av);
+    sc_erase_result_free(&r);
+    free(textures), free(names);
     return rc;
 }

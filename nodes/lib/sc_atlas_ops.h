@@ -4,10 +4,9 @@
  *    one erase_seams run sees the seams of all of them at once (one texture
  *    serving every level of detail); _distinct takes each distinct mesh
  *    value once.
- *  - sc_atlas_ops_erase: erase the seams of a set of images on a mesh by
- *    running the erase_seams node (a pure function, through sc_ctx). Each
- *    image gets a slot of its own, so two images of one name and material are
- *    erased side by side.
+ *  - sc_atlas_ops_erase: erase the seams of a set of images on a mesh with
+ *    sc_erase. Each image gets a slot of its own, so two images of one name
+ *    and material are erased side by side.
  *  - Inline helpers of the per-texel rasterisers (bake_displacement's raster,
  *    mipmap's chart band): segment distance and the columns of a row that
  *    can lie within a distance of a triangle.
@@ -17,7 +16,13 @@
 
 #include <math.h>
 
+#include "sc_erase.h"
 #include "sc_value.h"
+
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_atlas_ops (or a kernel built on it) is re-keyed. */
+#define SC_ATLAS_OPS_VERSION 1
+extern const sc_kernel sc_kernel_atlas_ops;
 
 /* The meshes one after the other (vertex, uv and face indices shifted) in a
  * new mesh value; every mesh must have the materials of the first (same
@@ -38,15 +43,12 @@ typedef struct sc_atlas_ops_map {
     sc_value *image;
 } sc_atlas_ops_map;
 
-/* Run erase_seams on `mesh` with maps[0..n) (params gap_tolerance and
- * quantize; quantize NULL keeps the node's default; `params`, when not
- * NULL, more name, value pairs, NULL-terminated). On success f32_out[i]
- * (erase_seams's float output) and native_out[i] (its output in the input's
- * pixel type) hold new references, either array may be NULL. On failure
- * nothing is stored and err says what failed. */
-int sc_atlas_ops_erase(sc_value *mesh, const sc_atlas_ops_map *maps, int n, double gap_tolerance,
-                       const char *quantize, const char *const *params, int threads, sc_value **f32_out,
-                       sc_value **native_out, sc_error *err);
+/* Erase maps[0..n) on `mesh` with sc_erase (each map a slot of its own,
+ * named map<i>). On success f32_out[i] and native_out[i] (sc_erase's float
+ * and native results) hold new references, either array may be NULL. On
+ * failure nothing is stored and err says what failed. */
+int sc_atlas_ops_erase(const sc_mesh *mesh, const sc_atlas_ops_map *maps, int n, const sc_erase_options *o,
+                       int threads, sc_value **f32_out, sc_value **native_out, sc_error *err);
 
 /* Squared distance of point (px, py) from the segment (ax, ay)-(bx, by)
  * (inline: rasterisers call it per texel). */

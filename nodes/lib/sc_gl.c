@@ -31,6 +31,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+const sc_kernel sc_kernel_gl = {"gl", SC_GL_VERSION, NULL};
+
 struct sc_gl {
     EGLDisplay display;
     EGLContext context;

@@ -17,6 +17,11 @@
 
 #include "sc_value.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_gl (or a kernel built on it) is re-keyed. */
+#define SC_GL_VERSION 1
+extern const sc_kernel sc_kernel_gl;
+
 typedef struct sc_gl sc_gl;
 
 /* A new GL 4.5 core context, current on this thread. Fails cleanly (SC_EIO)

@@ -30,6 +30,9 @@
 
 #include "sc_obj.h"
 
+static const sc_kernel *const gltf_uses[] = {&sc_kernel_obj, NULL};
+const sc_kernel sc_kernel_gltf = {"gltf", SC_GLTF_VERSION, gltf_uses};
+
 #define MAX_NODE_DEPTH 1000
 #define MAX_NODE_VISITS (1 << 20)
 #define MAX_JSON_INT 9007199254740992.0   /* 2^53 */

@@ -46,6 +46,11 @@
 
 #include "sc_value.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
+#define SC_GLTF_VERSION 1
+extern const sc_kernel sc_kernel_gltf;
+
 /* Limits on raw vertices and triangles, against memory bombs. */
 #define SC_GLTF_MAX_ELEMENTS (1 << 26)
 

@@ -34,6 +34,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+const sc_kernel sc_kernel_hausdorff = {"hausdorff", SC_HAUSDORFF_VERSION, NULL};
+
 #define LEAF_SIZE 4
 #define CHUNK_FACES 512
 #define MAX_GRID 2048

@@ -14,6 +14,11 @@
 
 #include "sc_base.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_hausdorff (or a kernel built on it) is re-keyed. */
+#define SC_HAUSDORFF_VERSION 1
+extern const sc_kernel sc_kernel_hausdorff;
+
 /* A triangle mesh seen through its positions (nv x 3) and faces (nf x 3). */
 typedef struct sc_hausdorff_mesh {
     const double *V;

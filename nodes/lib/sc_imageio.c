@@ -16,6 +16,8 @@
 
 #include "sc_imageio_codecs.h"
 
+const sc_kernel sc_kernel_imageio = {"imageio", SC_IMAGEIO_VERSION, NULL};
+
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 static const sc_imageio_codecs *codecs;
 static char load_error[1024];

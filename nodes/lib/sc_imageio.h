@@ -37,6 +37,11 @@ extern "C" {
 
 #include "sc_value.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_imageio (or a kernel built on it) is re-keyed. */
+#define SC_IMAGEIO_VERSION 1
+extern const sc_kernel sc_kernel_imageio;
+
 /* Decode image file bytes. `name` is used in messages. On success *out is a
  * new image (free with sc_image_free or wrap with sc_value_new_image). */
 int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_data **out,

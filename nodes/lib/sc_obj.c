@@ -21,6 +21,8 @@
 #include <string.h>
 #include <strings.h>
 
+const sc_kernel sc_kernel_obj = {"obj", SC_OBJ_VERSION, NULL};
+
 /* ---------------------------------------------------------------- helpers */
 
 /* Grow *items (of elem bytes each) so that it holds at least `need`. */

@@ -38,6 +38,11 @@
 
 #include "sc_value.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_obj (or a kernel built on it) is re-keyed. */
+#define SC_OBJ_VERSION 1
+extern const sc_kernel sc_kernel_obj;
+
 /* Limit on vertices, uvs, normals and triangles alike, so that a small file
  * cannot ask for gigabytes. */
 #define SC_OBJ_MAX_ELEMENTS (1 << 26)

@@ -21,6 +21,8 @@
 #include <math.h>
 #include <string.h>
 
+const sc_kernel sc_kernel_quadric = {"quadric", SC_QUADRIC_VERSION, NULL};
+
 /* ---------------------------------------------------------------- quadrics */
 
 void sc_quadric_zero(double *q, int n) { memset(q, 0, sizeof(double) * (size_t)sc_quadric_size(n)); }

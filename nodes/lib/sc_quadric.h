@@ -26,6 +26,13 @@
 
 #include <stdbool.h>
 
+#include "sc_base.h"
+
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_quadric (or a kernel built on it) is re-keyed. */
+#define SC_QUADRIC_VERSION 1
+extern const sc_kernel sc_kernel_quadric;
+
 #define SC_QUADRIC_MAX_DIM 10
 /* Doubles a packed quadric of dimension n takes. */
 #define SC_QUADRIC_SIZE(n) ((n) * ((n) + 1) / 2 + (n) + 1)

@@ -68,6 +68,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+static const sc_kernel *const schur_uses[] = {&sc_kernel_sparse, NULL};
+const sc_kernel sc_kernel_schur = {"schur", SC_SCHUR_VERSION, schur_uses};
+
 #define CLUSTER_CHUNKS 256
 #define ROW_CHUNK 16384
 

@@ -22,6 +22,13 @@
 
 #include "sc_sparse.h"
 
+#include "sc_base.h"
+
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_schur (or a kernel built on it) is re-keyed. */
+#define SC_SCHUR_VERSION 1
+extern const sc_kernel sc_kernel_schur;
+
 typedef struct sc_schur sc_schur;
 
 typedef struct sc_schur_stats {

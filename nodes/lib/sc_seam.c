@@ -26,6 +26,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+static const sc_kernel *const seam_uses[] = {&sc_kernel_sparse, NULL};
+const sc_kernel sc_kernel_seam = {"seam", SC_SEAM_VERSION, seam_uses};
+
 /* exact moments int_0^1 tau^k dtau */
 static const double G3[3][3] = {{1.0, 1.0 / 2, 1.0 / 3}, {1.0 / 2, 1.0 / 3, 1.0 / 4},
                                 {1.0 / 3, 1.0 / 4, 1.0 / 5}};

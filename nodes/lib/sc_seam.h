@@ -27,6 +27,11 @@
 #include "sc_sparse.h"
 #include "sc_value.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_seam (or a kernel built on it) is re-keyed. */
+#define SC_SEAM_VERSION 1
+extern const sc_kernel sc_kernel_seam;
+
 /* ---------------------------------------------------------------- sampling */
 
 typedef struct sc_seam_grid {

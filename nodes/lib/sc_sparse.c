@@ -40,6 +40,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+const sc_kernel sc_kernel_sparse = {"sparse", SC_SPARSE_VERSION, NULL};
+
 /* ---------------------------------------------------------------- triplets */
 
 void sc_triplets_init(sc_triplets *t, int32_t n) {

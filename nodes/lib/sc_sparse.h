@@ -19,6 +19,11 @@
 
 #include "sc_base.h"
 
+/* Bump whenever results of this library can change for the same inputs:
+ * every node listing sc_kernel_sparse (or a kernel built on it) is re-keyed. */
+#define SC_SPARSE_VERSION 1
+extern const sc_kernel sc_kernel_sparse;
+
 /* ---------------------------------------------------------------- triplets */
 
 typedef struct sc_triplets {

@@ -139,6 +139,18 @@ typedef struct sc_metric {
     double value;
 } sc_metric;
 
+/* Named numbers in the order they were added, for code that measures outside
+ * a node (a kernel): the node passes them on with sc_ctx_metric. */
+typedef struct sc_metric_list {
+    int32_t count, cap;
+    sc_metric *items;
+    bool failed;         /* an add ran out of memory */
+} sc_metric_list;
+
+/* Append (name copied); SC_ENOMEM (and `failed` set) when out of memory. */
+int sc_metric_list_add(sc_metric_list *l, const char *name, double value);
+void sc_metric_list_free(sc_metric_list *l);
+
 typedef struct sc_report_file {
     char *path;          /* relative, '/'-separated, no "..", no leading '/' */
     sc_value *bytes;     /* a BYTES value */

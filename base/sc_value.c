@@ -265,6 +265,25 @@ void sc_lods_free(sc_lods *l) {
 
 sc_report *sc_report_new(void) { return calloc(1, sizeof(sc_report)); }
 
+int sc_metric_list_add(sc_metric_list *l, const char *name, double value) {
+    if (l->count == l->cap) {
+        int32_t cap = l->cap ? 2 * l->cap : 16;
+        sc_metric *items = realloc(l->items, sizeof *items * (size_t)cap);
+        if (!items) return l->failed = true, SC_ENOMEM;
+        l->items = items, l->cap = cap;
+    }
+    char *copy = sc_strdup(name);
+    if (!copy) return l->failed = true, SC_ENOMEM;
+    l->items[l->count++] = (sc_metric){copy, value};
+    return SC_OK;
+}
+
+void sc_metric_list_free(sc_metric_list *l) {
+    for (int32_t i = 0; i < l->count; i++) free(l->items[i].name);
+    free(l->items);
+    *l = (sc_metric_list){0};
+}
+
 int sc_report_metric(sc_report *r, const char *name, double value) {
     sc_metric *m = realloc(r->metrics, sizeof *m * (size_t)(r->nmetrics + 1));
     if (!m) return SC_ENOMEM;

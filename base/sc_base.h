@@ -4,6 +4,7 @@
  *   sc_buf     a growable byte buffer, owned by the caller (sc_buf_free).
  *   sc_digest  a SHA-256 digest (OpenSSL), printed as 64 lower-case hex digits.
  *   sc_set_root  union-find over an int32 parent array.
+ *   sc_kernel  a versioned library whose results nodes store.
  *
  * Convention: a function that can fail returns int (0 = ok, non-zero = the
  * error code) and takes `sc_error *err` last; on failure it fills err. err may
@@ -65,6 +66,19 @@ static inline int32_t sc_set_root(int32_t *parent, int32_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
 }
+
+/* ---------------------------------------------------------------- kernels */
+
+/* A library of shared algorithms (nodes/lib) whose results nodes store: its
+ * name and version, and the kernels it builds on (NULL-terminated, or NULL).
+ * A node lists the kernels it calls in its descriptor; the action key hashes
+ * every kernel they reach, so bumping a kernel's version re-keys exactly the
+ * nodes that use it. */
+typedef struct sc_kernel {
+    const char *name;
+    int version;
+    const struct sc_kernel *const *uses;
+} sc_kernel;
 
 /* ---------------------------------------------------------------- buffer */
 

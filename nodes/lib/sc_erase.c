@@ -1,0 +1,1737 @@
+/* sc_erase.c - seam erasure, the kernel of erase_seams, straighten,
+ * bake_displacement and mipmap: Liu et al. 2017, §3-4 (see sc_erase.h).
+ *
+ * Design note.
+ *
+ * What is solved. For each texture, the texels p minimise
+ *     w_change E_change + w_grad_in E_grad_in + w_c1 E_C1 + w_grad_out E_grad_out
+ *   + [w_lerp E_lerp] + [w_outside E_outside] + w_seam p^T M' p
+ * where M is the exact seam operator normalised as in eq. 9 (sc_seam.c builds
+ * M, E_C1, E_lerp and E_outside in closed form over the texel-grid pieces of
+ * every edge; the reported seam energies are p^T M p). The unknowns are the
+ * texels of the bilinear cells that uv silhouette edges (both sides of every
+ * seam, surface boundaries, uv foldovers) pass through; every other texel is
+ * fixed. Texels whose centre lies inside a uv triangle of the material
+ * (top-left rule) are "inside" (T_in), the others "outside":
+ *   E_change   = 1/|T_in| sum_{i in T_in} |p_i - p0_i|^2  (|T_in|: all inside
+ *                texels of the texture, as the paper writes it)
+ *   E_grad_in  = sum over grid edges with both texels inside of
+ *                |(p_a - p_b) - (p0_a - p0_b)|^2
+ *   E_grad_out = sum over grid edges with an outside unknown texel whose
+ *                other texel is inside or unknown, of |p_a - p_b|^2 (outside
+ *                texels beyond the unknowns are unreliable and left out)
+ * Grid neighbours follow the wrap mode (repeat wraps; clamp and mirror stop
+ * at the border). Derivatives in E_C1 and the grid are per texel, so the
+ * weights mean the same at every resolution. A Tikhonov floor of
+ * 1e-8 |p - p0|^2 on every unknown keeps components without an inside texel
+ * (zero-area charts) well posed.
+ *
+ * The seam penalty. Eq. 9 makes M an average over the seams, so its size per
+ * texel falls with the total seam length in texels (pizza's 19k seams at
+ * 4096^2: ~1e-6), while the grid terms stay ~1 per texel: with the paper's
+ * w_seam = 1e10 on M itself the constraint is too soft (measured seam gaps
+ * up to 1.8e-3 on the corpus; the issue's bar is 1e-4). So the penalty uses
+ * M' = M / mean(diag M over the seam texels): w_seam is the seam stiffness of
+ * a texel against the per-texel grid terms, whatever the seam count or
+ * texture size; the paper's 1e10 then closes every corpus seam to < 3e-5.
+ * A direct solve of the penalised system keeps its accuracy there (Cholesky's
+ * backward error, ~1e-16 * 1e10, stays far below the grid stiffness).
+ *
+ * Solving. Q d = r for the correction d = x - p0, with r = -1/2 grad E(p0)
+ * taken term by term (seam differences formed before they are weighted), so
+ * a seam-free, constant or otherwise optimal p0 gives d = 0 exactly and
+ * untouched texels keep their exact bits. One CHOLMOD factorisation serves
+ * every channel of every texture of one material that shares its size and
+ * wrap modes; a slot holding an image already erased for this material
+ * reuses the result. (An image shared by two materials is erased once per
+ * material.) Right-hand-side columns equal to an earlier one (grey images
+ * stored as RGB) are solved once and copied.
+ *
+ * One factorisation of all of Q (solver cholmod; pizza: 2.07M unknowns,
+ * one connected component of the matrix graph apart from 40 tiny ones):
+ * CHOLMOD's AMD ordering alone is ~2.5-3 s, the rest of the analysis ~1.4 s
+ * (permuted transposes, etree, column counts), the supernodal factorisation
+ * ~3.5 s for only 4e10 flops (370k small supernodes, first-touch page
+ * faults on a ~600 MB factor). Measured alternatives that lose: METIS
+ * (CHOLMOD_METIS: 10x the flops and 4x the analysis time on these thin
+ * texel bands glued by seams and by atlas neighbours), AMD on a coarsened
+ * graph (2x2 texel blocks or heavy-edge matching: 5-10x the flops),
+ * simplicial factorisation (8x slower), larger relaxed supernodes. The
+ * factorisation runs on one thread while everything that needs only the
+ * seams (the textures' residuals, the rows rounding reads, the
+ * nullity) runs beside it; both are independent tasks, so results do
+ * not depend on the thread count. The side work uses every thread, which
+ * with the factorisation's makes more threads than cores: it runs behind,
+ * at a lower priority (sc_run_beside), so the factorisation, the longer
+ * path, keeps its core (pizza, 5 alternating pairs: the factor stage
+ * 1.65 -> 1.58 s; the same with the chain groups put behind Q's assembly
+ * gained nothing, 1.95 -> 1.98 s).
+ *
+ * Building the system (pizza: 16.6M seam triplets, 29.7M entries in Q's
+ * full pattern). Q is kept in its full pattern (both triangles) only: the
+ * edge-cluster solver reads its rows, its refinement multiplies by it and
+ * the 8-bit rounding reads M = Q / w_pen from its seam rows, so no upper
+ * triangle is kept beside it. sc_seam_assemble's chunks keep their
+ * triplet lists (sc_triplet_parts: no copy into one list), and
+ * sc_sparse_full_from_triplet_parts assembles them straight into the full
+ * pattern, reserving the grid terms' entries (grid_pattern) as zeros;
+ * grid_terms then adds every unknown's own terms to its own row (column),
+ * so rows are filled on all threads with no two writing one entry. The
+ * edge-cluster solver's groups (schur_groups, serial) are found while Q is
+ * assembled. Fresh memory is what costs most on the 2-core machine: a
+ * first-touch page fault costs ~10 us (0.4 GB/s), and sc_alloc_array maps
+ * blocks of 1 MB and more in one call (0.9 GB/s).
+ *
+ * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the default,
+ * takes it from 500k unknowns). Seam edges join end to end into chains where
+ * two of them go on in the same two charts (pizza: 19,232 edges in 10,723
+ * chains; most of its seam vertices are corners of three or more charts). The
+ * texels that only one chain's cells reach form that chain's cluster, ordered
+ * along it; texels shared by two chains' cells, or coupled to another chain's
+ * texels (or to their own chain's more than SCHUR_KEY_SPAN texels further
+ * along it), form the interface. Clusters of single edges made the texels
+ * around every seam vertex interface: 278k interface unknowns on pizza,
+ * against 158k for chains. Grid couplings between texels of different charts
+ * that happen to lie side by side in the atlas would join far-apart parts of
+ * the interface: the factored matrix A is Q less those terms, whole (so it
+ * stays positive definite; grid_terms lists them while it assembles Q), with
+ * each cluster eliminated on its own and the interface factored by CHOLMOD.
+ * The texels those terms join are made interface unknowns, so that Q and A
+ * differ on the interface alone, and conjugate gradients take the terms back
+ * in there (sc_schur_solve_terms: iterations on 158k unknowns, not 2.07M,
+ * then one round of refinement on Q's own residual), to a residual of 1e-12
+ * of the start in A^-1's norm (auto falls back to one CHOLMOD factorisation
+ * should that fail). On pizza they are only 6,678 terms, but kept in A (with
+ * single-edge clusters: 274.5k interface texels instead of 270.8k) they make
+ * its interface factor 2.8e7 entries and 5.7e10 flops instead of 8.6e6 and
+ * 5e8: 3.8 s against the iterations' 0.6 s. Below ~500k unknowns one
+ * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7 per
+ * texel. Where most texels lie in the cells of two or more chains (a geometry
+ * image erased on a mesh and its levels in one uv: pizza's 2.07M unknowns
+ * were all interface) there are no clusters, and `auto` factors Q itself.
+ *
+ * Where pizza's erase goes now (2-core machine, a medium stretch: 4.9-5.2 s
+ * in all, against 5.8-6.2 s for aa66f2c in the same minutes and 9.2-9.5 s in
+ * calm ones for 5096414): finding the seams and the energy before 0.11 s; the
+ * texel sets 0.19 s and the trace 0.06 s; Q's seam terms 0.7 s (the chain
+ * groups found beside them) and its assembly into the full pattern 0.9 s with
+ * the grid pattern; the grid terms 0.07 s; the cluster plan and layout
+ * 0.47 s, their elimination 0.7 s; the interface's CHOLMOD factorisation
+ * 0.45 s on one thread beside the side work (the seam residual, on all
+ * threads); the iterations and the refinement 0.48 s (0.35 s since they
+ * run on both threads: sc_schur.c); writing 0.2 s; the seam
+ * energies beside the optimal rounding 0.45 s. What changed, each measured in
+ * alternating runs: Q's full pattern alone, assembled from the chunks' own
+ * triplet lists (9.3-11.2 -> 7.5-7.9 s with the BLAS and memory changes
+ * below), the interface factored simplicial (7.5 -> 7.1 s), the iterations on
+ * the interface (7.0 -> 6.1 s), the side work placed beside the interface
+ * factorisation (6.0 -> 5.7 s); then crossings merged instead of sorted and
+ * the per-tap helpers inline (7.03 -> 6.53 s in a slow stretch), -O3 (5.81 ->
+ * 5.53 s), seam chains as clusters (6.96 -> 6.35 s, slow), grey-as-RGB
+ * channels measured once (6.66 -> 6.45 s, slow), the rounding's start on all
+ * threads and the float copy on all threads (5.37 -> 5.00 s).
+ *
+ * Memory (pizza): the resident set grows by 900-1000 MB during the erase,
+ * peak 1220-1330 MB (5096414: 1100 MB and 1420-1435 MB); the interface factor
+ * is 111 MB (175 MB with single-edge clusters). The preconditioner is made in
+ * Q in place (each dropped grid coupling's four entries saved, zeroed, and
+ * put back after the factorisation; sc_schur reads exact zeros as no
+ * coupling). The seam energies of the float and naively rounded results are
+ * measured while the optimal rounding runs.
+ *
+ * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
+ * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
+ * local 1e4, global 1e2; an explicit w_change >= 0 overrides the preset.
+ * E_lerp and E_outside are optional (`lerp`, `outside`): E_outside trusts the
+ * original texels along the silhouettes; E_lerp pulls each silhouette edge
+ * towards the linear interpolation of per-vertex values, taken as the mean of
+ * the texture's samples at all wedges of each vertex.
+ *
+ * Passing through. A texture whose material has no seam edge, or whose
+ * largest sampled seam gap is within `gap_tolerance` (default 1e-4, the
+ * issue's bar) or one step of its 8/16-bit encoding, is passed on as the same
+ * value; when nothing changes the input atlas itself is the output. This is
+ * what makes a re-run on an erased texture change nothing: the penalty leaves
+ * near-null directions of M (relative eigenvalues ~1e-10) partly free, and a
+ * forced second solve would keep easing them (measured: a tenth of the first
+ * run's change).
+ *
+ * Signals. Solving is in double from the stored values (colour is erased as
+ * stored, i.e. in its sRGB encoding, the way a renderer filtering the stored
+ * values sees it). Output `atlas` holds f32 images (same channels, colour
+ * space and format tag). Output `atlas_native` holds the same textures in the
+ * input's own pixel type: 8/16-bit inputs are quantised once, with
+ * `quantize` = naive (round to nearest) or optimal (8-bit: the rounding
+ * direction of every seam texel is chosen by coordinate descent on the
+ * quantised seam energy q^T M q, each texel staying within one step of its
+ * float value; 16-bit inputs round to nearest). Tangent-space normal maps
+ * cannot be made seam-free in general (the paper's footnote 3): with
+ * `tangent_space_normals` the normal slot is left as it is and the metrics
+ * say so; without it every normal map is treated as object-space and a
+ * `tangent_space_suspect` metric flags maps that look tangent-space.
+ *
+ * Shared texels. Texels whose centre lies in two or more uv triangles of the
+ * material (mirrored or overlapping charts, foldovers) are counted and
+ * reported; every seam is still erased, those texels being single unknowns
+ * that every seam through them constrains.
+ *
+ * Determinism. Assembly emits triplets in a fixed order for any thread count,
+ * sums them in that order on any thread count, and then each unknown adds
+ * its grid terms to its own row in the order of its links; the channels of
+ * the rounding are independent (a channel equal to an earlier one at every
+ * seam texel, floats and bytes, copies its rounding);
+ * the rounding revisits only texels whose gradient changed, which makes the
+ * same choices in the same order as full sweeps; CHOLMOD is deterministic.
+ */
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_erase.h"
+#include "sc_schur.h"
+#include "sc_seam.h"
+#include "sc_sparse.h"
+
+#define TIKHONOV 1e-8
+#define NULLITY_MAX_TEXELS 100000
+#define ROUND_MAX_SWEEPS 64
+#define ROUND_ROWS_PER_CHUNK 16384
+#define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no chain's cluster */
+#define SCHUR_KEY_SPAN 256.0      /* texels along a seam chain that one cluster's couplings may span */
+#define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
+
+
+typedef struct options {
+    double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
+    bool lerp, outside, tangent_space;
+    double gap_tolerance;
+    sc_erase_quantize quantize;
+    sc_erase_solver solver;
+    int64_t schur_from;       /* solver auto: the edge-cluster solver from this many unknowns */
+    int32_t pcg_iterations;   /* the most conjugate-gradient iterations */
+    const char *textures;     /* slots to erase, or "all" */
+    int threads;
+} options;
+
+/* What happens to one texture of the atlas. */
+typedef enum tex_fate {
+    FATE_KEEP = 0,        /* not selected, or no seams: passed through */
+    FATE_ERASE = 1,       /* erased (possibly as a duplicate of another slot) */
+    FATE_TANGENT = 2,     /* tangent-space normal map: left, and reported */
+    FATE_CLEAN = 3,       /* seams already within the tolerance: passed through */
+} tex_fate;
+
+typedef struct tex_state {
+    tex_fate fate;
+    int32_t same_as;      /* an earlier texture with the same image value, or -1 */
+    sc_value *f32, *native;
+    double energy_before, gap_before;
+    char prefix[160];
+} tex_state;
+
+/* Sums over the whole atlas. */
+typedef struct totals {
+    double seam_edges, silhouette_edges, unknowns, shared_texels;
+    double energy_before, energy_after, gap_before, gap_after;
+    double energy_u8_naive, energy_u8_optimal, gap_u8;
+    bool any_u8, any_optimal;
+    double max_change_in;
+    double nullity;
+    bool nullity_all;
+    double seconds_build, seconds_factor, seconds_solve, seconds_quantize, seconds_nullity;
+    double solver_peak_mb, factor_nnz, factor_flops;
+    double schur_groups, interface_unknowns, pcg_iterations, solver_fallbacks;
+    int factorizations, erased, unchanged, tangent;
+} totals;
+
+static void metric(sc_metric_list *ml, const char *prefix, const char *name, double v) {
+    char full[256];
+    snprintf(full, sizeof full, "%s%s", prefix, name);
+    sc_metric_list_add(ml, full, v);
+}
+
+/* ---------------------------------------------------------------- grid terms */
+
+/* A grid edge from an unknown texel to one of its four neighbours that
+ * carries a term of E_grad_in or E_grad_out. */
+typedef struct grid_link {
+    int32_t texel, index;   /* the neighbour, and its unknown index (-1: fixed) */
+    double w;
+    bool keep_gradient;     /* E_grad_in (the original gradient) or E_grad_out (zero) */
+    bool other_end;         /* between two unknowns, and met first from the other one */
+} grid_link;
+
+/* The grid links of texel t (inside: t is covered), neighbours in the order
+ * right, up, left, down, following the wrap modes; returns their count. */
+static int grid_links(const sc_seam_grid *g, const sc_seam_texset *unk, const sc_seam_texset *covered,
+                      const options *o, int32_t t, bool inside, grid_link out[4]) {
+    static const int di[4] = {1, 0, -1, 0}, dj[4] = {0, 1, 0, -1};
+    const int32_t W = g->width, H = g->height, i = t % W, j = t / W;
+    int count = 0;
+    for (int d = 0; d < 4; d++) {
+        int64_t ii = (int64_t)i + di[d], jj = (int64_t)j + dj[d];
+        if (ii < 0 || ii >= W) {
+            if (g->wrap_u != SC_WRAP_REPEAT) continue;
+            ii = sc_seam_wrap(ii, W, SC_WRAP_REPEAT);
+        }
+        if (jj < 0 || jj >= H) {
+            if (g->wrap_v != SC_WRAP_REPEAT) continue;
+            jj = sc_seam_wrap(jj, H, SC_WRAP_REPEAT);
+        }
+        int32_t nb = (int32_t)jj * W + (int32_t)ii;
+        if (nb == t) continue;
+        int32_t r2 = sc_seam_texset_index(unk, nb);
+        bool nb_inside = sc_seam_texset_has(covered, nb);
+        grid_link *l = &out[count];
+        if (inside && nb_inside) {
+            l->w = o->w_grad_in, l->keep_gradient = true;
+        } else if ((!inside && (nb_inside || r2 >= 0)) || (inside && r2 >= 0)) {
+            l->w = o->w_grad_out, l->keep_gradient = false;
+        } else {
+            continue; /* an unreliable outside texel beyond the unknowns */
+        }
+        if (l->w == 0) continue;
+        l->texel = nb, l->index = r2;
+        l->other_end = d >= 2 && r2 >= 0;
+        count++;
+    }
+    return count;
+}
+
+/* Grid work in fixed chunks of unknowns, each unknown from its own row:
+ * the same results on any thread count. */
+#define GRID_ROWS_PER_CHUNK 16384
+
+typedef struct grid_job {
+    const sc_seam_grid *g;
+    const sc_seam_texset *unk, *covered;
+    const int32_t *ids;
+    const options *o;
+    int32_t n;
+    /* the pattern: per unknown its count (pass 0), then its sorted rows */
+    int32_t *start, *rows;
+    int pass;
+    /* the terms */
+    double w_change_texel;
+    sc_sparse *q;
+    const sc_image_data *p0;
+    double *rhs;
+    const int32_t *chart;
+    sc_triplets *apart;   /* one list per chunk */
+} grid_job;
+
+static int grid_pattern_chunk(void *ud, int32_t chunk) {
+    grid_job *job = ud;
+    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK;
+    if (r1 > job->n) r1 = job->n;
+    for (int32_t r = r0; r < r1; r++) {
+        grid_link links[4];
+        int nl = grid_links(job->g, job->unk, job->covered, job->o, job->ids[r],
+                            sc_seam_texset_has(job->covered, job->ids[r]), links);
+        if (job->pass == 0) {
+            int32_t count = 1;
+            for (int k = 0; k < nl; k++) count += links[k].index >= 0;
+            job->start[r + 1] = count;
+            continue;
+        }
+        int32_t *rows = job->rows + job->start[r], at = 0;
+        rows[at++] = r;
+        for (int k = 0; k < nl; k++) {
+            int32_t x = links[k].index;
+            if (x < 0) continue;
+            int32_t b = at++;   /* insertion sort: at most five */
+            while (b > 0 && rows[b - 1] > x) rows[b] = rows[b - 1], b--;
+            rows[b] = x;
+        }
+    }
+    return SC_OK;
+}
+
+/* The entries the grid terms add to Q's full pattern: row (= column) r holds
+ * its diagonal and its unknown neighbours, (*rows)[(*start)[r] ..
+ * (*start)[r + 1]), sorted (a neighbour reached twice through a wrap is
+ * listed twice). */
+static int grid_pattern(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
+                        const sc_seam_texset *covered, const options *o, int32_t **start, int32_t **rows,
+                        sc_error *err) {
+    const int32_t n = unk->count, chunks = (n + GRID_ROWS_PER_CHUNK - 1) / GRID_ROWS_PER_CHUNK;
+    grid_job job = {.g = g, .unk = unk, .covered = covered, .ids = ids, .o = o, .n = n};
+    job.start = sc_alloc_array((size_t)n + 1, sizeof *job.start);
+    int rc = job.start ? sc_parallel(o->threads, chunks, grid_pattern_chunk, &job) : SC_ENOMEM;
+    if (rc == SC_OK) {
+        job.start[0] = 0;
+        for (int32_t r = 0; r < n; r++) job.start[r + 1] += job.start[r];
+        job.rows = sc_alloc_array((size_t)job.start[n] + 1, sizeof *job.rows);
+        job.pass = 1;
+        rc = job.rows ? sc_parallel(o->threads, chunks, grid_pattern_chunk, &job) : SC_ENOMEM;
+    }
+    if (rc) {
+        free(job.start), free(job.rows);
+        return sc_fail(err, SC_ENOMEM, "out of memory for the grid terms of %d unknowns", (int)n);
+    }
+    *start = job.start, *rows = job.rows;
+    return SC_OK;
+}
+
+/* Entry (i, j) of Q (full pattern; grid_pattern stored it). */
+static double *entry(sc_sparse *q, int32_t i, int32_t j) { return &q->val[sc_sparse_find(q, i, j)]; }
+
+static int grid_terms_chunk(void *ud, int32_t chunk) {
+    grid_job *job = ud;
+    const int32_t n = job->n, C = job->p0 ? job->p0->channels : 0;
+    int32_t r0 = chunk * GRID_ROWS_PER_CHUNK, r1 = r0 + GRID_ROWS_PER_CHUNK;
+    if (r1 > n) r1 = n;
+    sc_triplets *apart = job->apart ? &job->apart[chunk] : NULL;
+    for (int32_t r = r0; r < r1; r++) {
+        int32_t t = job->ids[r];
+        bool inside = sc_seam_texset_has(job->covered, t);
+        grid_link links[4];
+        int nl = grid_links(job->g, job->unk, job->covered, job->o, t, inside, links);
+        double *diag = job->q ? entry(job->q, r, r) : NULL;
+        if (diag) *diag += TIKHONOV + (inside ? job->w_change_texel : 0);
+        for (int k = 0; k < nl; k++) {
+            const grid_link *l = &links[k];
+            int32_t r2 = l->index;
+            double w = l->w;
+            if (diag) {
+                *diag += w;
+                if (r2 >= 0) *entry(job->q, r2, r) += -w;   /* row r2 of column r */
+            }
+            if (apart && r2 >= 0 && !l->other_end && job->chart[r] >= 0 && job->chart[r2] >= 0 &&
+                job->chart[r] != job->chart[r2])
+                sc_triplets_add(apart, r, r2, w);
+            if (job->rhs && !l->keep_gradient)
+                for (int32_t c = 0; c < C; c++)
+                    job->rhs[(size_t)c * n + r] -=
+                        w * (sc_seam_texel(job->p0, t, c) - sc_seam_texel(job->p0, l->texel, c));
+        }
+        if (apart && apart->failed) return SC_ENOMEM;
+    }
+    return SC_OK;
+}
+
+/* The per-texel terms: E_change, the Tikhonov floor, E_grad_in and
+ * E_grad_out, each unknown's from its own row (a link between two unknowns
+ * is met from both ends, each adding its half: w to its diagonal and -w to
+ * the pair, or its side of the gradient to its residual). With q (Q's seam
+ * terms, assembled in the full pattern with grid_pattern's entries), they
+ * are added to it; with p0 and rhs (n x C, one column per channel), the
+ * residual -1/2 grad E at p0 is: only E_grad_out is not minimal there. With
+ * chart, every coupling of unknowns of two different charts (side by side
+ * in the atlas) is also listed in apart_out, once, from the end that meets
+ * it first. */
+static int grid_terms(const sc_seam_grid *g, const sc_seam_texset *unk, const int32_t *ids,
+                      const sc_seam_texset *covered, const options *o, int threads, double w_change_texel,
+                      sc_sparse *q, const sc_image_data *p0, double *rhs, const int32_t *chart,
+                      sc_triplets *apart_out, sc_error *err) {
+    const int32_t n = unk->count, chunks = (n + GRID_ROWS_PER_CHUNK - 1) / GRID_ROWS_PER_CHUNK;
+    grid_job job = {.g = g, .unk = unk, .covered = covered, .ids = ids, .o = o, .n = n,
+                    .w_change_texel = w_change_texel, .q = q, .p0 = p0, .rhs = rhs, .chart = chart};
+    if (chart && apart_out) {
+        job.apart = sc_calloc_array((size_t)chunks + 1, sizeof *job.apart);
+        if (!job.apart) return sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t c = 0; c < chunks; c++) sc_triplets_init(&job.apart[c], n);
+    }
+    int rc = sc_parallel(threads, chunks, grid_terms_chunk, &job);
+    for (int32_t c = 0; job.apart && c < chunks; c++) {
+        if (rc == SC_OK) sc_triplets_append(apart_out, &job.apart[c]);
+        sc_triplets_free(&job.apart[c]);
+    }
+    free(job.apart);
+    if (rc == SC_OK && apart_out && apart_out->failed) rc = SC_ENOMEM;
+    return rc ? sc_fail(err, SC_ENOMEM, "out of memory for the grid terms of %d unknowns", (int)n) : SC_OK;
+}
+
+/* ---------------------------------------------------------------- E_lerp targets */
+
+/* Per-vertex values: the mean of the texture's samples at every wedge of the
+ * vertex in this material. */
+static double *vertex_values(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
+                             const sc_image_data *img) {
+    int32_t C = img->channels;
+    double *vv = sc_calloc_array((size_t)m->nv * (size_t)C, sizeof *vv);
+    int32_t *cnt = sc_calloc_array((size_t)m->nv, sizeof *cnt);
+    if (!vv || !cnt) {
+        free(vv), free(cnt);
+        return NULL;
+    }
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (m->FM[f] != material) continue;
+        for (int k = 0; k < 3; k++) {
+            int32_t v = m->FV[3 * f + k];
+            const double *uv = &m->U[2 * m->FU[3 * f + k]];
+            int32_t id[4];
+            double w[4];
+            sc_seam_taps(g, uv[0], uv[1], id, w);
+            for (int32_t c = 0; c < C; c++) {
+                double s = 0;
+                for (int q = 0; q < 4; q++) s += w[q] * sc_seam_texel(img, id[q], c);
+                vv[(size_t)v * C + c] += s;
+            }
+            cnt[v]++;
+        }
+    }
+    for (int32_t v = 0; v < m->nv; v++)
+        if (cnt[v] > 1)
+            for (int32_t c = 0; c < C; c++) vv[(size_t)v * C + c] /= cnt[v];
+    free(cnt);
+    return vv;
+}
+
+/* ---------------------------------------------------------------- 8-bit rounding */
+
+typedef struct round_job {
+    const sc_sparse *mf;     /* full symmetric M over rows that include the seam texels */
+    const uint8_t *rows;     /* the rows that are seam texels (1), or NULL: every row */
+    const int32_t *ids;      /* texel id of each row */
+    const float *x;          /* float solution image */
+    uint8_t *bytes;          /* quantised image, changed in place */
+    int32_t channels;
+    const int32_t *chan;     /* the channel of each chunk */
+    int threads;             /* for each channel's start (fewer channels than threads) */
+} round_job;
+
+static inline bool round_row(const round_job *job, int32_t k) { return !job->rows || job->rows[k]; }
+
+/* Channels c with the same float values and bytes as an earlier channel at
+ * every seam texel round the same way: src[c] names that channel (or -1). */
+static int32_t round_unique_channels(const round_job *job, int32_t *src, int32_t *chan) {
+    int32_t n = job->mf->n, C = job->channels, nu = 0;
+    for (int32_t c = 0; c < C; c++) {
+        src[c] = -1;
+        for (int32_t e = 0; e < c && src[c] < 0; e++) {
+            if (src[e] >= 0) continue;
+            bool same = true;
+            for (int32_t k = 0; k < n && same; k++) {
+                if (!round_row(job, k)) continue;
+                size_t at = (size_t)job->ids[k] * (size_t)C;
+                same = job->x[at + c] == job->x[at + e] && job->bytes[at + c] == job->bytes[at + e];
+            }
+            if (same) src[c] = e;
+        }
+        if (src[c] < 0) chan[nu++] = c;
+    }
+    return nu;
+}
+
+/* A channel's start, in fixed chunks of rows: its bounds and first choice
+ * (pass 0), then the gradient g = M q and M's diagonal (pass 1), row by
+ * row: M's full pattern holds row i as column i, and summing its entries
+ * in column order is the order a column sweep adds them to g[i] in. */
+typedef struct round_start {
+    const round_job *job;
+    int32_t c;
+    int32_t *q, *lo, *hi;
+    double *g, *dg;
+    uint8_t *dirty;
+    int pass;
+} round_start;
+
+static int round_start_chunk(void *ud, int32_t chunk) {
+    const round_start *rs = ud;
+    const round_job *job = rs->job;
+    const sc_sparse *mf = job->mf;
+    const int32_t C = job->channels, c = rs->c;
+    int32_t k0 = chunk * ROUND_ROWS_PER_CHUNK;
+    int32_t k1 = k0 + ROUND_ROWS_PER_CHUNK < mf->n ? k0 + ROUND_ROWS_PER_CHUNK : mf->n;
+    int32_t *q = rs->q, *lo = rs->lo, *hi = rs->hi;
+    for (int32_t k = k0; k < k1; k++) {
+        if (!round_row(job, k)) {
+            if (rs->pass == 0) q[k] = lo[k] = hi[k] = 0;
+            else rs->g[k] = rs->dg[k] = 0, rs->dirty[k] = 0;
+            continue;
+        }
+        if (rs->pass == 0) {
+            size_t at = (size_t)job->ids[k] * (size_t)C + (size_t)c;
+            double x = job->x[at] * 255.0;
+            if (!(x > 0)) x = 0;
+            if (x > 255) x = 255;
+            int32_t f = (int32_t)floor(x);
+            lo[k] = f, hi[k] = f < 255 ? f + 1 : 255;
+            if ((double)f == x) hi[k] = f; /* exact: nothing to choose */
+            q[k] = job->bytes[at];
+            if (q[k] < lo[k] || q[k] > hi[k]) q[k] = (int32_t)lrint(x);
+            continue;
+        }
+        double s = 0, d = 0;
+        for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) {
+            int32_t j = mf->rowind[p];
+            if (!round_row(job, j)) continue;
+            s += mf->val[p] * q[j];
+            if (j == k) d = mf->val[p];
+        }
+        rs->g[k] = s, rs->dg[k] = d;
+        /* a texel is looked at again only when its gradient changed since
+         * it was last looked at (otherwise the test gives the same "stay"):
+         * the same choices, in the same order, as full sweeps */
+        rs->dirty[k] = lo[k] != hi[k];
+    }
+    return SC_OK;
+}
+
+/* Greedy coordinate descent on q^T M q over q_k in {floor(255 x_k), +1}
+ * (rows that are not seam texels take no part). */
+static int round_channel(void *ud, int32_t chunk) {
+    round_job *job = ud;
+    int32_t c = job->chan[chunk];
+    const sc_sparse *mf = job->mf;
+    int32_t n = mf->n, C = job->channels;
+    int32_t *q = sc_alloc_array((size_t)n, sizeof *q), *lo = sc_alloc_array((size_t)n, sizeof *lo);
+    int32_t *hi = sc_alloc_array((size_t)n, sizeof *hi);
+    double *g = sc_alloc_array((size_t)n, sizeof *g), *dg = sc_alloc_array((size_t)n, sizeof *dg);
+    uint8_t *dirty = sc_alloc_array((size_t)n, sizeof *dirty);
+    if (!q || !lo || !hi || !g || !dg || !dirty) {
+        free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
+        return SC_ENOMEM;
+    }
+    round_start rs = {job, c, q, lo, hi, g, dg, dirty, 0};
+    int32_t chunks = (n + ROUND_ROWS_PER_CHUNK - 1) / ROUND_ROWS_PER_CHUNK;
+    int rc = sc_parallel(job->threads, chunks, round_start_chunk, &rs);
+    rs.pass = 1;
+    if (rc == SC_OK) rc = sc_parallel(job->threads, chunks, round_start_chunk, &rs);
+    if (rc != SC_OK) {   /* sc_parallel ran nothing: out of memory */
+        free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
+        return SC_ENOMEM;
+    }
+    for (int sweep = 0; sweep < ROUND_MAX_SWEEPS; sweep++) {
+        int64_t moved = 0;
+        for (int32_t k = 0; k < n; k++) {
+            if (!dirty[k]) continue;
+            dirty[k] = 0;
+            int32_t alt = q[k] == lo[k] ? hi[k] : lo[k], d = alt - q[k];
+            double de = 2.0 * d * g[k] + (double)d * d * dg[k];
+            if (!(de < -1e-13 * dg[k])) continue;
+            q[k] = alt;
+            dirty[k] = 1;
+            for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) {
+                int32_t i = mf->rowind[p];
+                if (!round_row(job, i)) continue;
+                g[i] += d * mf->val[p];
+                dirty[i] = lo[i] != hi[i];
+            }
+            moved++;
+        }
+        if (!moved) break;
+    }
+    for (int32_t k = 0; k < n; k++)
+        if (round_row(job, k)) job->bytes[(size_t)job->ids[k] * (size_t)C + (size_t)c] = (uint8_t)q[k];
+    free(q), free(lo), free(hi), free(g), free(dg), free(dirty);
+    return SC_OK;
+}
+
+/* The measurements after a solve, side by side with the optimal rounding:
+ * task 0 takes the seam energy of the float result and of the naive
+ * rounding, task 1 makes the optimal rounding (its channels on all
+ * threads) and takes its energy. */
+typedef struct measure_job {
+    const sc_mesh *m;
+    const sc_seam_set *seams;
+    const sc_seam_grid *g;
+    int threads;
+    const sc_image_data *f32, *naive;  /* naive: NULL when not quantised */
+    const sc_image_data *optimal;      /* the optimal rounding's image (round's bytes) */
+    round_job *round;                  /* NULL: no optimal rounding */
+    int32_t *src, *chan;               /* per channel: the channel it copies, or -1; the channels rounded */
+    int threads_energy;
+    double e_float, g_float, e_naive, g_naive, e_optimal, g_optimal;
+    int rc[2];
+    sc_error err[2];
+} measure_job;
+
+static int measure_task(void *ud, int32_t chunk) {
+    measure_job *j = ud;
+    if (chunk == 0) {
+        const sc_image_data *imgs[2] = {j->f32, j->naive};
+        double e[2] = {0, 0}, gap[2] = {0, 0};
+        j->rc[0] = sc_seam_energies(j->m, j->seams, j->g, imgs, j->naive ? 2 : 1, j->threads_energy, e, gap,
+                                    &j->err[0]);
+        j->e_float = e[0], j->g_float = gap[0], j->e_naive = e[1], j->g_naive = gap[1];
+        return j->rc[0];
+    }
+    round_job *rj = j->round;
+    int32_t C = rj->channels;
+    int32_t nu = round_unique_channels(rj, j->src, j->chan);
+    rj->threads = nu < j->threads ? j->threads : 1;
+    int rc = sc_seam_parallel(j->threads, nu, round_channel, rj);
+    for (int32_t c = 0; c < C && rc == SC_OK; c++)
+        if (j->src[c] >= 0)
+            for (int32_t s2 = 0; s2 < rj->mf->n; s2++) {
+                if (!round_row(rj, s2)) continue;
+                uint8_t *b = rj->bytes + (size_t)rj->ids[s2] * C;
+                b[c] = b[j->src[c]];
+            }
+    if (rc) return j->rc[1] = sc_fail(&j->err[1], rc, "out of memory rounding to 8 bits");
+    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, j->optimal, j->threads, &j->e_optimal, &j->g_optimal,
+                              &j->err[1]);
+    return j->rc[1];
+}
+
+/* ---------------------------------------------------------------- one group */
+
+/* Textures of one material sharing size and wrap modes: one system. */
+typedef struct group {
+    int32_t material;
+    sc_seam_grid grid;
+    int32_t ntex;
+    int32_t *tex;
+} group;
+
+typedef struct group_work {
+    sc_seam_coverage cov;
+    sc_seam_texset unk, seamset;
+    int32_t *ids, *seam_ids;
+    int32_t nseam_texels;
+    /* Q in its full pattern: the edge-cluster solver's factored matrix is
+     * made in it, its refinement multiplies by it, and 8-bit rounding then
+     * reads M = Q / w_pen from the rows marked in round_rows */
+    sc_sparse q, msub, mfull;
+    uint8_t *round_rows;
+    sc_sparse_chol *chol;
+    /* the edge-cluster solver (solver schur): Q without the grid couplings
+     * between charts (apart: row, column, weight), factored by sc_schur,
+     * the couplings taken back in by its iterations on the interface */
+    bool use_schur, fallback;   /* fallback: solver auto went to CHOLMOD */
+    sc_triplets apart;
+    int32_t *group;
+    double *gamma;
+    sc_schur *schur;
+    sc_schur_pcg_result pcg;
+    double *rhs;
+    double **vv;
+} group_work;
+
+static void group_work_free(group_work *w, int32_t ntex) {
+    sc_seam_coverage_free(&w->cov);
+    sc_seam_texset_free(&w->unk);
+    sc_seam_texset_free(&w->seamset);
+    free(w->ids), free(w->seam_ids);
+    sc_sparse_free(&w->q);
+    sc_sparse_free(&w->msub);
+    sc_sparse_free(&w->mfull);
+    free(w->round_rows);
+    sc_sparse_chol_free(w->chol);
+    sc_triplets_free(&w->apart);
+    free(w->group), free(w->gamma);
+    sc_schur_free(w->schur);
+    free(w->rhs);
+    if (w->vv)
+        for (int32_t k = 0; k < ntex; k++) free(w->vv[k]);
+    free(w->vv);
+}
+
+static bool is_normal_slot(const char *name) { return strcmp(name, "normal") == 0; }
+
+/* A cheap look at a normal map: tangent-space maps sit near (0.5, 0.5, 1). */
+static bool looks_tangent_space(const sc_image_data *img) {
+    if (img->channels < 3) return false;
+    int64_t n = (int64_t)img->width * img->height;
+    int64_t step = n > 262144 ? n / 262144 : 1;
+    double s[3] = {0, 0, 0};
+    int64_t cnt = 0;
+    for (int64_t t = 0; t < n; t += step, cnt++)
+        for (int c = 0; c < 3; c++) s[c] += sc_seam_texel(img, (int32_t)t, c);
+    for (int c = 0; c < 3; c++) s[c] /= (double)(cnt ? cnt : 1);
+    return s[2] > 0.7 && fabs(s[0] - 0.5) < 0.15 && fabs(s[1] - 0.5) < 0.15;
+}
+
+/* What the tasks that build and factor the system share (read-only). */
+typedef struct prep_ctx {
+    const sc_mesh *m;
+    const sc_seam_set *seams, *seams_only;
+    const sc_seam_grid *g;
+    const sc_texture *textures;
+    const group *gr;
+    const options *o;
+    group_work *w;
+    const sc_seam_terms *qterms;
+    double w_pen, w_change_texel;
+} prep_ctx;
+
+typedef struct prep_job {
+    prep_ctx ctx;
+    bool want_round, want_nullity;
+    int rc_factor, rc_side;
+    sc_error err_factor, err_side;
+    double nullity;
+    double seconds_nullity, seconds_round_prep;
+} prep_job;
+
+/* The preconditioner's matrix is Q less each listed coupling term
+ * w (p_r - p_r2)^2 (both diagonals and the pair): it is made in place in
+ * Q's full pattern, and the couplings that end at exactly zero join no
+ * cluster to another (sc_schur reads stored zeros as no coupling). The
+ * values it overwrites are kept in `saved` (4 per term) and put back, last
+ * term first, by preconditioner_restore: Q keeps its exact bits. */
+static void term_entries(const sc_sparse *full, const sc_triplets *apart, size_t k, int64_t at[4]) {
+    int32_t r = apart->row[k], r2 = apart->col[k];
+    at[0] = sc_sparse_find(full, r, r), at[1] = sc_sparse_find(full, r2, r2);
+    at[2] = sc_sparse_find(full, r2, r), at[3] = sc_sparse_find(full, r, r2);
+    if (at[0] < 0 || at[1] < 0 || at[2] < 0 || at[3] < 0) at[0] = -1;   /* assembled with Q: never */
+}
+
+static int preconditioner_apply(sc_sparse *full, const sc_triplets *apart, double **saved, sc_error *err) {
+    *saved = sc_alloc_array(4 * apart->count + 1, sizeof **saved);
+    if (!*saved) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (size_t k = 0; k < apart->count; k++) {
+        double w = apart->val[k];
+        int64_t at[4];
+        term_entries(full, apart, k, at);
+        if (at[0] < 0) continue;
+        for (int i = 0; i < 4; i++) (*saved)[4 * k + i] = full->val[at[i]];
+        full->val[at[0]] -= w, full->val[at[1]] -= w, full->val[at[2]] += w, full->val[at[3]] += w;
+    }
+    return SC_OK;
+}
+
+static void preconditioner_restore(sc_sparse *full, const sc_triplets *apart, const double *saved) {
+    for (size_t k = apart->count; k-- > 0;) {
+        int64_t at[4];
+        term_entries(full, apart, k, at);
+        if (at[0] < 0) continue;
+        for (int i = 0; i < 4; i++) full->val[at[i]] = saved[4 * k + i];
+    }
+}
+
+/* Task 0: analyse and factor Q (supernodal where the factor is big,
+ * simplicial where it is tiny), or, for the edge-cluster solver, its
+ * interface (prep_clusters did the rest). */
+static int prep_factor(prep_job *pj) {
+    group_work *w = pj->ctx.w;
+    if (w->use_schur) {
+        if (pj->rc_factor == SC_OK) pj->rc_factor = sc_schur_factor_interface(w->schur, &pj->err_factor);
+        if (pj->rc_factor != SC_OK && pj->ctx.o->solver == SC_ERASE_SOLVER_AUTO) {   /* CHOLMOD instead */
+            sc_schur_free(w->schur);
+            w->schur = NULL;
+            w->fallback = true;
+            sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+            pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
+        }
+    } else {
+        sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+        pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
+    }
+    return pj->rc_factor;
+}
+
+/* Before the two tasks, on all threads: the edge-cluster solver's clusters
+ * and S, which read Q made the factored matrix in place (and put back
+ * after); its failure is task 0's to handle. */
+static void prep_clusters(prep_job *pj) {
+    group_work *w = pj->ctx.w;
+    double *saved = NULL;
+    pj->rc_factor = preconditioner_apply(&w->q, &w->apart, &saved, &pj->err_factor);
+    if (pj->rc_factor == SC_OK)
+        pj->rc_factor = sc_schur_factor_clusters(&w->q, w->group, w->gamma, SCHUR_KEY_SPAN, pj->ctx.o->threads,
+                                                 &w->schur, &pj->err_factor);
+    if (saved) preconditioner_restore(&w->q, &w->apart, saved);
+    free(saved);
+}
+
+/* The channels that copy no earlier one (same: sc_seam_same_channels) into
+ * keep, in order; returns how many. */
+static int32_t kept_channels(const int32_t *same, int32_t channels, int32_t keep[SC_SEAM_MAX_CHANNELS]) {
+    int32_t nu = 0;
+    for (int32_t c = 0; c < channels; c++)
+        if (same[c] < 0) keep[nu++] = c;
+    return nu;
+}
+
+/* Those channels of img as an image of their own; NULL when out of memory. */
+static sc_image_data *unique_channels(const sc_image_data *img, const int32_t *same) {
+    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = kept_channels(same, img->channels, keep);
+    sc_image_data *u = sc_image_alloc(img->width, img->height, nu, img->pixel);
+    if (!u) return NULL;
+    const size_t texels = (size_t)img->width * (size_t)img->height, bytes = (size_t)img->pixel;
+    const uint8_t *src = img->pixels;
+    uint8_t *dst = u->pixels;
+    for (size_t t = 0; t < texels; t++)
+        for (int32_t j = 0; j < nu; j++)
+            memcpy(dst + (t * (size_t)nu + (size_t)j) * bytes,
+                   src + (t * (size_t)img->channels + (size_t)keep[j]) * bytes, bytes);
+    return u;
+}
+
+/* Right-hand sides made for unique_channels' image (its channels in the
+ * first columns of rhs, n rows each) spread to all `channels` columns. */
+static void spread_columns(double *rhs, int32_t n, int32_t channels, const int32_t *same) {
+    int32_t keep[SC_SEAM_MAX_CHANNELS], nu = kept_channels(same, channels, keep);
+    for (int32_t j = nu - 1; j >= 0; j--)
+        if (keep[j] != j) memcpy(rhs + (size_t)keep[j] * n, rhs + (size_t)j * n, (size_t)n * sizeof *rhs);
+    for (int32_t c = 0; c < channels; c++)
+        if (same[c] >= 0) memcpy(rhs + (size_t)c * n, rhs + (size_t)same[c] * n, (size_t)n * sizeof *rhs);
+}
+
+/* Task 1: the textures' residuals, the rows of M for rounding,
+ * and the nullity of M. It does not read Q, which task 0 changes in place. */
+static int prep_side(prep_job *pj) {
+    const prep_ctx *c = &pj->ctx;
+    group_work *w = c->w;
+    sc_error *err = &pj->err_side;
+    const int32_t n = w->unk.count;
+    /* all threads, even beside the edge-cluster solver's interface
+     * factorisation (one thread): with seam chains as its clusters, the
+     * interface is small and this is the longer task (pizza) */
+    const int threads = c->o->threads;
+    int rc = SC_OK;
+    double t0 = sc_now();
+    if (pj->want_round && !pj->want_nullity) {
+        /* for rounding, M on the seam texels is Q / w_pen there: the other
+         * terms are ~1e-10 of it and only nudge the greedy choices. Rounding
+         * reads the rows of seam texels of Q's full pattern. */
+        w->round_rows = sc_alloc_array((size_t)n + 1, sizeof *w->round_rows);
+        if (!w->round_rows) return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t r = 0; r < n; r++) w->round_rows[r] = sc_seam_texset_has(&w->seamset, w->ids[r]);
+    }
+    double t1 = sc_now();
+
+    /* the residual r = -1/2 grad E at p0 of every texture (here, off the
+     * factorisation's path); the solve gives d = x - p0, so texels that
+     * need no change keep their exact value */
+    for (int32_t k = 0, col = 0; k < c->gr->ntex; k++) {
+        const sc_image_data *img = c->textures[c->gr->tex[k]].image->as.image;
+        double *rhs = w->rhs + (size_t)col * n;
+        /* channels that copy an earlier one (a grey image stored as RGB)
+         * take that channel's residual: one channel's work, the same bits */
+        int32_t same[SC_SEAM_MAX_CHANNELS];
+        sc_image_data *uniq = NULL;
+        if (!w->vv[k] && img->channels <= SC_SEAM_MAX_CHANNELS && sc_seam_same_channels(img, same) < img->channels)
+            uniq = unique_channels(img, same);
+        sc_seam_terms rterms = *c->qterms;
+        rterms.p0 = uniq ? uniq : img;
+        rterms.vertex_values = w->vv[k];
+        rterms.rhs = rhs;
+        if ((rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, &rterms, threads, NULL, err))) {
+            sc_image_free(uniq);
+            return pj->rc_side = rc;
+        }
+        grid_terms(c->g, &w->unk, w->ids, &w->cov.covered, c->o, threads, c->w_change_texel, NULL, rterms.p0, rhs,
+                   NULL, NULL, NULL);
+        if (uniq) spread_columns(rhs, n, img->channels, same);
+        sc_image_free(uniq);
+        col += img->channels;
+    }
+    double t2 = sc_now();
+
+    /* M on the seam texels (the texels of cells seam edges pass through) */
+    w->nseam_texels = w->seamset.count;
+    if (sc_seam_texset_members(&w->seamset, &w->seam_ids))
+        return pj->rc_side = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (pj->want_nullity) {
+        /* M (eq. 9) alone, exactly, over the seam texels */
+        sc_triplet_parts t;
+        sc_triplet_parts_init(&t, w->seamset.count);
+        sc_seam_terms mterms = {.w_seam = 1.0};
+        rc = sc_seam_assemble(c->m, c->seams_only, c->g, &w->seamset, &mterms, c->o->threads, &t, err);
+        if (rc == SC_OK) rc = sc_sparse_from_triplet_parts(&t, 1, &w->msub, err);
+        sc_triplet_parts_free(&t);
+        if (rc) return pj->rc_side = rc;
+    }
+    if (pj->want_nullity && w->msub.n > 0) {
+        /* numerical nullity as numpy's matrix_rank counts it: eigenvalues
+         * below n eps |M| (|M| bounded by the largest row sum) */
+        double tol = sc_sparse_norm_bound(&w->msub) * (double)w->msub.n * DBL_EPSILON;
+        int64_t below = 0;
+        if (sc_sparse_count_eigs_below(&w->msub, tol, &below, NULL) == SC_OK) pj->nullity = (double)below;
+    }
+    double t3 = sc_now();
+    if (pj->want_round && pj->want_nullity && (rc = sc_sparse_full(&w->msub, &w->mfull, err))) return pj->rc_side = rc;
+    sc_sparse_free(&w->msub);
+    double t4 = sc_now();
+    pj->seconds_nullity = t3 - t2;
+    pj->seconds_round_prep = (t1 - t0) + (t4 - t3);
+    return SC_OK;
+}
+
+static void prep_front(void *ud) { prep_factor(ud); }
+static void prep_back(void *ud) { prep_side(ud); }
+
+/* Solve Q X = B for the columns of rhs (n x ncols, overwritten by X). A
+ * column equal to an earlier one (a grey image stored as RGB, the same image
+ * in two slots) is solved once and copied. */
+static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncols, double *rhs, sc_error *err) {
+    int32_t *src = sc_alloc_array((size_t)ncols, sizeof *src);
+    if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int32_t nu = 0;
+    for (int32_t c = 0; c < ncols; c++) {
+        src[c] = -1;
+        for (int32_t e = 0; e < c && src[c] < 0; e++)
+            if (src[e] < 0 && memcmp(rhs + (size_t)e * n, rhs + (size_t)c * n, (size_t)n * sizeof *rhs) == 0)
+                src[c] = e;
+        if (src[c] < 0) {
+            if (nu != c) memcpy(rhs + (size_t)nu * n, rhs + (size_t)c * n, (size_t)n * sizeof *rhs);
+            nu++;
+        }
+    }
+    int rc = SC_OK;
+    bool direct = w->schur == NULL;
+    if (w->schur) {
+        /* solver auto keeps the right-hand sides, to go to CHOLMOD should
+         * the iterations not converge */
+        double *kept = o->solver == SC_ERASE_SOLVER_AUTO ? sc_alloc_array((size_t)n * (size_t)nu, sizeof *kept) : NULL;
+        if (kept) memcpy(kept, rhs, (size_t)n * (size_t)nu * sizeof *rhs);
+        rc = sc_schur_solve_terms(w->schur, &w->q, &w->apart, nu, rhs, PCG_TOLERANCE, o->pcg_iterations, &w->pcg, err);
+        if (rc == SC_EINPUT && kept) {
+            sc_schur_free(w->schur);
+            w->schur = NULL;
+            w->fallback = true;
+            memcpy(rhs, kept, (size_t)n * (size_t)nu * sizeof *rhs);
+            sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+            rc = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, err);
+            direct = rc == SC_OK;
+        }
+        free(kept);
+    }
+    if (direct) rc = sc_sparse_chol_solve(w->chol, nu, rhs, err);
+    if (rc == SC_OK && nu < ncols) {
+        /* spread the solved columns back to their places, last first */
+        int32_t *slot = sc_alloc_array((size_t)ncols, sizeof *slot);
+        if (!slot) {
+            free(src);
+            return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        for (int32_t c = 0, u = 0; c < ncols; c++) slot[c] = src[c] < 0 ? u++ : -1;
+        for (int32_t c = ncols - 1; c >= 0; c--)
+            if (src[c] < 0 && slot[c] != c)
+                memcpy(rhs + (size_t)c * n, rhs + (size_t)slot[c] * n, (size_t)n * sizeof *rhs);
+        for (int32_t c = 0; c < ncols; c++)
+            if (src[c] >= 0) memcpy(rhs + (size_t)c * n, rhs + (size_t)src[c] * n, (size_t)n * sizeof *rhs);
+        free(slot);
+    }
+    free(src);
+    return rc;
+}
+
+/* Q (full pattern) from the seam terms, with room for the grid terms
+ * (task 0), and the edge-cluster solver's groups (task 1): independent. */
+typedef struct build_job {
+    const prep_ctx *ctx;
+    int rc[2];
+    sc_error err[2];
+} build_job;
+
+static int schur_groups(const sc_mesh *m, const sc_seam_set *seams, const sc_seam_grid *g, group_work *w,
+                        sc_error *err);
+
+static int build_task(void *ud, int32_t task) {
+    build_job *bj = ud;
+    const prep_ctx *c = bj->ctx;
+    group_work *w = c->w;
+    sc_error *err = &bj->err[task];
+    if (task == 1) return bj->rc[1] = schur_groups(c->m, c->seams, c->g, w, err);
+    sc_triplet_parts trip;
+    sc_triplet_parts_init(&trip, w->unk.count);
+    int rc = sc_seam_assemble(c->m, c->seams, c->g, &w->unk, c->qterms, c->o->threads, &trip, err);
+    int32_t *grid_start = NULL, *grid_rows = NULL;
+    if (rc == SC_OK) rc = grid_pattern(c->g, &w->unk, w->ids, &w->cov.covered, c->o, &grid_start, &grid_rows, err);
+    if (rc == SC_OK) rc = sc_sparse_full_from_triplet_parts(&trip, grid_start, grid_rows, c->o->threads, &w->q, err);
+    free(grid_start), free(grid_rows);
+    sc_triplet_parts_free(&trip);
+    return bj->rc[0] = rc;
+}
+
+/* For the edge-cluster solver: per unknown, its seam chain (w->group[r],
+ * -1 when cells of several chains reach it), its place along the chain
+ * (w->gamma[r]) and, in w->group + n, the chart (a connected piece of the
+ * parameter mesh) of the face whose piece reaches it first. */
+static int schur_groups(const sc_mesh *m, const sc_seam_set *seams, const sc_seam_grid *g, group_work *w,
+                        sc_error *err) {
+    const int32_t n = w->unk.count;
+    w->group = sc_alloc_array(2 * (size_t)n + 1, sizeof *w->group);
+    w->gamma = sc_alloc_array((size_t)n + 1, sizeof *w->gamma);
+    int32_t *parent = sc_alloc_array((size_t)m->nu + 1, sizeof *parent);
+    if (!w->group || !w->gamma || !parent) {
+        free(parent);
+        return sc_fail(err, SC_ENOMEM, "out of memory for %d unknowns", (int)n);
+    }
+    int32_t *chart = w->group + n;   /* first the face, then its chart */
+    int rc = sc_seam_texel_groups(m, seams, g, &w->unk, w->group, w->gamma, chart, err);
+    if (rc == SC_OK) {
+        for (int32_t i = 0; i < m->nu; i++) parent[i] = i;
+        for (int32_t f = 0; f < m->nf; f++)
+            for (int k = 1; k < 3; k++) {
+                int32_t a = m->FU[3 * f], b = m->FU[3 * f + k];
+                while (parent[a] != a) a = parent[a] = parent[parent[a]];
+                while (parent[b] != b) b = parent[b] = parent[parent[b]];
+                if (a != b) parent[a > b ? a : b] = a < b ? a : b;
+            }
+        for (int32_t r = 0; r < n; r++) {
+            if (chart[r] < 0) continue;
+            int32_t a = m->FU[3 * chart[r]];
+            while (parent[a] != a) a = parent[a];
+            chart[r] = a;
+        }
+    }
+    free(parent);
+    return rc;
+}
+
+static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *seams,
+                       const sc_texture *textures, const group *gr, const options *o,
+                       tex_state *st, bool several, totals *tot, sc_error *err) {
+    const sc_seam_grid *g = &gr->grid;
+    group_work w;
+    memset(&w, 0, sizeof w);
+    int rc = SC_OK;
+    double t0 = sc_now();
+
+    /* which texels are inside, which are unknown, which are the seam texels
+     * (of cells seam edges pass through) */
+    if ((rc = sc_seam_coverage_build(m, gr->material, g, o->threads, &w.cov, err))) goto done;
+    if (sc_seam_texset_init(&w.unk, g->width, g->height) || sc_seam_texset_init(&w.seamset, g->width, g->height)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    if ((rc = sc_seam_mark_texels(m, seams, g, &w.unk, &w.seamset, o->threads, err))) goto done;
+    if (sc_seam_texset_finish(&w.unk) || sc_seam_texset_members(&w.unk, &w.ids) || sc_seam_texset_finish(&w.seamset)) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    const int32_t n = w.unk.count;
+    int64_t n_inside = 0, n_shared_unk = 0;
+    for (int32_t r = 0; r < n; r++) {
+        n_inside += sc_seam_texset_has(&w.cov.covered, w.ids[r]);
+        n_shared_unk += sc_seam_texset_has(&w.cov.shared, w.ids[r]);
+    }
+    double w_change_texel = w.cov.ncovered > 0 ? o->w_change / (double)w.cov.ncovered : 0;
+
+    /* the scale of M on the seam texels */
+    sc_seam_set seams_only = *seams;
+    seams_only.nsil = 0;
+    double trace = 0;
+    if ((rc = sc_seam_trace(m, seams, g, o->threads, &trace, err))) goto done;
+    double w_pen = o->w_seam * (trace > 0 ? (double)w.seamset.count / trace : 1.0);
+
+    /* the system matrix, shared by every channel of every texture here */
+    sc_seam_terms qterms = {.w_seam = w_pen,
+                            .w_c1 = o->w_c1,
+                            .w_outside = o->outside ? o->w_outside : 0,
+                            .w_lerp = o->lerp ? o->w_lerp : 0};
+    /* right-hand sides: one column per channel of every texture */
+    int32_t ncols = 0;
+    for (int32_t k = 0; k < gr->ntex; k++) ncols += textures[gr->tex[k]].image->as.image->channels;
+    w.rhs = sc_calloc_array((size_t)n * (size_t)ncols, sizeof *w.rhs);
+    w.vv = sc_calloc_array((size_t)gr->ntex, sizeof *w.vv);
+    if (!w.rhs || !w.vv) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory for %d x %d right-hand sides", (int)n, (int)ncols);
+        goto done;
+    }
+    for (int32_t k = 0; k < gr->ntex; k++) {
+        const sc_texture *tx = &textures[gr->tex[k]];
+        const sc_image_data *img = tx->image->as.image;
+        for (int32_t r = 0; r < n; r++)
+            for (int32_t c = 0; c < img->channels; c++)
+                if (!isfinite(sc_seam_texel(img, w.ids[r], c))) {
+                    rc = sc_fail(err, SC_EINPUT, "texture %s (%s): non-finite value at texel (%d, %d)",
+                                 tx->name, tx->source, (int)(w.ids[r] % g->width),
+                                 (int)(w.ids[r] / g->width));
+                    goto done;
+                }
+        if (o->lerp && o->w_lerp > 0 && !(w.vv[k] = vertex_values(m, gr->material, g, img))) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+    }
+    /* Q's seam terms, and the edge-cluster solver's groups, side by side */
+    w.use_schur = o->solver == SC_ERASE_SOLVER_SCHUR || (o->solver == SC_ERASE_SOLVER_AUTO && n >= o->schur_from);
+    const prep_ctx pc = {m, seams, &seams_only, g, textures, gr, o, &w, &qterms, w_pen, w_change_texel};
+    build_job bj = {.ctx = &pc};
+    sc_seam_parallel(o->threads >= 2 && w.use_schur ? 2 : 1, w.use_schur ? 2 : 1, build_task, &bj);
+    if ((rc = bj.rc[0] ? bj.rc[0] : bj.rc[1])) {
+        if (err) *err = bj.err[bj.rc[0] ? 0 : 1];
+        goto done;
+    }
+    if (w.use_schur) {
+        /* texels that two chains' cells reach join no cluster: where they are
+         * most of the system (a geometry image of a mesh and its levels in
+         * one uv), every unknown is interface, and one factorisation of Q
+         * does what the edge-cluster solver would, without the iterations */
+        int64_t shared = 0;
+        for (int32_t r = 0; r < n; r++) shared += w.group[r] < 0;
+        if (o->solver == SC_ERASE_SOLVER_AUTO && (double)shared > SCHUR_MAX_SHARED * (double)n) {
+            w.use_schur = false;
+            free(w.group), free(w.gamma);
+            w.group = NULL, w.gamma = NULL;
+        }
+    }
+    if (w.use_schur) sc_triplets_init(&w.apart, n);
+    if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, o->threads, w_change_texel, &w.q, NULL, NULL,
+                         w.group ? w.group + n : NULL, w.use_schur ? &w.apart : NULL, err)))
+        goto done;
+    /* the texels those couplings join are interface unknowns: the solve
+     * iterates on the interface alone */
+    for (size_t k = 0; w.use_schur && k < w.apart.count; k++) w.group[w.apart.row[k]] = w.group[w.apart.col[k]] = -1;
+    bool want_round = false;
+    for (int32_t k = 0; k < gr->ntex; k++)
+        want_round |= textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
+                      o->quantize == SC_ERASE_QUANTIZE_OPTIMAL;
+
+    /* the factorisation (for the edge-cluster solver, of its interface
+     * alone, mostly on one thread) and everything else that needs only the
+     * seams (the textures' residuals, the rows of M for rounding, the
+     * nullity) run side by side: two independent tasks, the same results on
+     * any thread count. The factorisation is the longer path: the side work
+     * (on all threads) runs behind it, at a lower priority */
+    prep_job pj = {.ctx = pc,
+                   .want_round = want_round,
+                   .want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS,
+                   .nullity = NAN};
+    double tp0 = sc_now();
+    if (w.use_schur) prep_clusters(&pj);
+    sc_run_beside(o->threads, prep_front, prep_back, &pj);
+    if ((rc = pj.rc_factor)) {
+        if (err) *err = pj.err_factor;
+        sc_error_prefix(err, "material %s", m->materials[gr->material]);
+        goto done;
+    }
+    if ((rc = pj.rc_side)) {
+        if (err) *err = pj.err_side;
+        goto done;
+    }
+    /* conjugate gradients multiply by Q, and rounding reads it */
+    if (!w.use_schur && !w.round_rows) sc_sparse_free(&w.q);
+    /* stage times in wall time: the factorisation's stage holds the side
+     * work beside it */
+    double t1 = tp0, t2 = sc_now();
+    double ts = t2;
+    if ((rc = solve_unique(&w, o, n, ncols, w.rhs, err))) {
+        sc_error_prefix(err, "material %s", m->materials[gr->material]);
+        goto done;
+    }
+    double t3 = t2 + (sc_now() - ts);
+    sc_sparse_stats stats = {0};
+    if (w.schur) {
+        sc_schur_stats ss;
+        sc_schur_get_stats(w.schur, &ss);
+        stats.factor_nnz = ss.envelope + ss.interface_factor_nnz;
+        stats.flops = ss.cluster_flops + ss.interface_flops;
+        stats.peak_bytes = ss.peak_bytes;
+        tot->schur_groups += ss.clusters;
+        tot->interface_unknowns += ss.interface_unknowns;
+        if (w.pcg.iterations > tot->pcg_iterations) tot->pcg_iterations = w.pcg.iterations;
+        sc_schur_free(w.schur);
+        w.schur = NULL;
+    } else {
+        sc_sparse_chol_stats(w.chol, &stats);
+        sc_sparse_chol_free(w.chol);
+        w.chol = NULL;
+    }
+    if (!w.round_rows) sc_sparse_free(&w.q);
+    else   /* rounding reads M = Q / w_pen on the seam rows */
+        for (int64_t e = 0; e < w.q.nnz; e++) w.q.val[e] /= w_pen;
+    double nullity = pj.nullity;
+
+    /* write the solution, measure, quantise */
+    double tq = pj.seconds_round_prep;
+    tot->seconds_nullity += pj.seconds_nullity;
+    tot->seam_edges += seams->nseams;
+    tot->silhouette_edges += seams->nsil;
+    tot->unknowns += n;
+    tot->shared_texels += (double)w.cov.nshared;
+    tot->seconds_build += t1 - t0;
+    tot->seconds_factor += t2 - t1;
+    tot->seconds_solve += t3 - t2;
+    tot->factorizations++;
+    tot->solver_fallbacks += w.fallback;
+    tot->factor_nnz += stats.factor_nnz;
+    tot->factor_flops += stats.flops;
+    if (stats.peak_bytes / 1048576.0 > tot->solver_peak_mb) tot->solver_peak_mb = stats.peak_bytes / 1048576.0;
+    if (isnan(nullity)) tot->nullity_all = false;
+    else tot->nullity += nullity;
+
+    for (int32_t k = 0, col = 0; k < gr->ntex; k++) {
+        int32_t ti = gr->tex[k];
+        const sc_texture *tx = &textures[ti];
+        const sc_image_data *img = tx->image->as.image;
+        const int32_t C = img->channels;
+        const char *pre = st[ti].prefix;
+        sc_image_data *out = sc_image_to_f32_threads(img, o->threads);
+        if (!out) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        float *px = out->pixels;
+        double max_in = 0, sum_in = 0, max_out = 0;
+        bool finite = true;
+        for (int32_t r = 0; r < n; r++) {
+            int32_t t = w.ids[r];
+            bool inside = sc_seam_texset_has(&w.cov.covered, t);
+            for (int32_t c = 0; c < C; c++) {
+                double d = w.rhs[(size_t)(col + c) * n + r];
+                finite &= isfinite(d);
+                float *p = &px[(size_t)t * C + c];
+                float x = (float)((double)*p + d);
+                double ch = fabs((double)x - (double)*p);
+                *p = x;
+                if (inside) {
+                    if (ch > max_in) max_in = ch;
+                    sum_in += ch;
+                } else if (ch > max_out) {
+                    max_out = ch;
+                }
+            }
+        }
+        col += C;
+        if (!finite) {
+            sc_image_free(out);
+            rc = sc_fail(err, SC_EINPUT, "texture %s: the solve gave non-finite texels", tx->name);
+            goto done;
+        }
+        double e0 = 0, e1 = 0, g0 = 0, g1 = 0;
+        sc_value *fv = sc_value_new_image(out);
+        if (!fv) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        st[ti].f32 = fv;
+        e0 = st[ti].energy_before, g0 = st[ti].gap_before;
+        /* the input's own pixel type: naive rounding, and the optimal one
+         * made from it while the energies of the float and naive results
+         * are measured */
+        double eq_naive = NAN, eq_opt = NAN, gq = NAN;
+        bool quantise = img->pixel != SC_PIXEL_F32 && o->quantize != SC_ERASE_QUANTIZE_NONE;
+        double tq0 = sc_now();
+        sc_image_data *nat = NULL, *opt = NULL;
+        round_job rj = {&w.mfull, NULL, w.seam_ids, px, NULL, C, NULL};
+        int32_t src[4], chan[4];
+        if (quantise) {
+            nat = sc_image_alloc(img->width, img->height, C, img->pixel);
+            if (!nat) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                goto done;
+            }
+            nat->colorspace = img->colorspace;
+            memcpy(nat->format, img->format, sizeof nat->format);
+            size_t bytes = (size_t)img->width * img->height * C * (size_t)img->pixel;
+            memcpy(nat->pixels, img->pixels, bytes);
+            double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
+            for (int32_t r = 0; r < n; r++)
+                for (int32_t c = 0; c < C; c++) {
+                    size_t at = (size_t)w.ids[r] * C + c;
+                    double x = px[at];
+                    x = x < 0 ? 0 : x > 1 ? 1 : x;
+                    long v = lrint(x * maxv);
+                    if (img->pixel == SC_PIXEL_U8) ((uint8_t *)nat->pixels)[at] = (uint8_t)v;
+                    else ((uint16_t *)nat->pixels)[at] = (uint16_t)v;
+                }
+            /* M on the seam texels: exactly (small atlases, where the
+             * nullity was measured), or Q's rows there over w_pen */
+            if (w.round_rows && w.q.n > 0) rj.mf = &w.q, rj.rows = w.round_rows, rj.ids = w.ids;
+            if (img->pixel == SC_PIXEL_U8 && o->quantize == SC_ERASE_QUANTIZE_OPTIMAL && rj.mf->n > 0) {
+                if (C > 4) {   /* images hold at most 4 channels */
+                    sc_image_free(nat);
+                    rc = sc_fail(err, SC_EINPUT, "rounding to 8 bits: more than 4 channels");
+                    goto done;
+                }
+                opt = sc_image_alloc(nat->width, nat->height, C, nat->pixel);
+                if (opt) {
+                    opt->colorspace = nat->colorspace;
+                    memcpy(opt->format, nat->format, sizeof opt->format);
+                    memcpy(opt->pixels, nat->pixels, (size_t)nat->width * nat->height * C);
+                }
+                if (!opt) {
+                    sc_image_free(nat);
+                    rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                    goto done;
+                }
+                rj.bytes = opt->pixels, rj.chan = chan;
+            }
+        }
+        measure_job mj = {m, seams, g, o->threads, fv->as.image, nat, opt, opt ? &rj : NULL, src, chan, 0};
+        mj.threads_energy = opt && o->threads > 1 ? o->threads - 1 : o->threads;
+        sc_seam_parallel(opt && o->threads > 1 ? 2 : 1, opt ? 2 : 1, measure_task, &mj);
+        if (mj.rc[0] || mj.rc[1]) {
+            rc = mj.rc[0] ? mj.rc[0] : mj.rc[1];
+            if (err) *err = mj.err[mj.rc[0] ? 0 : 1];
+        } else if (opt) {
+            eq_opt = mj.e_optimal, gq = mj.g_optimal;
+        }
+        if (rc) {
+            sc_image_free(nat), sc_image_free(opt);
+            goto done;
+        }
+        e1 = mj.e_float, g1 = mj.g_float;
+        if (nat) {
+            eq_naive = mj.e_naive;
+            if (!opt) gq = mj.g_naive;
+            if (opt) sc_image_free(nat);
+            st[ti].native = sc_value_new_image(opt ? opt : nat);   /* owns it, even on failure */
+            if (!st[ti].native) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                goto done;
+            }
+            tq += sc_now() - tq0;
+        } else {
+            st[ti].native = sc_value_retain(fv);
+        }
+
+        /* metrics of this texture */
+        metric(ml, pre, "seam_edges", seams->nseams);
+        metric(ml, pre, "silhouette_edges", seams->nsil);
+        metric(ml, pre, "boundary_edges", seams->nboundary);
+        metric(ml, pre, "foldover_edges", seams->nfoldover);
+        metric(ml, pre, "unknowns", n);
+        metric(ml, pre, "unknowns_inside", (double)n_inside);
+        metric(ml, pre, "seam_texels", w.nseam_texels);
+        metric(ml, pre, "covered_texels", (double)w.cov.ncovered);
+        metric(ml, pre, "shared_texels", (double)w.cov.nshared);
+        metric(ml, pre, "shared_texel_fraction",
+               w.cov.ncovered ? (double)w.cov.nshared / (double)w.cov.ncovered : 0);
+        metric(ml, pre, "shared_unknowns", (double)n_shared_unk);
+        metric(ml, pre, "seam_energy_before", e0);
+        metric(ml, pre, "seam_energy_after", e1);
+        metric(ml, pre, "max_seam_gap_before", g0);
+        metric(ml, pre, "max_seam_gap_after", g1);
+        if (!isnan(eq_naive)) {
+            const char *bits = img->pixel == SC_PIXEL_U8 ? "u8" : "u16";
+            char name[64];
+            snprintf(name, sizeof name, "seam_energy_after_%s_naive", bits);
+            metric(ml, pre, name, eq_naive);
+            if (!isnan(eq_opt)) {
+                snprintf(name, sizeof name, "seam_energy_after_%s_optimal", bits);
+                metric(ml, pre, name, eq_opt);
+            }
+            snprintf(name, sizeof name, "max_seam_gap_after_%s", bits);
+            metric(ml, pre, name, gq);
+            if (img->pixel == SC_PIXEL_U8) {
+                tot->any_u8 = true;
+                tot->energy_u8_naive += eq_naive;
+                if (!isnan(eq_opt)) tot->any_optimal = true, tot->energy_u8_optimal += eq_opt;
+                else tot->energy_u8_optimal += eq_naive;
+                if (gq > tot->gap_u8) tot->gap_u8 = gq;
+            }
+        }
+        metric(ml, pre, "max_change_interior", max_in);
+        metric(ml, pre, "mean_change_interior", n_inside ? sum_in / ((double)n_inside * C) : 0);
+        metric(ml, pre, "max_change_outside", max_out);
+        if (!isnan(nullity)) metric(ml, pre, "nullity", nullity);
+        if (is_normal_slot(tx->name))
+            metric(ml, pre, "tangent_space_suspect", looks_tangent_space(img) ? 1 : 0);
+        if (several) {
+            metric(ml, pre, "seconds_build", t1 - t0);
+            metric(ml, pre, "seconds_factor", t2 - t1);
+            metric(ml, pre, "seconds_solve", t3 - t2);
+        }
+        tot->energy_before += e0;
+        tot->energy_after += e1;
+        if (g0 > tot->gap_before) tot->gap_before = g0;
+        if (g1 > tot->gap_after) tot->gap_after = g1;
+        if (max_in > tot->max_change_in) tot->max_change_in = max_in;
+        tot->erased++;
+    }
+    tot->seconds_quantize += tq;
+done:
+    group_work_free(&w, gr->ntex);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- the kernel */
+
+static const sc_kernel *const erase_uses[] = {&sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_schur, NULL};
+const sc_kernel sc_kernel_erase = {"erase", SC_ERASE_VERSION, erase_uses};
+
+static bool slot_selected(const char *list, const char *name) {
+    if (strcmp(list, "all") == 0) return true;
+    size_t len = strlen(name);
+    for (const char *p = list; *p;) {
+        while (*p == ' ' || *p == ',') p++;
+        const char *e = p;
+        while (*e && *e != ',') e++;
+        const char *t = e;
+        while (t > p && t[-1] == ' ') t--;
+        if ((size_t)(t - p) == len && strncmp(p, name, len) == 0) return true;
+        p = e;
+    }
+    return false;
+}
+
+/* Every name of the `textures` list must name some slot of the atlas. */
+static int check_selection(const char *list, const sc_texture *textures, int32_t ntex, sc_error *err) {
+    if (strcmp(list, "all") == 0) return SC_OK;
+    for (const char *p = list; *p;) {
+        while (*p == ' ' || *p == ',') p++;
+        if (!*p) break;
+        const char *e = p;
+        while (*e && *e != ',') e++;
+        const char *t = e;
+        while (t > p && t[-1] == ' ') t--;
+        bool found = false;
+        for (int32_t i = 0; i < ntex && !found; i++)
+            found = strlen(textures[i].name) == (size_t)(t - p) &&
+                    strncmp(textures[i].name, p, (size_t)(t - p)) == 0;
+        if (!found) {
+            sc_buf have;
+            sc_buf_init(&have);
+            for (int32_t i = 0; i < ntex; i++)
+                sc_buf_printf(&have, "%s%s", i ? ", " : "", textures[i].name);
+            char *h = sc_buf_take_string(&have);
+            int rc = sc_fail(err, SC_EINPUT, "textures: '%.*s' names no texture of the atlas (it has: %s)",
+                             (int)(t - p), p, h && *h ? h : "none");
+            free(h);
+            sc_buf_free(&have);
+            return rc;
+        }
+        p = e;
+    }
+    return SC_OK;
+}
+
+static void make_prefix(const sc_mesh *m, const sc_texture *t, bool several, char *out, size_t n) {
+    if (!several) {
+        out[0] = 0;
+        return;
+    }
+    if (m->nmat > 1) snprintf(out, n, "%s.%s.", m->materials[t->material], t->name);
+    else snprintf(out, n, "%s.", t->name);
+    for (char *p = out; *p; p++)
+        if (*p == ' ' || *p == '\t' || *p == '"') *p = '_';
+}
+
+sc_value *sc_erase_result_atlas(const sc_value *atlas, const sc_erase_result *res, bool native) {
+    if (res->erased == 0) return sc_value_retain((sc_value *)atlas);
+    const sc_atlas *a = atlas->as.atlas;
+    sc_atlas *o = sc_atlas_new(sc_value_retain(a->mesh));
+    if (!o) return NULL;
+    for (int32_t i = 0; i < a->ntex; i++) {
+        const sc_texture *t = &a->textures[i];
+        sc_value *img = native ? res->native[i] : res->f32[i];
+        if (sc_atlas_add_texture(o, t->name, t->material, t->wrap_u, t->wrap_v, t->source, sc_value_retain(img))) {
+            sc_atlas_free(o);
+            return NULL;
+        }
+    }
+    return sc_value_new_atlas(o);
+}
+
+static void emit_totals(sc_metric_list *ml, const totals *t, bool several) {
+    if (several) {
+        sc_metric_list_add(ml, "seam_edges", t->seam_edges);
+        sc_metric_list_add(ml, "silhouette_edges", t->silhouette_edges);
+        sc_metric_list_add(ml, "unknowns", t->unknowns);
+        sc_metric_list_add(ml, "shared_texels", t->shared_texels);
+        sc_metric_list_add(ml, "seam_energy_before", t->energy_before);
+        sc_metric_list_add(ml, "seam_energy_after", t->energy_after);
+        sc_metric_list_add(ml, "max_seam_gap_before", t->gap_before);
+        sc_metric_list_add(ml, "max_seam_gap_after", t->gap_after);
+        if (t->any_u8) {
+            sc_metric_list_add(ml, "seam_energy_after_u8_naive", t->energy_u8_naive);
+            if (t->any_optimal) sc_metric_list_add(ml, "seam_energy_after_u8_optimal", t->energy_u8_optimal);
+            sc_metric_list_add(ml, "max_seam_gap_after_u8", t->gap_u8);
+        }
+        sc_metric_list_add(ml, "max_change_interior", t->max_change_in);
+        if (t->nullity_all && t->factorizations > 0) sc_metric_list_add(ml, "nullity", t->nullity);
+    }
+    sc_metric_list_add(ml, "textures_erased", t->erased);
+    sc_metric_list_add(ml, "textures_unchanged", t->unchanged);
+    sc_metric_list_add(ml, "tangent_space_unerasable", t->tangent);
+    sc_metric_list_add(ml, "factorizations", t->factorizations);
+    sc_metric_list_add(ml, "seconds_build", t->seconds_build);
+    sc_metric_list_add(ml, "seconds_factor", t->seconds_factor);
+    sc_metric_list_add(ml, "seconds_solve", t->seconds_solve);
+    sc_metric_list_add(ml, "seconds_quantize", t->seconds_quantize);
+    sc_metric_list_add(ml, "seconds_nullity", t->seconds_nullity);
+    sc_metric_list_add(ml, "solver_peak_mb", t->solver_peak_mb);
+    sc_metric_list_add(ml, "factor_nnz", t->factor_nnz);
+    if (t->solver_fallbacks > 0) sc_metric_list_add(ml, "solver_fallbacks", t->solver_fallbacks);
+    if (t->schur_groups > 0 || t->interface_unknowns > 0) {
+        sc_metric_list_add(ml, "schur_clusters", t->schur_groups);
+        sc_metric_list_add(ml, "interface_unknowns", t->interface_unknowns);
+        sc_metric_list_add(ml, "pcg_iterations", t->pcg_iterations);
+    }
+    sc_metric_list_add(ml, "factor_flops", t->factor_flops);
+}
+
+void sc_erase_defaults(sc_erase_options *o) {
+    *o = (sc_erase_options){
+        .w_change = SC_ERASE_W_CHANGE_LOCAL,
+        .w_seam = SC_ERASE_W_SEAM,
+        .w_grad_in = SC_ERASE_W_GRAD,
+        .w_c1 = SC_ERASE_W_C1,
+        .w_grad_out = SC_ERASE_W_GRAD,
+        .w_lerp = SC_ERASE_W_LERP,
+        .w_outside = SC_ERASE_W_OUTSIDE,
+        .gap_tolerance = SC_ERASE_GAP_TOLERANCE,
+        .textures = "all",
+        .quantize = SC_ERASE_QUANTIZE_OPTIMAL,
+        .solver = SC_ERASE_SOLVER_AUTO,
+        .schur_from = SC_ERASE_SCHUR_FROM,
+        .pcg_iterations = SC_ERASE_PCG_ITERATIONS,
+    };
+}
+
+/* Each texture's image: erased (its own or an earlier slot's of the same
+ * image), or the input's passed through. */
+static int collect_results(const sc_texture *textures, int32_t ntex, const tex_state *st, int32_t erased,
+                           sc_erase_result *res, sc_error *err) {
+    res->count = ntex;
+    res->erased = erased;
+    res->f32 = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *res->f32);
+    res->native = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *res->native);
+    if (!res->f32 || !res->native || res->metrics.failed) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t i = 0; i < ntex; i++) {
+        int32_t src = st[i].same_as >= 0 ? st[i].same_as : i;
+        bool own = st[src].fate == FATE_ERASE;
+        res->f32[i] = sc_value_retain(own ? st[src].f32 : textures[i].image);
+        res->native[i] = sc_value_retain(own ? st[src].native : textures[i].image);
+    }
+    return SC_OK;
+}
+
+void sc_erase_result_free(sc_erase_result *res) {
+    for (int32_t i = 0; i < res->count; i++) {
+        if (res->f32) sc_value_release(res->f32[i]);
+        if (res->native) sc_value_release(res->native[i]);
+    }
+    free(res->f32), free(res->native);
+    sc_metric_list_free(&res->metrics);
+    *res = (sc_erase_result){0};
+}
+
+int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const sc_erase_options *eo, int threads,
+             sc_erase_result *res, sc_error *err) {
+    *res = (sc_erase_result){0};
+    const options o = {
+        .w_change = eo->w_change,
+        .w_seam = eo->w_seam,
+        .w_grad_in = eo->w_grad_in,
+        .w_c1 = eo->w_c1,
+        .w_grad_out = eo->w_grad_out,
+        .w_lerp = eo->w_lerp,
+        .w_outside = eo->w_outside,
+        .lerp = eo->lerp,
+        .outside = eo->outside,
+        .tangent_space = eo->tangent_space_normals,
+        .gap_tolerance = eo->gap_tolerance,
+        .textures = eo->textures ? eo->textures : "all",
+        .quantize = eo->quantize,
+        .solver = eo->solver,
+        .schur_from = eo->schur_from,
+        .pcg_iterations = eo->pcg_iterations,
+        .threads = threads,
+    };
+    const char *list = o.textures;
+    int rc = check_selection(list, textures, ntex, err);
+    if (rc) return rc;
+
+    tex_state *st = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *st);
+    sc_seam_set *sets = sc_calloc_array((size_t)m->nmat, sizeof *sets);
+    bool *found = sc_calloc_array((size_t)m->nmat, sizeof *found);
+    group *groups = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *groups);
+    int32_t ngroups = 0;
+    totals tot = {.nullity_all = true};
+    if (!st || !sets || !found || !groups) {
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        goto done;
+    }
+    int32_t nselected = 0;
+    for (int32_t i = 0; i < ntex; i++) nselected += slot_selected(list, textures[i].name);
+    bool several = nselected > 1;
+
+    /* decide each texture's fate; group the ones to erase */
+    for (int32_t i = 0; i < ntex; i++) {
+        const sc_texture *t = &textures[i];
+        st[i].same_as = -1;
+        make_prefix(m, t, several, st[i].prefix, sizeof st[i].prefix);
+        if (!slot_selected(list, t->name)) continue;
+        if (t->material < 0 || t->material >= m->nmat) {
+            rc = sc_fail(err, SC_EINPUT, "texture %s: material %d out of range", t->name, (int)t->material);
+            goto done;
+        }
+        if (!found[t->material]) {
+            if ((rc = sc_seam_find(m, t->material, &sets[t->material], err))) goto done;
+            found[t->material] = true;
+        }
+        if (o.tangent_space && is_normal_slot(t->name)) {
+            st[i].fate = FATE_TANGENT;
+            metric(&res->metrics, st[i].prefix, "tangent_space_unerasable", 1);
+            tot.tangent++;
+            continue;
+        }
+        if (sets[t->material].nseams == 0) {
+            metric(&res->metrics, st[i].prefix, "seam_edges", 0);
+            metric(&res->metrics, st[i].prefix, "seam_energy_before", 0);
+            metric(&res->metrics, st[i].prefix, "seam_energy_after", 0);
+            metric(&res->metrics, st[i].prefix, "max_seam_gap_after", 0);
+            tot.unchanged++;
+            continue;
+        }
+        {
+            /* already seam-free (within the tolerance, or within one step of an
+             * 8/16-bit encoding, the best such an image can hold)? */
+            const sc_image_data *img = t->image->as.image;
+            sc_seam_grid g = {img->width, img->height, t->wrap_u, t->wrap_v};
+            if ((rc = sc_seam_energy(m, &sets[t->material], &g, img, o.threads, &st[i].energy_before,
+                                     &st[i].gap_before, err)))
+                goto done;
+            double step = img->pixel == SC_PIXEL_U8 ? 1.0 / 255 : img->pixel == SC_PIXEL_U16 ? 1.0 / 65535 : 0;
+            if (o.gap_tolerance > 0 && st[i].gap_before <= fmax(o.gap_tolerance, step)) {
+                st[i].fate = FATE_CLEAN;
+                const char *pre = st[i].prefix;
+                metric(&res->metrics, pre, "seam_edges", sets[t->material].nseams);
+                metric(&res->metrics, pre, "already_seam_free", 1);
+                metric(&res->metrics, pre, "seam_energy_before", st[i].energy_before);
+                metric(&res->metrics, pre, "seam_energy_after", st[i].energy_before);
+                metric(&res->metrics, pre, "max_seam_gap_before", st[i].gap_before);
+                metric(&res->metrics, pre, "max_seam_gap_after", st[i].gap_before);
+                tot.unchanged++;
+                continue;
+            }
+        }
+        st[i].fate = FATE_ERASE;
+        for (int32_t k = 0; k < i; k++)
+            if (st[k].fate == FATE_ERASE && st[k].same_as < 0 && textures[k].image == t->image &&
+                textures[k].material == t->material && textures[k].wrap_u == t->wrap_u &&
+                textures[k].wrap_v == t->wrap_v) {
+                st[i].same_as = k;
+                break;
+            }
+        if (st[i].same_as >= 0) continue;
+        const sc_image_data *img = t->image->as.image;
+        sc_seam_grid g = {img->width, img->height, t->wrap_u, t->wrap_v};
+        int32_t gi = 0;
+        while (gi < ngroups &&
+               !(groups[gi].material == t->material && groups[gi].grid.width == g.width &&
+                 groups[gi].grid.height == g.height && groups[gi].grid.wrap_u == g.wrap_u &&
+                 groups[gi].grid.wrap_v == g.wrap_v))
+            gi++;
+        if (gi == ngroups) {
+            groups[gi].material = t->material;
+            groups[gi].grid = g;
+            groups[gi].tex = sc_alloc_array((size_t)ntex, sizeof *groups[gi].tex);
+            if (!groups[gi].tex) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                goto done;
+            }
+            ngroups++;
+        }
+        groups[gi].tex[groups[gi].ntex++] = i;
+    }
+
+    for (int32_t gi = 0; gi < ngroups && rc == SC_OK; gi++)
+        rc = erase_group(&res->metrics, m, &sets[groups[gi].material], textures, &groups[gi], &o, st, several, &tot, err);
+    if (rc) goto done;
+    for (int32_t i = 0; i < ntex; i++)
+        if (st[i].fate == FATE_ERASE && st[i].same_as >= 0) {
+            /* a second slot of an image already erased */
+            tot.erased++;
+            metric(&res->metrics, st[i].prefix, "same_image_as_slot", st[i].same_as);
+        }
+    emit_totals(&res->metrics, &tot, several);
+    rc = collect_results(textures, ntex, st, tot.erased, res, err);
+
+done:
+    if (st)
+        for (int32_t i = 0; i < ntex; i++) {
+            sc_value_release(st[i].f32);
+            sc_value_release(st[i].native);
+        }
+    if (sets)
+        for (int32_t k = 0; k < m->nmat; k++) sc_seam_set_free(&sets[k]);
+    if (groups)
+        for (int32_t gi = 0; gi < ngroups; gi++) free(groups[gi].tex);
+    free(st), free(sets), free(found), free(groups);
+    if (rc != SC_OK) sc_erase_result_free(res);
+    return rc;
+}
+

@@ -1,0 +1,93 @@
+/* sc_erase.h - seam erasure (Liu et al. 2017, §3-4): textures moved onto the
+ * seam operator's null space, so that both sides of every seam sample the
+ * same values.
+ *
+ * One library serves every node that erases: erase_seams itself, straighten
+ * (after it warps a texture), bake_displacement (its geometry images and
+ * displacement maps) and mipmap (every level of a chain). Each of them lists
+ * sc_kernel_erase in its descriptor, so a change of SC_ERASE_VERSION re-keys
+ * all of them at once.
+ *
+ *     sc_erase_options o;
+ *     sc_erase_defaults(&o);
+ *     o.quantize = SC_ERASE_QUANTIZE_NONE;
+ *     sc_erase_result r;
+ *     if (sc_erase(mesh, atlas->textures, atlas->ntex, &o, threads, &r, &err) == SC_OK) {
+ *         sc_value *erased = sc_erase_result_atlas(atlas_value, &r, false);
+ *         ...
+ *     }
+ *     sc_erase_result_free(&r);
+ */
+#ifndef SC_ERASE_H
+#define SC_ERASE_H
+
+#include "sc_value.h"
+
+/* Bump whenever sc_erase's output bytes for the same inputs can change. */
+#define SC_ERASE_VERSION 1
+extern const sc_kernel sc_kernel_erase;
+
+/* The paper's weights: the defaults of erase_seams's parameters. */
+#define SC_ERASE_W_SEAM 1e10
+#define SC_ERASE_W_CHANGE_LOCAL 1e4
+#define SC_ERASE_W_CHANGE_GLOBAL 1e2
+#define SC_ERASE_W_GRAD 1.0
+#define SC_ERASE_W_C1 1e2
+#define SC_ERASE_W_LERP 1e2
+#define SC_ERASE_W_OUTSIDE 1e2
+#define SC_ERASE_GAP_TOLERANCE 1e-4
+#define SC_ERASE_SCHUR_FROM 500000   /* solver auto takes the edge-cluster solver from here */
+#define SC_ERASE_PCG_ITERATIONS 500
+
+typedef enum sc_erase_quantize {
+    SC_ERASE_QUANTIZE_NONE = 0,      /* native results stay f32 */
+    SC_ERASE_QUANTIZE_NAIVE = 1,     /* 8/16-bit: round to nearest */
+    SC_ERASE_QUANTIZE_OPTIMAL = 2,   /* 8-bit: rounding that minimises the quantised seam energy */
+} sc_erase_quantize;
+
+typedef enum sc_erase_solver {
+    SC_ERASE_SOLVER_AUTO = 0,
+    SC_ERASE_SOLVER_CHOLMOD = 1,     /* one direct factorisation of the whole system */
+    SC_ERASE_SOLVER_SCHUR = 2,       /* seam chains eliminated on their own, the rest factored */
+} sc_erase_solver;
+
+typedef struct sc_erase_options {
+    double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
+    bool lerp, outside;              /* add E_lerp, E_outside */
+    bool tangent_space_normals;      /* the "normal" slot is tangent-space: left, reported unerasable */
+    double gap_tolerance;            /* a texture within this (or one encoding step) passes through */
+    const char *textures;            /* slots to erase, comma-separated, or "all" (borrowed) */
+    sc_erase_quantize quantize;
+    sc_erase_solver solver;
+    int64_t schur_from;              /* solver auto: schur from this many unknowns */
+    int32_t pcg_iterations;          /* the most conjugate-gradient iterations of each schur round */
+} sc_erase_options;
+
+/* The paper's weights (preset local), every texture, optimal rounding, solver auto. */
+void sc_erase_defaults(sc_erase_options *o);
+
+typedef struct sc_erase_result {
+    int32_t count;          /* = the number of textures given */
+    sc_value **f32;         /* per texture: the erased f32 image, or the input image passed through */
+    sc_value **native;      /* per texture: the same in the input's pixel type (quantised once) */
+    int32_t erased;         /* textures changed; 0: every image is the input's */
+    sc_metric_list metrics; /* what erase_seams reports, in its order */
+} sc_erase_result;
+
+/* Erase the seams of textures[0..n) (each bound to a material of `mesh` with
+ * its wrap modes; slot names select and prefix metrics) on `threads` threads;
+ * results do not depend on the thread count. On success *res holds new
+ * references (free with sc_erase_result_free); on failure *res is empty and
+ * err names the texture or option at fault. */
+int sc_erase(const sc_mesh *mesh, const sc_texture *textures, int32_t n, const sc_erase_options *o,
+             int threads, sc_erase_result *res, sc_error *err);
+
+void sc_erase_result_free(sc_erase_result *res);
+
+/* The atlas `atlas` (an ATLAS value whose textures were given to sc_erase)
+ * with each texture's image replaced by the result's f32 or native image: a
+ * new reference, the atlas itself when nothing was erased; NULL when out of
+ * memory. */
+sc_value *sc_erase_result_atlas(const sc_value *atlas, const sc_erase_result *res, bool native);
+
+#endif
