@@ -55,6 +55,7 @@ typedef struct options {
     int64_t max_size;
     bool max_size_given;
     int max_runs;               /* watch: stop after this many cooks (0: never) */
+    double lua_timeout;         /* seconds a graph file may take to build its graph (0: the default) */
 } options;
 
 static int usage(const char *fmt, const char *arg) {
@@ -102,6 +103,10 @@ static int parse_args(int argc, char **argv, options *o) {
             NEED_VALUE();
             const char *eq = strchr(next, '=');
             if (!eq || eq == next) return usage("--set %s: expected name=value", next);
+            for (int k = 0; k < o->nsettings; k++)
+                if (strlen(o->settings[k].name) == (size_t)(eq - next) &&
+                    strncmp(o->settings[k].name, next, (size_t)(eq - next)) == 0)
+                    return usage("--set %s: this name is set twice", next);
             char *name = sc_strndup(next, (size_t)(eq - next));
             o->settings[o->nsettings].name = name;
             o->settings[o->nsettings].value = eq + 1;
@@ -129,6 +134,13 @@ static int parse_args(int argc, char **argv, options *o) {
             NEED_VALUE();
             if (parse_size(next, &o->max_size) != 0) return usage("--max-size %s: expected a size like 500M", next);
             o->max_size_given = true;
+        } else if (strcmp(a, "--lua-timeout") == 0) {
+            NEED_VALUE();
+            char *end;
+            double t = strtod(next, &end);
+            if (end == next || *end || !(t > 0) || t > 86400)
+                return usage("--lua-timeout %s: expected seconds, more than 0", next);
+            o->lua_timeout = t;
         } else if (strcmp(a, "--max-runs") == 0) {
             NEED_VALUE();
             o->max_runs = atoi(next);
@@ -164,7 +176,8 @@ static void free_options(options *o) {
     free(o->files);
 }
 
-/* $SEAMCOOK_CACHE, else $XDG_CACHE_HOME/seamcook, else ~/.cache/seamcook. */
+/* $SEAMCOOK_CACHE, else $XDG_CACHE_HOME/seamcook, else ~/.cache/seamcook;
+ * NULL when none of them is set (open_cache says so). */
 static char *default_cache_dir(void) {
     const char *env = getenv("SEAMCOOK_CACHE");
     if (env && *env) return sc_strdup(env);
@@ -172,23 +185,28 @@ static char *default_cache_dir(void) {
     if (env && *env) return sc_strprintf("%s/seamcook", env);
     env = getenv("HOME");
     if (env && *env) return sc_strprintf("%s/.cache/seamcook", env);
-    return sc_strdup(".seamcook-cache");
+    return NULL;
 }
 
 static int open_cache(const options *o, sc_cache **cache) {
     char *dir = o->cache_dir ? sc_strdup(o->cache_dir) : default_cache_dir();
+    if (!dir && !o->cache_dir) {
+        fprintf(stderr, "seamcook: no cache directory: HOME is not set; give --cache DIR or set SEAMCOOK_CACHE\n");
+        return EXIT_USAGE;
+    }
     sc_error err = {0};
     int rc = dir ? sc_cache_open(dir, cache, &err) : sc_fail(&err, SC_ENOMEM, "out of memory");
-    if (rc != SC_OK) fprintf(stderr, "seamcook: cache %s: %s\n", dir ? dir : "", err.message);
+    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);   /* the message names the cache */
     free(dir);
-    return rc == SC_OK ? EXIT_OK : EXIT_FAIL;
+    return rc == SC_OK ? EXIT_OK : rc == SC_EUSAGE ? EXIT_USAGE : EXIT_FAIL;
 }
 
 static int build_graph(const char *file, const options *o, sc_graph **g) {
     int ntypes;
     const sc_node_desc *const *types = sc_registry_all(&ntypes);
     sc_error err = {0};
-    int rc = sc_lua_build(file, types, ntypes, o->settings, o->nsettings, NULL, g, &err);
+    const sc_lua_limits limits = {.max_seconds = o->lua_timeout};
+    int rc = sc_lua_build(file, types, ntypes, o->settings, o->nsettings, &limits, g, &err);
     if (rc != SC_OK) {
         fprintf(stderr, "seamcook: %s\n", err.message);
         return rc == SC_EUSAGE ? EXIT_USAGE : EXIT_FAIL;
@@ -247,7 +265,8 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
 static int cmd_run(const options *o) {
     if (o->nfiles != 1) return usage("%s", "run needs exactly one graph file");
     sc_cache *cache = NULL;
-    if (open_cache(o, &cache) != EXIT_OK) return EXIT_FAIL;
+    int opened = open_cache(o, &cache);
+    if (opened != EXIT_OK) return opened;
     int status = cook(o->files[0], o, cache, o->out_dir ? o->out_dir : "out", o->check, NULL, NULL);
     sc_cache_close(cache);
     return status;
@@ -378,7 +397,8 @@ static int cmd_watch(const options *o) {
     if (o->nfiles != 1) return usage("%s", "watch needs exactly one graph file");
     if (o->dry_run) return usage("%s", "watch cannot be a dry run");
     sc_cache *cache = NULL;
-    if (open_cache(o, &cache) != EXIT_OK) return EXIT_FAIL;
+    int opened = open_cache(o, &cache);
+    if (opened != EXIT_OK) return opened;
     watcher w = {.loop = uv_default_loop(), .o = o, .cache = cache,
                  .out_dir = o->out_dir ? o->out_dir : "out"};
     uv_timer_init(w.loop, &w.debounce);
@@ -398,7 +418,8 @@ static int cmd_watch(const options *o) {
 static int cmd_test(const options *o) {
     if (o->nfiles == 0) return usage("%s", "test needs graph test files");
     sc_cache *cache = NULL;
-    if (open_cache(o, &cache) != EXIT_OK) return EXIT_FAIL;
+    int opened = open_cache(o, &cache);
+    if (opened != EXIT_OK) return opened;
     int passed = 0, failed = 0;
     for (int f = 0; f < o->nfiles; f++) {
         const char *file = o->files[f];
@@ -433,7 +454,8 @@ static int cmd_cache(const options *o) {
         return usage("unknown cache command '%s'", o->subcommand);
     if (!strcmp(o->subcommand, "gc") && !o->max_size_given)
         return usage("%s", "gc needs --max-size");
-    if (open_cache(o, &cache) != EXIT_OK) return EXIT_FAIL;
+    int opened = open_cache(o, &cache);
+    if (opened != EXIT_OK) return opened;
     sc_error err = {0};
     int rc;
     if (!strcmp(o->subcommand, "stats")) {

@@ -25,8 +25,12 @@
  * error carries no position of its own and calling lua_getinfo from inside the
  * allocator is not safe. Once the instruction limit trips, the hook fires on
  * every instruction, so a pcall in the graph cannot swallow the error and run
- * on. The allocator refuses any growth beyond the memory limit; Lua then
- * collects garbage, retries, and raises a memory error we rename.
+ * on. The library functions that loop in C (pattern matching, string.rep,
+ * table.move, table.sort) are replaced by versions that charge their loops
+ * to the same count (sc_lua_bounded.h), and both the hook and those charges
+ * check the wall clock, so no graph file runs past --lua-timeout. The
+ * allocator refuses any growth beyond the memory limit; Lua then collects
+ * garbage, retries, and raises a memory error we rename.
  *
  * Constructors. A node is staged in a userdata with a __gc (so a Lua error
  * thrown halfway, even out of memory, leaks nothing) and reaches the graph
@@ -41,6 +45,7 @@
  * long paths, so the final message maps the main chunk's short_src back.
  */
 #include "sc_lua.h"
+#include "sc_lua_bounded.h"
 
 #include <lauxlib.h>
 #include <lua.h>
@@ -57,6 +62,7 @@
 
 #define DEFAULT_MAX_INSTRUCTIONS 100000000
 #define DEFAULT_MAX_MEMORY ((size_t)256 << 20)
+#define DEFAULT_MAX_SECONDS 5.0
 #define HOOK_STEP 100
 #define MAX_GRAPH_FILE ((size_t)16 << 20)
 
@@ -76,7 +82,8 @@ typedef struct builder {
 
     int64_t max_instructions, instructions;
     int hook_step;
-    bool instructions_exceeded;
+    double max_seconds, deadline;     /* wall clock, sc_now() */
+    bool limit_exceeded;              /* instructions or time: limit_message says which */
     size_t max_memory, memory_used;
     bool memory_refused;
 
@@ -96,6 +103,8 @@ static builder *builder_of(lua_State *L) {
 }
 
 /* ---------------------------------------------------------------- limits */
+
+static void count_hook(lua_State *L, lua_Debug *ar);
 
 static void *limited_alloc(void *ud, void *ptr, size_t osize, size_t nsize) {
     builder *B = ud;
@@ -135,6 +144,28 @@ static void where_text(const builder *B, char *out, size_t n) {
     else snprintf(out, n, "%s", B->path);
 }
 
+/* Past a limit (instructions, or the wall clock), raise the limit's error,
+ * and from then on on every instruction, so that a pcall in the graph cannot
+ * swallow it and run on. */
+static void check_limits(lua_State *L, builder *B) {
+    if (B->instructions <= B->max_instructions && sc_now() <= B->deadline && !B->limit_exceeded) return;
+    if (!B->limit_exceeded) {
+        char where[560];
+        where_text(B, where, sizeof where);
+        if (B->instructions > B->max_instructions)
+            snprintf(B->limit_message, sizeof B->limit_message, "%s: instruction limit exceeded (%lld instructions)",
+                     where, (long long)B->max_instructions);
+        else
+            snprintf(B->limit_message, sizeof B->limit_message, "%s: graph evaluation exceeded %g s", where,
+                     B->max_seconds);
+        B->limit_exceeded = true;
+        B->hook_step = 1;
+        lua_sethook(L, count_hook, LUA_MASKCOUNT, 1);
+    }
+    lua_pushstring(L, B->limit_message);
+    lua_error(L);
+}
+
 static void count_hook(lua_State *L, lua_Debug *ar) {
     builder *B = builder_of(L);
     if (lua_getinfo(L, "Sl", ar) && ar->currentline > 0) {
@@ -142,19 +173,22 @@ static void count_hook(lua_State *L, lua_Debug *ar) {
         B->where_line = ar->currentline;
     }
     B->instructions += B->hook_step;
-    if (B->instructions <= B->max_instructions) return;
-    if (!B->instructions_exceeded) {
-        char where[560];
-        where_text(B, where, sizeof where);
-        snprintf(B->limit_message, sizeof B->limit_message,
-                 "%s: instruction limit exceeded (%lld instructions)", where,
-                 (long long)B->max_instructions);
-        B->instructions_exceeded = true;
-        B->hook_step = 1;
-        lua_sethook(L, count_hook, LUA_MASKCOUNT, 1);
-    }
-    lua_pushstring(L, B->limit_message);
-    lua_error(L);
+    check_limits(L, B);
+}
+
+/* The work of a library function's C loop (sc_lua_bounded.h), counted as
+ * instructions. */
+static void charge_steps(lua_State *L, int64_t steps) {
+    builder *B = builder_of(L);
+    lua_Debug ar;   /* where: the innermost Lua function calling the library */
+    for (int level = 0; lua_getstack(L, level, &ar); level++)
+        if (lua_getinfo(L, "Sl", &ar) && ar.currentline > 0) {
+            snprintf(B->where_file, sizeof B->where_file, "%s", frame_file(&ar));
+            B->where_line = ar.currentline;
+            break;
+        }
+    B->instructions = steps > INT64_MAX - B->instructions ? INT64_MAX : B->instructions + steps;
+    check_limits(L, B);
 }
 
 /* ---------------------------------------------------------------- positions */
@@ -1154,6 +1188,8 @@ static void open_sandbox(lua_State *L, builder *B) {
     lua_setfield(L, -2, "__metatable");
     lua_rawsetp(L, LUA_REGISTRYINDEX, &staging_meta_key);
 
+    sc_lua_open_bounded(L, charge_steps);
+
     for (int i = 0; i < B->ntypes; i++) {
         if (!B->types[i] || !B->types[i]->type) continue;
         lua_pushlightuserdata(L, (void *)B->types[i]);
@@ -1210,7 +1246,7 @@ static int memory_failure(const builder *B, const char *where, sc_error *err) {
 /* The final message for a failed build. */
 static int build_failure(builder *B, lua_State *L, int status, sc_error *err) {
     char where[560];
-    if (B->instructions_exceeded)
+    if (B->limit_exceeded)
         return sc_fail(err, SC_EINPUT, "%s", B->limit_message);
     const char *msg = lua_type(L, -1) == LUA_TSTRING ? lua_tostring(L, -1) : NULL;
     bool memory = status == LUA_ERRMEM || B->status == LUA_ERRMEM || B->status == LUA_ERRERR ||
@@ -1278,6 +1314,7 @@ int sc_lua_build(const char *path, const sc_node_desc *const *types, int ntypes,
                                                                  : DEFAULT_MAX_INSTRUCTIONS;
     B.max_memory = limits && limits->max_memory > 0 ? limits->max_memory : DEFAULT_MAX_MEMORY;
     B.hook_step = B.max_instructions < HOOK_STEP ? (int)B.max_instructions : HOOK_STEP;
+    B.max_seconds = limits && limits->max_seconds > 0 ? limits->max_seconds : DEFAULT_MAX_SECONDS;
 
     sc_buf code;
     sc_buf_init(&code);
@@ -1294,10 +1331,11 @@ int sc_lua_build(const char *path, const sc_node_desc *const *types, int ntypes,
                               : sc_fail(err, SC_ENOMEM, "%s: out of memory", path);
     } else {
         lua_sethook(L, count_hook, LUA_MASKCOUNT, B.hook_step);
+        B.deadline = sc_now() + B.max_seconds;
         lua_pushcfunction(L, build_protected);
         lua_pushlightuserdata(L, &B);
         int status = lua_pcall(L, 1, 0, 0);
-        if (status != LUA_OK || B.instructions_exceeded) rc = build_failure(&B, L, status, err);
+        if (status != LUA_OK || B.limit_exceeded) rc = build_failure(&B, L, status, err);
         lua_close(L);
     }
     if (!rc) rc = check_settings_used(&B, err);

@@ -2,7 +2,8 @@
  *
  * The sandbox opens base, string, table, math and utf8 only; removes dofile,
  * loadfile, require, collectgarbage, string.dump and every way to load
- * bytecode; bounds instructions and memory. Each registered node type is a
+ * bytecode; bounds instructions (C loops of the string and table libraries
+ * included), memory and wall-clock time. Each registered node type is a
  * global constructor taking one table: input ports (node handles) and
  * parameters by name, plus an optional `name`. It returns a handle; for a
  * node with several outputs, handle.<port> selects one. `param(name, default)`
@@ -21,6 +22,7 @@ typedef struct sc_setting {
 typedef struct sc_lua_limits {
     int64_t max_instructions;   /* 0: the default (100 million) */
     size_t max_memory;          /* 0: the default (256 MiB) */
+    double max_seconds;         /* wall clock; 0: the default (5 s) */
 } sc_lua_limits;
 
 /* Build the graph described by the file at `path`, with `types` as the node

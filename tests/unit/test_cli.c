@@ -328,6 +328,40 @@ SC_TEST(bad_input_exit_statuses) {
     err = slurp(dir, "err.txt");
     SC_CHECK_MSG(err && strstr(err, "resolutoin"), "stderr: %s", err ? err : "(nothing)");
     free(err), free(a), free(g);
+    /* a name set twice is a usage error, not the last one silently */
+    g = data("proc_save.lua");
+    a = sc_strprintf("run '%s' --cache cache --out out --set resolution=3 --set resolution=4", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "set twice"), "stderr: %s", err ? err : "(nothing)");
+    free(err), free(a);
+    /* with HOME unset and no cache given, say so instead of a cache in the working folder */
+    a = sc_strprintf("cd '%s' && env -u HOME -u SEAMCOOK_CACHE -u XDG_CACHE_HOME '%s' run '%s' --out out >out.txt 2>err.txt",
+                     dir, bin(), g);
+    SC_CHECK_INT(sc_test_system("%s", a), 2);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "HOME is not set"), "stderr: %s", err ? err : "(nothing)");
+    char *stray = sc_path_join(dir, ".seamcook-cache");
+    SC_CHECK(!exists(stray));
+    free(stray), free(err), free(a);
+    /* a bad --lua-timeout is a usage error; a graph past it fails naming the limit */
+    a = sc_strprintf("run '%s' --cache cache --out out --lua-timeout -1", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    free(a), free(g);
+    g = data("slow_loop.lua");
+    a = sc_strprintf("run '%s' --cache cache --out out --lua-timeout 0.3", g);
+    SC_CHECK_INT(cook(dir, a), 1);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "graph evaluation exceeded 0.3 s"), "stderr: %s", err ? err : "(nothing)");
+    free(err), free(a), free(g);
+    /* a cache that cannot be opened is named once */
+    a = sc_strprintf("run x.lua --cache /proc/no-such-cache");
+    SC_CHECK_INT(cook(dir, a), 1);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "cache /proc/no-such-cache") &&
+                     !strstr(strstr(err, "cache /proc/no-such-cache") + 1, "cache /proc/no-such-cache"),
+                 "stderr: %s", err ? err : "(nothing)");
+    free(err), free(a);
     free(dir);
 }
 

@@ -2,7 +2,11 @@
  * tests/data/lua, param()/--set, and the sandbox and its limits. Every bad
  * graph must fail with the right file:line and message, and never crash. */
 #include "sc_lua.h"
+#include "sc_lua_bounded.h"
 #include "sc_test.h"
+
+#include <lauxlib.h>
+#include <lualib.h>
 
 #include <stdlib.h>
 #include <unistd.h>
@@ -429,6 +433,107 @@ SC_TEST(instruction_limit) {
     CHECK_FAILS("loop_pcall.lua", 3, "instruction limit exceeded");
     /* and the default limit holds too */
     check_fails_at(__FILE__, __LINE__, "loop.lua", 2, "instruction limit exceeded", NULL);
+}
+
+/* Loops inside C library functions count against the same limit: each of
+ * these ran forever (or for hours) under the plain instruction hook. */
+SC_TEST(c_library_loops_are_bounded) {
+    double t0 = sc_now();
+    CHECK_FAILS("hang_pattern.lua", 2, "instruction limit exceeded");
+    CHECK_FAILS("hang_rep.lua", 3, "instruction limit exceeded");   /* line 2 returns "" at once */
+    CHECK_FAILS("hang_move.lua", 2, "instruction limit exceeded");
+    CHECK_FAILS("hang_pattern_pcall.lua", 2, "instruction limit exceeded");   /* where it tripped */
+    /* with the default limits too (100 million instructions) */
+    check_fails_at(__FILE__, __LINE__, "hang_pattern.lua", 2, "instruction limit exceeded", NULL);
+    check_fails_at(__FILE__, __LINE__, "hang_move.lua", 2, "instruction limit exceeded", NULL);
+    /* a guard against a hang, not a speed target: the default limits are a
+     * fraction of this */
+    SC_CHECK_MSG(sc_now() - t0 < 60, "the bounded loops took %.1f s", sc_now() - t0);
+}
+
+/* The bounded library functions against Lua's own, as the oracle: the same
+ * results (every value, its type) and the same error messages over a grid
+ * of subjects, patterns, start positions and replacements. */
+static void charge_nothing(lua_State *L, int64_t steps) { (void)L, (void)steps; }
+
+static const char *const agreement_script =
+    "local O = ...\n"
+    "local subjects = {'', 'hello world', '  key = value  ', 'aaa', '(foo(bar))baz', 'THE (quick) fox',\n"
+    "  'a,b,,c', 'x=1, y=22, z=333', '\\0a\\0b', '\\195\\164x', 'one two  three', 'ab]c-d%e', 'xyxyx'}\n"
+    "local patterns = {'', 'o', 'l+', 'l*', 'l-', 'l?', '^h', 'd$', '^$', '%a+', '%A+', '%d+', '(%w+)=(%w+)',\n"
+    "  '()ll()', '%s*(.-)%s*$', '%b()', '%bxy', '%f[%a]%a+', '%f[%A]', '[%a_][%w_]*', '[^,]*', '[]]', '[a-c]+',\n"
+    "  '[%]]', '(a*(.)%w(%s*))', '(a)%1', '(%a+) %1', '%%', '.', '.-', '.*', '$', '^', 'a-b', '[a-]', '[-a]',\n"
+    "  '%.', '\\0', '%w+$', '((a)(b))', 'x*', '(', ')', '%', '[a', '%1', '(()', '%b', '%f', '%fx', '[^]',\n"
+    "  '%g+', '%p', '%c', '%x+', '%u%l+', '%S+', '[%w-]+', '(x)(y)', '^(%w+)', 'e-', '[^%s]+$', '%0'}\n"
+    "local inits = {false, 1, 2, -3, 0, 100, -100}\n"
+    "local function pack(ok, ...) local t = {tostring(ok)}\n"
+    "  for i = 1, select('#', ...) do local v = select(i, ...); t[#t + 1] = type(v) .. ':' .. tostring(v) end\n"
+    "  return table.concat(t, '|') end\n"
+    "local function collect(f, ...) local ok, it = pcall(f, ...); if not ok then return pack(false, it) end\n"
+    "  local out = {}; for i = 1, 50 do local r = pack(pcall(it)); out[#out + 1] = r; if r == 'true' then break end end\n"
+    "  return table.concat(out, ';') end\n"
+    "local n, bad = 0, nil\n"
+    "local function same(what, a, b) n = n + 1; if a ~= b and not bad then bad = what .. ': ' .. a .. ' vs ' .. b end end\n"
+    "local repls = {'%0-%1', '<%0>', '%%', '%2', '%x', '', {hello = 'HI', a = false, o = 7}, function(a, b) return b or a end}\n"
+    "for _, s in ipairs(subjects) do for _, p in ipairs(patterns) do\n"
+    "  local q = string.format('%q %q', s, p)\n"
+    "  for _, i in ipairs(inits) do local init = i or nil\n"
+    "    same('find ' .. q, pack(pcall(O.find, s, p, init)), pack(pcall(string.find, s, p, init)))\n"
+    "    same('find plain ' .. q, pack(pcall(O.find, s, p, init, true)), pack(pcall(string.find, s, p, init, true)))\n"
+    "    same('match ' .. q, pack(pcall(O.match, s, p, init)), pack(pcall(string.match, s, p, init)))\n"
+    "    same('gmatch ' .. q, collect(O.gmatch, s, p, init), collect(string.gmatch, s, p, init))\n"
+    "  end\n"
+    "  for _, r in ipairs(repls) do for _, m in ipairs({false, 0, 1, 2}) do local max = m or nil\n"
+    "    same('gsub ' .. q, pack(pcall(O.gsub, s, p, r, max)), pack(pcall(string.gsub, s, p, r, max)))\n"
+    "  end end\n"
+    "end end\n"
+    "for _, a in ipairs({{'ab', 3}, {'ab', 3, ','}, {'', 5}, {'x', 0}, {'x', -1}, {'', 4, '-'}}) do\n"
+    "  same('rep', pack(pcall(O.rep, table.unpack(a))), pack(pcall(string.rep, table.unpack(a)))) end\n"
+    "local function moved(f, ...) local t = {1, 2, 3, 4, 5}; local ok, e = pcall(f, t, ...); return pack(ok, table.concat(t, ',')) end\n"
+    "for _, a in ipairs({{1, 3, 2}, {2, 5, 1}, {1, 0, 3}, {1, 2, 6}}) do\n"
+    "  same('move', moved(O.move, table.unpack(a)), moved(table.move, table.unpack(a))) end\n"
+    "local function sorted(f, cmp) local t = {5, 3, 9, 1, 7, 2}; f(t, cmp); return table.concat(t, ',') end\n"
+    "same('sort', sorted(O.sort), sorted(table.sort))\n"
+    "same('sort desc', sorted(O.sort, function(a, b) return a > b end), sorted(table.sort, function(a, b) return a > b end))\n"
+    "return n, bad\n";
+
+SC_TEST(bounded_library_functions_agree_with_lua) {
+    lua_State *L = luaL_newstate();
+    luaL_openlibs(L);
+    SC_CHECK(luaL_loadstring(L, agreement_script) == LUA_OK);
+    lua_newtable(L);   /* Lua's own functions, before the replacement */
+    const char *const string_fns[] = {"find", "match", "gmatch", "gsub", "rep"};
+    for (int i = 0; i < 5; i++) {
+        lua_getglobal(L, "string");
+        lua_getfield(L, -1, string_fns[i]);
+        lua_setfield(L, -3, string_fns[i]);
+        lua_pop(L, 1);
+    }
+    const char *const table_fns[] = {"move", "sort"};
+    for (int i = 0; i < 2; i++) {
+        lua_getglobal(L, "table");
+        lua_getfield(L, -1, table_fns[i]);
+        lua_setfield(L, -3, table_fns[i]);
+        lua_pop(L, 1);
+    }
+    sc_lua_open_bounded(L, charge_nothing);
+    int rc = lua_pcall(L, 1, 2, 0);
+    SC_CHECK_MSG(rc == LUA_OK, "%s", lua_tostring(L, -1));
+    if (rc == LUA_OK) {
+        SC_CHECK_MSG(lua_tointeger(L, -2) > 20000, "only %lld comparisons", (long long)lua_tointeger(L, -2));
+        SC_CHECK_MSG(lua_isnil(L, -1), "%s", lua_tostring(L, -1));
+    }
+    lua_close(L);
+}
+
+SC_TEST(wall_clock_limit) {
+    sc_lua_limits slow = {.max_instructions = INT64_MAX / 2, .max_seconds = 0.25};
+    double t0 = sc_now();
+    check_fails_at(__FILE__, __LINE__, "slow_loop.lua", 3, "graph evaluation exceeded 0.25 s", &slow);
+    double took = sc_now() - t0;
+    SC_CHECK_MSG(took >= 0.25 && took < 30, "the limit of 0.25 s ended evaluation after %.2f s", took);
+    /* a C loop hits the clock too: the pattern's steps stay under this budget */
+    check_fails_at(__FILE__, __LINE__, "hang_pattern.lua", 2, "graph evaluation exceeded 0.25 s", &slow);
 }
 
 SC_TEST(memory_limit) {

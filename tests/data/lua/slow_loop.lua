@@ -1,0 +1,3 @@
+src{}
+local x = 0
+while true do x = x + 1 end
