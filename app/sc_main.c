@@ -19,6 +19,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cjson/cJSON.h>
@@ -56,6 +57,7 @@ typedef struct options {
     bool max_size_given;
     int max_runs;               /* watch: stop after this many cooks (0: never) */
     double lua_timeout;         /* seconds a graph file may take to build its graph (0: the default) */
+    const char *asset_root;     /* --asset-root: every load_atlas's asset_root */
 } options;
 
 static int usage(const char *fmt, const char *arg) {
@@ -134,6 +136,9 @@ static int parse_args(int argc, char **argv, options *o) {
             NEED_VALUE();
             if (parse_size(next, &o->max_size) != 0) return usage("--max-size %s: expected a size like 500M", next);
             o->max_size_given = true;
+        } else if (strcmp(a, "--asset-root") == 0) {
+            NEED_VALUE();
+            o->asset_root = next;
         } else if (strcmp(a, "--lua-timeout") == 0) {
             NEED_VALUE();
             char *end;
@@ -197,8 +202,38 @@ static int open_cache(const options *o, sc_cache **cache) {
     sc_error err = {0};
     int rc = dir ? sc_cache_open(dir, cache, &err) : sc_fail(&err, SC_ENOMEM, "out of memory");
     if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);   /* the message names the cache */
+    else if (sc_cache_notice(*cache)) fprintf(stderr, "seamcook: note: %s\n", sc_cache_notice(*cache));
     free(dir);
     return rc == SC_OK ? EXIT_OK : rc == SC_EUSAGE ? EXIT_USAGE : EXIT_FAIL;
+}
+
+/* --asset-root DIR: the asset_root of every node that has one (load_atlas),
+ * as an absolute path, so that it enters their keys like any PATH. */
+static int set_asset_root(sc_graph **graph, const char *dir) {
+    sc_graph *g = *graph;
+    struct stat st;
+    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode)) {
+        fprintf(stderr, "seamcook: --asset-root %s: not a folder\n", dir);
+        sc_graph_free(g);
+        *graph = NULL;
+        return EXIT_USAGE;
+    }
+    char cwd[PATH_MAX];
+    char *abs = dir[0] == '/' ? sc_strdup(dir) : getcwd(cwd, sizeof cwd) ? sc_path_join(cwd, dir) : NULL;
+    if (!abs) {
+        fprintf(stderr, "seamcook: --asset-root %s: cannot make it absolute\n", dir);
+        sc_graph_free(g);
+        *graph = NULL;
+        return EXIT_FAIL;
+    }
+    for (int i = 0; i < g->count; i++) {
+        int p = sc_desc_param(g->nodes[i].desc, "asset_root");
+        if (p < 0) continue;
+        free(g->nodes[i].params[p].string);
+        g->nodes[i].params[p].string = sc_strdup(abs);
+    }
+    free(abs);
+    return EXIT_OK;
 }
 
 static int build_graph(const char *file, const options *o, sc_graph **g) {
@@ -211,7 +246,7 @@ static int build_graph(const char *file, const options *o, sc_graph **g) {
         fprintf(stderr, "seamcook: %s\n", err.message);
         return rc == SC_EUSAGE ? EXIT_USAGE : EXIT_FAIL;
     }
-    return EXIT_OK;
+    return o->asset_root ? set_asset_root(g, o->asset_root) : EXIT_OK;
 }
 
 /* ---------------------------------------------------------------- run */
@@ -243,6 +278,7 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
         .jobs = o->jobs, .out_dir = out_dir, .dry_run = o->dry_run, .explain = o->explain,
         .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2),
     };
+    if (out_dir && !o->dry_run) sc_remove_stale_tmp(out_dir, NULL);   /* a killed run's half-written files */
     sc_run *run = NULL;
     sc_error err = {0};
     int rc = sc_engine_run(g, cache, &eo, &run, &err);
@@ -321,19 +357,32 @@ static void close_watches(watcher *w) {
 }
 
 /* Watch the folder of each file (not the file: editors that save by writing
- * a new file and renaming it over the old one replace the inode). */
+ * a new file and renaming it over the old one replace the inode). A file
+ * whose folder is missing too is waited for in the nearest folder that
+ * exists, under the name of the first missing one. */
 static void watch_files(watcher *w, char **files, int nfiles) {
     w->dirs = calloc((size_t)nfiles + 1, sizeof *w->dirs);
     if (!w->dirs) return;
     for (int f = 0; f < nfiles; f++) {
         char *dir = sc_path_dirname(files[f]);
-        const char *base = strrchr(files[f], '/') ? strrchr(files[f], '/') + 1 : files[f];
+        char *base = sc_strdup(strrchr(files[f], '/') ? strrchr(files[f], '/') + 1 : files[f]);
+        struct stat st;
+        while (dir && base && stat(dir, &st) != 0 && strcmp(dir, "/") != 0 && strcmp(dir, ".") != 0) {
+            char *up = sc_path_dirname(dir);
+            free(base);
+            base = sc_strdup(strrchr(dir, '/') ? strrchr(dir, '/') + 1 : dir);
+            free(dir);
+            dir = up;
+        }
         watched_dir *wd = NULL;
         for (int k = 0; dir && k < w->nwatch; k++)
             if (strcmp(w->dirs[k]->path, dir) == 0) wd = w->dirs[k];
         if (!wd && dir) {
             wd = calloc(1, sizeof *wd);
-            if (!wd) break;
+            if (!wd) {
+                free(dir), free(base);
+                break;
+            }
             wd->path = dir;
             wd->names = sc_strdup("\n");
             dir = NULL;
@@ -341,43 +390,72 @@ static void watch_files(watcher *w, char **files, int nfiles) {
             wd->handle.data = w;
             if (uv_fs_event_start(&wd->handle, on_fs_event, wd->path, 0) != 0) {
                 uv_close((uv_handle_t *)&wd->handle, free_watched_dir);
+                free(base);
                 continue;
             }
             w->dirs[w->nwatch++] = wd;
         }
-        if (wd && wd->names) {
+        if (wd && wd->names && base) {
             char *joined = sc_strprintf("%s%s\n", wd->names, base);
             if (joined) free(wd->names), wd->names = joined;
         }
-        free(dir);
+        free(dir), free(base);
     }
+}
+
+/* Whether `path` no longer holds what a cook saw: `seen` is the content it
+ * read, all zero when it found the file missing. */
+static bool changed_since(sc_cache *cache, const char *path, const sc_digest *seen) {
+    static const sc_digest missing;
+    sc_digest now;
+    sc_error ignored;
+    bool exists = sc_cache_file_digest(cache, path, &now, &ignored) == SC_OK;
+    if (sc_digest_equal(seen, &missing)) return exists;
+    return !exists || !sc_digest_equal(&now, seen);
 }
 
 static void watch_rebuild(uv_timer_t *timer) {
     watcher *w = timer->data;
     close_watches(w);
+    char graph[PATH_MAX];
+    if (!realpath(w->o->files[0], graph)) snprintf(graph, sizeof graph, "%s", w->o->files[0]);
+    sc_digest graph_seen = {0};
+    sc_error ignored;
+    sc_cache_file_digest(w->cache, graph, &graph_seen, &ignored);
     sc_run *run = NULL;
     sc_graph *g = NULL;
     cook(w->o->files[0], w->o, w->cache, w->out_dir, w->o->check, &run, &g);
     w->runs++;
     sc_release_memory();   /* a watch waits long between cooks */
-    /* the graph file itself plus every file any node read */
+    /* the graph file itself plus every file any node read or found missing */
     int cap = 1, n = 0;
     if (run)
         for (int i = 0; i < g->count; i++) cap += run->results[i].ndeps;
     char **files = calloc((size_t)cap + 1, sizeof(char *));
-    char resolved[PATH_MAX];
-    if (files && realpath(w->o->files[0], resolved)) files[n++] = sc_strdup(resolved);
+    if (files) files[n++] = sc_strdup(graph);
     if (files && run)
         for (int i = 0; i < g->count; i++)
             for (int d = 0; d < run->results[i].ndeps; d++) files[n++] = sc_strdup(run->results[i].deps[d]);
+    for (int k = 0; files && k < n; k++)
+        if (!files[k]) files[k--] = files[--n];   /* drop what could not be copied */
     if (files) watch_files(w, files, n);
+    /* a change that landed while the cook ran is cooked next, not lost */
+    bool stale = changed_since(w->cache, graph, &graph_seen);
+    for (int i = 0; run && !stale && i < g->count; i++)
+        for (int d = 0; run->results[i].dep_digests && !stale && d < run->results[i].ndeps; d++)
+            stale = changed_since(w->cache, run->results[i].deps[d], &run->results[i].dep_digests[d]);
     for (int k = 0; files && k < n; k++) free(files[k]);
     free(files);
     sc_run_free(run);
     sc_graph_free(g);
-    if (!w->o->quiet) fprintf(stderr, "watching %d folder(s) for changes (Ctrl-C stops)\n", w->nwatch);
-    if (w->o->max_runs > 0 && w->runs >= w->o->max_runs) {
+    bool last = w->o->max_runs > 0 && w->runs >= w->o->max_runs;
+    if (stale && !last) {
+        if (!w->o->quiet) fprintf(stderr, "a file changed during the cook: cooking again\n");
+        uv_timer_start(&w->debounce, watch_rebuild, 150, 0);
+    } else if (!w->o->quiet) {
+        fprintf(stderr, "watching %d folder(s) for changes (Ctrl-C stops)\n", w->nwatch);
+    }
+    if (last) {
         close_watches(w);
         uv_close((uv_handle_t *)&w->debounce, NULL);
         uv_close((uv_handle_t *)&w->sigint, NULL);
@@ -469,9 +547,11 @@ static int cmd_cache(const options *o) {
         sc_cache_verify_result v;
         rc = sc_cache_verify(cache, &v, &err);
         if (rc == SC_OK) {
-            printf("checked %lld blobs: %lld bad (removed), %lld missing, %lld actions dropped\n",
-                   (long long)v.checked, (long long)v.bad, (long long)v.missing, (long long)v.actions_dropped);
-            if (v.bad || v.missing) rc = SC_EIO;
+            printf("checked %lld blobs: %lld bad (removed), %lld not files (removed), %lld missing, "
+                   "%lld actions dropped; index %s\n",
+                   (long long)v.checked, (long long)v.bad, (long long)v.not_files, (long long)v.missing,
+                   (long long)v.actions_dropped, v.index_rebuilt ? "damaged (rebuilt)" : "ok");
+            if (v.bad || v.missing || v.not_files || v.index_rebuilt) rc = SC_EIO;
         }
     } else {
         sc_cache_gc_result gr;

@@ -8,6 +8,7 @@
  */
 #include "sc_base.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <sys/mman.h>
 #include <fcntl.h>
@@ -17,6 +18,7 @@
 #endif
 #include <math.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -380,11 +382,65 @@ int sc_read_file(const char *path, size_t max_bytes, sc_buf *out, sc_error *err)
     return SC_OK;
 }
 
+/* The process's umask, read once from /proc (umask(2) can only read it by
+ * changing it, which races with other threads creating files). */
+static mode_t process_umask = 022;
+static pthread_once_t umask_once = PTHREAD_ONCE_INIT;
+
+static void read_umask(void) {
+    FILE *f = fopen("/proc/self/status", "r");
+    char line[256];
+    while (f && fgets(line, sizeof line, f)) {
+        unsigned m;
+        if (sscanf(line, "Umask: %o", &m) == 1) {
+            process_umask = (mode_t)m;
+            break;
+        }
+    }
+    if (f) fclose(f);
+}
+
+unsigned sc_file_mode(void) {
+    pthread_once(&umask_once, read_umask);
+    return 0666u & ~(unsigned)process_umask;
+}
+
+int sc_remove_stale_tmp(const char *dir, int *removed) {
+    DIR *d = opendir(dir);
+    if (!d) return errno == ENOENT ? SC_OK : SC_EIO;
+    struct dirent *de;
+    time_t old = time(NULL) - 3600;
+    size_t plen = strlen(SC_TMP_PREFIX);
+    while ((de = readdir(d))) {
+        if (de->d_name[0] == '.' && (de->d_name[1] == 0 || (de->d_name[1] == '.' && de->d_name[2] == 0))) continue;
+        char *p = sc_path_join(dir, de->d_name);
+        struct stat st;
+        if (p && lstat(p, &st) == 0) {
+            if (S_ISDIR(st.st_mode)) {
+                sc_remove_stale_tmp(p, removed);
+            } else if (S_ISREG(st.st_mode) && strncmp(de->d_name, SC_TMP_PREFIX, plen) == 0) {
+                /* NAME.PID.XXXXXX: in flight while its process lives (and for an hour at most) */
+                const char *dot = strrchr(de->d_name, '.');
+                const char *pid_at = dot && dot > de->d_name ? dot - 1 : NULL;
+                while (pid_at && pid_at > de->d_name && *pid_at != '.') pid_at--;
+                long pid = pid_at ? strtol(pid_at + 1, NULL, 10) : 0;
+                bool alive = pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM);
+                if ((!alive || st.st_mtime < old) && unlink(p) == 0 && removed) (*removed)++;
+            }
+        }
+        free(p);
+    }
+    closedir(d);
+    return SC_OK;
+}
+
 int sc_write_file_atomic(const char *path, const void *p, size_t n, sc_error *err) {
     size_t plen = strlen(path);
-    char *tmp = malloc(plen + 32);
+    char *tmp = malloc(plen + 64);
     if (!tmp) return sc_fail(err, SC_ENOMEM, "out of memory");
-    snprintf(tmp, plen + 32, "%s.tmp.%ld.XXXXXX", path, (long)getpid());
+    const char *slash = strrchr(path, '/');
+    size_t dl = slash ? (size_t)(slash - path) + 1 : 0;
+    snprintf(tmp, plen + 64, "%.*s" SC_TMP_PREFIX "%s.%ld.XXXXXX", (int)dl, path, path + dl, (long)getpid());
     int fd = mkstemp(tmp);
     if (fd < 0) {
         int e = errno;
@@ -406,7 +462,7 @@ int sc_write_file_atomic(const char *path, const void *p, size_t n, sc_error *er
         q += w;
         left -= (size_t)w;
     }
-    if (fchmod(fd, 0644) != 0 || fsync(fd) != 0 || close(fd) != 0) {
+    if (fchmod(fd, sc_file_mode()) != 0 || fsync(fd) != 0 || close(fd) != 0) {
         int e = errno;
         unlink(tmp);
         free(tmp);
@@ -428,7 +484,7 @@ int sc_make_dirs(const char *path, sc_error *err) {
     for (char *s = p + 1; *s; s++) {
         if (*s != '/') continue;
         *s = 0;
-        if (mkdir(p, 0755) != 0 && errno != EEXIST) {
+        if (mkdir(p, 0777) != 0 && errno != EEXIST) {   /* the umask decides */
             int e = errno;
             int rc = sc_fail(err, SC_EIO, "%s: cannot make directory: %s", p, strerror(e));
             free(p);
@@ -436,7 +492,7 @@ int sc_make_dirs(const char *path, sc_error *err) {
         }
         *s = '/';
     }
-    if (mkdir(p, 0755) != 0 && errno != EEXIST) {
+    if (mkdir(p, 0777) != 0 && errno != EEXIST) {
         int e = errno;
         int rc = sc_fail(err, SC_EIO, "%s: cannot make directory: %s", p, strerror(e));
         free(p);
@@ -458,6 +514,93 @@ char *sc_path_dirname(const char *path) {
     if (!slash) return sc_strdup(".");
     if (slash == path) return sc_strdup("/");
     return sc_strndup(path, (size_t)(slash - path));
+}
+
+/* path (absolute) with "." and ".." removed by the text alone, in place. */
+static void normalise_lexically(char *path) {
+    char *out = path;   /* path[0] == '/' */
+    for (const char *p = path; *p;) {
+        while (*p == '/') p++;
+        const char *end = strchr(p, '/');
+        size_t n = end ? (size_t)(end - p) : strlen(p);
+        if (n == 0 || (n == 1 && p[0] == '.')) {
+        } else if (n == 2 && p[0] == '.' && p[1] == '.') {
+            while (out > path && *--out != '/') {}
+        } else {
+            *out++ = '/';
+            memmove(out, p, n);
+            out += n;
+        }
+        p += n;
+    }
+    if (out == path) *out++ = '/';
+    *out = 0;
+}
+
+/* The real path of `path`: symbolic links resolved in the longest part that
+ * exists, the rest appended and normalised by its text. NULL when out of
+ * memory or the working directory cannot be read. */
+static char *real_path_of(const char *path) {
+    char *abs = NULL;
+    if (path[0] == '/') {
+        abs = sc_strdup(path);
+    } else {
+        char cwd[PATH_MAX];
+        if (!getcwd(cwd, sizeof cwd)) return NULL;
+        abs = sc_path_join(cwd, path);
+    }
+    if (!abs) return NULL;
+    normalise_lexically(abs);
+    /* the longest existing prefix, resolved; the missing rest kept */
+    size_t len = strlen(abs);
+    for (;;) {
+        char saved = abs[len];
+        abs[len] = 0;
+        char *real = realpath(len ? abs : "/", NULL);
+        abs[len] = saved;
+        if (real) {
+            char *joined = sc_strprintf("%s%s", strcmp(real, "/") == 0 && abs[len] ? "" : real, abs + len);
+            free(real), free(abs);
+            if (joined) normalise_lexically(joined);
+            return joined;
+        }
+        while (len > 0 && abs[--len] != '/') {}
+    }
+}
+
+int sc_path_confine(const char *root, const char *dir, const char *rel, char **out, sc_error *err) {
+    *out = NULL;
+    if (!*rel) return sc_fail(err, SC_EINPUT, "an empty file name");
+    char shown[80];
+    snprintf(shown, sizeof shown, "%.60s%s", rel, strlen(rel) > 60 ? "..." : "");
+    for (char *c = shown; *c; c++)
+        if ((unsigned char)*c < 32 || *c == 127) *c = '?';
+    if (rel[0] == '/' || rel[0] == '\\' || (rel[0] && rel[1] == ':' && (rel[2] == '/' || rel[2] == '\\')))
+        return sc_fail(err, SC_EINPUT, "'%s' is an absolute path: an asset may name files inside its folder only "
+                       "(--asset-root widens it)", shown);
+    if (strstr(rel, "://") || strncmp(rel, "file:", 5) == 0)
+        return sc_fail(err, SC_EINPUT, "'%s' is a URI: an asset may name files inside its folder only", shown);
+    char *joined = strcmp(dir, ".") == 0 ? sc_strdup(rel) : sc_path_join(dir, rel);
+    char *real = joined ? real_path_of(joined) : NULL;
+    char *real_root = real_path_of(root);
+    int rc = SC_OK;
+    if (!joined || !real || !real_root) {
+        rc = sc_fail(err, SC_ENOMEM, "'%s': out of memory, or the working folder cannot be read", shown);
+    } else {
+        size_t n = strlen(real_root);
+        bool inside = strcmp(real_root, "/") == 0 ||
+                      (strncmp(real, real_root, n) == 0 && (real[n] == '/' || real[n] == 0));
+        if (!inside)
+            rc = sc_fail(err, SC_EINPUT, "'%s' leads outside the asset folder %s (--asset-root widens it)", shown,
+                         root);
+    }
+    free(real), free(real_root);
+    if (rc != SC_OK) {
+        free(joined);
+        return rc;
+    }
+    *out = joined;
+    return SC_OK;
 }
 
 double sc_now(void) {

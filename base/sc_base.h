@@ -142,9 +142,19 @@ bool sc_digest_is_zero(const sc_digest *d);
  * or unreadable, and with SC_ENOMEM when larger than max_bytes. */
 int sc_read_file(const char *path, size_t max_bytes, sc_buf *out, sc_error *err);
 
-/* Write bytes to path atomically: a temporary file beside it, fsync, rename.
- * A failure leaves no partial file at path. */
+/* Write bytes to path atomically: a temporary file beside it (named
+ * SC_TMP_PREFIX + the file's name + ".PID.XXXXXX"), fsync, rename. A failure
+ * leaves no partial file at path. The file's mode follows the umask. */
+#define SC_TMP_PREFIX ".seamcook-tmp."
 int sc_write_file_atomic(const char *path, const void *p, size_t n, sc_error *err);
+
+/* Remove, under dir and its subfolders, the temporary files of
+ * sc_write_file_atomic that a killed process left: those whose process is
+ * gone, or older than an hour. *removed (may be NULL) counts them. */
+int sc_remove_stale_tmp(const char *dir, int *removed);
+
+/* The mode for a new file: 0666 less the process's umask. */
+unsigned sc_file_mode(void);
 
 /* mkdir -p */
 int sc_make_dirs(const char *path, sc_error *err);
@@ -154,6 +164,14 @@ int sc_make_dirs(const char *path, sc_error *err);
 char *sc_path_join(const char *dir, const char *name);
 /* The directory part of path ("." when none), as a new string. */
 char *sc_path_dirname(const char *path);
+
+/* A file that an asset names (`rel`, as written in an MTL, OBJ or glTF),
+ * resolved against the folder `dir` that names it, when it stays inside the
+ * folder `root`: no absolute path, no URI, no ".." that climbs out of root,
+ * and no symbolic link that leads out of it (the existing part of the path
+ * is resolved). *out receives dir/rel as a new string. Fails with
+ * SC_EINPUT naming rel, never reading the file. */
+int sc_path_confine(const char *root, const char *dir, const char *rel, char **out, sc_error *err);
 
 /* Monotonic seconds, for timings that go into reports (never into values). */
 double sc_now(void);

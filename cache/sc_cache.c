@@ -64,6 +64,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -77,6 +78,8 @@
                                         adopts older unrecorded blob files */
 #define TOUCH_BATCH 4096              /* queued uses written at once */
 #define HASH_CHUNK (1u << 20)
+#define RESERVE_BYTES ((size_t)4 << 20)   /* released by gc on a full disk */
+#define SQLITE_PATH_MAX 512               /* the unix VFS's longest path name */
 
 /* ---------------------------------------------------------------- statements */
 
@@ -187,6 +190,7 @@ typedef struct touch {
 
 struct sc_cache {
     char *dir, *objects, *tmp;
+    char *notice;            /* said once by the caller: the index was rebuilt */
     sqlite3 *db;
     sqlite3_stmt *st[ST_COUNT];
     int depth;               /* sc_cache_begin nesting */
@@ -204,8 +208,25 @@ typedef struct disk_blob {
 
 /* ---------------------------------------------------------------- helpers */
 
+static bool index_damaged_code(int code) {
+    code &= 0xff;
+    return code == SQLITE_CORRUPT || code == SQLITE_NOTADB;
+}
+
+/* A failed statement. A damaged index leaves a marker, so the next open
+ * rebuilds it (sc_cache_open). */
 static int db_fail(sc_cache *c, sc_error *err, const char *what) {
-    return sc_fail(err, SC_EIO, "cache %s: %s: %s", c->dir, what, sqlite3_errmsg(c->db));
+    int code = sqlite3_errcode(c->db);
+    if (index_damaged_code(code)) {
+        char *marker = sc_path_join(c->dir, "index.damaged");
+        int fd = marker ? open(marker, O_WRONLY | O_CREAT | O_CLOEXEC, 0666) : -1;
+        if (fd >= 0) close(fd);
+        free(marker);
+        return sc_fail(err, SC_EIO, "cache %s: %s: %s (the next run rebuilds the index)", c->dir, what,
+                       sqlite3_errmsg(c->db));
+    }
+    return sc_fail(err, SC_EIO, "cache %s: %s: %s%s", c->dir, what, sqlite3_errmsg(c->db),
+                   (code & 0xff) == SQLITE_FULL ? " (the disk is full)" : "");
 }
 
 static int64_t wall_ns(void) {
@@ -431,6 +452,110 @@ static int init_schema(sc_cache *c, sc_error *err) {
     return rc;
 }
 
+static int scan_objects(sc_cache *c, disk_blob **out, size_t *count, int64_t *not_files, sc_error *err);
+static int reconcile(sc_cache *c, const disk_blob *disk, size_t ndisk, bool adopt_all, int64_t *missing,
+                     int64_t *actions_dropped, sc_error *err);
+
+/* Open the index (created with the umask's mode, which its -wal and -shm
+ * files then share), in WAL mode, with the schema. */
+static int open_index(sc_cache *c, const char *index, sc_error *err) {
+    int fd = open(index, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+    if (fd >= 0) close(fd);
+    int src = sqlite3_open_v2(index, &c->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, NULL);
+    if (src != SQLITE_OK)
+        return sc_fail(err, SC_EIO, "cache %s: cannot open %s: %s", c->dir, index,
+                       c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(src));
+    sqlite3_busy_timeout(c->db, BUSY_TIMEOUT_MS);
+    int rc;
+    if ((rc = set_wal(c, err)) ||
+        (rc = exec_sql(c, "PRAGMA synchronous=NORMAL", err, "cannot set synchronous mode")) ||
+        (rc = init_schema(c, err)))
+        return rc;
+    return SC_OK;
+}
+
+/* Whether the open index fails SQLite's quick check (or cannot run it). */
+static bool index_fails_check(sc_cache *c, char *why, size_t n) {
+    sqlite3_stmt *s = NULL;
+    int rc = sqlite3_prepare_v2(c->db, "PRAGMA quick_check(1)", -1, &s, NULL);
+    if (rc == SQLITE_OK) rc = sqlite3_step(s);
+    const char *text = rc == SQLITE_ROW ? (const char *)sqlite3_column_text(s, 0) : NULL;
+    bool bad = !text || strcmp(text, "ok") != 0;
+    if (bad) snprintf(why, n, "%.200s", text ? text : sqlite3_errmsg(c->db));
+    sqlite3_finalize(s);
+    return bad;
+}
+
+static void close_index(sc_cache *c) {
+    for (int i = 0; i < ST_COUNT; i++) sqlite3_finalize(c->st[i]), c->st[i] = NULL;
+    sqlite3_close(c->db);
+    c->db = NULL;
+}
+
+/* Move a damaged index aside and make a new one from the blob store: blobs
+ * are named by their content, so only action records (and stamps, history)
+ * are lost, and the next cooks record them again. One process heals at a
+ * time (a lock file); one that finds the index healed meanwhile leaves it. */
+static int heal_index(sc_cache *c, const char *index, const char *why, sc_error *err) {
+    char *lock = sc_path_join(c->dir, "index.lock");
+    int lfd = lock ? open(lock, O_RDWR | O_CREAT | O_CLOEXEC, 0666) : -1;
+    free(lock);
+    if (lfd >= 0) flock(lfd, LOCK_EX);
+    close_index(c);
+    sc_error ignored;
+    char again[256] = "";
+    bool still = open_index(c, index, &ignored) != SC_OK || index_fails_check(c, again, sizeof again);
+    char *marker = sc_path_join(c->dir, "index.damaged");
+    struct stat st;
+    if (!still && marker && stat(marker, &st) == 0) still = true;   /* a statement found it damaged */
+    int rc = SC_OK;
+    if (still) {
+        close_index(c);
+        char *aside = sc_strprintf("%s.damaged-%lld", index, (long long)time(NULL));
+        char *wal = sc_strprintf("%s-wal", index), *shm = sc_strprintf("%s-shm", index);
+        if (aside && rename(index, aside) != 0 && errno != ENOENT)
+            rc = sc_fail(err, SC_EIO, "cache %s: the index is damaged (%s) and cannot be moved aside: %s", c->dir,
+                         why, strerror(errno));
+        if (wal) unlink(wal);
+        if (shm) unlink(shm);
+        if (marker) unlink(marker);
+        disk_blob *disk = NULL;
+        size_t ndisk = 0;
+        if (rc == SC_OK) rc = open_index(c, index, err);
+        if (rc == SC_OK) rc = scan_objects(c, &disk, &ndisk, NULL, err);
+        if (rc == SC_OK && (rc = tx_begin(c, err)) == SC_OK) {
+            rc = reconcile(c, disk, ndisk, true, NULL, NULL, err);
+            rc = tx_end(c, rc, err);
+        }
+        if (rc == SC_OK)
+            c->notice = sc_strprintf("cache %s: the index was damaged (%s); it is now %s, and a new one "
+                                     "was made from the %zu blobs in the store (cached actions will be "
+                                     "cooked and recorded again)",
+                                     c->dir, why, aside ? aside : "moved aside", ndisk);
+        free(disk), free(aside), free(wal), free(shm);
+    }
+    free(marker);
+    if (lfd >= 0) close(lfd);   /* releases the lock */
+    return rc;
+}
+
+/* A file of RESERVE_BYTES that gc deletes first, so that gc can run (its
+ * index transactions need a little space) when the disk is full. */
+static void make_reserve(const sc_cache *c) {
+    char *path = sc_path_join(c->dir, "reserve");
+    struct stat st;
+    if (path && (stat(path, &st) != 0 || (size_t)st.st_size < RESERVE_BYTES)) {
+        int fd = open(path, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
+        if (fd >= 0) {
+            if (posix_fallocate(fd, 0, (off_t)RESERVE_BYTES) != 0) {
+                if (ftruncate(fd, 0) != 0) {}   /* no room now: try again at the next open */
+            }
+            close(fd);
+        }
+    }
+    free(path);
+}
+
 int sc_cache_open(const char *dir, sc_cache **out, sc_error *err) {
     if (out) *out = NULL;
     if (!dir || !*dir || !out) return sc_fail(err, SC_EUSAGE, "cache: no directory given");
@@ -445,21 +570,32 @@ int sc_cache_open(const char *dir, sc_cache **out, sc_error *err) {
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
         goto fail;
     }
+    if (strlen(index) + 4 >= SQLITE_PATH_MAX) {   /* + "-wal" */
+        rc = sc_fail(err, SC_EUSAGE, "cache %s: the path is too long: SQLite opens files of at most %d bytes, and "
+                     "%s is %zu", dir, SQLITE_PATH_MAX - 5, index, strlen(index));
+        goto fail;
+    }
     if ((rc = sc_make_dirs(c->objects, err)) || (rc = sc_make_dirs(c->tmp, err))) {
         sc_error_prefix(err, "cache %s", dir);
         goto fail;
     }
-    int src = sqlite3_open_v2(index, &c->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, NULL);
-    if (src != SQLITE_OK) {
-        rc = sc_fail(err, SC_EIO, "cache %s: cannot open %s: %s", dir, index,
-                     c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(src));
-        goto fail;
+    char why[256] = "";
+    sc_error first = {0};
+    char *marker = sc_path_join(dir, "index.damaged");
+    struct stat st;
+    bool marked = marker && stat(marker, &st) == 0;
+    free(marker);
+    rc = open_index(c, index, &first);
+    bool damaged = marked || (rc != SC_OK && index_damaged_code(c->db ? sqlite3_errcode(c->db) : 0)) ||
+                   (rc == SC_OK && index_fails_check(c, why, sizeof why));
+    if (damaged) {
+        if (!why[0]) snprintf(why, sizeof why, "%.200s", marked ? "a statement found it malformed" : first.message);
+        rc = heal_index(c, index, why, err);
+    } else if (rc != SC_OK) {
+        *err = first;
     }
-    sqlite3_busy_timeout(c->db, BUSY_TIMEOUT_MS);
-    if ((rc = set_wal(c, err)) ||
-        (rc = exec_sql(c, "PRAGMA synchronous=NORMAL", err, "cannot set synchronous mode")) ||
-        (rc = init_schema(c, err)))
-        goto fail;
+    if (rc != SC_OK) goto fail;
+    make_reserve(c);
     free(index);
     *out = c;
     return SC_OK;
@@ -468,6 +604,8 @@ fail:
     sc_cache_close(c);
     return rc;
 }
+
+const char *sc_cache_notice(const sc_cache *c) { return c ? c->notice : NULL; }
 
 void sc_cache_close(sc_cache *c) {
     if (!c) return;
@@ -481,6 +619,7 @@ void sc_cache_close(sc_cache *c) {
         sqlite3_close(c->db);
     }
     free(c->touches);
+    free(c->notice);
     free(c->dir);
     free(c->objects);
     free(c->tmp);
@@ -554,7 +693,7 @@ static int publish(sc_cache *c, const char *hex, const char *path, const void *b
     const char *step = "cannot create a temporary file";
     int fd = mkstemp(tmp);
     if (fd < 0) {
-        if (errno == ENOENT && mkdir(c->tmp, 0755) == 0) fd = mkstemp(tmp);
+        if (errno == ENOENT && mkdir(c->tmp, 0777) == 0) fd = mkstemp(tmp);
         if (fd < 0) {
             rc = sc_fail(err, SC_EIO, "cache %s: blob %s: %s: %s", c->dir, hex, step,
                          strerror(errno));
@@ -574,19 +713,20 @@ static int publish(sc_cache *c, const char *hex, const char *path, const void *b
         left -= (size_t)w;
     }
     step = "cannot finish writing";
-    if (fchmod(fd, 0644) != 0 || fsync(fd) != 0) goto io_fail;
+    if (fchmod(fd, sc_file_mode()) != 0 || fsync(fd) != 0) goto io_fail;   /* the umask decides */
     if (close(fd) != 0) {
         fd = -1;
         goto io_fail;
     }
     fd = -1;
     step = "cannot publish";
-    if (mkdir(sub, 0755) != 0 && errno != EEXIST) goto io_fail;
+    if (mkdir(sub, 0777) != 0 && errno != EEXIST) goto io_fail;
     if (rename(tmp, path) != 0) goto io_fail;
     fsync_dir(sub);
     goto out;
 io_fail:
-    rc = sc_fail(err, SC_EIO, "cache %s: blob %s: %s: %s", c->dir, hex, step, strerror(errno));
+    rc = sc_fail(err, SC_EIO, "cache %s: blob %s: %s: %s%s", c->dir, hex, step, strerror(errno),
+                 errno == ENOSPC || errno == EDQUOT ? " (the disk is full)" : "");
     if (fd >= 0) close(fd);
     unlink(tmp);
 out:
@@ -636,6 +776,24 @@ int sc_cache_put_blob(sc_cache *c, const sc_digest *d, const void *bytes, size_t
     return rc;
 }
 
+/* rm -r: what stands where a blob should (a folder) goes whole. */
+static int remove_tree(const char *path) {
+    struct stat st;
+    if (lstat(path, &st) != 0) return -1;
+    if (!S_ISDIR(st.st_mode)) return unlink(path);
+    DIR *d = opendir(path);
+    if (!d) return -1;
+    struct dirent *de;
+    while ((de = readdir(d))) {
+        if (strcmp(de->d_name, ".") == 0 || strcmp(de->d_name, "..") == 0) continue;
+        char *p = sc_path_join(path, de->d_name);
+        if (p) remove_tree(p);
+        free(p);
+    }
+    closedir(d);
+    return rmdir(path);
+}
+
 /* Drop the actions that need these blobs and their rows (one transaction),
  * then remove each file that no row claims again (a second transaction).
  * Adds to the counters that are not NULL. */
@@ -675,7 +833,7 @@ static int remove_blobs(sc_cache *c, const sc_digest *ds, const int64_t *sizes, 
             rc = sc_fail(err, SC_ENOMEM, "out of memory");
             break;
         }
-        if (unlink(path) == 0) {
+        if (unlink(path) == 0 || ((errno == EISDIR || errno == EPERM) && remove_tree(path) == 0)) {
             if (blobs_removed) (*blobs_removed)++;
             if (bytes_removed && sizes) *bytes_removed += sizes[i];
         } else if (errno != ENOENT && !unlink_errno) {
@@ -723,6 +881,13 @@ int sc_cache_get_blob(sc_cache *c, const sc_digest *d, sc_buf *out, sc_error *er
             return sc_fail(err, SC_EMISS, "blob %s: not in the cache", hex);
         return sc_fail(err, SC_EIO, "cache %s: blob %s: cannot open: %s", c->dir, hex,
                        strerror(errno));
+    }
+    struct stat st;
+    if (fstat(fd, &st) == 0 && !S_ISREG(st.st_mode)) {   /* a folder, say: no blob there */
+        close(fd);
+        sc_error ignored;
+        remove_blobs(c, d, NULL, 1, NULL, NULL, NULL, &ignored);
+        return sc_fail(err, SC_EMISS, "blob %s: not a file in the cache; removed", hex);
     }
     int e = read_fd(fd, out);
     close(fd);
@@ -1126,8 +1291,10 @@ static int cmp_disk_blob(const void *a, const void *b) {
     return memcmp(((const disk_blob *)a)->d.bytes, ((const disk_blob *)b)->d.bytes, 32);
 }
 
-/* Every blob file under objects/, sorted by digest. */
-static int scan_objects(sc_cache *c, disk_blob **out, size_t *count, sc_error *err) {
+/* Every blob file under objects/, sorted by digest. Entries with a blob's
+ * name that are not regular files (a folder, a device) are removed, and
+ * counted in *not_files (may be NULL). */
+static int scan_objects(sc_cache *c, disk_blob **out, size_t *count, int64_t *not_files, sc_error *err) {
     *out = NULL;
     *count = 0;
     DIR *top = opendir(c->objects);
@@ -1155,7 +1322,9 @@ static int scan_objects(sc_cache *c, disk_blob **out, size_t *count, sc_error *e
             memcpy(hex + 2, fe->d_name, 63);
             char *fp = sc_strprintf("%s/%s", sub, fe->d_name);
             struct stat st;
-            bool ok = fp && stat(fp, &st) == 0 && S_ISREG(st.st_mode);
+            bool there = fp && lstat(fp, &st) == 0;
+            bool ok = there && S_ISREG(st.st_mode);
+            if (there && !ok && remove_tree(fp) == 0 && not_files) (*not_files)++;
             free(fp);
             if (!ok) continue;
             if (*count == cap) {
@@ -1191,15 +1360,16 @@ static int scan_objects(sc_cache *c, disk_blob **out, size_t *count, sc_error *e
  * files it lacks, forget rows whose file is gone) and drop the actions that
  * need a blob with no row. A file with no row that is younger than an hour
  * is left alone: it may be a publish whose row is about to be written (a
- * crashed publish leaves an old file, adopted later). */
-static int reconcile(sc_cache *c, const disk_blob *disk, size_t ndisk, int64_t *missing,
+ * crashed publish leaves an old file, adopted later); adopt_all takes them
+ * all (an index rebuilt from the store). */
+static int reconcile(sc_cache *c, const disk_blob *disk, size_t ndisk, bool adopt_all, int64_t *missing,
                      int64_t *actions_dropped, sc_error *err) {
     sqlite3_stmt *s = stmt(c, ST_BLOB_INSERT_IGNORE, err);
     if (!s) return SC_EIO;
     int rc = SC_OK;
     int64_t adopt_before = wall_ns() / 1000 - (int64_t)TMP_MAX_AGE_S * 1000000;
     for (size_t i = 0; i < ndisk && rc == SC_OK; i++) {
-        if (disk[i].mtime_us > adopt_before) continue;
+        if (!adopt_all && disk[i].mtime_us > adopt_before) continue;
         bind_hex(s, 1, &disk[i].d);
         sqlite3_bind_int64(s, 2, disk[i].size);
         sqlite3_bind_int64(s, 3, disk[i].mtime_us);
@@ -1253,9 +1423,17 @@ int sc_cache_verify(sc_cache *c, sc_cache_verify_result *out, sc_error *err) {
     if (c->depth > 0)
         return sc_fail(err, SC_EUSAGE, "cache %s: verify inside a transaction", c->dir);
     flush_touches(c);
+    char why[256];
+    if (index_fails_check(c, why, sizeof why)) {
+        char *index = sc_path_join(c->dir, "index.sqlite");
+        int rc = index ? heal_index(c, index, why, err) : sc_fail(err, SC_ENOMEM, "out of memory");
+        free(index);
+        if (rc) return rc;
+        out->index_rebuilt = true;
+    }
     disk_blob *disk = NULL;
     size_t ndisk = 0;
-    int rc = scan_objects(c, &disk, &ndisk, err);
+    int rc = scan_objects(c, &disk, &ndisk, &out->not_files, err);
     if (rc) return rc;
     size_t ngood = 0;
     for (size_t i = 0; i < ndisk && rc == SC_OK; i++) {
@@ -1283,7 +1461,7 @@ int sc_cache_verify(sc_cache *c, sc_cache_verify_result *out, sc_error *err) {
         }
     }
     if (rc == SC_OK && (rc = tx_begin(c, err)) == SC_OK) {
-        rc = reconcile(c, disk, ngood, &out->missing, &out->actions_dropped, err);
+        rc = reconcile(c, disk, ngood, false, &out->missing, &out->actions_dropped, err);
         rc = tx_end(c, rc, err);
     }
     free(disk);
@@ -1311,10 +1489,13 @@ int sc_cache_gc(sc_cache *c, int64_t max_bytes, sc_cache_gc_result *out, sc_erro
     if (c->depth > 0)
         return sc_fail(err, SC_EUSAGE, "cache %s: gc inside a transaction", c->dir);
     flush_touches(c);
+    char *reserve = sc_path_join(c->dir, "reserve");
+    if (reserve) unlink(reserve);   /* room for the index's transactions on a full disk */
+    free(reserve);
     clean_tmp(c);
     disk_blob *disk = NULL;
     size_t ndisk = 0;
-    int rc = scan_objects(c, &disk, &ndisk, err);
+    int rc = scan_objects(c, &disk, &ndisk, NULL, err);
     if (rc) return rc;
 
     /* Phase 1 (one transaction): reconcile, choose the least recently used
@@ -1323,7 +1504,7 @@ int sc_cache_gc(sc_cache *c, int64_t max_bytes, sc_cache_gc_result *out, sc_erro
     int64_t *sizes = NULL;
     size_t nvictims = 0, cap = 0;
     if ((rc = tx_begin(c, err))) goto out;
-    rc = reconcile(c, disk, ndisk, NULL, &out->actions_dropped, err);
+    rc = reconcile(c, disk, ndisk, false, NULL, &out->actions_dropped, err);
     int64_t total = 0;
     sqlite3_stmt *s = NULL;
     if (rc == SC_OK && !(s = stmt(c, ST_BLOB_TOTAL, err))) rc = SC_EIO;
@@ -1376,5 +1557,6 @@ out:
     free(victims);
     free(sizes);
     free(disk);
+    make_reserve(c);
     return rc;
 }

@@ -21,9 +21,16 @@
 
 typedef struct sc_cache sc_cache;
 
+/* Open (or create) a cache. An index that SQLite finds malformed, or that is
+ * not a database, is moved aside and rebuilt from the blob store; the cache
+ * then has a notice for the caller to print once. Files and folders are
+ * made with the umask's modes (a group-writable umask and a setgid folder
+ * let several users share one cache). */
 int sc_cache_open(const char *dir, sc_cache **out, sc_error *err);
 void sc_cache_close(sc_cache *c);   /* NULL is fine */
 const char *sc_cache_dir(const sc_cache *c);
+/* What opening did that the user should hear of (the index rebuilt), or NULL. */
+const char *sc_cache_notice(const sc_cache *c);
 
 /* ---------------------------------------------------------------- blobs */
 
@@ -106,12 +113,18 @@ int sc_cache_stats_get(sc_cache *c, sc_cache_stats *out, sc_error *err);
 
 typedef struct sc_cache_verify_result {
     int64_t checked, bad, missing, actions_dropped;
+    int64_t not_files;       /* things in a blob's place that are not files (removed) */
+    bool index_rebuilt;      /* the index failed SQLite's quick check and was rebuilt */
 } sc_cache_verify_result;
 
-/* Re-hash every blob; delete bad ones, forget missing ones, and drop the
- * actions that refer to a blob no longer present. */
+/* Check the index (PRAGMA quick_check; rebuilt from the store when it
+ * fails), re-hash every blob; delete bad ones and anything else in a blob's
+ * place, forget missing ones, and drop the actions that refer to a blob no
+ * longer present. */
 int sc_cache_verify(sc_cache *c, sc_cache_verify_result *out, sc_error *err);
 
+/* gc first deletes a reserve file kept beside the index (4 MiB, made again
+ * after), so it can run on a full disk. */
 typedef struct sc_cache_gc_result {
     int64_t blobs_removed, bytes_removed, actions_dropped, bytes_left;
 } sc_cache_gc_result;

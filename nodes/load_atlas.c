@@ -51,18 +51,20 @@ static bool slot_is_colour(int slot) { return slot == 0 || slot == 2; }
 
 typedef struct file_reader {
     sc_ctx *ctx;
-    const char *dir;   /* the model's directory */
+    const char *dir;    /* the model's directory */
+    const char *root;   /* every file the model names must lie inside it */
 } file_reader;
 
-static char *resolve(const char *dir, const char *rel) {
-    return strcmp(dir, ".") == 0 ? sc_strdup(rel) : sc_path_join(dir, rel);
+/* A file the model (or its MTL) names, resolved and confined to the root. */
+static int resolve(const file_reader *fr, const char *rel, char **path, sc_error *err) {
+    return sc_path_confine(fr->root, fr->dir, rel, path, err);
 }
 
 static int read_beside_model(void *ud, const char *rel, sc_buf *out, sc_error *err) {
     file_reader *fr = ud;
-    char *path = resolve(fr->dir, rel);
-    if (!path) return sc_fail(err, SC_ENOMEM, "out of memory");
-    int rc = sc_ctx_read_file(fr->ctx, path, MAX_MODEL_BYTES, out, err);
+    char *path;
+    int rc = resolve(fr, rel, &path, err);
+    if (rc == SC_OK) rc = sc_ctx_read_file(fr->ctx, path, MAX_MODEL_BYTES, out, err);
     free(path);
     return rc;
 }
@@ -158,10 +160,9 @@ static int parse_slots(const char *text, bool wanted[NSLOTS], sc_error *err) {
 
 /* ---------------------------------------------------------------- parsing */
 
-static int load_obj(sc_ctx *ctx, const char *path, const char *dir, const sc_buf *bytes,
-                    const bool wanted[NSLOTS], loaded *l, sc_error *err) {
-    file_reader fr = {ctx, dir};
-    int rc = sc_obj_parse(path, bytes->data, bytes->len, read_beside_model, &fr, &l->obj, err);
+static int load_obj(file_reader *fr, const char *path, const sc_buf *bytes, const bool wanted[NSLOTS], loaded *l,
+                    sc_error *err) {
+    int rc = sc_obj_parse(path, bytes->data, bytes->len, read_beside_model, fr, &l->obj, err);
     if (rc) return rc;
     l->mesh = l->obj.mesh;
     l->obj.mesh = NULL;
@@ -169,22 +170,26 @@ static int load_obj(sc_ctx *ctx, const char *path, const char *dir, const sc_buf
         const sc_obj_map *m = &l->obj.maps[i];
         int slot = slot_index(m->slot, strlen(m->slot));
         if (slot < 0 || !wanted[slot]) continue;
-        char *mtl_path = resolve(dir, m->mtl);
+        char *mtl_path = strcmp(fr->dir, ".") == 0 ? sc_strdup(m->mtl) : sc_path_join(fr->dir, m->mtl);
         char *origin = mtl_path ? sc_strprintf("%s:%d", mtl_path, m->line) : NULL;
         free(mtl_path);
-        if ((rc = add_ref(l, m->material, slot, resolve(dir, m->path), NULL, 0, SC_WRAP_REPEAT,
-                          SC_WRAP_REPEAT, origin, err)))
+        char *file = NULL;
+        if ((rc = resolve(fr, m->path, &file, err))) {
+            sc_error_prefix(err, "%s: %s", origin ? origin : "", m->slot);
+            free(origin);
+            return rc;
+        }
+        if ((rc = add_ref(l, m->material, slot, file, NULL, 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, origin, err)))
             return rc;
     }
-    sc_ctx_metric(ctx, "polygons_triangulated", (double)l->obj.polygons);
-    sc_ctx_metric(ctx, "unreferenced_dropped", (double)l->obj.unreferenced_dropped);
+    sc_ctx_metric(fr->ctx, "polygons_triangulated", (double)l->obj.polygons);
+    sc_ctx_metric(fr->ctx, "unreferenced_dropped", (double)l->obj.unreferenced_dropped);
     return SC_OK;
 }
 
-static int load_gltf(sc_ctx *ctx, const char *path, const char *dir, const sc_buf *bytes,
-                     const bool wanted[NSLOTS], loaded *l, sc_error *err) {
-    file_reader fr = {ctx, dir};
-    int rc = sc_gltf_parse(path, bytes->data, bytes->len, read_beside_model, &fr, &l->gltf, err);
+static int load_gltf(file_reader *fr, const char *path, const sc_buf *bytes, const bool wanted[NSLOTS], loaded *l,
+                     sc_error *err) {
+    int rc = sc_gltf_parse(path, bytes->data, bytes->len, read_beside_model, fr, &l->gltf, err);
     if (rc) return rc;
     l->mesh = l->gltf.mesh;
     l->gltf.mesh = NULL;
@@ -193,13 +198,15 @@ static int load_gltf(sc_ctx *ctx, const char *path, const char *dir, const sc_bu
         const sc_gltf_image *im = &l->gltf.images[t->image];
         int slot = slot_index(t->slot, strlen(t->slot));
         if (slot < 0 || !wanted[slot]) continue;
-        char *file = im->path ? resolve(dir, im->path) : NULL;
+        char *file = NULL;
+        if (im->path && (rc = resolve(fr, im->path, &file, err)))
+            return sc_error_prefix(err, "%s: image %d", path, im->index);
         if ((rc = add_ref(l, t->material, slot, file, im->data, im->size, t->wrap_u, t->wrap_v,
                           sc_strprintf("%s: image %d", path, im->index), err)))
             return rc;
     }
-    sc_ctx_metric(ctx, "primitives_skipped", (double)l->gltf.primitives_skipped);
-    sc_ctx_metric(ctx, "textures_skipped", (double)l->gltf.textures_skipped);
+    sc_ctx_metric(fr->ctx, "primitives_skipped", (double)l->gltf.primitives_skipped);
+    sc_ctx_metric(fr->ctx, "textures_skipped", (double)l->gltf.textures_skipped);
     return SC_OK;
 }
 
@@ -398,11 +405,13 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_buf_init(&bytes);
     if ((rc = sc_ctx_read_file(ctx, path, MAX_MODEL_BYTES, &bytes, err))) return rc;
     char *dir = sc_path_dirname(path);
+    const char *root = sc_ctx_string(ctx, "asset_root");
+    file_reader fr = {ctx, dir, *root ? root : dir};
     loaded l;
     memset(&l, 0, sizeof l);
     if (!dir) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    else if (is_obj) rc = load_obj(ctx, path, dir, &bytes, wanted, &l, err);
-    else rc = load_gltf(ctx, path, dir, &bytes, wanted, &l, err);
+    else if (is_obj) rc = load_obj(&fr, path, &bytes, wanted, &l, err);
+    else rc = load_gltf(&fr, path, &bytes, wanted, &l, err);
     sc_buf_free(&bytes);
     free(dir);
     if (rc == SC_OK && *texture) rc = apply_texture_override(texture, l.mesh, &l, err);
@@ -474,6 +483,9 @@ static const sc_param_desc params[] = {
      .doc = "when given, this image is the colour texture of every material"},
     {.name = "wrap", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = wrap_choices,
      .doc = "texture wrap mode; auto: what the file says (OBJ: repeat, glTF: the sampler)"},
+    {.name = "asset_root", .type = SC_PARAM_PATH, .def_string = "",
+     .doc = "the folder every file the model names (MTL, textures, glTF buffers and images) must lie in; "
+            "empty: the model's own folder (seamcook run --asset-root sets it on every load_atlas)"},
     {.name = "slots", .type = SC_PARAM_STRING, .def_string = "all",
      .doc = "texture slots to load, comma-separated (color, normal, emissive, occlusion, "
             "metallic_roughness), or all"},

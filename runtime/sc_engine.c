@@ -143,6 +143,7 @@ static void store_value(void *ud, sc_value *v) {
     storer *s = ud;
     if (s->rc != SC_OK) return;
     sc_value_parts(v, store_value, s);   /* parts first: a record never names missing bytes */
+    if (s->rc != SC_OK) return;          /* a part failed: keep its error (a full disk, say) */
     if (s->nblobs == s->cap) {
         int cap = s->cap ? 2 * s->cap : 16;
         sc_digest *b = realloc(s->blobs, sizeof *b * (size_t)cap);
@@ -641,13 +642,18 @@ static void fail_node(engine *e, int i, int rc, const sc_error *err) {
     set_terminal(e, i, ST_FAILED);
 }
 
+static bool digest_is_zero(const sc_digest *d) {
+    static const sc_digest zero;
+    return sc_digest_equal(d, &zero);
+}
+
 /* Drop what a hit filled in, when it turns out not to be usable. */
 static void forget_result(sc_node_result *r) {
     free(r->metrics_json);
     r->metrics_json = NULL;
     for (int d = 0; d < r->ndeps; d++) free(r->deps[d]);
-    free(r->deps);
-    r->deps = NULL, r->ndeps = 0;
+    free(r->deps), free(r->dep_digests);
+    r->deps = NULL, r->dep_digests = NULL, r->ndeps = 0;
     for (int f = 0; f < r->nfiles; f++) free(r->files[f]);
     free(r->files);
     r->files = NULL, r->nfiles = 0;
@@ -677,11 +683,14 @@ static void resolve(engine *e, int i) {
         for (int d = 0; d < act.ndeps && !miss; d++) {
             sc_digest cur;
             sc_error ignored;
-            if (sc_cache_file_digest(e->cache, act.deps[d].path, &cur, &ignored) != SC_OK ||
-                !sc_digest_equal(&cur, &act.deps[d].digest))
+            bool now = sc_cache_file_digest(e->cache, act.deps[d].path, &cur, &ignored) == SC_OK;
+            if (digest_is_zero(&act.deps[d].digest)) {   /* a file the node found missing */
+                if (now) miss = "a file that was missing is there now";
+            } else if (!now || !sc_digest_equal(&cur, &act.deps[d].digest)) {
                 miss = "a source file changed";
-            else if (dep_digests)
+            } else if (dep_digests) {
                 dep_digests[d] = cur;
+            }
         }
         if (!miss && read_outputs(e, i, act.outputs) != 0) miss = "the cache entry is unreadable";
         for (int k = 0; !miss && k < r->noutputs; k++)
@@ -695,7 +704,7 @@ static void resolve(engine *e, int i) {
         r->deps = calloc((size_t)act.ndeps + 1, sizeof(char *));
         for (int d = 0; r->deps && d < act.ndeps; d++) r->deps[r->ndeps++] = sc_strdup(act.deps[d].path);
         remember(e, i, dep_digests);
-        free(dep_digests);
+        r->dep_digests = dep_digests;
         dep_digests = NULL;
         sc_cache_action_free(&act);
         int mrc = materialize(e, i, &err);
@@ -805,6 +814,22 @@ static char *metrics_json(const sc_ctx *ctx) {
     return s;
 }
 
+/* The files a failed run read or could not read, for watch to wait on. */
+static void keep_deps_of_failure(sc_node_result *r, const sc_ctx *ctx) {
+    int nd = sc_ctx_ndeps(ctx);
+    r->deps = calloc((size_t)nd + 1, sizeof(char *));
+    r->dep_digests = calloc((size_t)nd + 1, sizeof *r->dep_digests);
+    if (!r->deps || !r->dep_digests) {
+        free(r->deps), free(r->dep_digests);
+        r->deps = NULL, r->dep_digests = NULL;
+        return;
+    }
+    for (int d = 0; d < nd; d++) {
+        r->dep_digests[r->ndeps] = *sc_ctx_dep_digest(ctx, d);
+        if ((r->deps[r->ndeps] = sc_strdup(sc_ctx_dep_path(ctx, d)))) r->ndeps++;
+    }
+}
+
 static void run_done(uv_work_t *req, int status) {
     (void)status;
     job *j = req->data;
@@ -859,7 +884,8 @@ static void run_done(uv_work_t *req, int status) {
             remember(e, i, dep_digests);
             rc = materialize(e, i, &j->err);
         }
-        free(outputs), free(deps), free(dep_digests);
+        free(outputs), free(deps);
+        r->dep_digests = dep_digests;
         if (rc == SC_OK) {
             say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
             set_terminal(e, i, ST_DONE);
@@ -867,6 +893,7 @@ static void run_done(uv_work_t *req, int status) {
             fail_node(e, i, rc, &j->err);
         }
     } else {
+        keep_deps_of_failure(r, j->ctx);
         fail_node(e, i, j->rc, &j->err);
     }
     free(j->stored.blobs);
@@ -1132,7 +1159,7 @@ void sc_run_free(sc_run *r) {
         free(x->outputs), free(x->metrics_json), free(x->why), free(x->error);
         for (int f = 0; f < x->nfiles; f++) free(x->files[f]);
         for (int d = 0; d < x->ndeps; d++) free(x->deps[d]);
-        free(x->files), free(x->deps);
+        free(x->files), free(x->deps), free(x->dep_digests);
     }
     free(r->results);
     free(r);

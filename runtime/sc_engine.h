@@ -60,7 +60,8 @@ typedef struct sc_node_result {
     int nfiles;
     char **files;           /* report files written under out_dir (relative) */
     int ndeps;
-    char **deps;            /* source files it read (absolute) */
+    char **deps;            /* source files it read (absolute); after a failure, also those it could not */
+    sc_digest *dep_digests; /* per dep: the content it read, all zero for one it could not read */
 } sc_node_result;
 
 typedef struct sc_run {

@@ -16,7 +16,8 @@
 
 typedef struct dep {
     char *path;
-    sc_digest digest;
+    sc_digest digest;   /* of the bytes read; all zero for a file that could not be read */
+    bool missing;
 } dep;
 
 struct sc_ctx {
@@ -211,6 +212,7 @@ double sc_ctx_metric_value(const sc_ctx *ctx, const char *name) {
 int sc_ctx_ndeps(const sc_ctx *ctx) { return ctx->ndeps; }
 const char *sc_ctx_dep_path(const sc_ctx *ctx, int i) { return ctx->deps[i].path; }
 const sc_digest *sc_ctx_dep_digest(const sc_ctx *ctx, int i) { return &ctx->deps[i].digest; }
+bool sc_ctx_dep_missing(const sc_ctx *ctx, int i) { return ctx->deps[i].missing; }
 
 /* ---------------------------------------------------------------- the node's side */
 
@@ -291,16 +293,16 @@ const double *sc_ctx_numbers(sc_ctx *ctx, const char *name, int *count) {
 int sc_ctx_read_file(sc_ctx *ctx, const char *path, size_t max_bytes, sc_buf *out,
                      sc_error *err) {
     int rc = sc_read_file(path, max_bytes, out, err);
-    if (rc != SC_OK) return rc;
+    /* a file that could not be read is kept too, as missing: a watch waits for it */
     dep *d = realloc(ctx->deps, sizeof *d * (size_t)(ctx->ndeps + 1));
     if (!d) return sc_fail(err, SC_ENOMEM, "out of memory");
     ctx->deps = d;
     d += ctx->ndeps;
-    d->path = sc_strdup(path);
+    *d = (dep){.path = sc_strdup(path), .missing = rc != SC_OK};
     if (!d->path) return sc_fail(err, SC_ENOMEM, "out of memory");
-    sc_digest_bytes(out->data, out->len, &d->digest);
+    if (rc == SC_OK) sc_digest_bytes(out->data, out->len, &d->digest);
     ctx->ndeps++;
-    return SC_OK;
+    return rc;
 }
 
 void sc_ctx_set_output(sc_ctx *ctx, const char *port, sc_value *value) {

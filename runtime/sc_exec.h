@@ -29,7 +29,7 @@ void sc_ctx_set_threads(sc_ctx *ctx, int threads);
 int sc_ctx_run(sc_ctx *ctx, sc_error *err);
 
 /* After a run: output by index (borrowed; NULL if unset), the metrics and the
- * files read. */
+ * files read (or, after a failure, tried). */
 sc_value *sc_ctx_output(sc_ctx *ctx, int port);
 int sc_ctx_nmetrics(const sc_ctx *ctx);
 const sc_metric *sc_ctx_metrics(const sc_ctx *ctx);
@@ -38,5 +38,8 @@ double sc_ctx_metric_value(const sc_ctx *ctx, const char *name);
 int sc_ctx_ndeps(const sc_ctx *ctx);
 const char *sc_ctx_dep_path(const sc_ctx *ctx, int i);
 const sc_digest *sc_ctx_dep_digest(const sc_ctx *ctx, int i);
+/* A file the node tried to read and could not (its digest is all zero):
+ * only a failed run has them. */
+bool sc_ctx_dep_missing(const sc_ctx *ctx, int i);
 
 #endif

@@ -1090,4 +1090,155 @@ SC_TEST(gc_beside_a_writer) {
     remove_tree(dir);
 }
 
+/* ---------------------------------------------------------------- healing */
+
+/* A few blobs and an action that names one of them. */
+static void fill(sc_cache *c, sc_digest blobs[3], sc_digest *key) {
+    put_text(c, "first blob", &blobs[0]);
+    put_text(c, "second blob", &blobs[1]);
+    put_text(c, "third blob", &blobs[2]);
+    *key = dig_str("the action");
+    sc_error err = {0};
+    SC_CHECK_MSG(put_simple_action(c, key, "{}", blobs, 1, &err) == 0, "%s", err.message);
+}
+
+/* Every blob readable again, and the cache usable for writing. */
+static void check_usable(sc_cache *c, const sc_digest blobs[3]) {
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_error err = {0};
+    for (int i = 0; i < 3; i++) SC_CHECK_MSG(sc_cache_get_blob(c, &blobs[i], &b, &err) == 0, "%s", err.message);
+    sc_buf_free(&b);
+    sc_digest d, key = dig_str("a new action");
+    put_text(c, "a new blob", &d);
+    SC_CHECK_MSG(put_simple_action(c, &key, "{}", &d, 1, &err) == 0, "%s", err.message);
+    SC_CHECK(action_exists(c, &key));
+    sc_cache_stats s = stats_of(c);
+    SC_CHECK_INT(s.blobs, 4);
+}
+
+SC_TEST(a_damaged_index_is_rebuilt_from_the_store) {
+    const char *const damages[] = {"junk", "truncated", "not a database"};
+    for (int k = 0; k < 3; k++) {
+        char *dir = sc_test_tempdir("cache");
+        sc_cache *c = open_cache(dir);
+        if (!c) return;
+        sc_digest blobs[3], key;
+        fill(c, blobs, &key);
+        sc_cache_close(c);
+        char *index = sc_path_join(dir, "index.sqlite");
+        struct stat st;
+        SC_CHECK(stat(index, &st) == 0);
+        if (k == 0) {   /* 8 KiB of junk in the middle */
+            char junk[8192];
+            for (size_t i = 0; i < sizeof junk; i++) junk[i] = (char)(i * 7 + 13);
+            patch_file(index, st.st_size / 2 > 4096 ? 4096 : st.st_size / 2, junk, sizeof junk);
+        } else if (k == 1) {
+            SC_CHECK(truncate(index, st.st_size / 2) == 0);
+        } else {
+            write_text(index, "this is not a database, it is text that is long enough to be read as a header\n");
+        }
+        sc_error err = {0};
+        c = NULL;
+        int rc = sc_cache_open(dir, &c, &err);
+        SC_CHECK_MSG(rc == 0 && c, "%s: open: %s", damages[k], err.message);
+        if (c) {
+            const char *notice = sc_cache_notice(c);
+            SC_CHECK_MSG(notice && strstr(notice, "the index was damaged") && strstr(notice, "3 blobs"), "%s: %s",
+                         damages[k], notice ? notice : "(no notice)");
+            SC_CHECK(!action_exists(c, &key));   /* actions are what is lost */
+            check_usable(c, blobs);
+            sc_cache_verify_result v;
+            SC_CHECK(sc_cache_verify(c, &v, &err) == 0);
+            SC_CHECK(!v.index_rebuilt && v.bad == 0 && v.missing == 0);
+            sc_cache_close(c);
+        }
+        /* opened again: healthy, no notice */
+        c = open_cache(dir);
+        SC_CHECK(c && !sc_cache_notice(c));
+        sc_cache_close(c);
+        free(index);
+        remove_tree(dir);
+    }
+}
+
+SC_TEST(a_folder_in_place_of_a_blob_is_a_miss_and_verify_removes_it) {
+    char *dir = sc_test_tempdir("cache");
+    sc_cache *c = open_cache(dir);
+    if (!c) return;
+    sc_digest d;
+    put_text(c, "blob that becomes a folder", &d);
+    char *path = sc_cache_blob_path(c, &d);
+    sc_test_system("rm -f '%s' && mkdir -p '%s/inside'", path, path);
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_error err = {0};
+    SC_CHECK_INT(sc_cache_get_blob(c, &d, &b, &err), SC_EMISS);
+    SC_CHECK(!sc_cache_has_blob(c, &d) || access(path, F_OK) != 0);
+    /* and verify finds another one */
+    sc_digest e;
+    put_text(c, "another", &e);
+    char *other = sc_cache_blob_path(c, &e);
+    sc_test_system("rm -f '%s' && mkdir -p '%s'", other, other);
+    sc_cache_verify_result v;
+    SC_CHECK_MSG(sc_cache_verify(c, &v, &err) == 0, "%s", err.message);
+    SC_CHECK_INT(v.not_files, 1);
+    SC_CHECK(access(other, F_OK) != 0);
+    sc_buf_free(&b);
+    free(path), free(other);
+    sc_cache_close(c);
+    remove_tree(dir);
+}
+
+SC_TEST(a_path_too_long_for_sqlite_is_named) {
+    char long_dir[700];
+    char *base = sc_test_tempdir("cache");
+    int n = snprintf(long_dir, sizeof long_dir, "%s/", base);
+    while (n < 600) long_dir[n++] = 'x';
+    long_dir[n] = 0;
+    sc_cache *c = NULL;
+    sc_error err = {0};
+    SC_CHECK(sc_cache_open(long_dir, &c, &err) != 0);
+    SC_CHECK_MSG(strstr(err.message, "too long") && strstr(err.message, "SQLite"), "%s", err.message);
+    remove_tree(base);
+}
+
+/* gc frees space on a full disk (a small tmpfs, where the machine allows
+ * mounting one), and a full disk is reported as one. */
+SC_TEST(gc_runs_on_a_full_disk) {
+    char *dir = sc_test_tempdir("cache");
+    if (sc_test_system("mount -t tmpfs -o size=12m tmpfs '%s' 2>/dev/null", dir) != 0) {
+        printf("  cannot mount a tmpfs here: skipped\n");
+        remove_tree(dir);
+        return;
+    }
+    sc_cache *c = open_cache(dir);
+    int stored = 0, rc = 0;
+    sc_error err = {0};
+    char *chunk = malloc(256 << 10);
+    for (int i = 0; c && chunk && rc == 0 && i < 200; i++) {
+        memset(chunk, i, 256 << 10);
+        sc_digest d;
+        sc_digest_bytes(chunk, 256 << 10, &d);
+        rc = sc_cache_put_blob(c, &d, chunk, 256 << 10, &err);
+        if (rc == 0) stored++;
+    }
+    SC_CHECK_MSG(rc != 0 && strstr(err.message, "disk is full"), "after %d blobs: rc %d, %s", stored, rc,
+                 err.message);
+    sc_cache_gc_result g;
+    memset(&g, 0, sizeof g);
+    int grc = c ? sc_cache_gc(c, 1 << 20, &g, &err) : -1;
+    SC_CHECK_MSG(grc == 0, "gc on a full disk: %s", err.message);
+    SC_CHECK(g.blobs_removed > 0 && g.bytes_left <= (1 << 20));
+    /* and there is room again */
+    sc_digest d;
+    memset(chunk, 255, 256 << 10);
+    sc_digest_bytes(chunk, 256 << 10, &d);
+    SC_CHECK_MSG(c && sc_cache_put_blob(c, &d, chunk, 256 << 10, &err) == 0, "%s", err.message);
+    free(chunk);
+    sc_cache_close(c);
+    sc_test_system("umount '%s'", dir);
+    remove_tree(dir);
+}
+
 int main(void) { return sc_test_main(); }

@@ -265,13 +265,22 @@ SC_TEST(two_processes_share_a_cache) {
     free(p1), free(p2), free(g), free(dir);
 }
 
+/* SIGKILL a cook at 20 points spread over its length (jittered, seeded):
+ * while it runs nodes, publishes blobs, records actions and writes --out.
+ * After each kill `cache verify` finds nothing wrong, and a last full cook
+ * writes the same bytes as a clean one in a cache of its own, leaving no
+ * temporary file in --out. */
 SC_TEST(kill_9_then_rerun_is_correct) {
     char *dir = sc_test_tempdir("cli");
     char *g = data("slow.lua");
-    /* a reference in its own cache */
+    /* a reference in its own cache, timed */
     char *ref = sc_strprintf("run '%s' --cache refcache --out ref -q --set texture_size=1024", g);
+    double t0 = sc_now();
     SC_CHECK_INT(cook(dir, ref), 0);
-    for (int delay_ms = 50; delay_ms <= 400; delay_ms += 175) {
+    double length = sc_now() - t0;
+    srand(20261204);
+    for (int k = 0; k < 20; k++) {
+        double at = length * (k + (double)rand() / RAND_MAX) / 20;
         pid_t pid = fork();
         if (pid == 0) {
             if (chdir(dir) != 0) _exit(127);
@@ -279,18 +288,29 @@ SC_TEST(kill_9_then_rerun_is_correct) {
                   "--set", "texture_size=1024", (char *)NULL);
             _exit(127);
         }
-        usleep((useconds_t)delay_ms * 1000);
+        usleep((useconds_t)(at * 1e6));
         kill(pid, SIGKILL);
         int status;
         waitpid(pid, &status, 0);
+        SC_CHECK_MSG(sc_test_system("cd '%s' && '%s' cache verify --cache cache >verify.txt 2>&1", dir, bin()) == 0,
+                     "verify after a kill at %.2f s of %.2f", at, length);
     }
+    /* what a killed writer leaves in --out (its process gone) goes at the next run; a live one's stays */
+    SC_CHECK_INT(sc_test_system("cd '%s' && mkdir -p out/sub && touch 'out/" SC_TMP_PREFIX "big.obj.999999999.aBcDeF' "
+                                "'out/sub/" SC_TMP_PREFIX "x.png.999999999.QwErTy' 'out/" SC_TMP_PREFIX "y.png.%d.LiVeXx'",
+                                dir, (int)getpid()), 0);
     char *args = sc_strprintf("run '%s' --cache cache --out out -q --set texture_size=1024", g);
     SC_CHECK_INT(cook(dir, args), 0);
+    char *live = sc_strprintf("%s/out/" SC_TMP_PREFIX "y.png.%d.LiVeXx", dir, (int)getpid());
+    SC_CHECK(exists(live));
+    unlink(live);
+    free(live);
     char *p1 = sc_strprintf("%s/ref/big_default_color.png", dir), *p2 = sc_strprintf("%s/out/big_default_color.png", dir);
     char *o1 = sc_strprintf("%s/ref/big.obj", dir), *o2 = sc_strprintf("%s/out/big.obj", dir);
     SC_CHECK(same_file(p1, p2));
     SC_CHECK(same_file(o1, o2));
     SC_CHECK_INT(sc_test_system("cd '%s' && '%s' cache verify --cache cache >/dev/null", dir, bin()), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && test -z \"$(find out -name '" SC_TMP_PREFIX "*')\"", dir), 0);
     free(p1), free(p2), free(o1), free(o2), free(args), free(ref), free(g), free(dir);
 }
 
@@ -440,6 +460,112 @@ SC_TEST(watch_recooks_on_rename_save) {
     char *copy = slurp(dir, "out/copy.obj");
     SC_CHECK_MSG(copy && strstr(copy, "v 2 0 0"), "re-cooked output: %.200s", copy ? copy : "(none)");
     free(copy), free(report), free(g), free(dir);
+}
+
+/* Start `seamcook watch` on obj_save.lua in dir; stderr to dir/watch.txt. */
+static pid_t start_watch(const char *dir, const char *graph) {
+    pid_t pid = fork();
+    if (pid == 0) {
+        if (chdir(dir) != 0) _exit(127);
+        if (!freopen("watch.txt", "w", stderr)) _exit(127);
+        execl(bin(), bin(), "watch", graph, "--cache", "cache", "--out", "out", "--set", "mesh=tet.obj",
+              (char *)NULL);
+        _exit(127);
+    }
+    return pid;
+}
+
+/* Wait up to `seconds` for dir/out/copy.obj to hold `text`; then stop the watch. */
+static bool wait_for_copy(const char *dir, pid_t pid, const char *text, double seconds) {
+    bool found = false;
+    for (double t = 0; t < seconds && !found; t += 0.05) {
+        char *copy = slurp(dir, "out/copy.obj");
+        found = copy && strstr(copy, text);
+        free(copy);
+        if (!found) usleep(50000);
+    }
+    kill(pid, SIGINT);
+    int status;
+    for (int i = 0; i < 100 && waitpid(pid, &status, WNOHANG) == 0; i++) usleep(50000);
+    if (waitpid(pid, &status, WNOHANG) == 0) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+    }
+    return found;
+}
+
+/* A change that lands while a cook runs is cooked after it (it used to be
+ * lost: the watches were down during the cook). */
+SC_TEST(watch_cooks_a_change_made_during_a_cook) {
+    char *dir = sc_test_tempdir("cli");
+    write_png(dir, "2048");   /* the cook then takes a while: the PNG is read and written again */
+    write_obj_asset(dir, "v1");
+    char *g = data("obj_save.lua");
+    pid_t pid = start_watch(dir, g);
+    char *report = sc_strprintf("%s/out/report.json", dir);
+    for (int i = 0; i < 400 && !exists(report); i++) usleep(50000);
+    /* v2, then v3 while v2's cook runs (its debounce is 150 ms) */
+    SC_CHECK_INT(sc_test_system("cd '%s' && sed 's/v 1 0 0/v 2 0 0/' tet.obj > v2 && sed 's/v 1 0 0/v 3 0 0/' tet.obj > v3 && "
+                                "cp v2 tet.obj && sleep 0.3 && cp v3 tet.obj", dir), 0);
+    bool v3 = wait_for_copy(dir, pid, "v 3 0 0", 30);
+    char *log = slurp(dir, "watch.txt");
+    SC_CHECK_MSG(v3, "the output never showed v3; watch said:\n%s", log ? log : "");
+    free(log), free(report), free(g), free(dir);
+}
+
+/* A node that failed because a file was missing waits for that file. */
+SC_TEST(watch_recooks_when_a_missing_file_appears) {
+    char *dir = sc_test_tempdir("cli");
+    write_obj_asset(dir, "v1");   /* names tet.png, which is not there yet */
+    char *g = data("obj_save.lua");
+    pid_t pid = start_watch(dir, g);
+    char *log = NULL;
+    for (int i = 0; i < 400; i++) {   /* the first cook fails */
+        free(log);
+        log = slurp(dir, "watch.txt");
+        if (log && strstr(log, "watching")) break;
+        usleep(50000);
+    }
+    SC_CHECK_MSG(log && strstr(log, "tet.png"), "watch said:\n%s", log ? log : "");
+    free(log);
+    char *copy = slurp(dir, "out/copy.obj");
+    SC_CHECK(copy == NULL);
+    free(copy);
+    write_png(dir, "64");
+    bool cooked = wait_for_copy(dir, pid, "v 1 0 0", 30);
+    log = slurp(dir, "watch.txt");
+    SC_CHECK_MSG(cooked, "restoring the texture cooked nothing; watch said:\n%s", log ? log : "");
+    free(log), free(g), free(dir);
+}
+
+/* Two users share one cache: the folder is setgid to a group, both use
+ * umask 002, and the second user (nobody, of that group) cooks, verifies and
+ * collects garbage in what the first made; the files they make follow the
+ * umask. Needs root (to be nobody); skipped where nobody cannot run the
+ * binary (a checkout under a private home). */
+SC_TEST(two_users_share_a_cache) {
+    if (getuid() != 0 || sc_test_system("setpriv --reuid=65534 --regid=65534 --clear-groups test -x '%s'", bin()) != 0) {
+        printf("  not root, or nobody cannot run %s: skipped\n", bin());
+        return;
+    }
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    SC_CHECK_INT(sc_test_system("cd '%s' && chmod 0777 . && mkdir cache && chgrp 65534 cache && chmod 2775 cache", dir), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && umask 002 && '%s' run '%s' --cache cache --out out_root -q 2>err_root.txt",
+                                dir, bin(), g), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && setpriv --reuid=65534 --regid=65534 --clear-groups sh -c \"umask 002 && "
+                                "'%s' run '%s' --cache cache --out out_nobody --set resolution=5 -q && "
+                                "'%s' cache verify --cache cache && '%s' cache gc --max-size 1 --cache cache\" "
+                                ">out_nobody.txt 2>err_nobody.txt",
+                                dir, bin(), g, bin(), bin()), 0);
+    char *err = slurp(dir, "err_nobody.txt");
+    SC_CHECK_MSG(err && !strstr(err, "readonly") && !strstr(err, "denied"), "nobody: %s", err ? err : "");
+    free(err);
+    /* what nobody left is usable by root, and nothing in the cache is private to one user */
+    SC_CHECK_INT(sc_test_system("cd '%s' && '%s' cache verify --cache cache >verify.txt 2>&1", dir, bin()), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && test -z \"$(find cache -newer err_root.txt \\( -type f ! -perm -g+w \\) -o "
+                                "\\( -type d ! -perm -g+ws \\) | grep -v reserve)\"", dir), 0);
+    free(g), free(dir);
 }
 
 SC_TEST(golden_images_and_metrics) {
