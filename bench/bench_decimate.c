@@ -41,6 +41,7 @@
 
 #include "sc_base.h"
 #include "sc_exec.h"
+#include "sc_geometry.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
@@ -235,7 +236,7 @@ static double hausdorff(const sc_mesh *a, const sc_mesh *b) {
     sc_hausdorff_result r;
     sc_error err;
     if (sc_hausdorff(&ma, &mb, 200000, 2, &r, &err) != SC_OK) return NAN;
-    return r.distance / sc_hausdorff_bbox_diagonal(&ma);
+    return r.distance / sc_bbox_diagonal(a->V, a->nv, a->FV, a->nf);
 }
 
 /* ---------------------------------------------------------------- meshoptimizer */

@@ -113,6 +113,7 @@
 #include <string.h>
 
 #include "sc_atlas_ops.h"
+#include "sc_geometry.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
@@ -1276,15 +1277,6 @@ static int erase_maps(sc_value *mesh, sc_value **images, const sc_seam_grid *gri
 
 /* ---------------------------------------------------------------- metrics */
 
-static double bbox_diagonal(const sc_mesh *m) {
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-    for (int32_t v = 0; v < m->nv; v++)
-        for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], m->V[3 * v + c]), hi[c] = fmax(hi[c], m->V[3 * v + c]);
-    double d = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                    (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    return d > 0 && isfinite(d) ? d : 1;
-}
-
 static const double sample_bary[7][3] = {
     {1.0 / 3, 1.0 / 3, 1.0 / 3}, {0.6, 0.2, 0.2}, {0.2, 0.6, 0.2}, {0.2, 0.2, 0.6},
     {0.45, 0.45, 0.1}, {0.1, 0.45, 0.45}, {0.45, 0.1, 0.45}};
@@ -1394,9 +1386,9 @@ static void grid_samples_free(grid_samples *gs) {
 
 static double face_area(const sc_mesh *m, int32_t f) {
     const double *a = m->V + 3 * m->FV[3 * f], *b = m->V + 3 * m->FV[3 * f + 1], *c = m->V + 3 * m->FV[3 * f + 2];
-    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-    double area = 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    double n[3];
+    sc_triangle_normal(a, b, c, n);
+    double area = 0.5 * sc_norm3(n);
     return isfinite(area) ? area : 0;
 }
 
@@ -1514,10 +1506,6 @@ static bool drawn_at(const surface_job *J, double u, double v, int32_t *face, do
     return true;
 }
 
-static double dist2(const double a[3], const double b[3]) {
-    return (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]);
-}
-
 #define DESCENT_STEPS 32
 #define DESCENT_REACH 8.0   /* texels */
 
@@ -1525,7 +1513,7 @@ static double dist2(const double a[3], const double b[3]) {
  * rv, in `face`, at uv): the least distance of the points it visits. */
 static double descend(const surface_job *J, const double p[3], double u, double v, int32_t face, double r[3],
                       double ru[3], double rv[3]) {
-    double d2 = dist2(r, p);
+    double d2 = sc_dist3_squared(r, p);
     const double W = J->g->width, H = J->g->height;
     for (int it = 0; it < DESCENT_STEPS && d2 > 0; it++) {
         double e[3] = {p[0] - r[0], p[1] - r[1], p[2] - r[2]};
@@ -1543,7 +1531,7 @@ static double descend(const surface_job *J, const double p[3], double u, double 
             int32_t f2 = face;
             double r2[3], ru2[3], rv2[3];
             if (!drawn_at(J, u + du, v + dv, &f2, r2, ru2, rv2)) continue;
-            double n2 = dist2(r2, p);
+            double n2 = sc_dist3_squared(r2, p);
             if (!(n2 < d2)) continue;
             u += du, v += dv, face = f2, d2 = n2, moved = true;
             memcpy(r, r2, sizeof r2), memcpy(ru, ru2, sizeof ru2), memcpy(rv, rv2, sizeof rv2);
@@ -1946,7 +1934,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
                                lm->materials[m], in->materials[m]);
     }
 
-    const double diag = bbox_diagonal(in), tol = fit_tolerance * diag;
+    /* the unit of tolerances and error metrics (1 for a mesh without extent) */
+    const double extent = sc_bbox_diagonal(in->V, in->nv, NULL, 0);
+    const double diag = extent > 0 && isfinite(extent) ? extent : 1, tol = fit_tolerance * diag;
     sc_seam_grid *grids = calloc((size_t)nmat + 1, sizeof *grids);
     sc_value **geometry = calloc((size_t)nmat + 1, sizeof *geometry);
     sc_value **disp = calloc((size_t)nmat * nlevels + 1, sizeof *disp);

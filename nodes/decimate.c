@@ -265,6 +265,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sc_geometry.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_quadric.h"
@@ -424,29 +425,6 @@ typedef struct state {
 
 /* ---------------------------------------------------------------- small helpers */
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-static void cross3(const double *a, const double *b, double *out) {
-    out[0] = a[1] * b[2] - a[2] * b[1];
-    out[1] = a[2] * b[0] - a[0] * b[2];
-    out[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static void triangle_normal(const double *p, const double *q, const double *r, double *n) {
-    double e1[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, e2[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
-    cross3(e1, e2, n);
-}
-
-/* Twice the signed area of a uv triangle. */
-static double uv_area2(const double *p, const double *q, const double *r) {
-    return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
-}
-
-static double dist2d(const double *p, const double *q) {
-    double x = q[0] - p[0], y = q[1] - p[1];
-    return sqrt(x * x + y * y);
-}
-
 static int32_t *vfaces(const state *st, int32_t v, int32_t *count) {
     *count = st->vf_len[v];
     return st->pool + st->vf_off[v];
@@ -574,23 +552,6 @@ static int edge_faces(const state *st, int32_t a, int32_t b, int32_t out[3]) {
 
 /* ---------------------------------------------------------------- unifiability */
 
-/* Collinear with `mid` strictly between p and q: mid's distance from the
- * chord p-q is at most collinear_tol |q - p| plus what the storage precision
- * of the three points explains (each coordinate rounded by up to half a
- * step moves a point by up to 0.71 steps; 2 steps bound the chord's
- * distance from a straight line through the unrounded points). step is
- * the storage step of the three points (zstep). */
-static bool collinear_through(const state *st, const double *p, const double *mid, const double *q, double step) {
-    double chord[2] = {q[0] - p[0], q[1] - p[1]}, d[2] = {mid[0] - p[0], mid[1] - p[1]};
-    double len2 = chord[0] * chord[0] + chord[1] * chord[1];
-    if (!(len2 > 0)) return false;
-    double len = sqrt(len2);
-    double along = d[0] * chord[0] + d[1] * chord[1];
-    if (!(along > 0) || !(along < len2)) return false;
-    double distance = fabs(d[0] * chord[1] - d[1] * chord[0]) / len;
-    return distance <= st->collinear_tol * len + 2.0 * step;
-}
-
 /* |e0| / |d0| = |e1| / |d1| (as e0 d1 = e1 d0), to ratio_tol relative plus
  * the effect of the storage precision on the four lengths (each off by up
  * to 1.42 steps). */
@@ -628,15 +589,20 @@ static block_reason unify_at(state *st, int nhalf, int32_t at, const int32_t *z_
     double step = 0;
     for (int i = 0; i < nhalf; i++) {
         double si = fmax(st->zstep[far[i]], fmax(st->zstep[z_at[i]], st->zstep[z_other[i]]));
-        if (!collinear_through(st, st->zuv + 2 * far[i], st->zuv + 2 * z_at[i], st->zuv + 2 * z_other[i], si))
+        /* mid's distance from the chord may add what the storage precision
+         * of the three points explains (each coordinate rounded by up to half
+         * a step moves a point by up to 0.71 steps; 2 steps bound the chord's
+         * distance from a straight line through the unrounded points) */
+        if (!sc_collinear_through(st->zuv + 2 * far[i], st->zuv + 2 * z_at[i], st->zuv + 2 * z_other[i],
+                                  st->collinear_tol, 2.0 * si))
             return not_collinear;
         step = fmax(step, si);
     }
     if (seam) {
-        double d0 = dist2d(st->zuv + 2 * far[0], st->zuv + 2 * z_at[0]);
-        double e0 = dist2d(st->zuv + 2 * z_at[0], st->zuv + 2 * z_other[0]);
-        double d1 = dist2d(st->zuv + 2 * far[1], st->zuv + 2 * z_at[1]);
-        double e1 = dist2d(st->zuv + 2 * z_at[1], st->zuv + 2 * z_other[1]);
+        double d0 = sc_dist2(st->zuv + 2 * far[0], st->zuv + 2 * z_at[0]);
+        double e0 = sc_dist2(st->zuv + 2 * z_at[0], st->zuv + 2 * z_other[0]);
+        double d1 = sc_dist2(st->zuv + 2 * far[1], st->zuv + 2 * z_at[1]);
+        double e1 = sc_dist2(st->zuv + 2 * z_at[1], st->zuv + 2 * z_other[1]);
         if (!ratios_equal(st, e0, d0, e1, d1, step)) return BLOCK_SEAM_LENGTH_RATIO;
     }
     return BLOCK_NONE;
@@ -1122,29 +1088,29 @@ static block_reason flips_ok(state *st, const collapse_plan *p) {
         }
         /* surface */
         double n0[3], n1[3];
-        triangle_normal(oldP[0], oldP[1], oldP[2], n0);
-        triangle_normal(P[0], P[1], P[2], n1);
-        double l0 = sqrt(dot3(n0, n0)), l1 = sqrt(dot3(n1, n1));
+        sc_triangle_normal(oldP[0], oldP[1], oldP[2], n0);
+        sc_triangle_normal(P[0], P[1], P[2], n1);
+        double l0 = sqrt(sc_dot3(n0, n0)), l1 = sqrt(sc_dot3(n1, n1));
         double emax = 0;
         for (int k = 0; k < 3; k++) {
             const double *q = P[k], *r = P[(k + 1) % 3];
             double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
-            double e = dot3(d, d);
+            double e = sc_dot3(d, d);
             if (e > emax) emax = e;
         }
         if (!(l1 > 1e-12 * emax)) return BLOCK_SURFACE_FLIP;
         if (l0 > 0) {
-            double d = dot3(n0, n1);
+            double d = sc_dot3(n0, n1);
             if (d <= 0) return BLOCK_SURFACE_FLIP;
             if (d <= st->normal_cos * l0 * l1) return BLOCK_NORMAL_TURN;
         }
         if (st->stretch && !stretch_ok(st, p, f, oldP, oldW, P, W)) return BLOCK_TEXEL_STRETCH;
         /* uv */
         if (!uv_moves) continue;
-        double a0 = uv_area2(oldW[0], oldW[1], oldW[2]), a1 = uv_area2(W[0], W[1], W[2]);
+        double a0 = sc_orient2(oldW[0], oldW[1], oldW[2]), a1 = sc_orient2(W[0], W[1], W[2]);
         double umax = 0;
         for (int k = 0; k < 3; k++) {
-            double e = dist2d(W[k], W[(k + 1) % 3]);
+            double e = sc_dist2(W[k], W[(k + 1) % 3]);
             if (e > umax) umax = e;
         }
         if (!(fabs(a1) > 1e-10 * umax * umax)) return BLOCK_UV_FLIP;
@@ -1173,9 +1139,9 @@ static bool point_after(state *st, const collapse_plan *p, const double uv[2], d
     for (int32_t f; (f = fan_next(st, p, &walk)) >= 0;) {
         const double *P[3], *W[3];
         planned_face(st, p, f, P, W);
-        double d = uv_area2(W[0], W[1], W[2]);
+        double d = sc_orient2(W[0], W[1], W[2]);
         if (d == 0) continue;
-        double l[3] = {uv_area2(uv, W[1], W[2]) / d, uv_area2(W[0], uv, W[2]) / d, 0};
+        double l[3] = {sc_orient2(uv, W[1], W[2]) / d, sc_orient2(W[0], uv, W[2]) / d, 0};
         l[2] = 1 - l[0] - l[1];
         double worst = fmin(l[0], fmin(l[1], l[2]));
         if (!(worst > best)) continue;
@@ -1263,7 +1229,7 @@ static bool creases_ok(state *st, const collapse_plan *p) {
         const double *P[3], *W[3], *Q[3], *X[3];
         planned_face(st, p, f, P, W);
         double nf[3], stretch_f = uv_stretch(P, W);
-        triangle_normal(P[0], P[1], P[2], nf);
+        sc_triangle_normal(P[0], P[1], P[2], nf);
         for (int k = 0; k < 3; k++) {
             int32_t g = face_across(st, p, f, st->fv[3 * f + k], st->fv[3 * f + (k + 1) % 3]);
             if (g < 0 || (g < f && in_fan(st, p, g))) continue;
@@ -1274,9 +1240,9 @@ static bool creases_ok(state *st, const collapse_plan *p) {
                 shared += (X[i][0] == wa[0] && X[i][1] == wa[1]) + (X[i][0] == wb[0] && X[i][1] == wb[1]);
             if (shared < 2) continue;
             double ng[3], c[3];
-            triangle_normal(Q[0], Q[1], Q[2], ng);
-            cross3(nf, ng, c);
-            double angle = atan2(sqrt(dot3(c, c)), dot3(nf, ng));
+            sc_triangle_normal(Q[0], Q[1], Q[2], ng);
+            sc_cross3(nf, ng, c);
+            double angle = atan2(sqrt(sc_dot3(c, c)), sc_dot3(nf, ng));
             if (angle * fmax(stretch_f, uv_stretch(Q, X)) / st->map_size > st->crease_limit) return false;
         }
     }
@@ -1817,12 +1783,7 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
 
     /* centre the positions (costs do not change; rounding does) */
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int32_t v = 0; v < nv; v++)
-        for (int k = 0; k < 3; k++) {
-            double x = m->V[3 * v + k];
-            if (x < lo[k]) lo[k] = x;
-            if (x > hi[k]) hi[k] = x;
-        }
+    sc_bbox_add(m->V, nv, lo, hi);
     for (int32_t v = 0; v < nv; v++)
         for (int k = 0; k < 3; k++) st->pos[3 * v + k] = m->V[3 * v + k] - 0.5 * (lo[k] + hi[k]);
     for (int k = 0; k < 3; k++) st->center[k] = nv > 0 ? 0.5 * (lo[k] + hi[k]) : 0;
@@ -1912,10 +1873,10 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     for (int32_t f = 0; f < nf; f++) {
         double n[3];
         const int32_t *c = st->fv + 3 * f;
-        triangle_normal(st->pos + 3 * c[0], st->pos + 3 * c[1], st->pos + 3 * c[2], n);
-        area3 += 0.5 * sqrt(dot3(n, n));
+        sc_triangle_normal(st->pos + 3 * c[0], st->pos + 3 * c[1], st->pos + 3 * c[2], n);
+        area3 += 0.5 * sqrt(sc_dot3(n, n));
         const int32_t *z = st->fz + 3 * f;
-        st->input_uv_area[f] = 0.5 * uv_area2(st->zuv + 2 * z[0], st->zuv + 2 * z[1], st->zuv + 2 * z[2]);
+        st->input_uv_area[f] = 0.5 * sc_orient2(st->zuv + 2 * z[0], st->zuv + 2 * z[1], st->zuv + 2 * z[2]);
         area_uv += fabs(st->input_uv_area[f]);
     }
     st->uv_scale = uv_weight * (area_uv > 0 && area3 > 0 ? sqrt(area3 / area_uv) : 1.0);
@@ -1990,8 +1951,8 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         double P[3][QDIM];
         for (int k = 0; k < 3; k++) scaled_point(st, st->fz[3 * f + k], P[k]);
         double n[3];
-        triangle_normal(P[0], P[1], P[2], n);
-        double len = sqrt(dot3(n, n)), area = 0.5 * len;
+        sc_triangle_normal(P[0], P[1], P[2], n);
+        double len = sqrt(sc_dot3(n, n)), area = 0.5 * len;
         if (!(area > 0)) continue;
         double importance = st->importance ? face_importance(st, f, area) : 1;
         double q[QSIZE];
@@ -2019,12 +1980,12 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
             if (!(st->vflags[x] & st->vflags[y] & V_BOUNDARY) || edge_faces(st, x, y, fl) != 1) continue;
             const double *px = st->pos + 3 * x, *py = st->pos + 3 * y;
             double e[3] = {py[0] - px[0], py[1] - px[1], py[2] - px[2]}, m3[3];
-            cross3(unit, e, m3);
-            double ml = sqrt(dot3(m3, m3));
+            sc_cross3(unit, e, m3);
+            double ml = sqrt(sc_dot3(m3, m3));
             if (!(ml > 0)) continue;
             for (int j = 0; j < 3; j++) m3[j] /= ml;
-            double d = -dot3(m3, px);
-            double w = BOUNDARY_PLANE_WEIGHT * dot3(e, e);
+            double d = -sc_dot3(m3, px);
+            double w = BOUNDARY_PLANE_WEIGHT * sc_dot3(e, e);
             sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + k] * QSIZE, QDIM, m3, d, w);
             sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + (k + 1) % 3] * QSIZE, QDIM, m3, d, w);
         }
@@ -2244,7 +2205,7 @@ static int64_t count_flipped_uv(const state *st) {
     for (int32_t f = 0; f < st->nf; f++) {
         if (!st->falive[f] || st->input_uv_area[f] == 0) continue;
         const int32_t *z = st->fz + 3 * f;
-        double a = uv_area2(st->zuv + 2 * z[0], st->zuv + 2 * z[1], st->zuv + 2 * z[2]);
+        double a = sc_orient2(st->zuv + 2 * z[0], st->zuv + 2 * z[1], st->zuv + 2 * z[2]);
         if (!(a * st->input_uv_area[f] > 0)) flipped++;
     }
     return flipped;
@@ -2362,9 +2323,9 @@ typedef struct fan_face {
 static void prepare_face(fan_face *f) {
     const double *a = f->corner[0], *b = f->corner[1], *c = f->corner[2];
     double e0[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e1[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double g00 = dot3(e0, e0), g01 = dot3(e0, e1), g11 = dot3(e1, e1), det = g00 * g11 - g01 * g01;
-    cross3(e0, e1, f->normal);
-    double len = sqrt(dot3(f->normal, f->normal));
+    double g00 = sc_dot3(e0, e0), g01 = sc_dot3(e0, e1), g11 = sc_dot3(e1, e1), det = g00 * g11 - g01 * g01;
+    sc_cross3(e0, e1, f->normal);
+    double len = sqrt(sc_dot3(f->normal, f->normal));
     f->flat = !(det > 1e-24 * g00 * g11) || !(len > 0);
     if (f->flat) return;
     for (int k = 0; k < 3; k++) {
@@ -2384,7 +2345,7 @@ static bool face_plane_distance2(const fan_face *f, const double *q, double *h2)
         return false;
     }
     double w[3] = {q[0] - a[0], q[1] - a[1], q[2] - a[2]};
-    double s = dot3(w, f->dual0), t = dot3(w, f->dual1), h = dot3(w, f->normal);
+    double s = sc_dot3(w, f->dual0), t = sc_dot3(w, f->dual1), h = sc_dot3(w, f->normal);
     *h2 = h * h;
     return s >= 0 && t >= 0 && s + t <= 1;
 }
@@ -2393,7 +2354,7 @@ static double face_distance2(const fan_face *f, const double *q) {
     double r[3];
     sc_hausdorff_closest_on_triangle(q, f->corner[0], f->corner[1], f->corner[2], r);
     double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
-    return dot3(d, d);
+    return sc_dot3(d, d);
 }
 
 /* Squared distance from q to the fan, or any value no larger than `enough`
@@ -2675,7 +2636,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     double started = sc_now();
     sc_lods *lods = NULL;
-    const double diagonal = sc_hausdorff_bbox_diagonal(&input_mesh);
+    const double diagonal = sc_bbox_diagonal(in->V, in->nv, in->FV, in->nf);
     if (max_error > 0 && diagonal > 0) st.max_error2 = (diagonal * max_error) * (diagonal * max_error);
     st.map_texel_length = sc_ctx_number(ctx, "map_texel") * diagonal * (double)sc_ctx_integer(ctx, "map_size");
     const double seam_error = sc_ctx_number(ctx, "seam_error") * diagonal;

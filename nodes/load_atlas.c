@@ -31,6 +31,7 @@
 #include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_obj.h"
+#include "sc_topology.h"
 
 #define MAX_MODEL_BYTES ((size_t)2 << 30)
 #define MAX_IMAGE_BYTES ((size_t)1 << 30)
@@ -328,56 +329,32 @@ static int load_textures(sc_ctx *ctx, loaded *l, sc_error *err) {
 
 /* ---------------------------------------------------------------- edges */
 
-typedef struct edge_slot {
-    int32_t lo, hi;      /* surface vertices, lo < hi; lo = -1: empty */
-    int32_t ulo, uhi;    /* uv indices at lo and hi of the first face */
-    int32_t faces;
-    bool seam;
-} edge_slot;
-
 typedef struct edge_counts {
     int64_t edges, boundary, seams, nonmanifold;
 } edge_counts;
 
-static uint64_t edge_hash(int32_t a, int32_t b) {
-    uint64_t x = ((uint64_t)(uint32_t)a << 32) | (uint32_t)b;
-    x ^= x >> 33;
-    x *= 0xff51afd7ed558ccdull;
-    x ^= x >> 33;
-    return x;
-}
-
+/* The edge table's counts, seams as meshstats.py counts them: besides the
+ * seam edges, a non-manifold edge whose faces do not all use the same uv
+ * indices at its ends. */
 static int count_edges(const sc_mesh *m, edge_counts *out, sc_error *err) {
-    memset(out, 0, sizeof *out);
-    uint64_t n = 16;
-    while (n < (uint64_t)m->nf * 3 * 2) n *= 2;
-    edge_slot *t = sc_alloc_array((size_t)n, sizeof *t);
-    if (!t) return sc_fail(err, SC_ENOMEM, "out of memory for the edge table");
-    for (uint64_t i = 0; i < n; i++) t[i].lo = -1;
-    for (int32_t f = 0; f < m->nf; f++)
-        for (int k = 0; k < 3; k++) {
-            int32_t a = m->FV[3 * f + k], b = m->FV[3 * f + (k + 1) % 3];
-            int32_t ua = m->FU[3 * f + k], ub = m->FU[3 * f + (k + 1) % 3];
-            int32_t lo = a < b ? a : b, hi = a < b ? b : a;
-            int32_t ulo = a < b ? ua : ub, uhi = a < b ? ub : ua;
-            uint64_t i = edge_hash(lo, hi) & (n - 1);
-            while (t[i].lo >= 0 && (t[i].lo != lo || t[i].hi != hi)) i = (i + 1) & (n - 1);
-            edge_slot *e = &t[i];
-            if (e->lo < 0) {
-                *e = (edge_slot){lo, hi, ulo, uhi, 0, false};
-                out->edges++;
-            } else if (e->ulo != ulo || e->uhi != uhi) {
-                e->seam = true;
+    sc_topology t;
+    int rc = sc_topology_build(m, NULL, &t, err);
+    if (rc != SC_OK) return rc;
+    *out = (edge_counts){t.nedges, t.nboundary, t.nseams, t.nnonmanifold};
+    for (int32_t i = 0; i < t.nedges; i++) {
+        const sc_topology_edge *e = &t.edges[i];
+        if (e->kind != SC_EDGE_NONMANIFOLD) continue;
+        int32_t h0 = t.half[e->first];
+        for (int32_t k = 1; k < e->count; k++) {
+            int32_t h = t.half[e->first + k];
+            if (sc_topology_uv_at(m, h, e->v0) != sc_topology_uv_at(m, h0, e->v0) ||
+                sc_topology_uv_at(m, h, e->v1) != sc_topology_uv_at(m, h0, e->v1)) {
+                out->seams++;
+                break;
             }
-            e->faces++;
         }
-    for (uint64_t i = 0; i < n; i++) {
-        if (t[i].lo < 0) continue;
-        if (t[i].faces == 1) out->boundary++;
-        if (t[i].faces > 2) out->nonmanifold++;
-        if (t[i].faces >= 2 && t[i].seam) out->seams++;
     }
-    free(t);
+    sc_topology_free(&t);
     return SC_OK;
 }
 
@@ -495,7 +472,8 @@ static const sc_port_desc outputs[] = {
     {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the mesh and its textures"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, &sc_kernel_obj, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, &sc_kernel_obj, &sc_kernel_topology,
+                                            NULL};
 
 const sc_node_desc sc_node_load_atlas = {
     .type = "load_atlas",

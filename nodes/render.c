@@ -128,11 +128,13 @@
 #include <string.h>
 
 #include "sc_atlas_ops.h"
+#include "sc_geometry.h"
 #include "sc_gl.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
 #include "sc_shaders.h"
+#include "sc_topology.h"
 
 #define MAX_TESS_LEVELS 16
 #define MAX_PASSES (3 + MAX_TESS_LEVELS)
@@ -186,16 +188,15 @@ typedef struct seam_trace {
     int32_t nruns, run_cap;
 } seam_trace;
 
-/* One level, uploaded. */
-/* The surface's topology through its faces' vertex indices (seams share
- * vertices, so they are no boundary): Euler characteristic V - E + F over
- * the vertices faces use, connected components, boundary loops (components
- * of the boundary edges' graph) and non-manifold edges. */
+/* The surface's topology through its faces' vertex indices (sc_topology:
+ * seams share vertices, so they are no boundary): Euler characteristic,
+ * connected components, boundary loops and non-manifold edges. */
 typedef struct topology {
     int64_t euler;
     int32_t components, boundary_loops, nonmanifold_edges;
 } topology;
 
+/* One level, uploaded. */
 typedef struct level_gl {
     const sc_atlas *atlas;
     const sc_mesh *mesh;
@@ -269,29 +270,6 @@ static int metricf(outcome *o, double value, const char *fmt, ...) {
     return metric(o, name, value);
 }
 
-static double vlen(const double a[3]) { return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); }
-
-static void vnorm(double a[3]) {
-    double l = vlen(a);
-    if (l > 0) a[0] /= l, a[1] /= l, a[2] /= l;
-}
-
-static void vcross(const double a[3], const double b[3], double out[3]) {
-    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-    memcpy(out, c, sizeof c);
-}
-
-static double vdot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-static void bbox_add(const sc_mesh *m, double lo[3], double hi[3]) {
-    for (int32_t i = 0; i < m->nv; i++)
-        for (int c = 0; c < 3; c++) {
-            double x = m->V[3 * i + c];
-            if (x < lo[c]) lo[c] = x;
-            if (x > hi[c]) hi[c] = x;
-        }
-}
-
 /* ---------------------------------------------------------------- params */
 
 static int parse_modes(const char *text, bool want[MODE_COUNT], sc_error *err) {
@@ -342,13 +320,13 @@ static void make_view(view *v, const char *name, const double dir_in[3], const d
                       double radius) {
     snprintf(v->name, sizeof v->name, "%s", name);
     double d[3] = {dir_in[0], dir_in[1], dir_in[2]};
-    vnorm(d);
+    sc_normalize3(d);
     double up[3] = {0, 1, 0};
     if (fabs(d[1]) > 0.99) up[0] = 0, up[1] = 0, up[2] = d[1] > 0 ? -1 : 1;
     double f[3] = {-d[0], -d[1], -d[2]}, r[3], u[3];
-    vcross(f, up, r);
-    vnorm(r);
-    vcross(r, f, u);
+    sc_cross3(f, up, r);
+    sc_normalize3(r);
+    sc_cross3(r, f, u);
     double near = 0.5 * radius, far = 5.5 * radius, dist = 3.0 * radius;
     double m[4][4] = {{0}};   /* row-major */
     for (int c = 0; c < 3; c++) {
@@ -356,15 +334,15 @@ static void make_view(view *v, const char *name, const double dir_in[3], const d
         m[1][c] = u[c] / radius;
         m[2][c] = 2.0 * f[c] / (far - near);
     }
-    m[0][3] = -vdot(center, r) / radius;
-    m[1][3] = -vdot(center, u) / radius;
-    m[2][3] = 2.0 * (-vdot(center, f) + dist - near) / (far - near) - 1.0;
+    m[0][3] = -sc_dot3(center, r) / radius;
+    m[1][3] = -sc_dot3(center, u) / radius;
+    m[2][3] = 2.0 * (-sc_dot3(center, f) + dist - near) / (far - near) - 1.0;
     m[3][3] = 1.0;
     for (int row = 0; row < 4; row++)
         for (int col = 0; col < 4; col++) v->view_proj[col * 4 + row] = (float)m[row][col];
     double light[3];
     for (int c = 0; c < 3; c++) light[c] = d[c] + 0.6 * u[c] + 0.4 * r[c];
-    vnorm(light);
+    sc_normalize3(light);
     for (int c = 0; c < 3; c++) v->light[c] = (float)light[c], v->eye[c] = (float)d[c];
 }
 
@@ -584,54 +562,6 @@ static bool corner_data(const sc_mesh *m, const level_gl *L, const int32_t *slot
     return true;
 }
 
-static int compare_i64(const void *a, const void *b) {
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return (x > y) - (x < y);
-}
-
-/* The topology of m's faces (see topology); SC_ENOMEM when out of memory. */
-static int surface_topology(const sc_mesh *m, topology *t, sc_error *err) {
-    memset(t, 0, sizeof *t);
-    size_t ne = 3 * (size_t)m->nf;
-    int64_t *edges = malloc(ne * sizeof *edges);
-    int32_t *all = malloc(sizeof(int32_t) * (size_t)m->nv), *bnd = malloc(sizeof(int32_t) * (size_t)m->nv);
-    uint8_t *use = calloc((size_t)m->nv, 1);   /* 1: a face uses it, 2: a boundary edge too */
-    if (!edges || !all || !bnd || !use) {
-        free(edges), free(all), free(bnd), free(use);
-        return sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    for (int32_t v = 0; v < m->nv; v++) all[v] = bnd[v] = v;
-    for (int32_t f = 0; f < m->nf; f++)
-        for (int q = 0; q < 3; q++) {
-            int32_t a = m->FV[3 * f + q], b = m->FV[3 * f + (q + 1) % 3];
-            use[a] = 1;
-            edges[3 * (size_t)f + q] = (int64_t)(a < b ? a : b) * m->nv + (a < b ? b : a);
-        }
-    qsort(edges, ne, sizeof *edges, compare_i64);
-    int64_t nedges = 0, nused = 0;
-    for (size_t i = 0, j; i < ne; i = j) {
-        for (j = i + 1; j < ne && edges[j] == edges[i]; j++) {}
-        int32_t a = (int32_t)(edges[i] / m->nv), b = (int32_t)(edges[i] % m->nv);
-        nedges++;
-        all[sc_set_root(all, a)] = sc_set_root(all, b);
-        if (j - i == 1) {
-            bnd[sc_set_root(bnd, a)] = sc_set_root(bnd, b);
-            use[a] = use[b] = 2;
-        }
-        if (j - i > 2) t->nonmanifold_edges++;
-    }
-    /* boundary loops: the sets of bnd that hold a boundary edge */
-    for (int32_t v = 0; v < m->nv; v++) {
-        if (!use[v]) continue;
-        nused++;
-        if (sc_set_root(all, v) == v) t->components++;
-        if (use[v] == 2 && sc_set_root(bnd, v) == v) t->boundary_loops++;
-    }
-    t->euler = nused - nedges + m->nf;
-    free(edges), free(all), free(bnd), free(use);
-    return SC_OK;
-}
-
 static bool topology_equal(const topology *a, const topology *b) {
     return a->euler == b->euler && a->components == b->components && a->boundary_loops == b->boundary_loops &&
            a->nonmanifold_edges == b->nonmanifold_edges;
@@ -644,16 +574,18 @@ static int level_upload(renderer *R, const sc_atlas *atlas, const char *who, lev
     if (m->nf < 1) return sc_fail(err, SC_EINPUT, "%s has no faces", who);
     int rc = sc_mesh_check(m, err);
     if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-    bbox_add(m, lo, hi);
-    double ext[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
-    L->diag = vlen(ext);
+    L->diag = sc_bbox_diagonal(m->V, m->nv, NULL, 0);
     if (!(L->diag > 0)) L->diag = 1;
 
-    rc = sc_seam_find(m, -1, &L->seams, err);
+    /* one edge table for the seams (as sc_seam_find sees them) and the topology */
+    sc_topology table;
+    sc_topology_options opt = {.material = -1, .uv_by_coordinates = true};
+    rc = sc_topology_build(m, &opt, &table, err);
+    if (rc == SC_OK) rc = sc_seam_from_topology(m, &table, &L->seams, err);
+    L->closed = table.nboundary == 0 && table.nnonmanifold == 0;
+    L->topo = (topology){table.euler, table.components, table.boundary_loops, table.nnonmanifold};
+    sc_topology_free(&table);
     if (rc != SC_OK) return sc_error_prefix(err, "%s", who);
-    L->closed = L->seams.nboundary == 0 && L->seams.nnonmanifold == 0;
-    if ((rc = surface_topology(m, &L->topo, err))) return sc_error_prefix(err, "%s", who);
     L->corners = calloc((size_t)L->seams.nseams * 2 + 1, sizeof *L->corners);
     if (!L->corners) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t e = 0; e < L->seams.nseams; e++)
@@ -1028,7 +960,7 @@ static int seam_gap_points(renderer *R, const level_gl *L, const pass *ps, int n
                 const float *b = out + 3 * (size_t)slot_of[((size_t)e * 2 + 1) * (size_t)npoints + (size_t)i];
                 double d[3] = {(double)a[0] - b[0], (double)a[1] - b[1], (double)a[2] - b[2]};
                 double t = i == npoints - 1 ? 1.0 : (double)i / (npoints - 1);
-                gap_consider(res, vlen(d) / L->diag, t, e);
+                gap_consider(res, sc_norm3(d) / L->diag, t, e);
             }
     for (int32_t e = 0; rc == SC_OK && e < ne; e++)
         for (int s = 0; s < 2 && rc == SC_OK; s++) {
@@ -1065,111 +997,161 @@ static void pair_runs(const edge_sample *a, int32_t na, const edge_sample *b, in
         while (j + 1 < nb && fabsf(b[j + 1].t - a[i].t) <= fabsf(b[j].t - a[i].t)) j++;
         double d[3] = {(double)a[i].p[0] - b[j].p[0], (double)a[i].p[1] - b[j].p[1],
                        (double)a[i].p[2] - b[j].p[2]};
-        gap_consider(res, vlen(d) / diag, a[i].t, a[i].edge);
+        gap_consider(res, sc_norm3(d) / diag, a[i].t, a[i].edge);
     }
 }
 
-/* Tessellated passes: the seam faces through the render program itself. */
-static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_result *res, sc_error *err) {
+/* The faces along seams as patches, once each and ordered by (material,
+ * face), and the seam sides each carries. */
+typedef struct seam_patches {
+    int32_t npatches;
+    int32_t *patch_of;      /* nf: face -> patch, -1 off the seams */
+    int32_t *faces;         /* patch -> face */
+    int32_t *start;         /* nmat + 1: the first patch of each material */
+    int32_t *first_side;    /* npatches + 1: the first entry of each patch in sides */
+    int32_t *sides;         /* entries: 2 * edge + side */
+} seam_patches;
+
+static void seam_patches_free(seam_patches *P) {
+    free(P->patch_of), free(P->faces), free(P->start), free(P->first_side), free(P->sides);
+    memset(P, 0, sizeof *P);
+}
+
+static int seam_patches_build(const level_gl *L, seam_patches *P, sc_error *err) {
     const sc_mesh *m = L->mesh;
     int32_t ne = L->seams.nseams;
-    if (ne == 0) return SC_OK;
-    /* the faces along seams, once each, ordered by (material, face) */
-    int32_t *patch_of = malloc(sizeof(int32_t) * (size_t)m->nf);
-    int32_t *faces = malloc(sizeof(int32_t) * (size_t)ne * 2);
-    int32_t *start = calloc((size_t)m->nmat + 1, sizeof *start);
-    if (!patch_of || !faces || !start) {
-        free(patch_of), free(faces), free(start);
-        return sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    for (int32_t f = 0; f < m->nf; f++) patch_of[f] = -1;
-    for (int32_t e = 0; e < ne; e++)
-        for (int s = 0; s < 2; s++) patch_of[L->seams.seams[e].side[s].face] = 0;
-    int32_t npatches = 0;
-    for (int32_t f = 0; f < m->nf; f++)
-        if (patch_of[f] == 0) start[m->FM[f] + 1]++, npatches++;
-    for (int32_t i = 0; i < m->nmat; i++) start[i + 1] += start[i];
-    {
-        int32_t *fill = calloc((size_t)m->nmat + 1, sizeof *fill);
-        if (!fill) {
-            free(patch_of), free(faces), free(start);
-            return sc_fail(err, SC_ENOMEM, "out of memory");
-        }
-        memcpy(fill, start, sizeof *fill * (size_t)(m->nmat + 1));
-        for (int32_t f = 0; f < m->nf; f++)
-            if (patch_of[f] == 0) {
-                int32_t p = fill[m->FM[f]]++;
-                faces[p] = f;
-                patch_of[f] = p;
-            }
+    memset(P, 0, sizeof *P);
+    P->patch_of = malloc(sizeof(int32_t) * (size_t)m->nf);
+    P->faces = malloc(sizeof(int32_t) * (size_t)ne * 2);
+    P->start = calloc((size_t)m->nmat + 1, sizeof *P->start);
+    int32_t *fill = calloc((size_t)m->nmat + 1, sizeof *fill);
+    if (!P->patch_of || !P->faces || !P->start || !fill) {
         free(fill);
-    }
-    float *data = sc_alloc_array((size_t)npatches * 3, 5 * sizeof(float));
-    if (!data) {
-        free(patch_of), free(faces), free(start);
+        seam_patches_free(P);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
-    for (int32_t p = 0; p < npatches; p++)
+    /* the faces along seams, once each, ordered by (material, face) */
+    for (int32_t f = 0; f < m->nf; f++) P->patch_of[f] = -1;
+    for (int32_t e = 0; e < ne; e++)
+        for (int s = 0; s < 2; s++) P->patch_of[L->seams.seams[e].side[s].face] = 0;
+    for (int32_t f = 0; f < m->nf; f++)
+        if (P->patch_of[f] == 0) P->start[m->FM[f] + 1]++, P->npatches++;
+    for (int32_t i = 0; i < m->nmat; i++) P->start[i + 1] += P->start[i];
+    memcpy(fill, P->start, sizeof *fill * (size_t)(m->nmat + 1));
+    for (int32_t f = 0; f < m->nf; f++)
+        if (P->patch_of[f] == 0) {
+            int32_t p = fill[m->FM[f]]++;
+            P->faces[p] = f;
+            P->patch_of[f] = p;
+        }
+    free(fill);
+    /* which seam sides each patch carries */
+    P->first_side = calloc((size_t)P->npatches + 1, sizeof *P->first_side);
+    P->sides = malloc(sizeof(int32_t) * (size_t)ne * 2);
+    fill = malloc(sizeof(int32_t) * ((size_t)P->npatches + 1));
+    if (!P->first_side || !P->sides || !fill) {
+        free(fill);
+        seam_patches_free(P);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t e = 0; e < ne; e++)
+        for (int s = 0; s < 2; s++) P->first_side[P->patch_of[L->seams.seams[e].side[s].face] + 1]++;
+    for (int32_t p = 0; p < P->npatches; p++) P->first_side[p + 1] += P->first_side[p];
+    memcpy(fill, P->first_side, sizeof(int32_t) * ((size_t)P->npatches + 1));
+    for (int32_t e = 0; e < ne; e++)
+        for (int s = 0; s < 2; s++) P->sides[fill[P->patch_of[L->seams.seams[e].side[s].face]]++] = 2 * e + s;
+    free(fill);
+    return SC_OK;
+}
+
+/* The patches' corners (position, uv) into a new vertex array, drawn by the
+ * tessellated render program of the pass. */
+static int seam_patches_upload(renderer *R, const level_gl *L, const pass *ps, const seam_patches *P,
+                               GLuint *program, GLuint *vao, GLuint *vbo, sc_error *err) {
+    const sc_mesh *m = L->mesh;
+    float *data = sc_alloc_array((size_t)P->npatches * 3, 5 * sizeof(float));
+    if (!data) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t p = 0; p < P->npatches; p++)
         for (int c = 0; c < 3; c++) {
-            int32_t f = faces[p];
+            int32_t f = P->faces[p];
             float *v = data + 5 * ((size_t)p * 3 + c);
             const double *x = m->V + 3 * m->FV[3 * f + c], *uv = m->U + 2 * m->FU[3 * f + c];
             v[0] = (float)x[0], v[1] = (float)x[1], v[2] = (float)x[2];
             v[3] = (float)uv[0], v[4] = (float)uv[1];
         }
-    GLuint program = 0, vao = 0, vbo = 0;
-    int rc = get_program(R, ps->pos, true, false, &program, err);
+    int rc = get_program(R, ps->pos, true, false, program, err);
     if (rc == SC_OK) {
-        glGenVertexArrays(1, &vao);
-        glGenBuffers(1, &vbo);
-        glBindVertexArray(vao);
-        glBindBuffer(GL_ARRAY_BUFFER, vbo);
-        glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)npatches * 15 * sizeof(float)), data, GL_STATIC_DRAW);
+        glGenVertexArrays(1, vao);
+        glGenBuffers(1, vbo);
+        glBindVertexArray(*vao);
+        glBindBuffer(GL_ARRAY_BUFFER, *vbo);
+        glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)P->npatches * 15 * sizeof(float)), data, GL_STATIC_DRAW);
         glEnableVertexAttribArray(0);
         glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)0);
         glEnableVertexAttribArray(1);
         glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)(3 * sizeof(float)));
-        glUseProgram(program);
-        glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
+        glUseProgram(*program);
+        glUniform1f(glGetUniformLocation(*program, "u_level"), (float)ps->level);
         glPatchParameteri(GL_PATCH_VERTICES, 3);
     }
     free(data);
-    /* which seam sides each patch carries */
-    edge_sample *samples = NULL;
-    size_t nsamples = 0, cap_samples = 0;
-    int32_t *first_side = NULL;   /* patch -> first (edge, side) entry */
-    int32_t *sides = NULL;        /* entries: 2 * edge + side */
-    if (rc == SC_OK) {
-        first_side = calloc((size_t)npatches + 1, sizeof *first_side);
-        sides = malloc(sizeof(int32_t) * (size_t)ne * 2);
-        if (!first_side || !sides) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    if (rc == SC_OK) {
-        for (int32_t e = 0; e < ne; e++)
-            for (int s = 0; s < 2; s++) first_side[patch_of[L->seams.seams[e].side[s].face] + 1]++;
-        for (int32_t p = 0; p < npatches; p++) first_side[p + 1] += first_side[p];
-        int32_t *fill = malloc(sizeof(int32_t) * ((size_t)npatches + 1));
-        if (!fill) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        else {
-            memcpy(fill, first_side, sizeof(int32_t) * ((size_t)npatches + 1));
-            for (int32_t e = 0; e < ne; e++)
-                for (int s = 0; s < 2; s++) sides[fill[patch_of[L->seams.seams[e].side[s].face]]++] = 2 * e + s;
-            free(fill);
+    return rc;
+}
+
+typedef struct sample_list {
+    edge_sample *v;
+    size_t n, cap;
+} sample_list;
+
+/* The captured vertices of patches p0 .. p0 + n - 1 (7 words each) sorted
+ * onto the seam sides they lie on. */
+static int sort_onto_sides(const level_gl *L, const seam_patches *P, const float *out, size_t nvert, int32_t p0,
+                           int32_t n, sample_list *S, sc_error *err) {
+    for (size_t i = 0; i < nvert; i++) {
+        const float *w = out + 7 * i;
+        int32_t patch;
+        memcpy(&patch, w + 6, sizeof patch);
+        if (patch < p0 || patch >= p0 + n)
+            return sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture gave patch %d, not in [%d, %d)", patch, p0,
+                           p0 + n);
+        for (int32_t j = P->first_side[patch]; j < P->first_side[patch + 1]; j++) {
+            int32_t e = P->sides[j] / 2, sd = P->sides[j] % 2;
+            const seam_corner *c = &L->corners[2 * e + sd];
+            if (fabsf(w[3 + c->k2]) > EDGE_COORD_EPS) continue;
+            if (S->n == S->cap) {
+                size_t ncap = S->cap ? 2 * S->cap : 1024;
+                edge_sample *ns = realloc(S->v, ncap * sizeof *ns);
+                if (!ns) return sc_fail(err, SC_ENOMEM, "out of memory");
+                S->v = ns, S->cap = ncap;
+            }
+            edge_sample *es = &S->v[S->n++];
+            es->edge = e, es->side = sd;
+            es->t = w[3 + c->k1];
+            memcpy(es->p, w, sizeof es->p);
         }
     }
-    /* One capture per draw of at most ~16k generated vertices (see
-     * draw_patches; gl_PrimitiveID restarts with every draw, hence
-     * u_patch_base). A level-L patch makes 3L^2/2 triangles (L even; fewer
-     * when odd); a capture that overflows anyway is retried larger. Each
-     * vertex is 7 words: position, tessellation coordinate, patch. */
+    return SC_OK;
+}
+
+/* Draw the patches material by material and capture what the tessellator
+ * made of them.
+ * One capture per draw of at most ~16k generated vertices (see
+ * draw_patches; gl_PrimitiveID restarts with every draw, hence
+ * u_patch_base). A level-L patch makes 3L^2/2 triangles (L even; fewer
+ * when odd); a capture that overflows anyway is retried larger. Each
+ * vertex is 7 words: position, tessellation coordinate, patch. */
+static int capture_patches(const level_gl *L, const pass *ps, const seam_patches *P, GLuint program, sample_list *S,
+                           sc_error *err) {
+    const sc_mesh *m = L->mesh;
     int32_t verts = (ps->level + 1) * (ps->level + 2) / 2 + 3 * ps->level;
     int32_t chunk = 16384 / verts > 1 ? 16384 / verts : 1;
     size_t tris_per_patch = 3 * (size_t)ps->level * (size_t)ps->level / 2 + 4;
+    int rc = SC_OK;
     for (int32_t mat = 0; rc == SC_OK && mat < m->nmat; mat++) {
-        if (start[mat + 1] == start[mat]) continue;
+        if (P->start[mat + 1] == P->start[mat]) continue;
         bind_material(&L->materials[mat], program);
-        for (int32_t p0 = start[mat]; rc == SC_OK && p0 < start[mat + 1]; p0 += chunk) {
-            int32_t n = start[mat + 1] - p0 < chunk ? start[mat + 1] - p0 : chunk;
+        for (int32_t p0 = P->start[mat]; rc == SC_OK && p0 < P->start[mat + 1]; p0 += chunk) {
+            int32_t n = P->start[mat + 1] - p0 < chunk ? P->start[mat + 1] - p0 : chunk;
             float *out = NULL;
             GLuint written = 0;
             size_t bytes = (size_t)n * tris_per_patch * 3 * 7 * sizeof(float);
@@ -1188,74 +1170,63 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
                 bytes *= 4;
                 if (attempt == 2) rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture overflowed");
             }
-            /* sort the captured vertices onto seam sides */
-            size_t nvert = rc == SC_OK ? (size_t)written * 3 : 0;
-            for (size_t i = 0; rc == SC_OK && i < nvert; i++) {
-                const float *w = out + 7 * i;
-                int32_t patch;
-                memcpy(&patch, w + 6, sizeof patch);
-                if (patch < p0 || patch >= p0 + n) {
-                    rc = sc_fail(err, SC_EIO, "OpenGL: tessellated seam capture gave patch %d, not in [%d, %d)",
-                                 patch, p0, p0 + n);
-                    break;
-                }
-                for (int32_t j = first_side[patch]; j < first_side[patch + 1]; j++) {
-                    int32_t e = sides[j] / 2, sd = sides[j] % 2;
-                    const seam_corner *c = &L->corners[2 * e + sd];
-                    if (fabsf(w[3 + c->k2]) > EDGE_COORD_EPS) continue;
-                    if (nsamples == cap_samples) {
-                        size_t ncap = cap_samples ? 2 * cap_samples : 1024;
-                        edge_sample *ns = realloc(samples, ncap * sizeof *ns);
-                        if (!ns) {
-                            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-                            break;
-                        }
-                        samples = ns, cap_samples = ncap;
-                    }
-                    edge_sample *es = &samples[nsamples++];
-                    es->edge = e, es->side = sd;
-                    es->t = w[3 + c->k1];
-                    memcpy(es->p, w, sizeof es->p);
-                }
-            }
+            if (rc == SC_OK) rc = sort_onto_sides(L, P, out, (size_t)written * 3, p0, n, S, err);
             free(out);
         }
     }
+    return rc;
+}
+
+/* Pair the two sides of every seam edge (samples sorted) into the gap, and
+ * trace them. */
+static int pair_sides(renderer *R, const level_gl *L, const edge_sample *samples, size_t nsamples, gap_result *res,
+                      sc_error *err) {
+    int rc = SC_OK;
+    size_t i = 0;
+    while (i < nsamples && rc == SC_OK) {
+        size_t a = i, mid = i, b;
+        while (mid < nsamples && samples[mid].edge == samples[a].edge && samples[mid].side == 0) mid++;
+        b = mid;
+        while (b < nsamples && samples[b].edge == samples[a].edge) b++;
+        if (mid == a || b == mid) {
+            /* one side produced no vertex on its edge: the tessellator and
+             * the seam disagree about this edge: count it as a gap of a
+             * whole diagonal */
+            gap_consider(res, 1.0, 0.5, samples[a].edge);
+        } else {
+            pair_runs(samples + a, (int32_t)(mid - a), samples + mid, (int32_t)(b - mid), L->diag, res);
+            pair_runs(samples + mid, (int32_t)(b - mid), samples + a, (int32_t)(mid - a), L->diag, res);
+        }
+        for (size_t j = a; j < b && rc == SC_OK; j++) {
+            if (j == a || j == mid) rc = trace_run(&R->trace, err);
+            if (rc == SC_OK) rc = trace_point(&R->trace, samples[j].p, err);
+        }
+        i = b;
+    }
+    return rc;
+}
+
+/* Tessellated passes: the seam faces through the render program itself. */
+static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_result *res, sc_error *err) {
+    if (L->seams.nseams == 0) return SC_OK;
+    seam_patches P;
+    int rc = seam_patches_build(L, &P, err);
+    if (rc != SC_OK) return rc;
+    GLuint program = 0, vao = 0, vbo = 0;
+    sample_list S = {0};
+    rc = seam_patches_upload(R, L, ps, &P, &program, &vao, &vbo, err);
+    if (rc == SC_OK) rc = capture_patches(L, ps, &P, program, &S, err);
     if (vao) {
         glBindVertexArray(0);
         glDeleteVertexArrays(1, &vao);
         glDeleteBuffers(1, &vbo);
     }
-    if (rc == SC_OK && nsamples > 0) {
-        qsort(samples, nsamples, sizeof *samples, compare_samples);
-        size_t i = 0;
-        while (i < nsamples && rc == SC_OK) {
-            size_t a = i, mid = i, b;
-            while (mid < nsamples && samples[mid].edge == samples[a].edge && samples[mid].side == 0) mid++;
-            b = mid;
-            while (b < nsamples && samples[b].edge == samples[a].edge) b++;
-            if (mid == a || b == mid) {
-                /* one side produced no vertex on its edge: the tessellator and
-                 * the seam disagree about this edge: count it as a gap of a
-                 * whole diagonal */
-                gap_consider(res, 1.0, 0.5, samples[a].edge);
-            } else {
-                pair_runs(samples + a, (int32_t)(mid - a), samples + mid, (int32_t)(b - mid), L->diag, res);
-                pair_runs(samples + mid, (int32_t)(b - mid), samples + a, (int32_t)(mid - a), L->diag, res);
-            }
-            for (size_t j = a; j < b && rc == SC_OK; j++) {
-                if (j == a || j == mid) rc = trace_run(&R->trace, err);
-                if (rc == SC_OK) rc = trace_point(&R->trace, samples[j].p, err);
-            }
-            i = b;
-        }
+    if (rc == SC_OK && S.n > 0) {
+        qsort(S.v, S.n, sizeof *S.v, compare_samples);
+        rc = pair_sides(R, L, S.v, S.n, res, err);
     }
-    free(samples);
-    free(first_side);
-    free(sides);
-    free(patch_of);
-    free(faces);
-    free(start);
+    free(S.v);
+    seam_patches_free(&P);
     return rc;
 }
 
@@ -1913,14 +1884,14 @@ static int run(sc_ctx *ctx, sc_error *err) {
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
     for (int32_t k = 0; k < nlevels; k++) {
         const sc_atlas *a = lods ? lods->levels[k]->as.atlas : single;
-        bbox_add(a->mesh->as.mesh, lo, hi);
+        sc_bbox_add(a->mesh->as.mesh->V, a->mesh->as.mesh->nv, lo, hi);
     }
-    if (reference) bbox_add(reference->mesh->as.mesh, lo, hi);
+    if (reference) sc_bbox_add(reference->mesh->as.mesh->V, reference->mesh->as.mesh->nv, lo, hi);
     if (!(lo[0] <= hi[0])) return sc_fail(err, SC_EINPUT, "lods: no vertices to render");
     for (int32_t k = 0; k < nlevels; k++) add_drawn_vertices(lods ? lods->levels[k]->as.atlas : single, lo, hi);
     double center[3], ext[3];
     for (int c = 0; c < 3; c++) center[c] = 0.5 * (lo[c] + hi[c]), ext[c] = hi[c] - lo[c];
-    double radius = 0.5 * vlen(ext) * 1.02;
+    double radius = 0.5 * sc_norm3(ext) * 1.02;
     if (!(radius > 0) || !isfinite(radius)) radius = 1;
     view *views = calloc((size_t)J.nviews, sizeof *views);
     if (!views) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -2047,7 +2018,8 @@ static const sc_port_desc outputs[] = {
      .doc = "render/lod<k>_<mode>_<view>.png, render/lod<k>_sheet.png, crack and seam-gap metrics"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, &sc_kernel_imageio, &sc_kernel_seam, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, &sc_kernel_imageio, &sc_kernel_seam,
+                                            &sc_kernel_topology, NULL};
 
 const sc_node_desc sc_node_render = {
     .type = "render",

@@ -4,11 +4,12 @@
  *
  * Design note.
  *
- * Topology. Surface edges are found by sorting the 3 nf half-edges by their
- * (min, max) surface vertices: one half-edge is a surface boundary, two that
- * use different uv indices at an endpoint a seam (design.md), three or more
- * a non-manifold edge. A uv index used by corners of several surface
- * vertices has no single surface correspondence.
+ * Topology. The edge table of sc_topology, uvs by index: one half-edge is a
+ * surface boundary, two that use different uv indices at an endpoint a seam
+ * (design.md), three or more a non-manifold edge; a foldover is an interior
+ * edge here. Two uv indices with equal coordinates still make a seam, as
+ * straightening may move them apart. A uv index used by corners of several
+ * surface vertices has no single surface correspondence.
  *
  * Protected vertices (§6, rules 1-4). A surface vertex is protected when
  *   (1) it has a number of seam edges other than 0 or 2;
@@ -114,9 +115,11 @@
 #include <string.h>
 
 #include "sc_erase.h"
+#include "sc_geometry.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
 #include "sc_sparse.h"
+#include "sc_topology.h"
 
 #define DEGENERATE_AREA 1e-12      /* twice the area / longest edge^2 */
 #define FLOOR_WEIGHT 1e-9
@@ -125,108 +128,66 @@
 #define PSNR_GRID 4                /* barycentric grid subdivisions */
 #define ROUNDING (8 * DBL_EPSILON)   /* a move smaller than this (relative) is rounding */
 
-enum { EDGE_INTERIOR = 0, EDGE_SEAM = 1, EDGE_BOUNDARY = 2, EDGE_NONMANIFOLD = 3 };
-
-/* One surface edge: vertices a < b and its (first two) half-edges. A
- * half-edge h = 3 f + k runs from corner k of face f to corner (k + 1) % 3. */
-typedef struct surface_edge {
-    int32_t a, b;
-    int32_t half[2];
-    int32_t kind;
-} surface_edge;
-
+/* The edge table (sc_topology: uvs by index, since straightening moves uv
+ * indices) and what protection and the chain walk need per surface vertex. */
 typedef struct topology {
     const sc_mesh *mesh;
-    int32_t nedges;
-    surface_edge *edges;
-    int32_t *half_edge;          /* 3 nf: the surface edge of each half-edge */
-    int32_t *seam_degree, *boundary_degree, *nonmanifold_degree;   /* per surface vertex */
-    int32_t (*incident)[2];      /* first two seam or boundary edges per surface vertex */
+    sc_topology table;
+    int32_t *seam_degree, *boundary_degree, *nonmanifold_degree;
+    int32_t (*incident)[2];      /* first two seam or boundary edges */
     int32_t *uv_vertex;          /* surface vertex of each uv index; -1 unused, -2 several */
-    int32_t nseams;
 } topology;
 
 static void topology_free(topology *t) {
-    free(t->edges), free(t->half_edge), free(t->seam_degree), free(t->boundary_degree);
-    free(t->nonmanifold_degree), free(t->incident), free(t->uv_vertex);
+    sc_topology_free(&t->table);
+    free(t->seam_degree), free(t->boundary_degree), free(t->nonmanifold_degree), free(t->incident);
+    free(t->uv_vertex);
     memset(t, 0, sizeof *t);
 }
 
-static inline int32_t corner_from(int32_t h) { return h; }
-static inline int32_t corner_to(int32_t h) { return 3 * (h / 3) + (h % 3 + 1) % 3; }
-
-/* The uv index half-edge h uses at surface vertex s (one of its ends). */
-static inline int32_t uv_at(const sc_mesh *m, int32_t h, int32_t s) {
-    return m->FV[corner_from(h)] == s ? m->FU[corner_from(h)] : m->FU[corner_to(h)];
+/* Half-edge k of edge e. */
+static int32_t half_of(const topology *t, const sc_topology_edge *e, int k) {
+    return sc_topology_half(&t->table, e, k);
 }
 
-typedef struct edge_key {
-    int32_t lo, hi, half;
-} edge_key;
+static const sc_topology_edge *edge_at(const topology *t, int32_t e) { return &t->table.edges[e]; }
 
-static int compare_keys(const void *x, const void *y) {
-    const edge_key *p = x, *q = y;
-    if (p->lo != q->lo) return p->lo < q->lo ? -1 : 1;
-    if (p->hi != q->hi) return p->hi < q->hi ? -1 : 1;
-    return (p->half > q->half) - (p->half < q->half);
+/* The uv index half-edge k of edge e uses at surface vertex v. */
+static int32_t side_uv(const topology *t, const sc_topology_edge *e, int k, int32_t v) {
+    return sc_topology_uv_at(t->mesh, half_of(t, e, k), v);
 }
 
 static int topology_build(const sc_mesh *m, topology *t, sc_error *err) {
     memset(t, 0, sizeof *t);
     t->mesh = m;
-    size_t nh = (size_t)m->nf * 3;
-    edge_key *keys = sc_alloc_array(nh, sizeof *keys);
-    t->edges = sc_alloc_array(nh, sizeof *t->edges);
-    t->half_edge = sc_alloc_array(nh, sizeof *t->half_edge);
+    int rc = sc_topology_build(m, NULL, &t->table, err);
+    if (rc != SC_OK) return rc;
     t->seam_degree = sc_calloc_array((size_t)m->nv + 1, sizeof(int32_t));
     t->boundary_degree = sc_calloc_array((size_t)m->nv + 1, sizeof(int32_t));
     t->nonmanifold_degree = sc_calloc_array((size_t)m->nv + 1, sizeof(int32_t));
     t->incident = sc_alloc_array((size_t)m->nv + 1, sizeof *t->incident);
     t->uv_vertex = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
-    if (!keys || !t->edges || !t->half_edge || !t->seam_degree || !t->boundary_degree ||
-        !t->nonmanifold_degree || !t->incident || !t->uv_vertex) {
-        free(keys);
+    if (!t->seam_degree || !t->boundary_degree || !t->nonmanifold_degree || !t->incident || !t->uv_vertex) {
         topology_free(t);
         return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     }
-    for (int32_t h = 0; h < (int32_t)nh; h++) {
-        int32_t a = m->FV[corner_from(h)], b = m->FV[corner_to(h)];
-        keys[h] = (edge_key){a < b ? a : b, a < b ? b : a, h};
-    }
-    qsort(keys, nh, sizeof *keys, compare_keys);
     for (int32_t v = 0; v < m->nv; v++) t->incident[v][0] = t->incident[v][1] = -1;
-    for (size_t i = 0; i < nh;) {
-        size_t j = i;
-        while (j < nh && keys[j].lo == keys[i].lo && keys[j].hi == keys[i].hi) j++;
-        surface_edge *e = &t->edges[t->nedges];
-        e->a = keys[i].lo, e->b = keys[i].hi;
-        e->half[0] = keys[i].half;
-        e->half[1] = j - i > 1 ? keys[i + 1].half : -1;
-        if (j - i == 1) e->kind = EDGE_BOUNDARY;
-        else if (j - i > 2) e->kind = EDGE_NONMANIFOLD;
-        else if (uv_at(m, e->half[0], e->a) != uv_at(m, e->half[1], e->a) ||
-                 uv_at(m, e->half[0], e->b) != uv_at(m, e->half[1], e->b))
-            e->kind = EDGE_SEAM;
-        else e->kind = EDGE_INTERIOR;
-        for (size_t k = i; k < j; k++) t->half_edge[keys[k].half] = t->nedges;
-        int32_t ends[2] = {e->a, e->b};
+    for (int32_t i = 0; i < t->table.nedges; i++) {
+        const sc_topology_edge *e = edge_at(t, i);
+        int32_t ends[2] = {e->v0, e->v1};
         for (int k = 0; k < 2; k++) {
             int32_t v = ends[k];
-            if (e->kind == EDGE_SEAM) t->seam_degree[v]++;
-            if (e->kind == EDGE_BOUNDARY) t->boundary_degree[v]++;
-            if (e->kind == EDGE_NONMANIFOLD) t->nonmanifold_degree[v]++;
-            if (e->kind == EDGE_SEAM || e->kind == EDGE_BOUNDARY) {
-                if (t->incident[v][0] < 0) t->incident[v][0] = t->nedges;
-                else if (t->incident[v][1] < 0) t->incident[v][1] = t->nedges;
+            if (e->kind == SC_EDGE_SEAM) t->seam_degree[v]++;
+            if (e->kind == SC_EDGE_BOUNDARY) t->boundary_degree[v]++;
+            if (e->kind == SC_EDGE_NONMANIFOLD) t->nonmanifold_degree[v]++;
+            if (e->kind == SC_EDGE_SEAM || e->kind == SC_EDGE_BOUNDARY) {
+                if (t->incident[v][0] < 0) t->incident[v][0] = i;
+                else if (t->incident[v][1] < 0) t->incident[v][1] = i;
             }
         }
-        if (e->kind == EDGE_SEAM) t->nseams++;
-        t->nedges++;
-        i = j;
     }
-    free(keys);
     for (int32_t u = 0; u < m->nu; u++) t->uv_vertex[u] = -1;
-    for (size_t c = 0; c < nh; c++) {
+    for (size_t c = 0; c < (size_t)m->nf * 3; c++) {
         int32_t u = m->FU[c], v = m->FV[c];
         if (t->uv_vertex[u] == -1) t->uv_vertex[u] = v;
         else if (t->uv_vertex[u] != v) t->uv_vertex[u] = -2;
@@ -236,7 +197,7 @@ static int topology_build(const sc_mesh *m, topology *t, sc_error *err) {
 
 /* ---------------------------------------------------------------- protection */
 
-static bool is_silhouette(const surface_edge *e) { return e->kind == EDGE_SEAM || e->kind == EDGE_BOUNDARY; }
+static bool is_silhouette(const sc_topology_edge *e) { return e->kind == SC_EDGE_SEAM || e->kind == SC_EDGE_BOUNDARY; }
 
 /* Fills protect[v] for every surface vertex; returns the count. */
 static int32_t protect_vertices(const topology *t, bool *protect) {
@@ -255,7 +216,7 @@ static int32_t protect_vertices(const topology *t, bool *protect) {
     for (int32_t f = 0; f < m->nf; f++) {
         int count = 0, inner = -1;
         for (int k = 0; k < 3; k++) {
-            if (is_silhouette(&t->edges[t->half_edge[3 * f + k]])) count++;
+            if (is_silhouette(edge_at(t, t->table.edge_of[3 * f + k]))) count++;
             else inner = k;
         }
         if (count == 3)
@@ -269,14 +230,14 @@ static int32_t protect_vertices(const topology *t, bool *protect) {
     /* the halves must continue cleanly through an unprotected vertex */
     for (int32_t v = 0; v < m->nv; v++) {
         if (protect[v]) continue;
-        const surface_edge *e1 = t->incident[v][0] >= 0 ? &t->edges[t->incident[v][0]] : NULL;
-        const surface_edge *e2 = t->incident[v][1] >= 0 ? &t->edges[t->incident[v][1]] : NULL;
+        const sc_topology_edge *e1 = t->incident[v][0] >= 0 ? edge_at(t, t->incident[v][0]) : NULL;
+        const sc_topology_edge *e2 = t->incident[v][1] >= 0 ? edge_at(t, t->incident[v][1]) : NULL;
         if (t->seam_degree[v] == 2) {
-            int32_t x1 = uv_at(m, e1->half[0], v), x2 = uv_at(m, e1->half[1], v);
-            int32_t y1 = uv_at(m, e2->half[0], v), y2 = uv_at(m, e2->half[1], v);
+            int32_t x1 = side_uv(t, e1, 0, v), x2 = side_uv(t, e1, 1, v);
+            int32_t y1 = side_uv(t, e2, 0, v), y2 = side_uv(t, e2, 1, v);
             if (x1 == x2 || !((x1 == y1 && x2 == y2) || (x1 == y2 && x2 == y1))) protect[v] = true;
         } else if (t->boundary_degree[v] == 2) {
-            if (uv_at(m, e1->half[0], v) != uv_at(m, e2->half[0], v)) protect[v] = true;
+            if (side_uv(t, e1, 0, v) != side_uv(t, e2, 0, v)) protect[v] = true;
         }
     }
     int32_t n = 0;
@@ -286,39 +247,26 @@ static int32_t protect_vertices(const topology *t, bool *protect) {
 
 /* ---------------------------------------------------------------- census (§5.1) */
 
-static double distance2d(const double *p, const double *q) { return hypot(q[0] - p[0], q[1] - p[1]); }
-
-static bool collinear_through(const double *p, const double *mid, const double *q) {
-    double chord[2] = {q[0] - p[0], q[1] - p[1]}, d[2] = {mid[0] - p[0], mid[1] - p[1]};
-    double len2 = chord[0] * chord[0] + chord[1] * chord[1];
-    if (!(len2 > 0)) return false;
-    double along = d[0] * chord[0] + d[1] * chord[1];
-    if (!(along > 0) || !(along < len2)) return false;
-    double len = sqrt(len2);
-    return fabs(d[0] * chord[1] - d[1] * chord[0]) / len <= CENSUS_TOLERANCE * len;
-}
-
 /* Does seam edge e unify with the seam edge continuing it through `at`? */
 static bool unifiable_at(const topology *t, const double *U, int32_t e_index, int32_t at) {
-    const sc_mesh *m = t->mesh;
     if (t->seam_degree[at] != 2 || t->boundary_degree[at] != 0 || t->nonmanifold_degree[at] != 0) return false;
-    const surface_edge *e = &t->edges[e_index];
+    const sc_topology_edge *e = edge_at(t, e_index);
     int32_t d_index = t->incident[at][0] == e_index ? t->incident[at][1] : t->incident[at][0];
-    const surface_edge *d = &t->edges[d_index];
-    int32_t other = e->a == at ? e->b : e->a, far = d->a == at ? d->b : d->a;
+    const sc_topology_edge *d = edge_at(t, d_index);
+    int32_t other = e->v0 == at ? e->v1 : e->v0, far = d->v0 == at ? d->v1 : d->v0;
     double len_e[2], len_d[2];
     int32_t z_at_prev = -1;
     for (int s = 0; s < 2; s++) {
-        int32_t z_at = uv_at(m, e->half[s], at), z_other = uv_at(m, e->half[s], other);
+        int32_t z_at = side_uv(t, e, s, at), z_other = side_uv(t, e, s, other);
         if (z_at == z_at_prev) return false;   /* the tip of a slit */
         z_at_prev = z_at;
         int32_t z_far = -1;
         for (int g = 0; g < 2; g++)
-            if (uv_at(m, d->half[g], at) == z_at) z_far = uv_at(m, d->half[g], far);
+            if (side_uv(t, d, g, at) == z_at) z_far = side_uv(t, d, g, far);
         if (z_far < 0) return false;
-        if (!collinear_through(U + 2 * z_far, U + 2 * z_at, U + 2 * z_other)) return false;
-        len_e[s] = distance2d(U + 2 * z_at, U + 2 * z_other);
-        len_d[s] = distance2d(U + 2 * z_far, U + 2 * z_at);
+        if (!sc_collinear_through(U + 2 * z_far, U + 2 * z_at, U + 2 * z_other, CENSUS_TOLERANCE, 0)) return false;
+        len_e[s] = sc_hypot2(U + 2 * z_at, U + 2 * z_other);
+        len_d[s] = sc_hypot2(U + 2 * z_far, U + 2 * z_at);
     }
     double lhs = len_e[0] * len_d[1], rhs = len_e[1] * len_d[0];
     return fabs(lhs - rhs) <= CENSUS_TOLERANCE * fmax(lhs, rhs);
@@ -326,10 +274,10 @@ static bool unifiable_at(const topology *t, const double *U, int32_t e_index, in
 
 static int64_t count_collapsible(const topology *t, const double *U) {
     int64_t n = 0;
-    for (int32_t i = 0; i < t->nedges; i++) {
-        const surface_edge *e = &t->edges[i];
-        if (e->kind != EDGE_SEAM) continue;
-        if (unifiable_at(t, U, i, e->a) || unifiable_at(t, U, i, e->b)) n++;
+    for (int32_t i = 0; i < t->table.nedges; i++) {
+        const sc_topology_edge *e = edge_at(t, i);
+        if (e->kind != SC_EDGE_SEAM) continue;
+        if (unifiable_at(t, U, i, e->v0) || unifiable_at(t, U, i, e->v1)) n++;
     }
     return n;
 }
@@ -519,7 +467,7 @@ static int straighten_all(const topology *t, const bool *protect, const bool *st
                           double *Unew, straighten_stats *st, sc_error *err) {
     const sc_mesh *m = t->mesh;
     memset(st, 0, sizeof *st);
-    bool *visited = sc_calloc_array((size_t)t->nedges + 1, sizeof(bool));
+    bool *visited = sc_calloc_array((size_t)t->table.nedges + 1, sizeof(bool));
     chain_buffers c = {0};
     if (!visited || !chain_buffers_reserve(&c, 16)) {
         free(visited), chain_buffers_free(&c);
@@ -528,31 +476,31 @@ static int straighten_all(const topology *t, const bool *protect, const bool *st
     int rc = SC_OK;
     /* pass 0: chains that start at a protected vertex; pass 1: loops */
     for (int pass = 0; pass < 2 && rc == SC_OK; pass++) {
-        for (int32_t e0 = 0; e0 < t->nedges && rc == SC_OK; e0++) {
-            const surface_edge *first = &t->edges[e0];
+        for (int32_t e0 = 0; e0 < t->table.nedges && rc == SC_OK; e0++) {
+            const sc_topology_edge *first = edge_at(t, e0);
             if (!is_silhouette(first) || visited[e0]) continue;
             int32_t start;
             if (pass == 0) {
-                if (protect[first->a]) start = first->a;
-                else if (protect[first->b]) start = first->b;
+                if (protect[first->v0]) start = first->v0;
+                else if (protect[first->v1]) start = first->v1;
                 else continue;
             } else {
-                start = first->a;
+                start = first->v0;
             }
-            bool seam = first->kind == EDGE_SEAM;
+            bool seam = first->kind == SC_EDGE_SEAM;
             int sides = seam ? 2 : 1;
             int32_t n = 0, e = e0, v = start;
             bool ok = true;
             c.surface[0] = start;
-            for (int s = 0; s < sides; s++) c.uv[s][0] = uv_at(m, first->half[s], start);
+            for (int s = 0; s < sides; s++) c.uv[s][0] = side_uv(t, first, s, start);
             for (;;) {
                 visited[e] = true;
-                const surface_edge *ed = &t->edges[e];
+                const sc_topology_edge *ed = edge_at(t, e);
                 if (ed->kind != first->kind) {
                     ok = false;
                     break;
                 }
-                int32_t next = ed->a == v ? ed->b : ed->a;
+                int32_t next = ed->v0 == v ? ed->v1 : ed->v0;
                 if (!chain_buffers_reserve(&c, n + 2)) {
                     rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
                     break;
@@ -562,19 +510,19 @@ static int straighten_all(const topology *t, const bool *protect, const bool *st
                 for (int s = 0; s < sides && ok; s++) {
                     int32_t h = -1;
                     for (int g = 0; g < sides; g++)
-                        if (g != used && uv_at(m, ed->half[g], v) == c.uv[s][n]) {
-                            h = ed->half[g];
+                        if (g != used && side_uv(t, ed, g, v) == c.uv[s][n]) {
+                            h = half_of(t, ed, g);
                             used = g;
                             break;
                         }
                     if (h < 0) ok = false;
-                    else c.uv[s][n + 1] = uv_at(m, h, next);
+                    else c.uv[s][n + 1] = sc_topology_uv_at(m, h, next);
                 }
                 n++;
                 c.surface[n] = next;
                 if (!ok || protect[next] || next == start) break;
                 int32_t after = t->incident[next][0] == e ? t->incident[next][1] : t->incident[next][0];
-                if (after < 0 || visited[after] || n > t->nedges) {
+                if (after < 0 || visited[after] || n > t->table.nedges) {
                     ok = false;
                     break;
                 }
@@ -605,18 +553,14 @@ static int straighten_all(const topology *t, const bool *protect, const bool *st
 
 /* ---------------------------------------------------------------- interior warp */
 
-static double signed_area2(const double *a, const double *b, const double *c) {
-    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-}
-
 static bool uv_face_degenerate(const double *U, const int32_t *fu) {
     const double *p[3] = {U + 2 * fu[0], U + 2 * fu[1], U + 2 * fu[2]};
     double longest = 0;
     for (int k = 0; k < 3; k++) {
-        double d = distance2d(p[k], p[(k + 1) % 3]);
+        double d = sc_hypot2(p[k], p[(k + 1) % 3]);
         longest = fmax(longest, d);
     }
-    return !(fabs(signed_area2(p[0], p[1], p[2])) > DEGENERATE_AREA * longest * longest);
+    return !(fabs(sc_orient2(p[0], p[1], p[2])) > DEGENERATE_AREA * longest * longest);
 }
 
 /* cot of the angle at corner k (in dim dimensions) of triangle p; false when degenerate */
@@ -717,11 +661,23 @@ static int64_t count_flips(const sc_mesh *m, const double *X) {
     for (int32_t f = 0; f < m->nf; f++) {
         const int32_t *fu = m->FU + 3 * f;
         if (uv_face_degenerate(m->U, fu)) continue;
-        double a0 = signed_area2(m->U + 2 * fu[0], m->U + 2 * fu[1], m->U + 2 * fu[2]);
-        double a1 = signed_area2(X + 2 * fu[0], X + 2 * fu[1], X + 2 * fu[2]);
+        double a0 = sc_orient2(m->U + 2 * fu[0], m->U + 2 * fu[1], m->U + 2 * fu[2]);
+        double a1 = sc_orient2(X + 2 * fu[0], X + 2 * fu[1], X + 2 * fu[2]);
         if (!(a0 * a1 > 0)) n++;
     }
     return n;
+}
+
+/* A uv edge (lo < hi uv indices) and one of its half-edges. */
+typedef struct uv_key {
+    int32_t lo, hi, half;
+} uv_key;
+
+static int compare_uv_keys(const void *x, const void *y) {
+    const uv_key *p = x, *q = y;
+    if (p->lo != q->lo) return p->lo < q->lo ? -1 : 1;
+    if (p->hi != q->hi) return p->hi < q->hi ? -1 : 1;
+    return (p->half > q->half) - (p->half < q->half);
 }
 
 typedef struct warp_result {
@@ -737,7 +693,7 @@ static int warp_interior(const sc_mesh *m, const int32_t *chart, const bool *mov
     bool *fixed = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
     w.unknown = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
     w.affected_face = sc_calloc_array((size_t)m->nf + 1, sizeof(bool));
-    edge_key *keys = sc_alloc_array((size_t)m->nf * 3, sizeof *keys);
+    uv_key *keys = sc_alloc_array((size_t)m->nf * 3, sizeof *keys);
     double *X = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
     int rc = SC_OK;
     if (!comp_moved || !fixed || !w.unknown || !w.affected_face || !keys || !X)
@@ -746,10 +702,10 @@ static int warp_interior(const sc_mesh *m, const int32_t *chart, const bool *mov
         /* boundary of the parameter mesh: uv edges of one face, or of three or more */
         size_t nh = (size_t)m->nf * 3;
         for (int32_t h = 0; h < (int32_t)nh; h++) {
-            int32_t a = m->FU[corner_from(h)], b = m->FU[corner_to(h)];
-            keys[h] = (edge_key){a < b ? a : b, a < b ? b : a, h};
+            int32_t a = m->FU[h], b = m->FU[sc_topology_next(h)];
+            keys[h] = (uv_key){a < b ? a : b, a < b ? b : a, h};
         }
-        qsort(keys, nh, sizeof *keys, compare_keys);
+        qsort(keys, nh, sizeof *keys, compare_uv_keys);
         for (size_t i = 0; i < nh;) {
             size_t j = i;
             while (j < nh && keys[j].lo == keys[i].lo && keys[j].hi == keys[i].hi) j++;
@@ -799,7 +755,7 @@ static int warp_interior(const sc_mesh *m, const int32_t *chart, const bool *mov
 /* Distance in texel space from p to triangle t (0 inside). */
 static double triangle_distance(const double t[3][2], double px, double py) {
     double p[2] = {px, py};
-    double s0 = signed_area2(t[0], t[1], p), s1 = signed_area2(t[1], t[2], p), s2 = signed_area2(t[2], t[0], p);
+    double s0 = sc_orient2(t[0], t[1], p), s1 = sc_orient2(t[1], t[2], p), s2 = sc_orient2(t[2], t[0], p);
     if ((s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0)) return 0;
     double best = DBL_MAX;
     for (int k = 0; k < 3; k++) {
@@ -838,7 +794,7 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
             t[k][1] = Unew[2 * fu[k] + 1] * H - 0.5;
             for (int c = 0; c < 2; c++) lo[c] = fmin(lo[c], t[k][c]), hi[c] = fmax(hi[c], t[k][c]);
         }
-        if (!(fabs(signed_area2(t[0], t[1], t[2])) > 0)) continue;
+        if (!(fabs(sc_orient2(t[0], t[1], t[2])) > 0)) continue;
         if (hi[0] - lo[0] > 2.0 * W + 2 * pad || hi[1] - lo[1] > 2.0 * H + 2 * pad) continue;
         int64_t i0 = (int64_t)ceil(lo[0] - pad), i1 = (int64_t)floor(hi[0] + pad);
         int64_t j0 = (int64_t)ceil(lo[1] - pad), j1 = (int64_t)floor(hi[1] + pad);
@@ -880,8 +836,8 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
         double u = (lattice[2 * id] + 0.5) / W, v = (lattice[2 * id + 1] + 0.5) / H;
         const double *a = Unew + 2 * fu[0], *b = Unew + 2 * fu[1], *c = Unew + 2 * fu[2];
         double p[2] = {u, v};
-        double area = signed_area2(a, b, c);
-        double l0 = signed_area2(b, c, p) / area, l1 = signed_area2(c, a, p) / area, l2 = 1.0 - l0 - l1;
+        double area = sc_orient2(a, b, c);
+        double l0 = sc_orient2(b, c, p) / area, l1 = sc_orient2(c, a, p) / area, l2 = 1.0 - l0 - l1;
         double ou = l0 * m->U[2 * fu[0]] + l1 * m->U[2 * fu[1]] + l2 * m->U[2 * fu[2]];
         double ov = l0 * m->U[2 * fu[0] + 1] + l1 * m->U[2 * fu[1] + 1] + l2 * m->U[2 * fu[2] + 1];
         sc_seam_sample(&grid, op, C, ou, ov, sample);
@@ -954,6 +910,180 @@ static void appearance_error(const sc_mesh *m, const double *Unew, const sc_text
 
 /* ---------------------------------------------------------------- run */
 
+/* One run's state, step to step. */
+typedef struct job {
+    sc_ctx *ctx;
+    const sc_atlas *atlas;
+    const sc_mesh *mesh;
+    topology topo;
+    bool *protect;              /* nv */
+    int32_t *chart;             /* nu: uv_charts */
+    bool *straighten_border;    /* nu */
+    double *Unew;               /* nu x 2: the uv after straightening the chains */
+    double *Uout;               /* nu x 2: the uv after the interior warp */
+    bool *moved;                /* nu: straightening moved it */
+    bool *face_moved;           /* nf: the warp moved a corner */
+    sc_value **images;          /* ntex: the re-rendered textures, NULL where kept */
+} job;
+
+static void job_free(job *J) {
+    for (int32_t i = 0; J->images && i < J->atlas->ntex; i++) sc_value_release(J->images[i]);
+    free(J->images);
+    free(J->protect), free(J->moved), free(J->face_moved), free(J->chart), free(J->straighten_border);
+    free(J->Unew), free(J->Uout);
+    topology_free(&J->topo);
+}
+
+static int job_init(job *J, sc_ctx *ctx, const sc_atlas *atlas, sc_error *err) {
+    memset(J, 0, sizeof *J);
+    const sc_mesh *m = atlas->mesh->as.mesh;
+    J->ctx = ctx, J->atlas = atlas, J->mesh = m;
+    int rc = topology_build(m, &J->topo, err);
+    if (rc != SC_OK) return rc;
+    J->protect = sc_calloc_array((size_t)m->nv + 1, sizeof(bool));
+    J->moved = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
+    J->face_moved = sc_calloc_array((size_t)m->nf + 1, sizeof(bool));
+    J->chart = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
+    J->straighten_border = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
+    J->Unew = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
+    J->Uout = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
+    J->images = sc_calloc_array((size_t)atlas->ntex + 1, sizeof(sc_value *));
+    if (!J->protect || !J->moved || !J->face_moved || !J->chart || !J->straighten_border || !J->Unew || !J->Uout ||
+        !J->images)
+        return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    return SC_OK;
+}
+
+/* Straightening: protection, the census before, every chain straightened
+ * into Unew, and what moved. */
+static int straighten_step(job *J, double tol, const char *borders, int64_t *nmoved, int64_t *collapsible_before,
+                           sc_error *err) {
+    const sc_mesh *m = J->mesh;
+    int32_t nprotected = protect_vertices(&J->topo, J->protect);
+    *collapsible_before = count_collapsible(&J->topo, m->U);
+    uv_charts(m, J->chart);
+    /* which charts may have their surface borders straightened */
+    for (int32_t u = 0; u < m->nu; u++) J->straighten_border[u] = !strcmp(borders, "always");
+    if (!strcmp(borders, "with_seams")) {
+        for (int32_t h = 0; h < 3 * m->nf; h++)
+            if (J->topo.table.edges[J->topo.table.edge_of[h]].kind == SC_EDGE_SEAM)
+                J->straighten_border[J->chart[m->FU[h]]] = true;
+        for (int32_t u = 0; u < m->nu; u++) J->straighten_border[u] = J->straighten_border[J->chart[u]];
+    }
+    memcpy(J->Unew, m->U, sizeof(double) * 2 * (size_t)m->nu);
+    straighten_stats st;
+    int rc = straighten_all(&J->topo, J->protect, J->straighten_border, tol, J->Unew, &st, err);
+    if (rc != SC_OK) return rc;
+    *nmoved = 0;
+    for (int32_t u = 0; u < m->nu; u++) {
+        J->moved[u] = J->Unew[2 * u] != m->U[2 * u] || J->Unew[2 * u + 1] != m->U[2 * u + 1];
+        *nmoved += J->moved[u];
+    }
+    int64_t degenerate = 0;
+    for (int32_t f = 0; f < m->nf; f++) degenerate += uv_face_degenerate(m->U, m->FU + 3 * f);
+    sc_ctx *ctx = J->ctx;
+    sc_ctx_metric(ctx, "seam_edges", J->topo.table.nseams);
+    sc_ctx_metric(ctx, "collapsible_seam_edges_before", (double)*collapsible_before);
+    sc_ctx_metric(ctx, "protected_vertices", nprotected);
+    sc_ctx_metric(ctx, "seam_chains", st.seam_chains);
+    sc_ctx_metric(ctx, "boundary_chains", st.boundary_chains);
+    sc_ctx_metric(ctx, "skipped_chains", st.skipped_chains);
+    sc_ctx_metric(ctx, "boundary_chains_kept", st.kept_boundary_chains);
+    sc_ctx_metric(ctx, "moved_uv_vertices", (double)*nmoved);
+    sc_ctx_metric(ctx, "degenerate_uv_faces", (double)degenerate);
+    return SC_OK;
+}
+
+/* Interior warp: Uout, and the faces it moved. */
+static int warp_step(job *J, int steps, sc_error *err) {
+    const sc_mesh *m = J->mesh;
+    double t_warp = sc_now();
+    warp_result wr = {0};
+    int rc = warp_interior(m, J->chart, J->moved, J->Unew, steps, J->Uout, &wr, err);
+    if (rc != SC_OK) return rc;
+    t_warp = sc_now() - t_warp;
+    double max_disp = 0;
+    for (int32_t u = 0; u < m->nu; u++) max_disp = fmax(max_disp, sc_hypot2(m->U + 2 * u, J->Uout + 2 * u));
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int32_t u = m->FU[3 * f + k];
+            bool changed = J->Uout[2 * u] != m->U[2 * u] || J->Uout[2 * u + 1] != m->U[2 * u + 1];
+            J->face_moved[f] = J->face_moved[f] || changed;
+        }
+    sc_ctx_metric(J->ctx, "collapsible_seam_edges_after", (double)count_collapsible(&J->topo, J->Uout));
+    sc_ctx_metric(J->ctx, "flipped_triangles", (double)wr.flips);
+    sc_ctx_metric(J->ctx, "warp_steps", wr.steps);
+    sc_ctx_metric(J->ctx, "max_uv_displacement", max_disp);
+    sc_ctx_metric(J->ctx, "seconds_warp", t_warp);
+    return SC_OK;
+}
+
+/* Signals: every texture of a material with a moved face, re-rendered at Uout
+ * (once per image, material and wrap modes). */
+static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err) {
+    const sc_atlas *atlas = J->atlas;
+    const sc_mesh *m = J->mesh;
+    int rc = SC_OK;
+    *rendered = 0;
+    for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
+        const sc_texture *tex = &atlas->textures[i];
+        bool touched = false;
+        for (int32_t f = 0; f < m->nf && !touched; f++) touched = J->face_moved[f] && m->FM[f] == tex->material;
+        for (int32_t j = 0; j < i && touched && !J->images[i]; j++)   /* the same image in the same material */
+            if (atlas->textures[j].image == tex->image && atlas->textures[j].material == tex->material &&
+                atlas->textures[j].wrap_u == tex->wrap_u && atlas->textures[j].wrap_v == tex->wrap_v && J->images[j])
+                J->images[i] = sc_value_retain(J->images[j]);
+        if (!touched || J->images[i]) continue;
+        sc_image_data *im = NULL;
+        rc = warp_texture(m, J->Uout, J->face_moved, tex, pad, &im, err);
+        if (rc == SC_OK && !(J->images[i] = sc_value_new_image(im)))
+            rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+        (*rendered)++;
+    }
+    return rc;
+}
+
+/* Output: the input's mesh with Uout, its textures where kept, the
+ * re-rendered ones elsewhere. */
+static int assemble_atlas(const job *J, sc_value **out, sc_error *err) {
+    const sc_atlas *atlas = J->atlas;
+    sc_mesh *nm = mesh_with_uv(J->mesh, J->Uout);
+    sc_value *mesh_value = nm ? sc_value_new_mesh(nm) : NULL;
+    sc_atlas *na = mesh_value ? sc_atlas_new(sc_value_retain(mesh_value)) : NULL;
+    sc_value_release(mesh_value);
+    int rc = na ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
+        const sc_texture *tex = &atlas->textures[i];
+        sc_value *img = sc_value_retain(J->images[i] ? J->images[i] : tex->image);
+        if (sc_atlas_add_texture(na, tex->name, tex->material, tex->wrap_u, tex->wrap_v, tex->source, img) != SC_OK)
+            rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    }
+    if (rc == SC_OK && !(*out = sc_value_new_atlas(na))) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    else if (rc != SC_OK) sc_atlas_free(na);
+    return rc;
+}
+
+/* Appearance: the psnr of the re-rendered textures of `result`. */
+static int appearance_step(const job *J, const sc_atlas *result, sc_error *err) {
+    const sc_atlas *atlas = J->atlas;
+    double sum2 = 0, count = 0;
+    int rc = SC_OK;
+    for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
+        if (!J->images[i]) continue;
+        const sc_texture *tex = &atlas->textures[i];
+        int k = sc_atlas_find_texture(result, tex->material, tex->name);
+        if (k < 0) continue;
+        sc_image_data *a = sc_image_to_f32(tex->image->as.image);
+        sc_image_data *b = sc_image_to_f32(result->textures[k].image->as.image);
+        if (!a || !b) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+        else appearance_error(J->mesh, J->Uout, tex, a, b, &sum2, &count);
+        sc_image_free(a), sc_image_free(b);
+    }
+    if (rc == SC_OK && count > 0)
+        sc_ctx_metric(J->ctx, "psnr", sum2 > 0 ? 10.0 * log10(count / sum2) : 200.0);
+    return rc;
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     double started = sc_now();
     const sc_value *in_value = sc_ctx_input(ctx, "atlas");
@@ -969,56 +1099,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc != SC_OK) return sc_error_prefix(err, "straighten:atlas");
     if (m->nf < 1) return sc_fail(err, SC_EINPUT, "straighten:atlas: the mesh has no faces");
 
-    topology t;
-    rc = topology_build(m, &t, err);
-    if (rc != SC_OK) return rc;
-    bool *protect = sc_calloc_array((size_t)m->nv + 1, sizeof(bool));
-    bool *moved = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
-    bool *face_moved = sc_calloc_array((size_t)m->nf + 1, sizeof(bool));
-    int32_t *chart = sc_alloc_array((size_t)m->nu + 1, sizeof(int32_t));
-    bool *straighten_border = sc_calloc_array((size_t)m->nu + 1, sizeof(bool));
-    double *Unew = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
-    double *Uout = sc_alloc_array((size_t)m->nu * 2 + 1, sizeof(double));
-    sc_value **images = sc_calloc_array((size_t)atlas->ntex + 1, sizeof(sc_value *));
-    sc_value *mesh_value = NULL, *warped = NULL, *result = NULL;
-    if (!protect || !moved || !face_moved || !chart || !straighten_border || !Unew || !Uout || !images)
-        rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-
-    int32_t nprotected = 0;
-    straighten_stats st = {0};
-    int64_t collapsible_before = 0;
-    if (rc == SC_OK) {
-        nprotected = protect_vertices(&t, protect);
-        collapsible_before = count_collapsible(&t, m->U);
-        uv_charts(m, chart);
-        /* which charts may have their surface borders straightened */
-        for (int32_t u = 0; u < m->nu; u++) straighten_border[u] = !strcmp(borders, "always");
-        if (!strcmp(borders, "with_seams")) {
-            for (int32_t h = 0; h < 3 * m->nf; h++)
-                if (t.edges[t.half_edge[h]].kind == EDGE_SEAM) straighten_border[chart[m->FU[h]]] = true;
-            for (int32_t u = 0; u < m->nu; u++) straighten_border[u] = straighten_border[chart[u]];
-        }
-        memcpy(Unew, m->U, sizeof(double) * 2 * (size_t)m->nu);
-        rc = straighten_all(&t, protect, straighten_border, tol, Unew, &st, err);
-    }
-    int64_t nmoved = 0, degenerate = 0;
-    for (int32_t u = 0; rc == SC_OK && u < m->nu; u++) {
-        moved[u] = Unew[2 * u] != m->U[2 * u] || Unew[2 * u + 1] != m->U[2 * u + 1];
-        nmoved += moved[u];
-    }
-    for (int32_t f = 0; rc == SC_OK && f < m->nf; f++) degenerate += uv_face_degenerate(m->U, m->FU + 3 * f);
-    if (rc == SC_OK) {
-        sc_ctx_metric(ctx, "seam_edges", t.nseams);
-        sc_ctx_metric(ctx, "collapsible_seam_edges_before", (double)collapsible_before);
-        sc_ctx_metric(ctx, "protected_vertices", nprotected);
-        sc_ctx_metric(ctx, "seam_chains", st.seam_chains);
-        sc_ctx_metric(ctx, "boundary_chains", st.boundary_chains);
-        sc_ctx_metric(ctx, "skipped_chains", st.skipped_chains);
-        sc_ctx_metric(ctx, "boundary_chains_kept", st.kept_boundary_chains);
-        sc_ctx_metric(ctx, "moved_uv_vertices", (double)nmoved);
-        sc_ctx_metric(ctx, "degenerate_uv_faces", (double)degenerate);
-    }
-    bool finished = rc != SC_OK;   /* failed, or nothing moved */
+    job J;
+    rc = job_init(&J, ctx, atlas, err);
+    int64_t nmoved = 0, collapsible_before = 0;
+    if (rc == SC_OK) rc = straighten_step(&J, tol, borders, &nmoved, &collapsible_before, err);
     if (rc == SC_OK && nmoved == 0) {
         /* nothing to straighten: the input itself */
         sc_ctx_metric(ctx, "collapsible_seam_edges_after", (double)collapsible_before);
@@ -1026,88 +1110,21 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "max_uv_displacement", 0);
         sc_ctx_metric(ctx, "seconds", sc_now() - started);
         sc_ctx_set_output(ctx, "atlas", sc_value_retain((sc_value *)in_value));
-        finished = true;
-    }
-    if (!finished) {
-        /* interior warp */
-        double t_warp = sc_now();
-        warp_result wr = {0};
-        if (rc == SC_OK) rc = warp_interior(m, chart, moved, Unew, steps, Uout, &wr, err);
-        t_warp = sc_now() - t_warp;
-        double max_disp = 0;
-        if (rc == SC_OK) {
-            for (int32_t u = 0; u < m->nu; u++)
-                max_disp = fmax(max_disp, distance2d(m->U + 2 * u, Uout + 2 * u));
-            for (int32_t f = 0; f < m->nf; f++)
-                for (int k = 0; k < 3; k++) {
-                    int32_t u = m->FU[3 * f + k];
-                    face_moved[f] = face_moved[f] || Uout[2 * u] != m->U[2 * u] || Uout[2 * u + 1] != m->U[2 * u + 1];
-                }
-            sc_ctx_metric(ctx, "collapsible_seam_edges_after", (double)count_collapsible(&t, Uout));
-            sc_ctx_metric(ctx, "flipped_triangles", (double)wr.flips);
-            sc_ctx_metric(ctx, "warp_steps", wr.steps);
-            sc_ctx_metric(ctx, "max_uv_displacement", max_disp);
-            sc_ctx_metric(ctx, "seconds_warp", t_warp);
-        }
-
-        /* signals */
-        double t_render = sc_now();
+    } else if (rc == SC_OK) {
+        sc_value *warped = NULL, *result = NULL;
         int32_t rendered = 0;
-        for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
-            const sc_texture *tex = &atlas->textures[i];
-            bool touched = false;
-            for (int32_t f = 0; f < m->nf && !touched; f++) touched = face_moved[f] && m->FM[f] == tex->material;
-            for (int32_t j = 0; j < i && touched && !images[i]; j++)   /* the same image in the same material */
-                if (atlas->textures[j].image == tex->image && atlas->textures[j].material == tex->material &&
-                    atlas->textures[j].wrap_u == tex->wrap_u && atlas->textures[j].wrap_v == tex->wrap_v && images[j])
-                    images[i] = sc_value_retain(images[j]);
-            if (!touched || images[i]) continue;
-            sc_image_data *im = NULL;
-            rc = warp_texture(m, Uout, face_moved, tex, pad, &im, err);
-            if (rc == SC_OK && !(images[i] = sc_value_new_image(im)))
-                rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-            rendered++;
-        }
+        rc = warp_step(&J, steps, err);
+        double t_render = sc_now();
+        if (rc == SC_OK) rc = render_signals(&J, pad, &rendered, err);
         t_render = sc_now() - t_render;
-        if (rc == SC_OK) {
-            sc_mesh *nm = mesh_with_uv(m, Uout);
-            mesh_value = nm ? sc_value_new_mesh(nm) : NULL;
-            sc_atlas *na = mesh_value ? sc_atlas_new(sc_value_retain(mesh_value)) : NULL;
-            if (!na) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-            for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
-                const sc_texture *tex = &atlas->textures[i];
-                sc_value *img = sc_value_retain(images[i] ? images[i] : tex->image);
-                if (sc_atlas_add_texture(na, tex->name, tex->material, tex->wrap_u, tex->wrap_v, tex->source, img) != SC_OK)
-                    rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-            }
-            if (rc == SC_OK && !(warped = sc_value_new_atlas(na))) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-            else if (rc != SC_OK) sc_atlas_free(na);
-        }
+        if (rc == SC_OK) rc = assemble_atlas(&J, &warped, err);
         double t_erase = sc_now();
         if (rc == SC_OK) {
             if (erase) rc = erase_atlas(warped, threads, &result, err);
             else result = sc_value_retain(warped);
         }
         t_erase = sc_now() - t_erase;
-
-        /* appearance */
-        if (rc == SC_OK) {
-            double sum2 = 0, count = 0;
-            const sc_atlas *ra = result->as.atlas;
-            for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
-                if (!images[i]) continue;
-                const sc_texture *tex = &atlas->textures[i];
-                int k = sc_atlas_find_texture(ra, tex->material, tex->name);
-                if (k < 0) continue;
-                sc_image_data *a = sc_image_to_f32(tex->image->as.image);
-                sc_image_data *b = sc_image_to_f32(ra->textures[k].image->as.image);
-                if (!a || !b) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-                else appearance_error(m, Uout, tex, a, b, &sum2, &count);
-                sc_image_free(a), sc_image_free(b);
-            }
-            if (rc == SC_OK && count > 0)
-                sc_ctx_metric(ctx, "psnr", sum2 > 0 ? 10.0 * log10(count / sum2) : 200.0);
-        }
+        if (rc == SC_OK) rc = appearance_step(&J, result->as.atlas, err);
         if (rc == SC_OK) {
             sc_ctx_metric(ctx, "textures_rendered", rendered);
             sc_ctx_metric(ctx, "seconds_render", t_render);
@@ -1116,12 +1133,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
             sc_ctx_set_output(ctx, "atlas", result);
             result = NULL;
         }
+        sc_value_release(warped), sc_value_release(result);
     }
-    for (int32_t i = 0; images && i < atlas->ntex; i++) sc_value_release(images[i]);
-    free(images);
-    sc_value_release(mesh_value), sc_value_release(warped), sc_value_release(result);
-    free(protect), free(moved), free(face_moved), free(chart), free(straighten_border), free(Unew), free(Uout);
-    topology_free(&t);
+    job_free(&J);
     return rc;
 }
 
@@ -1152,7 +1166,8 @@ static const sc_port_desc outputs[] = {
             "(f32); the input itself when nothing moves"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_topology,
+                                            NULL};
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",

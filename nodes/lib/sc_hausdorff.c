@@ -34,6 +34,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sc_geometry.h"
+
 const sc_kernel sc_kernel_hausdorff = {"hausdorff", SC_HAUSDORFF_VERSION, NULL};
 
 #define LEAF_SIZE 4
@@ -314,26 +316,9 @@ double sc_hausdorff_bvh_closest_above(const sc_hausdorff_bvh *b, const double p[
 }
 
 static double triangle_area(const sc_hausdorff_mesh *m, int32_t f) {
-    const double *a = corner(m, f, 0), *b = corner(m, f, 1), *c = corner(m, f, 2);
-    double u[3], v[3];
-    for (int k = 0; k < 3; k++) u[k] = b[k] - a[k], v[k] = c[k] - a[k];
-    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2], z = u[0] * v[1] - u[1] * v[0];
-    return 0.5 * sqrt(x * x + y * y + z * z);
-}
-
-double sc_hausdorff_bbox_diagonal(const sc_hausdorff_mesh *m) {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int32_t f = 0; f < m->nf; f++)
-        for (int c = 0; c < 3; c++) {
-            const double *p = corner(m, f, c);
-            for (int k = 0; k < 3; k++) {
-                if (p[k] < lo[k]) lo[k] = p[k];
-                if (p[k] > hi[k]) hi[k] = p[k];
-            }
-        }
-    if (m->nf == 0) return 0;
-    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    double n[3];
+    sc_triangle_normal(corner(m, f, 0), corner(m, f, 1), corner(m, f, 2), n);
+    return 0.5 * sc_norm3(n);
 }
 
 /* ---------------------------------------------------------------- one direction */

@@ -70,7 +70,4 @@ int sc_hausdorff(const sc_hausdorff_mesh *a, const sc_hausdorff_mesh *b, int64_t
 int sc_hausdorff_with_bvh(const sc_hausdorff_mesh *a, const sc_hausdorff_bvh *a_bvh, const sc_hausdorff_mesh *b,
                           int64_t samples, int threads, sc_hausdorff_result *out, sc_error *err);
 
-/* Diagonal of the bounding box of the vertices faces use (0 when none). */
-double sc_hausdorff_bbox_diagonal(const sc_hausdorff_mesh *m);
-
 #endif

@@ -2,6 +2,8 @@
  * operator of Liu et al. 2017 §3-4.
  *
  * Design note.
+ *  - Seams and uv silhouettes are read off the edge table (sc_topology),
+ *    built with uvs by coordinates: sc_topology.h says why.
  *  - Everything happens in texel space (x = uW - 1/2, y = vH - 1/2): texel
  *    centres are the integer lattice, cells are unit squares, and wrap modes
  *    only act on the texel ids of a cell's corners. That keeps sampling, the
@@ -26,7 +28,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const sc_kernel *const seam_uses[] = {&sc_kernel_sparse, NULL};
+#include "sc_geometry.h"
+
+static const sc_kernel *const seam_uses[] = {&sc_kernel_sparse, &sc_kernel_topology, NULL};
 const sc_kernel sc_kernel_seam = {"seam", SC_SEAM_VERSION, seam_uses};
 
 /* exact moments int_0^1 tau^k dtau */
@@ -80,143 +84,77 @@ void sc_seam_sample(const sc_seam_grid *g, const float *pixels, int32_t channels
 
 /* ---------------------------------------------------------------- topology */
 
-typedef struct halfedge {
-    uint64_t key;   /* (min vertex << 32) | max vertex */
-    int32_t face;
-    int32_t corner; /* the half-edge runs from corner to corner + 1 */
-} halfedge;
-
-static int cmp_halfedge(const void *pa, const void *pb) {
-    const halfedge *a = pa, *b = pb;
-    if (a->key != b->key) return a->key < b->key ? -1 : 1;
-    if (a->face != b->face) return a->face < b->face ? -1 : 1;
-    return a->corner - b->corner;
-}
-
-static double orient2(const double *a, const double *b, const double *c) {
-    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-}
-
-static double dist3(const double *a, const double *b) {
-    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
-    return sqrt(dx * dx + dy * dy + dz * dz);
-}
-
 /* the side of half-edge h, expressed at surface vertices v0 -> v1 */
-static sc_seam_side side_of(const sc_mesh *m, const halfedge *h, int32_t v0) {
-    int32_t f = h->face, k = h->corner, k1 = (k + 1) % 3, k2 = (k + 2) % 3;
-    sc_seam_side s = {.face = f, .uv_opp = m->FU[3 * f + k2]};
-    if (m->FV[3 * f + k] == v0) {
-        s.uv0 = m->FU[3 * f + k];
-        s.uv1 = m->FU[3 * f + k1];
-    } else {
-        s.uv0 = m->FU[3 * f + k1];
-        s.uv1 = m->FU[3 * f + k];
-    }
-    return s;
+static sc_seam_side side_of(const sc_mesh *m, int32_t h, int32_t v0) {
+    int32_t h1 = sc_topology_next(h);
+    return (sc_seam_side){.face = h / 3, .uv0 = sc_topology_uv_at(m, h, v0),
+                          .uv1 = m->FV[h] == v0 ? m->FU[h1] : m->FU[h],
+                          .uv_opp = m->FU[sc_topology_next(h1)]};
 }
 
-static bool same_uv(const sc_mesh *m, int32_t a, int32_t b) {
-    return a == b || (m->U[2 * a] == m->U[2 * b] && m->U[2 * a + 1] == m->U[2 * b + 1]);
-}
-
-static int push_sil(sc_seam_set *s, int32_t *cap, const sc_seam_silhouette *x) {
-    if (s->nsil == *cap) {
-        int32_t nc = *cap ? *cap * 2 : 256;
-        sc_seam_silhouette *p = sc_realloc_array(s->sil, (size_t)nc, sizeof *p);
-        if (!p) return SC_ENOMEM;
-        s->sil = p;
-        *cap = nc;
+int sc_seam_from_topology(const sc_mesh *m, const sc_topology *t, sc_seam_set *out, sc_error *err) {
+    memset(out, 0, sizeof *out);
+    out->material = t->material;
+    /* silhouettes: both sides of a seam, a foldover once, every half-edge of
+     * a boundary or non-manifold edge */
+    int64_t nsil = 0;
+    for (int32_t i = 0; i < t->nedges; i++) {
+        const sc_topology_edge *e = &t->edges[i];
+        nsil += e->kind == SC_EDGE_SEAM       ? 2
+                : e->kind == SC_EDGE_FOLDOVER ? 1
+                : e->kind == SC_EDGE_INTERIOR ? 0
+                                              : e->count;
     }
-    s->sil[s->nsil++] = *x;
+    out->seams = sc_alloc_array((size_t)t->nseams + 1, sizeof *out->seams);
+    out->sil = sc_alloc_array((size_t)nsil + 1, sizeof *out->sil);
+    if (!out->seams || !out->sil) {
+        sc_seam_set_free(out);
+        return sc_fail(err, SC_ENOMEM, "out of memory finding seams");
+    }
+    for (int32_t i = 0; i < t->nedges; i++) {
+        const sc_topology_edge *e = &t->edges[i];
+        if (e->kind == SC_EDGE_INTERIOR) continue;
+        /* in the orientation of the edge's first half-edge */
+        int32_t h0 = t->half[e->first];
+        int32_t v0 = m->FV[h0], v1 = m->FV[sc_topology_next(h0)];
+        double len = sc_dist3(&m->V[3 * v0], &m->V[3 * v1]);
+        if (e->kind == SC_EDGE_SEAM) {
+            sc_seam_side a = side_of(m, h0, v0), b = side_of(m, t->half[e->first + 1], v0);
+            int32_t si = out->nseams++;
+            out->seams[si] = (sc_seam_edge){v0, v1, len, {a, b}};
+            out->seam_length += len;
+            out->sil[out->nsil++] = (sc_seam_silhouette){v0, v1, len, a, SC_SEAM_SIDE, si};
+            out->sil[out->nsil++] = (sc_seam_silhouette){v0, v1, len, b, SC_SEAM_SIDE, si};
+            out->sil_length += len;
+            out->sil_length += len;
+        } else if (e->kind == SC_EDGE_FOLDOVER) {
+            out->sil[out->nsil++] = (sc_seam_silhouette){v0, v1, len, side_of(m, h0, v0), SC_SEAM_FOLDOVER, -1};
+            out->nfoldover++;
+            out->sil_length += len;
+        } else {
+            /* boundary or non-manifold: every half-edge, in the orientation of its face */
+            bool boundary = e->kind == SC_EDGE_BOUNDARY;
+            for (int32_t q = 0; q < e->count; q++) {
+                int32_t h = t->half[e->first + q], a0 = m->FV[h], a1 = m->FV[sc_topology_next(h)];
+                out->sil[out->nsil++] = (sc_seam_silhouette){a0, a1, len, side_of(m, h, a0),
+                                                             boundary ? SC_SEAM_BOUNDARY : SC_SEAM_NONMANIFOLD, -1};
+                out->sil_length += len;
+                if (boundary) out->nboundary++;
+                else out->nnonmanifold++;
+            }
+        }
+    }
     return SC_OK;
 }
 
 int sc_seam_find(const sc_mesh *m, int32_t material, sc_seam_set *out, sc_error *err) {
     memset(out, 0, sizeof *out);
-    out->material = material;
-    int64_t nh = 0;
-    for (int32_t f = 0; f < m->nf; f++)
-        if (material < 0 || m->FM[f] == material) nh += 3;
-    if (nh == 0) return SC_OK;
-    halfedge *he = sc_alloc_array((size_t)nh, sizeof *he);
-    if (!he) return sc_fail(err, SC_ENOMEM, "out of memory finding seams");
-    int64_t k = 0;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (material >= 0 && m->FM[f] != material) continue;
-        for (int32_t c = 0; c < 3; c++) {
-            uint32_t a = (uint32_t)m->FV[3 * f + c], b = (uint32_t)m->FV[3 * f + (c + 1) % 3];
-            uint32_t lo = a < b ? a : b, hi = a < b ? b : a;
-            he[k++] = (halfedge){((uint64_t)lo << 32) | hi, f, c};
-        }
-    }
-    qsort(he, (size_t)nh, sizeof *he, cmp_halfedge);
-
-    int32_t seam_cap = 0, sil_cap = 0;
-    int rc = SC_OK;
-    for (int64_t i = 0; i < nh && rc == SC_OK;) {
-        int64_t j = i + 1;
-        while (j < nh && he[j].key == he[i].key) j++;
-        int64_t count = j - i;
-        const halfedge *h0 = &he[i];
-        int32_t v0 = m->FV[3 * h0->face + h0->corner];
-        int32_t v1 = m->FV[3 * h0->face + (h0->corner + 1) % 3];
-        double len = dist3(&m->V[3 * v0], &m->V[3 * v1]);
-        if (count == 2) {
-            sc_seam_side a = side_of(m, &he[i], v0), b = side_of(m, &he[i + 1], v0);
-            if (same_uv(m, a.uv0, b.uv0) && same_uv(m, a.uv1, b.uv1)) {
-                /* an interior uv edge: a foldover when both faces lie on one side */
-                const double *p0 = &m->U[2 * a.uv0], *p1 = &m->U[2 * a.uv1];
-                double o1 = orient2(p0, p1, &m->U[2 * a.uv_opp]);
-                double o2 = orient2(p0, p1, &m->U[2 * b.uv_opp]);
-                if (o1 * o2 > 0) {
-                    sc_seam_silhouette x = {v0, v1, len, a, SC_SEAM_FOLDOVER, -1};
-                    rc = push_sil(out, &sil_cap, &x);
-                    out->nfoldover++;
-                    out->sil_length += len;
-                }
-            } else {
-                if (out->nseams == seam_cap) {
-                    int32_t nc = seam_cap ? seam_cap * 2 : 256;
-                    sc_seam_edge *p = sc_realloc_array(out->seams, (size_t)nc, sizeof *p);
-                    if (!p) {
-                        rc = SC_ENOMEM;
-                        break;
-                    }
-                    out->seams = p;
-                    seam_cap = nc;
-                }
-                int32_t si = out->nseams++;
-                out->seams[si] = (sc_seam_edge){v0, v1, len, {a, b}};
-                out->seam_length += len;
-                for (int q = 0; q < 2 && rc == SC_OK; q++) {
-                    sc_seam_silhouette x = {v0, v1, len, q ? b : a, SC_SEAM_SIDE, si};
-                    rc = push_sil(out, &sil_cap, &x);
-                    out->sil_length += len;
-                }
-            }
-        } else {
-            /* a surface boundary (one face) or a non-manifold edge (3 or more) */
-            for (int64_t q = i; q < j && rc == SC_OK; q++) {
-                int32_t f = he[q].face, c = he[q].corner;
-                int32_t a0 = m->FV[3 * f + c], a1 = m->FV[3 * f + (c + 1) % 3];
-                sc_seam_side sd = side_of(m, &he[q], a0);
-                sc_seam_silhouette x = {a0, a1, len, sd,
-                                        count == 1 ? SC_SEAM_BOUNDARY : SC_SEAM_NONMANIFOLD, -1};
-                rc = push_sil(out, &sil_cap, &x);
-                out->sil_length += len;
-                if (count == 1) out->nboundary++;
-                else out->nnonmanifold++;
-            }
-        }
-        i = j;
-    }
-    free(he);
-    if (rc != SC_OK) {
-        sc_seam_set_free(out);
-        return sc_fail(err, SC_ENOMEM, "out of memory finding seams");
-    }
-    return SC_OK;
+    sc_topology t;
+    sc_topology_options opt = {.material = material, .uv_by_coordinates = true};
+    int rc = sc_topology_build(m, &opt, &t, err);
+    if (rc == SC_OK) rc = sc_seam_from_topology(m, &t, out, err);
+    sc_topology_free(&t);
+    return rc;
 }
 
 void sc_seam_set_free(sc_seam_set *s) {
@@ -363,7 +301,7 @@ static int cover_chunk(void *ud, int32_t chunk) {
             P[k][0] = uv[0] * W - 0.5;
             P[k][1] = uv[1] * H - 0.5;
         }
-        double area = orient2(P[0], P[1], P[2]);
+        double area = sc_orient2(P[0], P[1], P[2]);
         if (!(area != 0)) continue; /* zero uv area (or NaN): covers nothing */
         const double *A = P[0], *B = area > 0 ? P[1] : P[2], *C = area > 0 ? P[2] : P[1];
         double xmin = fmin(A[0], fmin(B[0], C[0])), xmax = fmax(A[0], fmax(B[0], C[0]));

@@ -10,13 +10,15 @@
  * (cx, cy+1), (cx+1, cy+1) taken through the wrap mode (repeat, clamp to
  * edge, mirrored repeat: the GL rules), and s = x - cx, t = y - cy.
  *
- * Vocabulary (design.md):
+ * Vocabulary (design.md, defined once in sc_topology.h):
  *   seam edge            a surface edge whose two half-edges use different uv
- *                        indices (and different uv coordinates).
+ *                        indices. The seams here are those of the edge table
+ *                        built with uv_by_coordinates: sides that differ only
+ *                        in their indices sample the same texels, so they
+ *                        are no seam to erase.
  *   uv silhouette edge   a boundary edge of the parameter mesh: both sides of
- *                        every seam, surface boundaries, uv foldovers (an
- *                        interior uv edge whose two triangles lie on the same
- *                        side of it) and non-manifold edges.
+ *                        every seam, surface boundaries, uv foldovers and
+ *                        non-manifold edges.
  *
  * All of it is per material: a texture belongs to one material, and only the
  * faces of that material are seen.
@@ -25,6 +27,7 @@
 #define SC_SEAM_H
 
 #include "sc_sparse.h"
+#include "sc_topology.h"
 #include "sc_value.h"
 
 /* Bump whenever results of this library can change for the same inputs:
@@ -106,9 +109,13 @@ typedef struct sc_seam_set {
     double sil_length;       /* the same over silhouette half-edges (E_lerp, E_outside) */
 } sc_seam_set;
 
-/* Find the seams and uv silhouettes among the faces of `material` (-1: all).
+/* Find the seams and uv silhouettes among the faces of `material` (-1: all):
+ * sc_seam_from_topology on the edge table of those faces, uvs by coordinates.
  * Deterministic: seams are ordered by (min vertex, max vertex). */
 int sc_seam_find(const sc_mesh *m, int32_t material, sc_seam_set *out, sc_error *err);
+/* The seams and uv silhouettes of an edge table already built (its material
+ * and its view of uvs); a seam runs v0 -> v1 as its first half-edge does. */
+int sc_seam_from_topology(const sc_mesh *m, const sc_topology *t, sc_seam_set *out, sc_error *err);
 void sc_seam_set_free(sc_seam_set *s);
 
 /* ---------------------------------------------------------------- texel sets */

@@ -21,6 +21,7 @@
 
 #include "sc_atlas_ops.h"
 #include "sc_exec.h"
+#include "sc_geometry.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
@@ -70,12 +71,7 @@ static bool level_point(const sc_mesh *m, double u, double v, double out[3]) {
     return best > -1e-9;
 }
 
-static double diagonal(const sc_mesh *m) {
-    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-    for (int v = 0; v < m->nv; v++)
-        for (int c = 0; c < 3; c++) lo[c] = fmin(lo[c], m->V[3 * v + c]), hi[c] = fmax(hi[c], m->V[3 * v + c]);
-    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
-}
+static double diagonal(const sc_mesh *m) { return sc_bbox_diagonal(m->V, m->nv, NULL, 0); }
 
 static const sc_image_data *slot(const sc_atlas *a, const char *name) {
     int i = sc_atlas_find_texture(a, 0, name);

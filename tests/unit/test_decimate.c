@@ -29,6 +29,7 @@
 #include <string.h>
 
 #include "sc_exec.h"
+#include "sc_geometry.h"
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_obj.h"
@@ -347,7 +348,7 @@ static double hausdorff_fraction(const sc_mesh *a, const sc_mesh *b) {
     sc_hausdorff_result r;
     sc_error err;
     if (sc_hausdorff(&ma, &mb, 200000, 2, &r, &err) != SC_OK) return INFINITY;
-    return r.distance / sc_hausdorff_bbox_diagonal(&ma);
+    return r.distance / sc_bbox_diagonal(a->V, a->nv, a->FV, a->nf);
 }
 
 /* Level faces whose signed uv area differs in sign from the input's, when
@@ -423,12 +424,7 @@ static double brute_one_sided(const sc_mesh *from, const sc_mesh *to) {
 
 /* Symmetric sampled Hausdorff distance over the diagonal of a's bounding box. */
 static double brute_hausdorff(const sc_mesh *a, const sc_mesh *b) {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int v = 0; v < a->nv; v++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], a->V[3 * v + k]), hi[k] = fmax(hi[k], a->V[3 * v + k]);
-    double diagonal = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    return fmax(brute_one_sided(a, b), brute_one_sided(b, a)) / diagonal;
+    return fmax(brute_one_sided(a, b), brute_one_sided(b, a)) / sc_bbox_diagonal(a->V, a->nv, NULL, 0);
 }
 
 /* All the validity checks of one level against the input. */
@@ -791,8 +787,7 @@ static double silhouette_same_uv_distance(const sc_mesh *in, const sc_mesh *leve
 static void map_size_bounds(sc_value *asset, const char *what, const char *max_error, int kept, bool broken_without) {
     const sc_mesh *in = asset->as.atlas->mesh->as.mesh;
     const double input_stretch = largest_stretch(in);
-    const sc_hausdorff_mesh hm = {in->V, in->nv, in->FV, in->nf};
-    const double diag = sc_hausdorff_bbox_diagonal(&hm);
+    const double diag = sc_bbox_diagonal(in->V, in->nv, in->FV, in->nf);
     const double unit = 2e-3 * diag * 1024;   /* map_texel's default x diagonal x map_size */
     double seam[2][2] = {{0, 0}, {0, 0}}, stretch[2][2] = {{0, 0}, {0, 0}}, crease[2][2] = {{0, 0}, {0, 0}};
     for (int on = 0; on < 2; on++) {
