@@ -45,9 +45,9 @@ test)
   cmake --build build-asan -j"$jobs"
   # On some machines LeakSanitizer's stop-the-world tracer crashes at exit while it
   # scans threads that libraries start and keep (OpenBLAS's worker for CHOLMOD's
-  # BLAS, llvmpipe's rasteriser threads): test_bake failed so in 4 of 6 full runs.
-  # Our own threads are what this run checks; those libraries run on the calling
-  # thread. (Its scan of dynamic TLS: CMakeLists.txt's LSAN_OPTIONS.)
+  # BLAS, llvmpipe's rasteriser threads; docs/notes/build.md). Our own threads are
+  # what this run checks; those libraries run on the calling thread. (Its scan of
+  # dynamic TLS: CMakeLists.txt's LSAN_OPTIONS.)
   asan_ctest() {
     OPENBLAS_NUM_THREADS=1 LP_NUM_THREADS=0 ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 UBSAN_OPTIONS=print_stacktrace=1 \
       ctest --test-dir build-asan -j"$jobs" --output-on-failure "$@"

@@ -613,7 +613,7 @@ double sc_now(void) {
 
 void sc_tune_allocator(void) {
 #ifdef __GLIBC__
-    mallopt(M_MMAP_THRESHOLD, 32 << 20);   /* fixed: no longer adapts down after frees */
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);   /* fixed: frees do not move it */
     mallopt(M_TRIM_THRESHOLD, INT_MAX);
     mallopt(M_MMAP_MAX, 0);                /* large blocks from the heap too: reused, not re-faulted */
 #endif

@@ -45,11 +45,10 @@ int sc_error_prefix(sc_error *err, const char *fmt, ...)
 
 /* malloc/calloc/realloc that return NULL for a zero or overflowing size
  * product instead of wrapping around. A block of 1 MB or more has its pages
- * mapped at once (Linux: madvise MADV_POPULATE_WRITE): on the 2-core
- * machine a first-touch page fault costs ~10 us, 512 MB touched page by
- * page 1.25 s against 0.63 s mapped in one call (bench_erase_seams pizza
- * 8.45 -> 7.88 s, bench_bake blub 4.99 -> 4.81 s, alternating runs). The
- * memory is counted as used from then on, as it would be once written. */
+ * mapped at once (Linux: madvise MADV_POPULATE_WRITE): one call maps them
+ * faster than a first-touch page fault per page as the block is written
+ * (docs/notes/base.md). The memory is counted as used from then on, as it
+ * would be once written. */
 void *sc_alloc_array(size_t count, size_t size);
 void *sc_calloc_array(size_t count, size_t size);
 void *sc_realloc_array(void *p, size_t count, size_t size);
@@ -178,25 +177,18 @@ double sc_now(void);
 
 /* For a process that cooks (the command line, the benchmarks), called
  * early in main, before it starts threads:
- *  - No huge pages of its own. An earlier version ran itself again with
- *    glibc.malloc.hugetlb=1 (malloc advising its heap for transparent huge
- *    pages); on one 2-core machine that won (bench_erase_seams pizza 16-17 s
- *    -> 12.5 s), on another it lost: faults on fresh 2 MB pages there ran at
- *    0.2-0.4 GB/s against 1.2-1.9 GB/s for 4 KB pages, pizza 14.0-15.5 s
- *    with against 10.9-12.2 s without (7 alternating pairs), bench_bake
- *    blub 9.4-9.5 s against 7.7-8.1 s. What the host does with fresh memory
- *    decides it, so it is left to the environment:
+ *  - No huge pages of its own. Whether malloc advising its heap for
+ *    transparent huge pages (glibc.malloc.hugetlb=1) wins depends on what
+ *    the host does with fresh memory: on some machines fresh 2 MB pages
+ *    fault far slower than 4 KB ones. So it is left to the environment:
  *    GLIBC_TUNABLES=glibc.malloc.hugetlb=1 turns it on.
  *  - Keep the memory freed by one stage for the next instead of handing it
  *    back to the system (glibc: mmap threshold fixed at its 32 MB ceiling,
- *    no trimming): bench_bake blub 8.5-8.9 s -> 7.6-8.4 s.
- *    Blocks above that ceiling come from the heap too (no mmap), so a
- *    stage's large arrays reuse the pages an earlier stage freed instead of
- *    faulting fresh ones: bench_erase_seams pizza 7.2-8.7 s (mean 8.0) ->
- *    7.3-8.0 s (mean 7.6) in three alternating pairs, bench_bake blub the
- *    same within noise, peak memory the same.
+ *    no trimming). Blocks above that ceiling come from the heap too (no
+ *    mmap), so a stage's large arrays reuse the pages an earlier stage freed
+ *    instead of faulting fresh ones.
  * Nothing on other C libraries. sc_release_memory hands the retained memory
- * back (watch mode, between cooks). */
+ * back (watch mode, between cooks). Measurements: docs/notes/base.md. */
 void sc_tune_allocator(void);
 void sc_release_memory(void);
 

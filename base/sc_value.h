@@ -12,7 +12,7 @@
  *           what save and render produce; the engine writes the files to --out.
  *   BYTES   raw bytes (a file's content inside a REPORT).
  *
- * Texel convention (design.md, used by every node and the renderer):
+ * Texel convention (docs/design.md, used by every node and the renderer):
  * texel (i, j) has its centre at ((i + 1/2)/W, (j + 1/2)/H) in uv, and row j = 0
  * is the BOTTOM row of the picture (v = 0). Pixel memory is stored in that
  * order: row 0 first, i.e. bottom-up, exactly as OpenGL expects a texture.

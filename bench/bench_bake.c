@@ -39,7 +39,7 @@ typedef struct asset {
 static const asset assets[] = {
     {"blub", "blub/blub.obj", "blub/blub_texture.png", "2048", "1", 5.0},
     /* pizza's 4,740 charts fall under a texel from 1024^2 on: levels below
-     * 2048^2 are averaged, not erased (mipmap's design note) */
+     * 2048^2 are averaged, not erased (docs/notes/mipmap.md) */
     {"pizza", "pizza/pizza.obj", "pizza/pizza_gloss_map.jpg", "4096", "2048", 0},
 };
 

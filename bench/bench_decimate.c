@@ -5,7 +5,7 @@
  * Usage: bench_decimate [CORPUS_DIR] [asset,asset,...] [key=value ...]
  *   CORPUS_DIR defaults to ../shared/corpus next to the source tree; each
  *   key=value is passed to every decimate run (error_weight=0: the quadric
- *   alone, as before error tracking).
+ *   alone, without error tracking).
  *
  * Per asset: load it (load_atlas), erase its colour texture's seams
  * (erase_seams, f32 output), then for each target and method report

@@ -13,12 +13,10 @@
  * the assets with a target (issue 3: blub <= 0.5 s, pizza <= 5 s on the
  * 2-core machine), in how many runs it was met (runs.h: why several).
  * `--set solver=cholmod` (or schur) times one solver whatever the size
- * (erase_seams.c's design note has both on pizza).
+ * (docs/notes/erase_seams.md has both on pizza).
  *
- * Peers: Liu et al. 2017, Table 1: 25 to 431 s per texture (Python/SciPy,
- * 2.6 GHz i7-4720HQ). Their reference code on blub takes 74 s of CPU and
- * 3.4 GB with CHOLMOD (891 s and 9.8 GB with its default solver) on the
- * project's 2-core machine.
+ * Peers: Liu et al. 2017's Table 1 and their reference code; their numbers
+ * are in docs/notes/erase_seams.md.
  */
 #include <math.h>
 #include <stdio.h>

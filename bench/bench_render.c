@@ -21,11 +21,9 @@
  * runs on 2 worker threads (the node's threads = 2, this machine's cores);
  * the target is also timed with encoding inline (threads = 1).
  */
-#include <math.h>
 #include <stdio.h>
 #include <sys/resource.h>
 #include <stdlib.h>
-#include <string.h>
 
 #include "sc_base.h"
 #include "sc_exec.h"

@@ -1,13 +1,12 @@
 /* runs.h - repeated benchmark runs, each in a process of its own.
  *
- * On the 2-core machine the cost of fresh memory swings by 10x from one
+ * On the 2-core machine the cost of fresh memory swings widely from one
  * minute to the next once a process holds more than the machine used
- * recently (bench_memory: 475 MiB mapped in 0.08-0.10 s by a process
- * holding 10 MiB, in 0.05-0.93 s by one holding 700 MiB, five runs each in
- * the same minute), and pizza's erase fills ~0.9 GB after its load. A
- * benchmark that states a target therefore runs each case several times
- * (-r), each in a new process (so no run inherits another's heap), and sums
- * the runs up as a median, a range and how many met the target. */
+ * recently (bench_memory; the numbers are in docs/notes/base.md), and
+ * pizza's erase fills much fresh memory after its load. A benchmark that
+ * states a target therefore runs each case several times (-r), each in a
+ * new process (so no run inherits another's heap), and sums the runs up as
+ * a median, a range and how many met the target. */
 #ifndef SC_BENCH_RUNS_H
 #define SC_BENCH_RUNS_H
 

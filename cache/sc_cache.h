@@ -57,7 +57,7 @@ typedef struct sc_cache_dep {
 } sc_cache_dep;
 
 typedef struct sc_cache_action {
-    sc_digest key;         /* the action key (see runtime/sc_graph.h) */
+    sc_digest key;         /* the action key (see runtime/sc_engine.h) */
     char *node_type;
     char *outputs;         /* engine-defined text (JSON): output digests */
     char *metrics;         /* engine-defined text (JSON): the node's metrics */

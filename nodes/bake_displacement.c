@@ -5,7 +5,7 @@
  * Design note.
  *  - Geometry image. For each material, a size x size f32 RGB image (colour
  *    space DATA) holding the input mesh's positions at texel centres
- *    (design.md: texel (i, j) at ((i + 1/2)/W, (j + 1/2)/H), row 0 = v = 0).
+ *    (docs/design.md: texel (i, j) at ((i + 1/2)/W, (j + 1/2)/H), row 0 = v = 0).
  *    Every face's uv triangle is scanned over its bounding box grown by
  *    `padding` texels (each row cut to the columns that can lie within it);
  *    a texel takes the face nearest to its centre (in
@@ -27,57 +27,55 @@
  *    exact in every bilinear cell whose four corner texels lie inside one face
  *    of the input and one of the level.
  *  - Least-squares fit. The other cells (a face edge of either mesh crosses
- *    them, faces smaller than a texel, cells reaching out of the chart) get
- *    4 x 4 samples of the input surface per cell (a barycentric grid on faces
- *    under two texels across); where point sampling misses them by more than
- *    `fit_tolerance` of the bounding-box diagonal, the corner texels are
+ *    them, faces smaller than a texel, cells reaching out of the chart)
+ *    get 4 x 4 samples of the input surface per cell (a barycentric grid on
+ *    faces under two texels across); where point sampling misses them by more
+ *    than `fit_tolerance` of the bounding-box diagonal, the corner texels are
  *    solved for in least squares (mean squared error per cell; exact cells
  *    enter through the bilinear mass matrix), by Jacobi-preconditioned
  *    conjugate gradients. The geometry image gets the same fit (P_k = 0).
- *    Sampling runs in bands of rows, each band visiting (from a per-band
- *    face list built once per map) the faces that can reach its rows in face
+ *    Sampling runs in bands of rows, each band visiting (from a per-band face
+ *    list built once per map) the faces that can reach its rows in face
  *    order, so each cell sums its own samples in the serial order: the same
- *    bytes on any thread count. A first pass only measures the miss per
- *    cell, and skips the samples of a face in a cell that provably all miss
- *    by less than the tolerance (cell_within: the map is affine there, so the
- *    miss is bounded by the corners'), counting them only; a second pass
- *    repeats the same samples in the cells next to a solved texel only,
- *    summing their Gram matrices and residuals. In each cell row a face
- *    visits only the cells its four sample rows cross, and on each sample
- *    row only the points within the face's span (line_span, grown by 1e-6
- *    per texel of the face's extent, far above barycentric's rounding):
- *    the points left out are outside the face, so the samples and their
- *    order are those of a scan of the face's box. The level's faces at a
- *    cell's corners are read once per cell (level_cell). Measured on blub
- *    (bench_bake, one thread): sampling 2.26 s -> 1.67 s, the same bytes. The
- *    solver's matrix products gather per unknown in the order a scatter over
- *    the cells would add, so they split over threads with the same bytes.
- *  - Seams. With `erase` (the default), the node runs the erase_seams node
- *    (sc_atlas_ops_erase; no E_C1 term: the two sides of a seam map uv to the
- *    surface with their own Jacobians, so positions have no reason to be C1
- *    across it): G on the union of the input mesh and every level (disjoint
- *    copies in one mesh, so one geometry image serves every level; a level
- *    repeating another is in it once), each D_k
- *    on level k's own seams. Each map set's erasure and then its metrics run
- *    on a worker thread (with more than one thread) as soon as the set is
- *    fitted (after_fit), so erase_seams's serial stretches overlap the next
- *    level's raster and fit; each depends on its own set alone. Without
- *    `erase` the maps are only fitted and
+ *    bytes on any thread count. A first pass only measures the miss per cell,
+ *    and skips the samples of a face in a cell that provably all miss by less
+ *    than the tolerance (cell_within: the map is affine there, so the miss is
+ *    bounded by the corners'), counting them only; a second pass repeats the
+ *    same samples in the cells next to a solved texel only, summing their
+ *    Gram matrices and residuals. In each cell row a face visits only the
+ *    cells its four sample rows cross, and on each sample row only the points
+ *    within the face's span (line_span, grown by 1e-6 per texel of the face's
+ *    extent, far above barycentric's rounding): the points left out are
+ *    outside the face, so the samples and their order are those of a scan of
+ *    the face's box. The level's faces at a cell's corners are read once per
+ *    cell (level_cell). The solver's matrix products gather per unknown in
+ *    the order a scatter over the cells would add, so they split over threads
+ *    with the same bytes.
+ *  - Seams. With `erase` (the default), the maps are erased by the erase
+ *    kernel (sc_erase through sc_atlas_ops_erase, with erase_seams's defaults
+ *    but no E_C1 term: the two sides of a seam map uv to the surface with
+ *    their own Jacobians, so positions have no reason to be C1 across it): G
+ *    on the union of the input mesh and every level (disjoint copies in one
+ *    mesh, so one geometry image serves every level; a level repeating
+ *    another is in it once), each D_k on level k's own seams. Each map set's
+ *    erasure and then its metrics run on a worker thread (with more than one
+ *    thread) as soon as the set is fitted (after_fit), so the erase kernel's
+ *    serial stretches overlap the next level's raster and fit; each depends
+ *    on its own set alone. Without `erase` the maps are only fitted and
  *    filled, e.g. to feed erase_seams from the graph or to show that unerased
  *    maps crack.
  *  - Repeated levels. A level whose mesh is an earlier level's (the same
  *    digest: a decimation that stalled repeats its last level) takes that
  *    level's erased maps and metrics instead of being fitted and erased
- *    again; the bytes are the same either way (pizza's three levels are one
- *    mesh of 30k faces).
- *  - Limits (measured at 1024^2). Where a chart's uv is squeezed below a
- *    texel per face (blub: faces of 0.01 texel, a texel spanning ~5% of the
- *    diagonal), no bilinear map follows the surface: the RMS residual of the
- *    best bilinear fit of each cell on its own bounds the max error from
- *    below by 1.1e-3 (blub, level 0.5) and 4.3e-3 (level 0.1). Erasure next
- *    to such charts moves texels further. Levels decimated for the maps
- *    (decimate's map_size) keep what no map restores - seams, uv slivers,
- *    creases sharper than a texel follows - and then meet 1e-3 as surfaces.
+ *    again; the bytes are the same either way.
+ *  - Limits. Where a chart's uv is squeezed below a texel per face (a texel
+ *    then spans a large part of the surface), no bilinear map follows the
+ *    surface: the RMS residual of the best bilinear fit of each cell on its
+ *    own bounds the max error from below. Erasure next to such charts moves
+ *    texels further. Levels decimated for the maps (decimate's map_size)
+ *    keep what no map restores - seams, uv slivers, creases sharper than a
+ *    texel follows - so that their maps can restore the rest
+ *    (docs/notes/bake_displacement.md).
  *  - Outputs. `atlas`: the input mesh, its textures (slots geometry_image and
  *    displacement dropped) plus "geometry_image" per material. `lods`: every
  *    level (or the input alone when `lods` is unconnected) with its own
@@ -105,6 +103,7 @@
  *    covered texels are shared, as overlapping or mirrored charts make them:
  *    one value per texel cannot serve two places of the surface);
  *    texels fitted and timings per stage.
+ * Measurements and history: docs/notes/bake_displacement.md.
  */
 #include <float.h>
 #include <math.h>
@@ -1816,8 +1815,8 @@ static double report_errors(sc_ctx *ctx, const char *name, double *e, int64_t n)
 
 /* What follows a map set's fit - its erasure, then its metrics - runs on a
  * worker thread (with more than one thread) as soon as the set is handed
- * over, so it overlaps the next level's raster and fit (erase_seams has long
- * serial stretches). Each set's erasure and metrics depend on that set
+ * over, so it overlaps the next level's raster and fit (the erase kernel has
+ * long serial stretches). Each set's erasure and metrics depend on that set
  * alone, so the results do not depend on the timing; failures are reported
  * in hand-over order. */
 typedef struct map_job {
@@ -2125,7 +2124,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "fit_samples", (double)st.samples);
         sc_ctx_metric(ctx, "fit_cells_inexact", (double)st.cells_inexact);
         sc_ctx_metric(ctx, "fit_cells_solved", (double)st.cells_solved);
-        sc_ctx_metric(ctx, "seconds_erase", t_erase);             /* in erase_seams, beside the fits */
+        sc_ctx_metric(ctx, "seconds_erase", t_erase);             /* in the erase kernel, beside the fits */
         sc_ctx_metric(ctx, "seconds_erase_wait", t_wait);         /* left after the last fit */
         sc_ctx_metric(ctx, "seconds_metrics", t_metrics);
     }

@@ -50,9 +50,10 @@
  * "free" drops every uv constraint but keeps the link conditions and flip
  * tests (the MeshLab baseline).
  *
+ *
  * Tolerances. Collinearity and equal ratios are tested with the relative
  * tolerances (1e-9) plus what the storage precision of the input's uv
- * explains: OBJ files store uv as decimal text (blub: 6 significant digits),
+ * explains: OBJ files store uv as decimal text (often 6 significant digits),
  * so seams straightened before export are straight only to half a unit in
  * the last digit. The storage (significant decimal digits, float32 or
  * double) is detected once; each Z keeps the step of its coordinates
@@ -60,7 +61,13 @@
  * point within 2 steps of the chord of its neighbours, or lengths within the
  * matching slack, are taken as straight or equal. On exact data (the
  * procedural asset, double precision) this adds ~1e-16: silhouettes stay
- * exact.
+ * exact. On decimal uv this slack is what a seam collapse costs: the
+ * level's seam chords may sit off the input's seam polyline by up to the
+ * slack, across the seam, where the seam-free texture agrees only on the
+ * polyline; the new points themselves are exact (one parameter t on both
+ * sides). No bound is put on the drift this accumulates over collapses: a
+ * bound of half a storage step stops decimation far short of its targets,
+ * and exact seams need exact uv (docs/notes/decimate.md).
  *
  * Validity, tested when an edge comes off the queue: the link condition on
  * the surface (with one virtual vertex joined to all borders, §5.2) and on
@@ -68,10 +75,9 @@
  * face flips or degenerates in uv (orientation compared with the face's
  * current one) or in 3D, where a face's normal may also turn by at most
  * normal_turn degrees (30) per collapse: at extreme ratios this keeps
- * collapses from folding thin features (blub at 1%, quadric alone: 1.8%
- * Hausdorff instead of 3.1%); it is reported as its own blocking reason. An edge that fails is
- * dropped and its endpoints are marked; any later collapse next to a marked
- * vertex queues its edges again.
+ * collapses from folding thin features; it is reported as its own blocking
+ * reason. An edge that fails is dropped and its endpoints are marked; any
+ * later collapse next to a marked vertex queues its edges again.
  *
  * Queue. A 4-ary heap of (cost bits, a << 32 | b, version a, version b):
  * ties broken by vertex ids, so the order never depends on memory addresses
@@ -82,39 +88,19 @@
  * The first queue is appended unordered and heapified once. After an
  * interior collapse only keep's edges (and those of marked neighbours) are
  * evaluated again; the spokes are classified only after a silhouette one.
- * Cost on blub at 1%: ~73k edge evaluations (21k initial, ~7 per collapse),
- * each a plan and a 5-D solve; Hausdorff sampling is timed apart
- * (hausdorff_seconds), with the input's BVH built once for all levels (or
- * taken over from error tracking). A popped edge whose cost has risen
+ * Each evaluation is a plan and a 5-D solve; Hausdorff sampling is timed
+ * apart (hausdorff_seconds), with the input's BVH built once for all levels
+ * (or taken over from error tracking). A popped edge whose cost has risen
  * (see error tracking) goes only when no queued cost is below it.
  *
- * On blub (6-digit uv) this slack is what a seam collapse costs: the
- * level's seam chords sit up to ~6e-7 uv (1/800 texel at 2048) off the
- * input's seam polyline, across the seam, where the seam-free texture
- * agrees only on the polyline. Measured: ~1.7e-8 of the pre-erasure seam
- * energy, 97% of it on one level seam edge where the erased texture's
- * gradient across the seam is largest; the new points themselves are exact
- * (one parameter t on both sides). A bound on the drift accumulated over
- * collapses (half a storage step) gave 7e-9 but stopped blub at 332 faces
- * instead of 142, so it is not the default: exact seams need exact uv.
- *
  * Error tracking. The quadric measures distances to planes. A vertex at the
- * tip of a thin feature (blub's fins and tail lobes) or on a rounded rim
- * slides along the feature's own planes for next to nothing, and a face
- * that bridges a gap can have all its corners on planes it is far from; at
- * very low face counts quadric-greedy collapses therefore cut features off,
- * overshoot rims and bridge gaps, and which of them it picks changes with
- * any small change of the input or the weights. Measured on blub, seam
- * exact (erase_seams -> straighten -> decimate), targets 130-155 x
- * uv_weight 0.3-2 (56 runs): Hausdorff 2.1-4.3%, mean 2.72%, every run above
- * 2%. What did not help (means over smaller sweeps of uv_weight, made
- * while straighten still protected ears whole, baseline 3.5%): planes along
- * creases weighted by the dihedral turn (2.7-3.4%), a 3D plane quadric on
- * top of the 5-D one (3.0-3.4%), probabilistic (isotropic) quadrics (3.0-
- * 6.7%: they favour removing small features), memoryless quadrics (7.2%),
- * cost divided by the quadric's area (3.6%), a stronger pull of the
- * placement to the edge's middle, normal_turn 20-90, and fitting the final
- * positions to the input by least squares (worse maxima).
+ * tip of a thin feature (fins, tail lobes) or on a rounded rim slides along
+ * the feature's own planes for next to nothing, and a face that bridges a
+ * gap can have all its corners on planes it is far from; at very low face
+ * counts quadric-greedy collapses therefore cut features off, overshoot
+ * rims and bridge gaps, and which of them it picks changes with any small
+ * change of the input or the weights. Changes to the quadric itself do not
+ * cure this (docs/notes/decimate.md lists those measured).
  *   So near each target the cost of a collapse adds
  *       error_weight x (2 x input area / target) x E,
  * E the squared distance between the fan the collapse leaves and the input,
@@ -125,23 +111,17 @@
  * on each face, the middle of its spoke, its centroid and the point 2/3 of
  * the way from the opposite edge to the moved vertex (the spoke middles
  * catch most bridges; centroids catch faces that span a hollow, which
- * spoke middles alone missed on blub). 2 x area / target is the surface a
- * vertex of the target level stands for, so E counts as if that much
- * surface were E off: an L-infinity term in the quadric's units that does
- * not shrink with the feature's area. The quadric still places the vertex
- * (the paper's constrained optimum) and orders collapses of equal tracked
- * error; uv, seams and every validity test are untouched.
+ * spoke middles alone miss). 2 x area / target is the surface a vertex of
+ * the target level stands for, so E counts as if that much surface were E
+ * off: an L-infinity term in the quadric's units that does not shrink with
+ * the feature's area. The quadric still places the vertex (the paper's
+ * constrained optimum) and orders collapses of equal tracked error; uv,
+ * seams and every validity test are untouched. The summed quadric cost
+ * rises: the maximum is bought with some of the quadric's L2.
  *   Tracking runs from TRACKING_SPAN x target faces, and only below
  * 1 / TRACKING_START of the input's faces: the worst error of a level is
  * made in its last collapses, and a tracked collapse costs several times an
- * untracked one. Measured on the sweep above: mean 1.56%, 2 of 56 runs
- * above 2% (at most 2.47%); TRACKING_SPAN 2: 1.72%, 8 above; 4: 1.67%, 7
- * above; error_weight 10/30/100/300: mean 1.67/1.56/1.57/1.61%, 4/2/2/4
- * above (the picks move with any detail of the order: compare means). At
- * the default 142 faces 2.28% -> 1.36%, and the aware run on the
- * unstraightened asset 1.78% -> 1.41%; blub and spot at 10%: 0.37 -> 0.28%
- * and 1.26 -> 1.16%. The summed quadric cost rises: the maximum is bought
- * with some of the quadric's L2.
+ * untracked one.
  *   E is computed lazily: queued costs leave it out, so they are lower
  * bounds, and the edge at the front gets E added when popped; it goes only
  * when its full cost is at most the next queued cost, else it is queued
@@ -154,66 +134,41 @@
  * vertex is measured first, before the fan is even built: where a collapse
  * is far off, it alone says so. An edge that comes back with its full cost
  * is tested for validity before it is measured again (near a stall most
- * edges at the front cannot collapse). Blub at 1%: ~2.5k evaluations of E (four
- * in five stopped early) over its last 213 collapses; with the input's BVH
- * (~3 ms) tracking costs ~12-16 ms: 38-46 ms best of 3 against 25-30 ms
- * for the quadric alone on the same (shared, noisy) machine.
- *   Why the straightened blub did worse than the unstraightened one at equal
- * faces (2.59% against 1.78% at 142 before tracking): besides chance, 11 of
- * its 208 seam edges could never collapse. straighten protected every
- * corner of the "ears" next to seam junctions, so the first vertex of each
- * seam kept its 6-digit uv and sat off the straightened line by rounding,
- * which exact collinearity refuses (the unstraightened path accepts it
- * within the storage slack). straighten version 2 protects only the ear's
- * apex; all 208 edges are collapsible and the level keeps 26 seam edges
- * instead of 37.
+ * edges at the front cannot collapse).
  *
  * A bound (max_error > 0). Tracking then runs on every collapse from the
  * first, and a collapse whose tracked distance E exceeds max_error x the
  * diagonal is refused (blocked_max_error in a stall's census; measuring
  * stops at the bound). Where seams and link conditions leave little else
- * to collapse, an unbounded run flattens what is left: BoomBox at 10%
- * stalls at 1,016 faces 8.7% off (Hausdorff), with 0.02 at 1,113 faces
- * 1.9% off. Measuring everything costs 10-20x the time (blub at 1%: ~0.4
- * s), and ordering every collapse by its full cost helps well above the
- * tracking range too (spot at 10%: 1.16% -> 0.74%; blub at 50%: 0.071% ->
- * 0.028%), so the bound is an option (graphs/lod_chain.lua sets 0.02), not
- * the default.
+ * to collapse, an unbounded run flattens what is left, and a bound stops
+ * the level a little short of its target instead. Measuring every collapse
+ * costs many times the time, so the bound is an option
+ * (graphs/lod_chain.lua sets 0.02), not the default; ordering every
+ * collapse by its full cost then helps well above the tracking range too.
  *
  * Maps that restore the detail (map_size > 0). A level drawn with a
  * displacement map of map_size^2 (bake_displacement) gets back only what
  * the map can hold: where the uv is squeezed, one texel spans much of the
- * surface (blub near uv (0.30, 0.11) at 1024^2: faces of 0.03-0.3 texel,
- * a texel spanning 1-3% of the diagonal), and whatever a collapse moves
- * there is lost for good. So each input face gets an importance
+ * surface, and whatever a collapse moves there is lost for good. So each
+ * input face gets an importance
  *     w = max(1, (h / (map_texel x diagonal))^2),
  * h = sqrt(3D area / uv area) / map_size the surface length of one texel
  * on it: it multiplies the face's quadric (area-weighted already), and a
  * surface vertex carries the largest w of the input faces it stands for,
- * which multiplies its collapses' tracked error. Measured at 1024^2 with
- * bake_displacement (test_bake): blub at 10% of the faces, surface
- * distance of the displaced level to the input 4.2e-3 -> 1.4e-3 of the
- * diagonal (at 50%: 6.7e-4 -> 4.9e-4); BoomBox, whose texels stay under
- * 1.2e-3 of its diagonal, keeps its levels. Importance against the mean
- * stretch instead (relative, no map size) did as well on blub but moved
- * BoomBox's 50% level from 7.6e-4 to 1.2e-3; exponents 1.5-2 or bounding
- * the tracked error in squeezed regions made blub worse (1.6-2.9e-3).
- * It orders collapses; it is no bound, and not monotonic: on a square
- * whose right half is squeezed along u (test_decimate), at 15% of the
- * faces the squeezed half comes 0.0040 -> 0.0030 closer at a squeeze of
- * 100, but 0.0043 and 0.0084 at 300 and 1000 (not looked into further).
- * A level drawn without its map pays: bench_decimate on blub with
- * map_size=1024, Hausdorff 0.071/0.280/1.41% -> 0.082/0.382/8.65% at
- * 50/10/1% (meshoptimizer 3.62% at 1%; at 1% the bounds below stop the
- * level at 254 faces), so it is off by default.
+ * which multiplies its collapses' tracked error. It orders collapses; it is
+ * no bound, and not monotonic (on test_decimate's square whose right half is
+ * squeezed along u, that half comes closer at some squeezes and not at
+ * others). A level
+ * drawn without its map pays for the detail kept elsewhere, so map_size is
+ * off by default.
  *   Three things a map cannot restore are refused outright with map_size.
  * (1) uv slivers: a surviving face may not stretch (uv_stretch: the largest
  * singular value of uv -> surface, over map_size the longest surface span
  * of one texel) beyond STRETCH_SLACK (2) x the larger of map_texel's unit
  * and the largest stretch of the input faces its corners stand for (tracked
- * per vertex, like importance), unless it shrinks. BoomBox at 10% made a
- * face with three nearly collinear uv corners whose texels spanned 10% of
- * the diagonal; its map, bilinear across it, was 1.4% off next to it.
+ * per vertex, like importance), unless it shrinks: a face with three nearly
+ * collinear uv corners has texels spanning much of the surface, and its
+ * map, bilinear across it, cannot follow the surface next to it.
  * (2) seams: erase_seams makes the two sides of a seam agree on a function
  * both texel grids can hold, which along a seam crossing the grids at
  * different places is little more than linear: the drawn seam is the
@@ -222,28 +177,15 @@
  * the diagonal) of the level at the same uv (seam_kept: measured on the
  * faces a collapse changes, for keep's, gone's and their silhouette
  * neighbours' input vertices, a point up to 1% of a face outside them
- * measured at its nearest: a border moved within the uv's storage slack; a
- * level vertex at a seam's tip, with one uv, moved 1.8% of the diagonal
- * was the worst case before).
+ * measured at its nearest: a border moved within the uv's storage slack).
  * (3) creases inside a chart: the displacement is the input minus the
  * level, so every crease of the level is one the map must hold, and a
  * bilinear cell rounds it off by a fraction of its texel length times the
  * angle. Every edge a collapse changes whose two faces share its uv keeps
  * dihedral angle (radians) x texel length (uv_stretch / map_size) within
- * map_crease (4e-3 of the diagonal; creases_ok). This is what limited blub
- * at 1024^2 once its seams were kept: the worst points sat next to level
- * edges, before erasure as after, where a texel spans ~5e-3 of the
- * diagonal. map_crease 2e-3 / 4e-3 / 6e-3 / 8e-3: level 0.1 stops at
- * 3,078 / 2,086 / 1,750 / 1,446 faces, displaced within 5.6e-4 / 9.2e-4 /
- * 1.1e-3 / 1.5e-3. (Exempting edges whose crease does not grow let blub
- * reach 1,420 faces at 1.9e-3.)
- *   Measured at 1024^2 (test_bake, the displaced level's surface distance
- * to the input over the diagonal, levels 0.5 and 0.1): BoomBox 1.7e-3 /
- * 1.1e-2 -> 5.9e-4 / 7.4e-4, on the main job's path 7.6e-4 / 1.7e-2 ->
- * 7.8e-4 / 8.9e-4; blub 4.9e-4 / 1.4e-3 -> 4.9e-4 / 9.2e-4. The price is
- * faces: level 0.1 stops at 1,185 of BoomBox's 6,036 (1,013 without) and
- * 2,096 of blub's 14,208 (blocked_texel_stretch, blocked_seam_error and
- * blocked_texel_crease in the census).
+ * map_crease (4e-3 of the diagonal; creases_ok).
+ *   The price is faces: levels stop earlier, and the census says why
+ * (blocked_texel_stretch, blocked_seam_error and blocked_texel_crease).
  *
  * Levels. One continuous decimation; a snapshot is taken each time the face
  * count reaches the next target, so level k is the previous level decimated
@@ -257,7 +199,9 @@
  * Output: each level is an ATLAS without textures (share_textures adds them).
  * Faces keep the input order (survivors only) and their material; surface
  * vertices and uv entries are renumbered in order of their ids; normals are
- * dropped (they no longer match the moved vertices).
+ * dropped (they do not match the moved vertices).
+ *
+ * Measurements and history behind these choices: docs/notes/decimate.md.
  */
 #include <math.h>
 #include <pthread.h>

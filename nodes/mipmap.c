@@ -6,10 +6,10 @@
  *    level m (sides max(1, floor(n / 2)), GL's and OpenEXR's round-down rule;
  *    an odd last row or column is folded into its neighbour's box), down to
  *    1 x 1 (an OpenEXR mip-map holds every level); `levels` stops at
- *    `min_size`. Averaging is on the stored values, the
- *    way erase_seams and a GPU sampling the stored texture see them. A slot
- *    named "normal" (3+ channels) is renormalised after averaging (decoded
- *    as 2 x - 1 unless the image is float DATA with negative values).
+ *    `min_size`. Averaging is on the stored values, the way the erase kernel
+ *    and a GPU sampling the stored texture see them. A slot named "normal"
+ *    (3+ channels) is renormalised after averaging (decoded as 2 x - 1
+ *    unless the image is float DATA with negative values).
  *  - DATA maps (float, colour space DATA, not "normal": geometry image,
  *    displacement) hold a band of linear continuation around each chart and
  *    push-pull fill beyond it. Level 0's valid texels are those within 2
@@ -22,49 +22,38 @@
  *    texels (linear continuation 2 v(t + d) - v(t + 2 d) within the chart
  *    with the most neighbours) and the rest is push-pull filled. Erasure then
  *    runs as for every map.
- *  - Erasure. Every level is erased by the erase_seams node, run through
- *    sc_ctx (a pure function), on an atlas made of the mesh and that level's
- *    textures (one run per group and level, so one factorisation serves all
- *    of a group's textures of one size); 8/16-bit textures come back
- *    quantised by erase_seams (`quantize` optimal), float ones as f32. The
- *    next level is built from the erased float values. The seam stiffness
- *    `w_seam` is 1e12, 100 times erase_seams's default: a coarse level's
- *    charts are a few texels across, and at 1e10 the penalty left gaps that
- *    the render check sees. Measured on lod_chain.lua's geometry images
- *    (1024^2, GPU seam gap over the bounding-box diagonal, worst over every
- *    LOD and level): Duck 6.9e-5 (64^2) -> 9.8e-6 (level 0, which is the
- *    bake's, not erased here), blub 2.2e-5 (8^2) -> 1.6e-6; seam energies
- *    fell 10-50 times. BoomBox stays at 1.15e-5 (512^2) at 1e12 and 1e13
- *    alike, so that floor is not the penalty's. Cholesky's backward error,
- *    ~1e-16 * 1e12 of the grid stiffness, is still far below it.
- *  - Levels not erased. Where an atlas's charts fall under a texel, the
- *    seams tie texels all over the level together and no ordering keeps
- *    the factor sparse: pizza's 4,740 charts at 1024^2 (440k unknowns, 4M
- *    entries) would need a factor of 2.0e9 entries under AMD, 1.24e9 under
- *    METIS (~20 GB, 2.8e13 flops); at 512^2 (159k unknowns) METIS's 8.3e8
- *    entries took 294 s and 14.3 GB; both are past sc_sparse's limit of
- *    6e8 entries. 256^2 (50k unknowns) factors with METIS in 61 s (2.8e8
- *    entries; AMD: 184 s), 128^2 in 12 s. Iterations do not reach the same
- *    answer in less: conjugate gradients with Jacobi (and every component's
- *    constant deflated, which the penalty's rounding leaves behind) match
- *    the factorisation to 1e-6 at 128^2 and 256^2 (13k iterations), but at
- *    512^2 stall at a residual of 1e-7 after 20k; incomplete Cholesky needs
- *    a large shift and gains less than 2x, and factors of Q with its weak
- *    couplings dropped fill as badly. Such a level
+ *  - Erasure. Every level is erased by the erase kernel (sc_erase through
+ *    sc_atlas_ops_erase, erase_seams's defaults with this node's w_seam and
+ *    gap_tolerance) on the mesh and that level's textures (one call per
+ *    group and level, so one factorisation serves all of a group's textures
+ *    of one size); 8/16-bit textures come back quantised (optimal
+ *    rounding), float ones as f32. The next level is built from the erased
+ *    float values. The seam stiffness `w_seam` is 1e12, 100 times
+ *    erase_seams's default: a coarse level's charts are a few texels across,
+ *    and at 1e10 the penalty leaves gaps that the render check sees.
+ *    Cholesky's backward error, ~1e-16 * 1e12 of the grid stiffness, is
+ *    still far below it.
+ *  - Levels not erased. Where an atlas's charts fall under a texel, the seams
+ *    tie texels all over the level together and no ordering keeps the factor
+ *    sparse: from some size on the factor passes sc_sparse's limit (6e8
+ *    entries), and below it METIS's factors still take minutes. Iterations do
+ *    not reach the same answer in less: conjugate gradients with Jacobi (and
+ *    every component's constant deflated, which the penalty's rounding leaves
+ *    behind) stall short of the factorisation's residual on the larger
+ *    levels; incomplete Cholesky needs a large shift and gains little, and
+ *    factors of Q with its weak couplings dropped fill as badly. Such a level
  *    fails with a message naming `erase_min_size`: levels whose sides are
  *    both below it are box-averaged (DATA maps as above) but not erased
- *    (counted: levels_not_erased); their seam energies are reported like
- *    any other level's.
+ *    (counted: levels_not_erased); their seam energies are reported like any
+ *    other level's.
  *  - Level 0 already erased. A level-0 texture whose largest seam gap is
  *    within what its storage holds (`level0_gap` times its largest magnitude
  *    for float, one step for 8/16-bit; or `gap_tolerance`) is kept as it is:
  *    it comes erased from upstream (bake_displacement erases every map on
- *    these seams or more). Erasing it again buys nothing and costs much:
- *    measured on blub's 2048^2 maps (gaps 2-3e-6 of their magnitude), a second
- *    run left the gaps within 30% of what they were but moved texels by up to
- *    1% of the value range (mipmap's erase keeps erase_seams's E_C1 term,
- *    which the bake leaves out for positions), and took a third of the
- *    node's erase time.
+ *    these seams or more). Erasing it again buys nothing and costs much: it
+ *    leaves the gaps about where they were but moves texels (mipmap's erase
+ *    keeps erase_seams's E_C1 term, which the bake leaves out for
+ *    positions), at a large share of the node's erase time.
  *  - Levels of detail. With `lods`, every level of detail gets its own chains,
  *    erased on its own seams, except a texture that is the very same image
  *    (same slot, material and digest) on every level: its chain is built once
@@ -78,24 +67,22 @@
  *    mip/[lod<k>_]<material>_<slot>.exr (float textures: one tiled,
  *    mip-mapped OpenEXR holding every level) and
  *    mip/[lod<k>_]<material>_<slot>_level<m>.png (8/16-bit textures).
- *  - Work. Groups (each source's chains, and the shared ones) are built
- *    side by side, as many at once as there are threads, each using every
- *    thread in its own parallel parts (labelling, erase_seams, the files'
+ *  - Work. Groups (each source's chains, and the shared ones) are built side
+ *    by side, as many at once as there are threads, each using every thread
+ *    in its own parallel parts (labelling, the erase kernel, the files'
  *    tiles), so one group's serial stretches (box averages, ring growth,
- *    push-pull, erase_seams's setup) overlap another's work; the shared
+ *    push-pull, the erase kernel's setup) overlap another's work; the shared
  *    group, the largest (every level's seams), starts first. A group encodes
- *    its chains' files once its levels are erased. Each chain, level and
- *    file depends on its own inputs alone and the report takes the files in
- *    chain order, so neither the order groups finish in nor the thread
- *    count shows in the results. Measured on blub's maps (bench_bake, 4
- *    groups): 1.97-1.98 s -> 1.86-1.97 s; deflating the files is about a
- *    third of the node's CPU time there (268 MB of floats, 48% after ZIP).
- *    seconds_groups is that stage's wall time; seconds_erase and
- *    seconds_files the time in erase_seams and in encoding, summed over the
- *    groups.
+ *    its chains' files once its levels are erased. Each chain, level and file
+ *    depends on its own inputs alone and the report takes the files in chain
+ *    order, so neither the order groups finish in nor the thread count shows
+ *    in the results. seconds_groups is that stage's wall time; seconds_erase
+ *    and seconds_files the time in the erase kernel and in encoding, summed
+ *    over the groups.
  *  - Metrics: [lod<k>.]level<m>.seam_energy and .max_seam_gap (the largest
  *    over the textures: sc_seam_energy on that LOD's mesh), level<m>.width,
  *    levels, erase runs, level-0 textures kept as they are, and timings.
+ * Measurements and history: docs/notes/mipmap.md.
  */
 #include <math.h>
 #include <stdio.h>
@@ -512,7 +499,7 @@ typedef struct erase_settings {
 } erase_settings;
 
 typedef struct erase_counts {
-    int runs;       /* erase_seams runs */
+    int runs;       /* sc_atlas_ops_erase calls */
     int passed;     /* level-0 maps kept as they are */
     int unerased;   /* map levels below erase_min_size */
 } erase_counts;
@@ -521,7 +508,8 @@ typedef struct erase_counts {
  * in[i] (pixel type of the chain); results into the chains' level m. At
  * level 0, chains whose seams are closed already (seam_free_already) pass
  * through as they are; so do maps whose sides are both below erase_min_size
- * (counted as unerased); the others are erased in one erase_seams run. */
+ * (counted as unerased); the others are erased in one sc_atlas_ops_erase
+ * call. */
 static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m,
                        const erase_settings *es, erase_counts *counts, sc_error *err) {
     sc_atlas_ops_map *maps = calloc((size_t)n + 1, sizeof *maps);
@@ -670,7 +658,7 @@ typedef struct groups_job {
     group_result *results;    /* per group */
 } groups_job;
 
-/* Group `g`: its chains level by level, one erase_seams run per level,
+/* Group `g`: its chains level by level, one erasure per level,
  * then their files. Work item 0 is the shared group (g = nsrc), the
  * largest (the union of every level's seams), so it starts first. */
 static int build_group(void *ud, int32_t item) {
@@ -944,7 +932,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
             sc_ctx_set_output(ctx, "levels", lv);
             sc_ctx_set_output(ctx, "report", rv);
             sc_ctx_metric(ctx, "seconds_groups", t_groups);   /* building, erasing, encoding: groups side by side */
-            sc_ctx_metric(ctx, "seconds_erase", t_erase);     /* in erase_seams, summed over the groups */
+            sc_ctx_metric(ctx, "seconds_erase", t_erase);     /* in the erase kernel, summed over the groups */
             sc_ctx_metric(ctx, "seconds_files", t_files);     /* encoding, summed over the groups */
             sc_ctx_metric(ctx, "seconds_metrics", t_metrics);
         }

@@ -9,7 +9,7 @@
  * by a different quarter turn, so every cube edge is a real seam: the same
  * surface edge with two different uv edges. The colour texture is painted by
  * evaluating a smooth function of the surface point at every texel centre
- * (design.md's convention), padding included, with a small per-chart tint so
+ * (docs/design.md's convention), padding included, with a small per-chart tint so
  * the seams are visible until erase_seams removes them. Everything is plain
  * arithmetic on the parameters: the same parameters give the same bytes.
  *

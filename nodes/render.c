@@ -18,7 +18,7 @@
  *    Every pass colours with the "color" slot when the material has one. A
  *    mode whose texture a material lacks is skipped, with the metric
  *    lod<k>.<mode>.skipped = 1. All sampling is bilinear without mipmaps, in
- *    the wrap mode of each texture, with design.md's texel convention (which
+ *    the wrap mode of each texture, with docs/design.md's texel convention (which
  *    is GL's: uvs go to the GPU untouched and images go up bottom row first).
  *  - Seam gap, "what the hardware really computed": per pass, every seam edge
  *    (sc_seam_find) is evaluated on both of its sides and captured with
@@ -35,9 +35,8 @@
  *  - Crack pixels: front faces shaded, back faces pure red, no culling; the
  *    alpha channel tells background (0), front (1) and back faces (1/2)
  *    apart, so a red texture never counts. A closed mesh (no boundary, no
- *    non-manifold edge) shows back faces only through cracks - and, as
- *    measured on blub and the procedural sphere (about one pixel in ten
- *    views), on occluding contours, where the front and back sheets meet at
+ *    non-manifold edge) shows back faces only through cracks - and, now and
+ *    then, on occluding contours, where the front and back sheets meet at
  *    sub-pixel distance and rasterisation can let a pixel of the back one
  *    through (a ray cast there in double precision hits neither sheet). So a
  *    back-face pixel next to the background or to a farther front face (3 x
@@ -50,52 +49,50 @@
  *    reference, every back-face pixel of an open mesh counts.
  *  - Pinholes: seam-free maps still leave the two sides of a seam apart by
  *    float rounding (about 1e-7 of the diagonal), and the rasteriser snaps
- *    vertices to a grid of 2^-GL_SUBPIXEL_BITS pixels (llvmpipe: 8 bits):
- *    two sides a rounding apart now and then land on neighbouring grid
- *    points, and a pixel centre in the sliver between shows the back face
- *    (the procedural main job: one pixel in 504 pictures). When a pass's
- *    measured seam gap is above 0 (equal vertices rasterise watertight:
- *    the textured mode's gap is 0) and below one grid step, a crack pixel
- *    alone among its 8 neighbours and within a pixel of a seam side as the
- *    GPU placed it (the points the seam-gap check captured, projected) is
- *    counted as lod<k>.<pass>.pinhole_pixels, not as a crack; any larger
- *    gap keeps every such pixel a crack, as does a back-face pixel away
- *    from seams or next to another (a fold, a real crack, or a sliver along
- *    a seam that runs through a row of pixel centres: visible as a line).
- *    The main job's test (main_job_lod_chain) holds such a pinhole.
- *  - Folds: a position map can fold the surface over itself (blub's fins in
- *    a 64^2 geometry image of its 1% level), and the back faces of a fold
+ *    vertices to a grid of 2^-GL_SUBPIXEL_BITS pixels (llvmpipe: 8 bits): two
+ *    sides a rounding apart now and then land on neighbouring grid points,
+ *    and a pixel centre in the sliver between shows the back face. When a
+ *    pass's measured seam gap is above 0 (equal vertices rasterise
+ *    watertight: the textured mode's gap is 0) and below one grid step, a
+ *    crack pixel alone among its 8 neighbours and within a pixel of a seam
+ *    side as the GPU placed it (the points the seam-gap check captured,
+ *    projected) is counted as lod<k>.<pass>.pinhole_pixels, not as a crack;
+ *    any larger gap keeps every such pixel a crack, as does a back-face pixel
+ *    away from seams or next to another (a fold, a real crack, or a sliver
+ *    along a seam that runs through a row of pixel centres: visible as a
+ *    line). The main job's test (main_job_lod_chain) holds such a pinhole.
+ *  - Folds: a position map can fold the surface over itself (thin fins in a
+ *    coarse geometry image of a coarse level), and the back faces of a fold
  *    away from a contour look like a crack. When a position pass's seam gap
  *    is under a pixel and a view has crack pixels, the view is drawn again
- *    welded (SC_WELD in the shaders: every corner of a vertex samples the
- *    map at one uv, its first corner's, and every point on a seam edge at
- *    the edge's side-0 uvs, blended from the same products on both faces,
- *    so no seam can open; corner_data). A crack pixel that shows a back face
- *    in the welded picture too is lod<k>.<pass>.fold_pixels, not a crack:
- *    welding moved nothing by more than the gap, under a pixel, so the two
- *    pictures differ only where a seam opens. A wider gap is not welded:
- *    moving a seam's sides by more than a pixel can fold a strip along it.
- *    A pass whose seam gap is exactly 0 (every side at the same vertices:
- *    the textured pass) of a level whose topology is the reference's (Euler
+ *    welded (SC_WELD in the shaders: every corner of a vertex samples the map
+ *    at one uv, its first corner's, and every point on a seam edge at the
+ *    edge's side-0 uvs, blended from the same products on both faces, so no
+ *    seam can open; corner_data). A crack pixel that shows a back face in the
+ *    welded picture too is lod<k>.<pass>.fold_pixels, not a crack: welding
+ *    moved nothing by more than the gap, under a pixel, so the two pictures
+ *    differ only where a seam opens. A wider gap is not welded: moving a
+ *    seam's sides by more than a pixel can fold a strip along it. A pass
+ *    whose seam gap is exactly 0 (every side at the same vertices: the
+ *    textured pass) of a level whose topology is the reference's (Euler
  *    characteristic, components, boundary loops and non-manifold edges over
  *    the faces' vertex indices: lod<k>.same_topology) has no seam open and no
  *    hole the reference lacks, so nothing to see through: its back-face
  *    pixels are fold_pixels too. Decimation keeps topology (its link
- *    conditions), and its coarse levels do fold: BoomBox's 10% level tips a
- *    thin open sheet on the lid over the silhouette, WaterBottle's 1% level
- *    pushes its cap's ring through the body. A split or a hole changes the
- *    topology (test_render: split_mesh_shows_cracks), and those back faces
- *    stay cracks.
+ *    conditions), and its coarse levels do fold: a thin open sheet tipped
+ *    over the silhouette, a ring pushed through the body next to it. A split
+ *    or a hole changes the topology (test_render: split_mesh_shows_cracks),
+ *    and those back faces stay cracks.
  *  - Views: orthographic, all framing one bounding sphere (the box of every
- *    level's and the reference's vertices, each also where the position
- *    modes draw it: the geometry image at its uv, itself plus the
- *    displacement there. Framing by the longest vector anywhere in the
- *    displacement maps, gutter and fill texels included, once made spot's
- *    views ten times too wide: the cow at 25 of 256 pixels, which hid most
- *    of its crack pixels), so a view is the same camera for every LOD,
- *    mode and the reference. 6 axis views (posx ... negz), then the cube's
- *    corners (obl0 ... obl7), then a Fibonacci sphere. Depth clamping keeps
- *    displaced geometry from being cut open by the near or far plane.
+ *    level's and the reference's vertices, each also where the position modes
+ *    draw it: the geometry image at its uv, itself plus the displacement
+ *    there: drawn positions only, not the longest vector anywhere in the
+ *    displacement maps, whose gutter and fill texels would widen the views
+ *    and shrink the asset to a few pixels), so a view is the same camera for
+ *    every LOD, mode and the reference. 6 axis views (posx ... negz), then
+ *    the cube's corners (obl0 ... obl7), then a Fibonacci sphere. Depth
+ *    clamping keeps displaced geometry from being cut open by the near or far
+ *    plane.
  *  - Output: a REPORT with render/lod<k>_<pass>_<view>.png, one contact sheet
  *    render/lod<k>_sheet.png per LOD (rows: passes in order, columns: views),
  *    render/lod<k>_uv.png (the colour texture with the level's uv
@@ -119,6 +116,7 @@
  *  - Mip levels: consecutive entries of `lods` with the same mesh whose
  *    textures halve (the mipmap node's `levels`) are the mip chain of one
  *    LOD; they are named lod<k>.mip<m> in metrics and lod<k>_mip<m> in files.
+ * Measurements and history: docs/notes/render.md.
  */
 #include <math.h>
 #include <pthread.h>
@@ -699,9 +697,8 @@ static void bind_material(const material_gl *mg, GLuint program) {
 
 /* Patches go to the GPU in draws of at most ~16k generated vertices:
  * llvmpipe's tessellation slows down by orders of magnitude once one draw
- * generates more than 64k vertices (blub at level 8 in one draw: 7 s a view;
- * in draws of 237 patches: 0.25 s). The split changes nothing in the
- * picture: every patch is tessellated on its own either way. */
+ * generates more than 64k vertices (docs/notes/render.md). The split changes
+ * nothing in the picture: every patch is tessellated on its own either way. */
 static void draw_patches(int32_t first, int32_t count, int level) {
     int32_t per_patch = (level + 1) * (level + 2) / 2 + 3 * level;
     int32_t chunk = 3 * (16384 / per_patch > 1 ? 16384 / per_patch : 1);
@@ -1232,11 +1229,11 @@ static int seam_gap_tess(renderer *R, const level_gl *L, const pass *ps, gap_res
 
 /* ---------------------------------------------------------------- pictures */
 
-/* PNG encoding (OpenImageIO, ~20-60 ms a picture) runs on worker threads
- * while the GL thread renders the next picture. Jobs are numbered in
- * submission order and their files go into the report in that order, so the
- * output never depends on the number of workers (sc_ctx_threads; with one,
- * encoding happens inline). At most `limit` pictures wait at a time. */
+/* PNG encoding (OpenImageIO) runs on worker threads while the GL thread
+ * renders the next picture. Jobs are numbered in submission order and their
+ * files go into the report in that order, so the output never depends on the
+ * number of workers (sc_ctx_threads; with one, encoding happens inline). At
+ * most `limit` pictures wait at a time. */
 typedef struct png_job {
     char path[96];
     sc_image_data *image;

@@ -6,7 +6,7 @@
  *
  * Topology. The edge table of sc_topology, uvs by index: one half-edge is a
  * surface boundary, two that use different uv indices at an endpoint a seam
- * (design.md), three or more a non-manifold edge; a foldover is an interior
+ * (docs/design.md), three or more a non-manifold edge; a foldover is an interior
  * edge here. Two uv indices with equal coordinates still make a seam, as
  * straightening may move them apart. A uv index used by corners of several
  * surface vertices has no single surface correspondence.
@@ -28,14 +28,10 @@
  * onto the line through its neighbours, would flatten the ear; the two
  * other corners slide along their own chains like any chain vertex (an ear
  * that still flipped would be retried and counted in flipped_triangles like
- * any face). Next to a junction of
- * seams (blub's eyes and fins) every face between two seams is an ear, and
- * protecting its side corners left the first edge of each seam neither
- * straight nor collapsible: 11 of blub's 208 seam edges, which decimate
- * then kept to the coarsest level (version 1 did so). Collapsible seam
- * edges after straightening, version 1 -> 2: spot 239 -> 288 of 288, blub
- * 197 -> 208 of 208, BoomBox 146 -> 162 of 402, Lantern 387 -> 684 of 900,
- * with no flipped triangle on any of them.
+ * any face). Next to a junction of seams every face between two seams is an
+ * ear, and protecting its side corners would leave the first edge of each
+ * seam neither straight nor collapsible, so that decimate keeps it to the
+ * coarsest level (docs/notes/straighten.md).
  *
  * Components. Seam and boundary edges joined at unprotected vertices form
  * chains between protected vertices, or closed loops with none. A seam chain
@@ -77,7 +73,7 @@
  *
  * Signals. Every texture of a material with a moved face is re-rendered on
  * the CPU in f32 (same size, channels, colour space): each face of the
- * material claims the texel centres (design.md: texel (i, j) at
+ * material claims the texel centres (docs/design.md: texel (i, j) at
  * ((i + 1/2)/W, (j + 1/2)/H), row 0 = v = 0) within `padding` texels of its
  * new uv triangle, nearest face first (distance 0 inside; ties to the lower
  * face), so the padding the bilinear stencil reads around charts is filled
@@ -85,8 +81,9 @@
  * triangle (extended beyond it in the padding), maps them to the old uv and
  * samples the old texture there bilinearly with its wrap mode (sc_seam); a
  * texel of an unmoved face or of no face keeps its value. With `erase` (the
- * default) the erase_seams node then runs on the new atlas (sc_exec), as the
- * resampling leaves the two sides of each seam slightly different.
+ * default) the erase kernel (sc_erase, erase_seams's defaults, no
+ * quantisation) then erases the new atlas's textures, as the resampling
+ * leaves the two sides of each seam slightly different.
  *
  * Output. The input's surface mesh, faces, normals and materials unchanged,
  * U moved, FU unchanged. When no uv coordinate moves (nothing to straighten,
@@ -107,10 +104,10 @@
  * warp_steps, textures_rendered; psnr: colour at 15 barycentric points of
  * every face of every re-rendered texture, old texture at old uv against the
  * output texture at new uv, peak 1; seconds (report only).
+ * History and measurements: docs/notes/straighten.md.
  */
 #include <float.h>
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 

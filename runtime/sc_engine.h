@@ -1,8 +1,9 @@
 /* sc_engine.h - cooking a graph: keys, cache lookups, the scheduler, reports.
  *
  * For each node, in dependency order, the engine computes the action key
- * (SHA-256 over: the cooker's format, node type and version, canonical
- * parameters, and the digests of its inputs in port order). A recorded action
+ * (SHA-256 over: the cooker's format, node type and version, the name and
+ * version of every kernel the node reaches, canonical parameters, and the
+ * digests of its inputs in port order). A recorded action
  * whose source files are unchanged is a hit: the node's output digests are
  * known without loading any bytes. A node that must run gets its inputs
  * loaded (from memory, or from the blob store, verified), runs on libuv's

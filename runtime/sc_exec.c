@@ -6,6 +6,13 @@
  * digest of the bytes it actually got, so the cache records exactly what the
  * result depends on). Nothing in it is shared between runs, so nodes can run
  * on several threads at once.
+ *
+ * The context is also where a node's descriptor is held to: a node that asks
+ * for a parameter, input or output its descriptor does not declare (or for a
+ * parameter as another type) gets a neutral answer (NULL, 0 or ""), and its
+ * run fails naming the first such name, whatever run() returned. So the
+ * parameters and ports a node reads are exactly the ones the action key and
+ * `seamcook nodes` know about.
  */
 #include "sc_exec.h"
 

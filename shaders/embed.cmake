@@ -1,9 +1,9 @@
 # shaders/embed.cmake - compiles the .glsl files of shaders/ into the library as C strings,
 # so the binaries never read shader files at run time.
 #
-# In CMakeLists.txt, after add_library(seamcook_core ...):
+# In CMakeLists.txt, after add_library(seamcook_kernels ...):
 #     include(shaders/embed.cmake)
-#     target_sources(seamcook_core PRIVATE ${SC_SHADERS_EMBEDDED})
+#     target_sources(seamcook_kernels PRIVATE ${SC_SHADERS_EMBEDDED})
 # This sets SC_SHADERS_EMBEDDED (${CMAKE_BINARY_DIR}/sc_shaders_embedded.c)
 # and a build rule that regenerates it whenever a .glsl file changes (adding
 # or removing a file re-runs the configure step). The generated file

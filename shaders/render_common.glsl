@@ -7,7 +7,7 @@
 //   2  the base position plus the vector displacement map at uv.
 // Textures are sampled with textureLod(.., 0): bilinear, no mipmaps, the
 // wrap mode of the asset (a sampler object), texel (i, j) centred at
-// ((i + 1/2)/W, (j + 1/2)/H) and row 0 at v = 0: design.md's convention is
+// ((i + 1/2)/W, (j + 1/2)/H) and row 0 at v = 0: docs/design.md's convention is
 // GL's own, so uvs go in untouched.
 #ifndef SC_POS
 #define SC_POS 0

@@ -2,8 +2,8 @@
 // texture (or a light grey) lit by a key light and a little ambient, alpha 1.
 // Back faces: pure red with alpha 1/2 (the crack counter reads alpha, never
 // the colour, so a red texture is never a crack; the background clears to
-// alpha 0; PNGs drop alpha). One RGBA8 target: llvmpipe shades a second,
-// integer attachment at a third more cost.
+// alpha 0; PNGs drop alpha). One RGBA8 target: a second, integer
+// attachment costs llvmpipe noticeably more shading (docs/notes/render.md).
 // Back faces are pushed back by a tiny depth bias so that rounding at a
 // silhouette never lets a back face win over the front face it folds under;
 // a real crack shows surface far behind, which the bias does not hide.

@@ -1,7 +1,7 @@
 /* sc_atlas_ops.h - small operations on atlases that several nodes share.
  *
  *  - sc_atlas_ops_mesh_union: meshes as disjoint copies in one mesh, so that
- *    one erase_seams run sees the seams of all of them at once (one texture
+ *    one erasure (sc_erase) sees the seams of all of them at once (one texture
  *    serving every level of detail); _distinct takes each distinct mesh
  *    value once.
  *  - sc_atlas_ops_erase: erase the seams of a set of images on a mesh with

@@ -1,5 +1,9 @@
-/* sc_erase.c - seam erasure, the kernel of erase_seams, straighten,
- * bake_displacement and mipmap: Liu et al. 2017, §3-4 (see sc_erase.h).
+/* sc_erase.c - seam erasure (Liu et al. 2017, §3-4; the interface is
+ * sc_erase.h): the kernel every node that erases calls. erase_seams wraps it
+ * as a node; straighten erases the textures it warps; bake_displacement and
+ * mipmap erase their maps through sc_atlas_ops_erase. None of them runs
+ * another node: they call sc_erase, and list sc_kernel_erase (directly or
+ * through sc_kernel_atlas_ops), so SC_ERASE_VERSION re-keys them all.
  *
  * Design note.
  *
@@ -27,49 +31,36 @@
  * (zero-area charts) well posed.
  *
  * The seam penalty. Eq. 9 makes M an average over the seams, so its size per
- * texel falls with the total seam length in texels (pizza's 19k seams at
- * 4096^2: ~1e-6), while the grid terms stay ~1 per texel: with the paper's
- * w_seam = 1e10 on M itself the constraint is too soft (measured seam gaps
- * up to 1.8e-3 on the corpus; the issue's bar is 1e-4). So the penalty uses
+ * texel falls with the total seam length in texels, while the grid terms
+ * stay ~1 per texel: with the paper's w_seam = 1e10 on M itself the
+ * constraint is too soft on an atlas of many long seams. So the penalty uses
  * M' = M / mean(diag M over the seam texels): w_seam is the seam stiffness of
  * a texel against the per-texel grid terms, whatever the seam count or
- * texture size; the paper's 1e10 then closes every corpus seam to < 3e-5.
- * A direct solve of the penalised system keeps its accuracy there (Cholesky's
- * backward error, ~1e-16 * 1e10, stays far below the grid stiffness).
+ * texture size. A direct solve of the penalised system keeps its accuracy
+ * there (Cholesky's backward error, ~1e-16 * 1e10, stays far below the grid
+ * stiffness).
  *
  * Solving. Q d = r for the correction d = x - p0, with r = -1/2 grad E(p0)
  * taken term by term (seam differences formed before they are weighted), so
  * a seam-free, constant or otherwise optimal p0 gives d = 0 exactly and
- * untouched texels keep their exact bits. One CHOLMOD factorisation serves
- * every channel of every texture of one material that shares its size and
- * wrap modes; a slot holding an image already erased for this material
- * reuses the result. (An image shared by two materials is erased once per
+ * untouched texels keep their exact bits. One factorisation serves every
+ * channel of every texture of one material that shares its size and wrap
+ * modes; a slot holding an image already erased for this material reuses
+ * the result. (An image shared by two materials is erased once per
  * material.) Right-hand-side columns equal to an earlier one (grey images
  * stored as RGB) are solved once and copied.
  *
- * One factorisation of all of Q (solver cholmod; pizza: 2.07M unknowns,
- * one connected component of the matrix graph apart from 40 tiny ones):
- * CHOLMOD's AMD ordering alone is ~2.5-3 s, the rest of the analysis ~1.4 s
- * (permuted transposes, etree, column counts), the supernodal factorisation
- * ~3.5 s for only 4e10 flops (370k small supernodes, first-touch page
- * faults on a ~600 MB factor). Measured alternatives that lose: METIS
- * (CHOLMOD_METIS: 10x the flops and 4x the analysis time on these thin
- * texel bands glued by seams and by atlas neighbours), AMD on a coarsened
- * graph (2x2 texel blocks or heavy-edge matching: 5-10x the flops),
- * simplicial factorisation (8x slower), larger relaxed supernodes. The
- * factorisation runs on one thread while everything that needs only the
- * seams (the textures' residuals, the rows rounding reads, the
- * nullity) runs beside it; both are independent tasks, so results do
- * not depend on the thread count. The side work uses every thread, which
- * with the factorisation's makes more threads than cores: it runs behind,
- * at a lower priority (sc_run_beside), so the factorisation, the longer
- * path, keeps its core (pizza, 5 alternating pairs: the factor stage
- * 1.65 -> 1.58 s; the same with the chain groups put behind Q's assembly
- * gained nothing, 1.95 -> 1.98 s).
+ * One factorisation of all of Q (solver cholmod): CHOLMOD with the AMD
+ * ordering, supernodal. The factorisation runs on one thread while
+ * everything that needs only the seams (the textures' residuals, the rows
+ * rounding reads, the nullity) runs beside it; both are independent tasks,
+ * so results do not depend on the thread count. The side work uses every
+ * thread, which with the factorisation's makes more threads than cores: it
+ * runs behind, at a lower priority (sc_run_beside), so the factorisation,
+ * the longer path, keeps its core.
  *
- * Building the system (pizza: 16.6M seam triplets, 29.7M entries in Q's
- * full pattern). Q is kept in its full pattern (both triangles) only: the
- * edge-cluster solver reads its rows, its refinement multiplies by it and
+ * Building the system. Q is kept in its full pattern (both triangles) only:
+ * the edge-cluster solver reads its rows, its refinement multiplies by it and
  * the 8-bit rounding reads M = Q / w_pen from its seam rows, so no upper
  * triangle is kept beside it. sc_seam_assemble's chunks keep their
  * triplet lists (sc_triplet_parts: no copy into one list), and
@@ -78,95 +69,68 @@
  * grid_terms then adds every unknown's own terms to its own row (column),
  * so rows are filled on all threads with no two writing one entry. The
  * edge-cluster solver's groups (schur_groups, serial) are found while Q is
- * assembled. Fresh memory is what costs most on the 2-core machine: a
- * first-touch page fault costs ~10 us (0.4 GB/s), and sc_alloc_array maps
- * blocks of 1 MB and more in one call (0.9 GB/s).
+ * assembled. Fresh memory is a large part of the cost, which is why
+ * sc_alloc_array maps large blocks in one call (sc_base.h).
  *
  * The edge-cluster solver (`solver` schur, sc_schur.h; `auto`, the default,
- * takes it from 500k unknowns). Seam edges join end to end into chains where
- * two of them go on in the same two charts (pizza: 19,232 edges in 10,723
- * chains; most of its seam vertices are corners of three or more charts). The
+ * takes it from schur_from unknowns, SC_ERASE_SCHUR_FROM). Seam edges join
+ * end to end into chains where two of them go on in the same two charts (on
+ * real atlases most seam vertices are corners of three or more charts). The
  * texels that only one chain's cells reach form that chain's cluster, ordered
  * along it; texels shared by two chains' cells, or coupled to another chain's
  * texels (or to their own chain's more than SCHUR_KEY_SPAN texels further
- * along it), form the interface. Clusters of single edges made the texels
- * around every seam vertex interface: 278k interface unknowns on pizza,
- * against 158k for chains. Grid couplings between texels of different charts
- * that happen to lie side by side in the atlas would join far-apart parts of
- * the interface: the factored matrix A is Q less those terms, whole (so it
- * stays positive definite; grid_terms lists them while it assembles Q), with
- * each cluster eliminated on its own and the interface factored by CHOLMOD.
- * The texels those terms join are made interface unknowns, so that Q and A
- * differ on the interface alone, and conjugate gradients take the terms back
- * in there (sc_schur_solve_terms: iterations on 158k unknowns, not 2.07M,
- * then one round of refinement on Q's own residual), to a residual of 1e-12
- * of the start in A^-1's norm (auto falls back to one CHOLMOD factorisation
- * should that fail). On pizza they are only 6,678 terms, but kept in A (with
- * single-edge clusters: 274.5k interface texels instead of 270.8k) they make
- * its interface factor 2.8e7 entries and 5.7e10 flops instead of 8.6e6 and
- * 5e8: 3.8 s against the iterations' 0.6 s. Below ~500k unknowns one
- * factorisation is as fast and simpler. On BoomBox the two agree to 3e-7 per
- * texel. Where most texels lie in the cells of two or more chains (a geometry
- * image erased on a mesh and its levels in one uv: pizza's 2.07M unknowns
- * were all interface) there are no clusters, and `auto` factors Q itself.
+ * along it), form the interface. Chains, not single edges, are the clusters:
+ * with single edges the texels around every seam vertex would be interface.
+ * Grid couplings between texels of different charts that happen to lie side
+ * by side in the atlas would join far-apart parts of the interface: the
+ * factored matrix A is Q less those terms, whole (so it stays positive
+ * definite; grid_terms lists them while it assembles Q), with each cluster
+ * eliminated on its own and the interface factored by CHOLMOD. The texels
+ * those terms join are made interface unknowns, so that Q and A differ on
+ * the interface alone, and conjugate gradients take the terms back in there
+ * (sc_schur_solve_terms: iterations on the interface unknowns only, then one
+ * round of refinement on Q's own residual), to a residual of 1e-12 of the
+ * start in A^-1's norm (auto falls back to one CHOLMOD factorisation should
+ * that fail). Those terms are few, but kept in A they would fill the
+ * interface factor many times over; the iterations cost far less. Below
+ * schur_from one factorisation is as fast and simpler. Where most texels
+ * lie in the cells of two or more chains (a geometry image erased on a mesh
+ * and its levels in one uv) there are no clusters, and `auto` factors Q
+ * itself.
  *
- * Where pizza's erase goes now (2-core machine, a medium stretch: 4.9-5.2 s
- * in all, against 5.8-6.2 s for aa66f2c in the same minutes and 9.2-9.5 s in
- * calm ones for 5096414): finding the seams and the energy before 0.11 s; the
- * texel sets 0.19 s and the trace 0.06 s; Q's seam terms 0.7 s (the chain
- * groups found beside them) and its assembly into the full pattern 0.9 s with
- * the grid pattern; the grid terms 0.07 s; the cluster plan and layout
- * 0.47 s, their elimination 0.7 s; the interface's CHOLMOD factorisation
- * 0.45 s on one thread beside the side work (the seam residual, on all
- * threads); the iterations and the refinement 0.48 s (0.35 s since they
- * run on both threads: sc_schur.c); writing 0.2 s; the seam
- * energies beside the optimal rounding 0.45 s. What changed, each measured in
- * alternating runs: Q's full pattern alone, assembled from the chunks' own
- * triplet lists (9.3-11.2 -> 7.5-7.9 s with the BLAS and memory changes
- * below), the interface factored simplicial (7.5 -> 7.1 s), the iterations on
- * the interface (7.0 -> 6.1 s), the side work placed beside the interface
- * factorisation (6.0 -> 5.7 s); then crossings merged instead of sorted and
- * the per-tap helpers inline (7.03 -> 6.53 s in a slow stretch), -O3 (5.81 ->
- * 5.53 s), seam chains as clusters (6.96 -> 6.35 s, slow), grey-as-RGB
- * channels measured once (6.66 -> 6.45 s, slow), the rounding's start on all
- * threads and the float copy on all threads (5.37 -> 5.00 s).
- *
- * Memory (pizza): the resident set grows by 900-1000 MB during the erase,
- * peak 1220-1330 MB (5096414: 1100 MB and 1420-1435 MB); the interface factor
- * is 111 MB (175 MB with single-edge clusters). The preconditioner is made in
- * Q in place (each dropped grid coupling's four entries saved, zeroed, and
- * put back after the factorisation; sc_schur reads exact zeros as no
- * coupling). The seam energies of the float and naively rounded results are
- * measured while the optimal rounding runs.
+ * Memory. The preconditioner is made in Q in place (each dropped grid
+ * coupling's four entries saved, zeroed, and put back after the
+ * factorisation; sc_schur reads exact zeros as no coupling). The seam
+ * energies of the float and naively rounded results are measured while the
+ * optimal rounding runs.
  *
  * Weights. The paper's values are the defaults (w_seam 1e10, w_grad_in =
- * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2). `preset` sets w_change:
- * local 1e4, global 1e2; an explicit w_change >= 0 overrides the preset.
- * E_lerp and E_outside are optional (`lerp`, `outside`): E_outside trusts the
- * original texels along the silhouettes; E_lerp pulls each silhouette edge
- * towards the linear interpolation of per-vertex values, taken as the mean of
- * the texture's samples at all wedges of each vertex.
+ * w_grad_out = 1, w_c1 = w_lerp = w_outside = 1e2); erase_seams's `preset`
+ * sets w_change: local 1e4, global 1e2. E_lerp and E_outside are optional
+ * (o->lerp, o->outside): E_outside trusts the original texels along the
+ * silhouettes; E_lerp pulls each silhouette edge towards the linear
+ * interpolation of per-vertex values, taken as the mean of the texture's
+ * samples at all wedges of each vertex.
  *
  * Passing through. A texture whose material has no seam edge, or whose
- * largest sampled seam gap is within `gap_tolerance` (default 1e-4, the
- * issue's bar) or one step of its 8/16-bit encoding, is passed on as the same
- * value; when nothing changes the input atlas itself is the output. This is
- * what makes a re-run on an erased texture change nothing: the penalty leaves
- * near-null directions of M (relative eigenvalues ~1e-10) partly free, and a
- * forced second solve would keep easing them (measured: a tenth of the first
- * run's change).
+ * largest sampled seam gap is within o->gap_tolerance (default 1e-4) or one
+ * step of its 8/16-bit encoding, is passed on as the same value; when
+ * nothing changes, sc_erase_result_atlas returns the input atlas itself.
+ * This is what makes a re-run on an erased texture change nothing: the
+ * penalty leaves near-null directions of M (relative eigenvalues ~1e-10)
+ * partly free, and a forced second solve would keep easing them.
  *
  * Signals. Solving is in double from the stored values (colour is erased as
  * stored, i.e. in its sRGB encoding, the way a renderer filtering the stored
- * values sees it). Output `atlas` holds f32 images (same channels, colour
- * space and format tag). Output `atlas_native` holds the same textures in the
+ * values sees it). The result holds, per texture, an f32 image (same
+ * channels, colour space and format tag) and the same texture in the
  * input's own pixel type: 8/16-bit inputs are quantised once, with
- * `quantize` = naive (round to nearest) or optimal (8-bit: the rounding
+ * o->quantize naive (round to nearest) or optimal (8-bit: the rounding
  * direction of every seam texel is chosen by coordinate descent on the
  * quantised seam energy q^T M q, each texel staying within one step of its
  * float value; 16-bit inputs round to nearest). Tangent-space normal maps
  * cannot be made seam-free in general (the paper's footnote 3): with
- * `tangent_space_normals` the normal slot is left as it is and the metrics
+ * o->tangent_space_normals the normal slot is left as it is and the metrics
  * say so; without it every normal map is treated as object-space and a
  * `tangent_space_suspect` metric flags maps that look tangent-space.
  *
@@ -182,6 +146,8 @@
  * seam texel, floats and bytes, copies its rounding);
  * the rounding revisits only texels whose gradient changed, which makes the
  * same choices in the same order as full sweeps; CHOLMOD is deterministic.
+ *
+ * Measurements behind these choices: docs/notes/erase_seams.md.
  */
 #include <float.h>
 #include <math.h>
@@ -872,7 +838,7 @@ static int prep_side(prep_job *pj) {
     const int32_t n = w->unk.count;
     /* all threads, even beside the edge-cluster solver's interface
      * factorisation (one thread): with seam chains as its clusters, the
-     * interface is small and this is the longer task (pizza) */
+     * interface is small and this is the longer task on large atlases */
     const int threads = c->o->threads;
     int rc = SC_OK;
     double t0 = sc_now();

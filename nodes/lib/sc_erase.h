@@ -5,8 +5,9 @@
  * One library serves every node that erases: erase_seams itself, straighten
  * (after it warps a texture), bake_displacement (its geometry images and
  * displacement maps) and mipmap (every level of a chain). Each of them lists
- * sc_kernel_erase in its descriptor, so a change of SC_ERASE_VERSION re-keys
- * all of them at once.
+ * sc_kernel_erase in its descriptor (bake_displacement and mipmap through
+ * sc_kernel_atlas_ops, which builds on it), so a change of SC_ERASE_VERSION
+ * re-keys all of them at once.
  *
  *     sc_erase_options o;
  *     sc_erase_defaults(&o);

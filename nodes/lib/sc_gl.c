@@ -17,10 +17,10 @@
  *    initialised once, under a mutex, and never terminated: the driver stays
  *    loaded like any other shared library, and each render still gets a
  *    context of its own, destroyed when it ends. This also saves loading
- *    llvmpipe again on every render (0.05-0.2 s), and keeps the memory Mesa
- *    holds reachable (after eglTerminate, LeakSanitizer reports Mesa's
- *    leftovers from the unloaded driver as leaks). The display handle is the
- *    only shared state; it never reaches any output.
+ *    llvmpipe again on every render (docs/notes/render.md), and keeps the
+ *    memory Mesa holds reachable (after eglTerminate, LeakSanitizer reports
+ *    Mesa's leftovers from the unloaded driver as leaks). The display handle
+ *    is the only shared state; it never reaches any output.
  */
 #include "sc_gl.h"
 

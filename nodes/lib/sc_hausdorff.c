@@ -5,8 +5,8 @@
  * bounds (nth_element-style partition, so building is O(n log n) and the
  * tree is deterministic). The partition moves (centroid, index) records
  * side by side rather than indices into a centroid array, and an inner
- * box is the union of its children's: the same tree, built in ~3 ms for
- * blub's 14k faces instead of ~5 (decimate builds one per run). Leaves
+ * box is the union of its children's, which keeps building cheap (decimate
+ * builds one per run; docs/notes/decimate.md). Leaves
  * hold up to four triangles (two or more, as splits start at five, so
  * nf + 1 nodes suffice). A query walks the tree depth first, nearer child
  * first, and prunes boxes that are farther than the best distance so far.

@@ -1,7 +1,8 @@
 /* sc_imageio_codecs.h - private: the table the image codec module exports.
  *
- * OpenImageIO brings in some 250 shared libraries, and loading them costs
- * every process a third of a second before main() even starts. So the codecs
+ * OpenImageIO brings in hundreds of shared libraries, and loading them
+ * costs every process noticeable time before main() even starts
+ * (docs/notes/imageio.md). So the codecs
  * (sc_imageio.cpp, the only C++ in seamcook) are built as a loadable module,
  * libseamcook_imageio.so, that sc_imageio.c opens the first time an image is
  * decoded or encoded: a run whose nodes are all cached never loads it.

@@ -16,16 +16,11 @@
  *    to the one before (+128, mod 256), then a zlib stream; one that would
  *    not be smaller is stored raw, which readers tell by its size. OpenEXR
  *    3.1's own compressor is zlib's; libdeflate's level 1 writes the same
- *    format. Measured on blub's mip chains (bench_bake, a 2048^2 geometry
- *    image and three displacement maps, 11 levels each): the previous
- *    writer (OpenImageIO, zlib level 1) spent ~3 s of CPU there, this one
- *    ~1 s, the files within a few percent of the same size. A tile's
- *    samples are gathered once (f32 rows read as stored) and written
- *    straight into the even/odd split; a tile stored raw is written again
- *    from them. Deflate is most of what is left: libdeflate level 1 takes
- *    1.37 s of one 2.3 GHz core for those 268 MB (48% after compression);
- *    its levels 2-3 and zlib are slower for the same size, zlib's
- *    Huffman-only and RLE strategies as slow for 73-74%.
+ *    format faster, for files of about the same size. A tile's samples are
+ *    gathered once (f32 rows read as stored) and written straight into the
+ *    even/odd split; a tile stored raw is written again from them. Deflate
+ *    is most of the cost: libdeflate's level 1 is the fastest of the
+ *    deflaters and levels that give that size (docs/notes/imageio.md).
  *  - Work. Tiles are packed and deflated by `threads` workers (sc_parallel
  *    over bands of tile rows, each into its own buffers), then written in
  *    chunk order: the same bytes for any thread count.

@@ -22,45 +22,43 @@
  *    Only L_c is kept: a solve recomputes A_ci products from the couplings.
  *  - Interface. S is assembled from A_ii and every cluster's complement, in
  *    a fixed order, and factored by CHOLMOD (AMD, simplicial L L^T: its
- *    supernodes would be small). It is a small fraction of A (pizza: 158k
- *    of 2.07M unknowns) and carries what makes the whole system hard to
- *    order: where chains meet.
+ *    supernodes would be small). It is a small fraction of A and carries
+ *    what makes the whole system hard to order: where chains meet.
  *  - Layout (the blocks' envelopes, A_pi's couplings, A_ii's triplets) is
  *    made in fixed chunks of positions on all threads: one pass counts,
  *    prefix sums place every chunk, a second pass fills; A_ii's triplets and
  *    then the clusters' complements join one sc_triplet_parts, list by list
  *    in chunk order, freed before CHOLMOD factors S. Exact zeros off the
- *    diagonal (a caller that drops terms in place, as erase_seams'
+ *    diagonal (a caller that drops terms in place, as sc_erase's
  *    preconditioner does) are not couplings anywhere: not in the plan, the
  *    layout or the clusters.
  *  - Solve: y = A_pp^-1 b_p; S x_i = b_i - A_ip y; x_p = y - A_pp^-1 A_pi x_i.
  *  - A + E, for rank-one couplings E between interface unknowns that
- *    would spoil the chain structure (erase_seams: grid couplings between
+ *    would spoil the chain structure (sc_erase: grid couplings between
  *    texels of different charts that happen to lie side by side in the
  *    atlas), is solved the same way with (S + E) x_i = b_i - A_ip y in
  *    place of the interface solve: conjugate gradients on the interface
  *    alone, S kept for its products and its factor the preconditioner, are
  *    conjugate gradients on A + E preconditioned by A restricted to where
- *    A + E and A differ (pizza: 16 iterations on 158k unknowns instead of
- *    on 2.07M, each a product with S (2.9M entries) and an interface solve
- *    instead of one with the whole system and a whole solve). One round of
+ *    A + E and A differ: iterations on the interface unknowns alone, each a
+ *    product with S and an interface solve, not a product with the whole
+ *    system and a whole solve. One round of
  *    refinement on the residual of A + E itself takes back what the
  *    factorisation's rounding loses.
  *  - The iterations on two threads. Each one is an interface solve and a
- *    product with S, both single-threaded before. The solves split S's
- *    elimination tree in two halves (sc_sparse_chol_solve_threads; pizza:
- *    2.8M entries of L in each, 0.25M above them); the products cut S's
- *    columns at half its entries, each half into its own vector, summed
- *    after. The permutations between unknown and position order, and the
- *    private part of b^T A^-1 b, run over fixed chunks of positions on all
- *    threads. Pizza's solve stage (2 threads, calm minutes): 0.47-0.49 s ->
- *    0.34-0.36 s; the results differ from the single-threaded sums' by
- *    rounding (2.0e-6 at most in [0,1] colour, seam energy 3.0868e-14
- *    against 3.0872e-14).
+ *    product with S. The solves split S's elimination tree in two halves
+ *    (sc_sparse_chol_solve_threads); the products cut S's columns at half
+ *    its entries, each half into its own vector, summed after. The
+ *    permutations between unknown and position order, and the private part
+ *    of b^T A^-1 b, run over fixed chunks of positions on all threads. The
+ *    sums are in another order than a single-threaded solve's, so the
+ *    results differ from one by rounding; the split is fixed by the sizes,
+ *    so they do not depend on the thread count.
  *  - Determinism. Work is split into chunks fixed by the sizes alone;
  *    complements join chunk by chunk; dot products are summed per
  *    fixed chunk of rows and then in chunk order. The bits do not depend on
  *    the thread count.
+ * Measurements: docs/notes/erase_seams.md.
  */
 #include "sc_schur.h"
 
@@ -568,9 +566,9 @@ int sc_schur_factor_clusters(const sc_sparse *a, const int32_t *group, const dou
 int sc_schur_factor_interface(sc_schur *f, sc_error *err) {
     if (f->nif == 0 || f->s) return SC_OK;
     double t0 = sc_now();
-    /* simplicial unless S's supernodes are big (CHOLMOD's switch, 40 flops
-     * per entry, takes pizza's 58 supernodal: 1.3 s against simplicial's
-     * 1.0 s, and a slower solve per iteration) */
+    /* simplicial unless S's supernodes are big: past 200 flops per entry,
+     * not CHOLMOD's own switch at 40, which takes interfaces supernodal that
+     * factor and solve faster simplicial (docs/notes/erase_seams.md) */
     sc_sparse_options opt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO, .supernodal_from = 200,
                              .definite = true};
     int rc = sc_sparse_chol_factor(&f->sii, &opt, &f->s, err);

@@ -2,7 +2,7 @@
  * into short chains ("clusters") that meet only through a few shared
  * "interface" unknowns, and conjugate gradients preconditioned by them.
  *
- * erase_seams is the user: the texels of the cells along one seam chain (seam
+ * The erase kernel (sc_erase) is the user: the texels of the cells along one seam chain (seam
  * edges joined end to end; both sides) form a cluster, ordered along it;
  * texels that the cells of two chains share, or that couple to another
  * chain's texels, form the interface. Each cluster is factored on its own (a
@@ -70,7 +70,7 @@ void sc_schur_free(sc_schur *f);
 /* Solve (A + E) X = B, f the factorisation of A and E the sum of the
  * rank-one couplings w (x_r - x_s)^2 listed in terms (row r < column s,
  * weight w > 0) between interface unknowns (group -1 in sc_schur_factor):
- * couplings that would spoil the cluster structure (erase_seams: grid
+ * couplings that would spoil the cluster structure (sc_erase: grid
  * couplings between texels of charts side by side in the atlas). The
  * private unknowns are eliminated exactly, and conjugate gradients run on
  * the interface alone, on S + E with S's factor as the preconditioner
@@ -81,9 +81,8 @@ void sc_schur_free(sc_schur *f);
  * iterations is an error (SC_EINPUT, "did not converge"). With q, A + E
  * itself in its full pattern, the answer is refined once on q's residual:
  * the factorisation holds A only to rounding, which an ill-conditioned A
- * turns into a residual far above tol (erase_seams' pizza: 1.2e-10 of b
- * before, 1.3e-11 after, as conjugate gradients on q preconditioned by A
- * reach). b (n x nrhs, column-major) is overwritten by X. */
+ * turns into a residual far above tol; one refinement brings it down to
+ * what conjugate gradients on q preconditioned by A reach. b (n x nrhs, column-major) is overwritten by X. */
 typedef struct sc_schur_pcg_result {
     int32_t iterations;        /* the most any column took (both rounds) */
     double relative_residual;  /* the largest final residual ratio */

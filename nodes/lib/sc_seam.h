@@ -1,7 +1,7 @@
 /* sc_seam.h - texture seams: finding them, sampling across them, and the
  * exact seam operator of Liu et al. 2017 ("Seamless", §3-4).
  *
- * Texel convention (design.md, shared with the renderer): texel (i, j) has
+ * Texel convention (docs/design.md, shared with the renderer): texel (i, j) has
  * its centre at ((i + 1/2)/W, (j + 1/2)/H) in uv; row j = 0 is v = 0; pixel
  * memory is row-major from that bottom row. We work in *texel space*
  *     x = u W - 1/2,   y = v H - 1/2,
@@ -10,7 +10,7 @@
  * (cx, cy+1), (cx+1, cy+1) taken through the wrap mode (repeat, clamp to
  * edge, mirrored repeat: the GL rules), and s = x - cx, t = y - cy.
  *
- * Vocabulary (design.md, defined once in sc_topology.h):
+ * Vocabulary (docs/design.md, defined once in sc_topology.h):
  *   seam edge            a surface edge whose two half-edges use different uv
  *                        indices. The seams here are those of the edge table
  *                        built with uv_by_coordinates: sides that differ only

@@ -34,7 +34,6 @@
 
 #include <cholmod.h>
 #include <dlfcn.h>
-#include <limits.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -710,26 +709,25 @@ static int cholmod_status_error(const cholmod_common *c, const char *what, sc_er
     }
 }
 
-/* BLAS threads. The nodes keep both cores busy on their own (erase_seams
- * factors on one while the other assembles, or both take chunks of one
- * job), and OpenBLAS's helper threads spin in sched_yield for about 0.1 s
- * after every call they shared: on pizza's erase that spinning took 2.4 s
- * of CPU from the other work (its solve: 2.0 -> 1.5 s on the calling
- * thread alone). So BLAS runs on the calling thread, except in the numeric
- * factorisation of a large factor (BLAS_THREADS_FROM flops), whose big
- * supernodes gain from its threads (pizza's geometry image, 4e10 flops).
- * OpenBLAS's result does not depend on its thread count. Found once; a BLAS
- * without these entry points is left as it is. */
+/* BLAS threads. The nodes keep every core busy on their own (the erase
+ * kernel factors on one thread while the others assemble, or all take
+ * chunks of one job), and OpenBLAS's helper threads spin in sched_yield
+ * after every call they shared, taking CPU from that other work. So BLAS
+ * runs on the calling thread, except in the numeric factorisation of a
+ * large factor (BLAS_THREADS_FROM flops), whose big supernodes gain from its
+ * threads. OpenBLAS's result does not depend on its thread count. Found
+ * once; a BLAS without these entry points is left as it is. Measurements:
+ * docs/notes/sparse.md. */
 #define BLAS_THREADS_FROM 1e10
 /* AMD ordering: where its factorisation would take more flops than this, or
- * does not fit CHOLMOD's 32-bit sizes, METIS is tried as well (pizza's
- * 1024^2 mip level: AMD 2.0e9 entries, too large; METIS 1.24e9, 2.8e13
- * flops. Its 256^2 level: AMD 5.8e12 flops, 184 s; METIS 3.6e12, 61 s) */
+ * does not fit CHOLMOD's 32-bit sizes, METIS is tried as well, and the
+ * cheaper kept: on systems that seams tie together all over, METIS's factor
+ * can be much smaller (docs/notes/sparse.md) */
 #define METIS_FROM_FLOPS 1e12
 /* The most entries a factor may hold: CHOLMOD's supernodal factorisation
- * peaks at ~17 bytes an entry (pizza's 512^2 level, 8.3e8 entries: 14.3 GB,
- * 294 s), and a factor past this would not fit beside the rest on a 24 GB
- * machine; such a system fails as too large instead of running out of memory */
+ * peaks at ~17 bytes an entry, and a factor past this would not fit beside
+ * the rest on a 24 GB machine; such a system fails as too large instead of
+ * running out of memory (docs/notes/sparse.md) */
 #define MAX_FACTOR_ENTRIES 6e8
 
 static void (*blas_set_threads)(int);
@@ -875,10 +873,7 @@ int sc_sparse_chol_solve(sc_sparse_chol *f, int32_t nrhs, double *b, sc_error *e
  * half 0's then half 1's), then the top; the backward solve runs the top,
  * then the halves. The plan depends on L alone, so the bits do not depend on
  * the thread count (they differ from cholmod_solve's, which sums in another
- * order). Pizza's interface (158k columns, 5.9M entries of L): halves of
- * 2.8M entries each, 0.25M in the top (794 columns); its 18 solves took
- * 0.23 s with cholmod_solve on one thread. SPLIT_HALVES is 2: the packing
- * into halves assumes it. */
+ * order). SPLIT_HALVES is 2: the packing into halves assumes it. */
 #define SPLIT_HALVES 2
 #define SPLIT_BALANCE 0.02
 #define SPLIT_TOP_MAX 0.4
@@ -1100,9 +1095,8 @@ void sc_sparse_chol_free(sc_sparse_chol *f) {
     free(f);
 }
 
-/* The inertia count's L D L^T is simplicial (one thread, ~1 Gflop/s): past
- * this it declines (pizza's 256^2 mip level: its 50k seam texels tie the
- * level together, and the count ran for over 20 minutes) */
+/* The inertia count's L D L^T is simplicial (one thread): past this it
+ * declines rather than run for many minutes (docs/notes/sparse.md) */
 #define INERTIA_MAX_FLOPS 2e10
 
 int sc_sparse_count_eigs_below(const sc_sparse *a, double shift, int64_t *count, sc_error *err) {

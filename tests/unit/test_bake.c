@@ -4,7 +4,7 @@
  * inside its faces; each point's uv is located in the level by brute force
  * (every face of the level, barycentric in double), the level's surface
  * there plus a bilinear sample of the displacement (written out here, from
- * design.md's texel convention) must land on the input point within a
+ * docs/design.md's texel convention) must land on the input point within a
  * fraction of the bounding-box diagonal. As surfaces: the level is
  * tessellated here at one texel, displaced the same way, and its symmetric
  * sampled Hausdorff distance to the input (sc_hausdorff) must be within a

@@ -452,7 +452,7 @@ static void check_level(const sc_mesh *in, const sc_mesh *lvl, int kept, const c
 
 /* ---------------------------------------------------------------- seam energy sampler */
 
-/* Bilinear sample of channel c at uv with the design.md convention (texel
+/* Bilinear sample of channel c at uv with the docs/design.md convention (texel
  * (i, j) centred at ((i + 1/2)/W, (j + 1/2)/H), row 0 at v = 0) and repeat
  * wrapping. Written here, apart from sc_seam. */
 static double texel(const sc_image_data *im, long i, long j, int c) {

@@ -4,7 +4,7 @@
  * node's own bookkeeping: seams are found again from FV/FU, length ratios of
  * both sides of every straightened seam are compared from the output uv,
  * flips from signed uv areas, and appearance with a bilinear sampler written
- * here from design.md's convention (texel (i, j) centre at ((i + 1/2)/W,
+ * here from docs/design.md's convention (texel (i, j) centre at ((i + 1/2)/W,
  * (j + 1/2)/H), row 0 = v = 0, GL wrap modes).
  *
  * Corpus assets come from SC_CORPUS (default ../shared/corpus) and are
