@@ -14,7 +14,7 @@
  *   boundary      one half-edge.
  *   non-manifold  three or more half-edges.
  *   seam          two half-edges that use different uv indices (FU) at
- *                 either end (design.md: "a surface edge whose two
+ *                 either end (docs/design.md: "a surface edge whose two
  *                 half-edges use different U indices").
  *   foldover      two half-edges using the same uv at both ends, whose faces'
  *                 third corners lie strictly on the same side of that uv

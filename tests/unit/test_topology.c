@@ -201,7 +201,7 @@ SC_TEST(equal_uv_coordinates_are_one_uv_by_option) {
     sc_mesh *m = quad(false, true);
     sc_topology t;
     SC_CHECK(sc_topology_build(m, NULL, &t, NULL) == SC_OK);
-    SC_CHECK(t.nseams == 1);   /* by index (design.md): the diagonal's sides use 0, 2 and 4, 5 */
+    SC_CHECK(t.nseams == 1);   /* by index (docs/design.md): the diagonal's sides use 0, 2 and 4, 5 */
     sc_topology_free(&t);
     sc_topology_options opt = {.material = -1, .uv_by_coordinates = true};
     SC_CHECK(sc_topology_build(m, &opt, &t, NULL) == SC_OK);
