@@ -954,232 +954,343 @@ static int cmp_size(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
+/* What fit_map's steps share: its inputs, then what each step makes. */
+typedef struct fit_work {
+    const sc_mesh *in;
+    int32_t material;
+    const sc_seam_grid *g;
+    const raster *rin, *rlev;
+    const locator *lev;
+    float *x;                  /* the map: x0 in, the fit out */
+    double tol;
+    int threads;
+    fit_scratch *ws;
+    fit_stats *st;
+    cellgrid cg;
+    size_t ncell;
+    int32_t *slot;             /* per cell: its index among the inexact cells, or -1 */
+    int64_t nbad;              /* inexact cells */
+    double *worst;             /* per inexact cell: the largest miss of x0 at its samples */
+    int32_t band, nchunks;     /* the sampling chunks: `band` key rows each */
+    int64_t *counts;           /* per chunk: samples taken */
+    int32_t *list_start, *list;   /* per chunk: the faces that may sample its rows (sample_lists) */
+    double t0;                 /* when the solve's clock started (the second sampling pass aside) */
+    int32_t *var;              /* per texel: its index among the free texels, or -1 */
+    int64_t nvar;
+    int32_t *free_texel;       /* the free texels, in the order of their index in var */
+    size_t *touched;           /* the cells with a free corner, ascending */
+    int64_t ntouched;
+    int32_t *slot2;            /* inexact cells with a free corner: index in `cells` */
+    fit_cell *cells;
+    active *act;               /* the cells that enter the fit */
+    int64_t nact;
+    int64_t *inc_start, *inc;  /* each unknown's (cell, corner) entries: [inc_start[v], inc_start[v + 1]) */
+    int64_t *row;              /* each unknown's terms (apply_job) */
+    double *coef;
+    int32_t *col;
+    double *vec;               /* the solve's vectors: d, r, z, p, Ap and the diagonal, 3 nvar each */
+} fit_work;
+
+/* Frees fit_map's own arrays (the scratch arrays stay in ws for the next map). */
+static void fit_work_free(fit_work *f) {
+    free(f->inc_start), free(f->inc), free(f->row), free(f->coef), free(f->col), free(f->touched), free(f->free_texel);
+    free(f->counts), free(f->list_start), free(f->list);
+    free(f->act), free(f->vec);
+}
+
+/* 1. The cells where x0 may be inexact, numbered in slot (-1: exact). */
+static int mark_inexact_cells(fit_work *f, sc_error *err) {
+    int32_t *slot = f->slot = scratch(&f->ws->slot, &f->ws->n_slot, f->ncell, sizeof(int32_t));
+    if (!slot) return sc_fail(err, SC_ENOMEM, "out of memory");
+    cell_job cj = {&f->cg, f->rin, f->rlev, slot, f->ncell};
+    if (sc_seam_parallel(f->threads, (int32_t)((f->ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &cj) != SC_OK)
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    int64_t nbad = 0;
+    for (size_t k = 0; k < f->ncell; k++)
+        if (slot[k] >= 0) slot[k] = nbad < INT32_MAX - 1 ? (int32_t)nbad++ : -1;
+    f->nbad = nbad;
+    return SC_OK;
+}
+
+/* The sampling passes' chunks: the misses per inexact cell, the samples per
+ * chunk and the faces of each chunk (sample_lists). */
+static int prepare_sampling(fit_work *f, sc_error *err) {
+    f->worst = scratch(&f->ws->worst, &f->ws->n_worst, (size_t)f->nbad + 1, sizeof *f->worst);
+    if (f->worst) memset(f->worst, 0, ((size_t)f->nbad + 1) * sizeof *f->worst);
+    f->band = 16, f->nchunks = (f->cg.CH + f->band - 1) / f->band;
+    f->counts = sc_calloc_array((size_t)f->nchunks, sizeof(int64_t));
+    if (!f->worst || !f->counts ||
+        sample_lists(f->in, f->material, &f->cg, f->band, f->nchunks, &f->list_start, &f->list) != SC_OK)
+        return sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)f->nbad);
+    return SC_OK;
+}
+
+/* A pass of sample_band over every chunk: into `cells` (the Gram matrices
+ * and residuals) when given, else the misses into `worst`. */
+static int sample_pass(const fit_work *f, const int32_t *slot, fit_cell *cells, double *worst) {
+    sample_job job = {.in = f->in, .material = f->material, .g = f->g, .cg = f->cg, .slot = slot, .cells = cells,
+                      .worst = worst, .rlev = f->rlev, .lev = f->lev, .x = f->x, .band = f->band, .tol = f->tol,
+                      .list_start = f->list_start, .list = f->list, .samples = f->counts};
+    return sc_seam_parallel(f->threads, f->nchunks, sample_band, &job);
+}
+
+/* 2. Dense samples of f in the inexact cells (4 x 4 per cell inside a face,
+ * a barycentric grid on faces under two texels across), a first pass: only
+ * how far x0 misses them. The Gram matrices and residuals (step 4) are
+ * summed in a second pass over the same samples (sum_cell_samples), in the
+ * cells next to free texels only. */
+static int measure_misses(fit_work *f, sc_error *err) {
+    double t0 = sc_now();
+    int rc = sample_pass(f, f->slot, NULL, f->worst);
+    for (int32_t c = 0; c < f->nchunks; c++) f->st->samples += f->counts[c];
+    if (rc != SC_OK) rc = sc_fail(err, rc, "sampling the surface failed");
+    f->st->seconds_sample += sc_now() - t0;
+    return rc;
+}
+
+/* 3. The free texels: corners of the cells x0 misses by more than tol. */
+static int find_free_texels(fit_work *f, sc_error *err) {
+    const size_t texels = (size_t)f->g->width * f->g->height;
+    fit_stats *st = f->st;
+    int32_t *var = f->var = scratch(&f->ws->var, &f->ws->n_var, texels, sizeof(int32_t));
+    if (!var) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (size_t t = 0; t < texels; t++) var[t] = -1;
+    for (size_t k = 0; k < f->ncell; k++) {
+        if (f->slot[k] < 0) continue;
+        st->cells_inexact++;
+        if (!(f->worst[f->slot[k]] > f->tol)) continue;
+        st->cells_solved++;
+    }
+    f->free_texel = sc_alloc_array((size_t)st->cells_solved * 4 + 1, sizeof(int32_t));
+    if (!f->free_texel) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (size_t k = 0; k < f->ncell; k++) {
+        if (f->slot[k] < 0 || !(f->worst[f->slot[k]] > f->tol)) continue;
+        int32_t id[4];
+        cell_corners(&f->cg, k, id);
+        for (int q = 0; q < 4; q++)
+            if (var[id[q]] < 0) f->free_texel[f->nvar] = id[q], var[id[q]] = (int32_t)f->nvar++;
+    }
+    return SC_OK;
+}
+
+/* Room for the active cells and the solve's vectors. */
+static int alloc_solve(fit_work *f, sc_error *err) {
+    f->act = sc_alloc_array((size_t)f->nvar * 4 + 1, sizeof *f->act);
+    f->vec = sc_calloc_array((size_t)f->nvar * 3 * 6, sizeof(double));
+    if (!f->act || !f->vec) return sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)f->nvar);
+    return SC_OK;
+}
+
+/* The cells with a free corner, ascending: those having a free texel
+ * (i, j) as a corner are cells (i - 1 .. i, j - 1 .. j), through the wrap
+ * modes (cell_corners' inverse). The inexact ones are numbered in slot2,
+ * with zeroed sums in `cells`. */
+static int cells_with_free_corner(fit_work *f, sc_error *err) {
+    const int32_t W = f->g->width;
+    size_t *touched = f->touched = sc_alloc_array((size_t)f->nvar * 4 + 1, sizeof(size_t));
+    int32_t *slot2 = f->slot2 = scratch(&f->ws->slot2, &f->ws->n_slot2, f->ncell + 1, sizeof(int32_t));
+    if (!touched || !slot2) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int64_t ntouched = 0;
+    for (int64_t v = 0; v < f->nvar; v++) {
+        const int64_t i = f->free_texel[v] % W, j = f->free_texel[v] / W;
+        for (int q = 0; q < 4; q++) {
+            size_t key;
+            if (cell_key(&f->cg, i - 1 + (q & 1), j - 1 + (q >> 1), &key)) touched[ntouched++] = key;
+        }
+    }
+    qsort(touched, (size_t)ntouched, sizeof *touched, cmp_size);
+    int64_t u = 0;
+    for (int64_t a = 0; a < ntouched; a++)
+        if (u == 0 || touched[a] != touched[u - 1]) touched[u++] = touched[a];
+    f->ntouched = u;
+    for (size_t k = 0; k < f->ncell; k++) slot2[k] = -1;
+    int64_t nsampled = 0;
+    for (int64_t a = 0; a < f->ntouched; a++)
+        if (f->slot[touched[a]] >= 0) slot2[touched[a]] = (int32_t)nsampled++;
+    f->cells = scratch(&f->ws->cells, &f->ws->n_cells, (size_t)nsampled + 1, sizeof *f->cells);
+    if (f->cells) memset(f->cells, 0, ((size_t)nsampled + 1) * sizeof *f->cells);
+    if (!f->cells) return sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)nsampled);
+    return SC_OK;
+}
+
+/* The second sampling pass: each cell next to a free texel sums its
+ * samples' Gram matrix and residual in the first pass's order. */
+static int sum_cell_samples(fit_work *f, sc_error *err) {
+    double t1 = sc_now();
+    int rc = SC_OK;
+    int prc = sample_pass(f, f->slot2, f->cells, NULL);
+    if (prc != SC_OK) rc = sc_fail(err, prc, "sampling the surface failed");
+    f->st->seconds_sample += sc_now() - t1;
+    f->t0 += sc_now() - t1;
+    return rc;
+}
+
+/* The active cells: each touched cell's free corners, with its Gram matrix
+ * and residual over its samples (an exact cell: the bilinear mass matrix);
+ * an inexact cell without samples stays out. */
+static void active_cells(fit_work *f) {
+    for (int64_t a = 0; a < f->ntouched; a++) {
+        const size_t k = f->touched[a];
+        int32_t id[4];
+        cell_corners(&f->cg, k, id);
+        active *A = &f->act[f->nact];
+        if (f->slot[k] >= 0) {
+            fit_cell *C = &f->cells[f->slot2[k]];
+            if (!(C->n > 0)) continue;
+            for (int i = 0; i < 10; i++) C->G[i] /= C->n;
+            for (int i = 0; i < 4; i++)
+                for (int c = 0; c < 3; c++) C->b[i][c] /= C->n;
+            A->G = C->G, A->b = (const double(*)[3])C->b;
+        } else {
+            A->G = mass, A->b = NULL;
+        }
+        for (int q = 0; q < 4; q++) A->var[q] = f->var[id[q]];
+        f->nact++;
+    }
+}
+
+/* Each unknown's (cell, corner) entries, cells in ascending order. */
+static int unknown_entries(fit_work *f, sc_error *err) {
+    const int64_t nvar = f->nvar, nact = f->nact;
+    const active *act = f->act;
+    int64_t *inc_start = f->inc_start = sc_calloc_array((size_t)nvar + 1, sizeof(int64_t));
+    int64_t *inc = f->inc = sc_alloc_array((size_t)nact * 4 + 1, sizeof(int64_t));
+    if (!inc_start || !inc) return sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
+    for (int64_t a = 0; a < nact; a++)
+        for (int q = 0; q < 4; q++)
+            if (act[a].var[q] >= 0) inc_start[act[a].var[q] + 1]++;
+    for (int64_t v = 0; v < nvar; v++) inc_start[v + 1] += inc_start[v];
+    for (int64_t a = 0; a < nact; a++)
+        for (int q = 0; q < 4; q++)
+            if (act[a].var[q] >= 0) inc[inc_start[act[a].var[q]]++] = 4 * a + q;
+    for (int64_t v = nvar; v > 0; v--) inc_start[v] = inc_start[v - 1];
+    inc_start[0] = 0;
+    return SC_OK;
+}
+
+/* Each unknown's terms, in the order of its entries and their corners. */
+static int unknown_terms(fit_work *f, sc_error *err) {
+    const int64_t nvar = f->nvar;
+    int64_t *row = f->row = sc_alloc_array((size_t)nvar + 1, sizeof *f->row);
+    double *coef = f->coef = sc_alloc_array((size_t)f->nact * 16 + 1, sizeof *f->coef);
+    int32_t *col = f->col = sc_alloc_array((size_t)f->nact * 16 + 1, sizeof *f->col);
+    if (!row || !coef || !col) return sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
+    int64_t nterm = 0;
+    for (int64_t v = 0; v < nvar; v++) {
+        row[v] = nterm;
+        for (int64_t e = f->inc_start[v]; e < f->inc_start[v + 1]; e++) {
+            const active *A = &f->act[f->inc[e] >> 2];
+            const int q = (int)(f->inc[e] & 3);
+            for (int s = 0; s < 4; s++)
+                if (A->var[s] >= 0) coef[nterm] = A->G[gram_index[q][s]], col[nterm++] = A->var[s];
+        }
+    }
+    row[nvar] = nterm;
+    return SC_OK;
+}
+
+/* CG on (sum P^T G P + eps I) d = sum P^T b, three channels at once, with
+ * the Jacobi preconditioner: d into the first 3 nvar of vec. */
+static int conjugate_gradients(fit_work *f, sc_error *err) {
+    const int64_t nvar = f->nvar;
+    const double eps = 1e-4;
+    double *vec = f->vec;
+    double *d = vec, *r = vec + 3 * nvar, *z = vec + 6 * nvar, *pp = vec + 9 * nvar, *Ap = vec + 12 * nvar,
+           *diag = vec + 15 * nvar;
+    for (int64_t i = 0; i < nvar; i++) diag[3 * i] = eps;
+    for (int64_t a = 0; a < f->nact; a++) {
+        const active *A = &f->act[a];
+        for (int q = 0; q < 4; q++) {
+            int32_t vq = A->var[q];
+            if (vq < 0) continue;
+            diag[3 * vq] += A->G[gram_index[q][q]];
+            if (A->b)
+                for (int c = 0; c < 3; c++) r[3 * vq + c] += A->b[q][c];
+        }
+    }
+    double rz[3] = {0, 0, 0}, r0[3] = {0, 0, 0};
+    for (int64_t i = 0; i < nvar; i++)
+        for (int c = 0; c < 3; c++) {
+            z[3 * i + c] = r[3 * i + c] / diag[3 * i];
+            pp[3 * i + c] = z[3 * i + c];
+            rz[c] += r[3 * i + c] * z[3 * i + c];
+            r0[c] += r[3 * i + c] * r[3 * i + c];
+        }
+    for (int it = 0; it < 60; it++) {
+        double rr = 0, rr0 = r0[0] + r0[1] + r0[2];
+        apply_job aj = {f->row, f->coef, f->col, pp, Ap, nvar, 4096};
+        int arc = sc_seam_parallel(f->threads, (int32_t)((nvar + aj.chunk - 1) / aj.chunk), apply_band, &aj);
+        if (arc != SC_OK) return sc_fail(err, arc, "the conjugate gradients failed");
+        double pAp[3] = {0, 0, 0};
+        for (int64_t i = 0; i < nvar; i++)
+            for (int c = 0; c < 3; c++) {
+                Ap[3 * i + c] += eps * pp[3 * i + c];
+                pAp[c] += pp[3 * i + c] * Ap[3 * i + c];
+            }
+        double alpha[3], rz2[3] = {0, 0, 0};
+        for (int c = 0; c < 3; c++) alpha[c] = pAp[c] > 0 ? rz[c] / pAp[c] : 0;
+        for (int64_t i = 0; i < nvar; i++)
+            for (int c = 0; c < 3; c++) {
+                d[3 * i + c] += alpha[c] * pp[3 * i + c];
+                r[3 * i + c] -= alpha[c] * Ap[3 * i + c];
+                rr += r[3 * i + c] * r[3 * i + c];
+                z[3 * i + c] = r[3 * i + c] / diag[3 * i];
+                rz2[c] += r[3 * i + c] * z[3 * i + c];
+            }
+        f->st->iterations++;
+        if (!(rr > 1e-12 * rr0)) break;
+        for (int c = 0; c < 3; c++) {
+            double beta = rz[c] > 0 ? rz2[c] / rz[c] : 0;
+            rz[c] = rz2[c];
+            for (int64_t i = 0; i < nvar; i++) pp[3 * i + c] = z[3 * i + c] + beta * pp[3 * i + c];
+        }
+    }
+    return SC_OK;
+}
+
+/* 5. The free texels' least-squares values: each unknown's terms, d by
+ * conjugate gradients, then x += d. */
+static int solve_free_texels(fit_work *f, sc_error *err) {
+    int rc = unknown_terms(f, err);
+    if (rc == SC_OK) rc = conjugate_gradients(f, err);
+    const double *d = f->vec;
+    for (size_t t = 0; t < (size_t)f->g->width * f->g->height && rc == SC_OK; t++)
+        if (f->var[t] >= 0)
+            for (int c = 0; c < 3; c++) f->x[3 * t + c] = (float)(f->x[3 * t + c] + d[3 * (size_t)f->var[t] + c]);
+    f->st->texels_solved += f->nvar;
+    return rc;
+}
+
+/* Refine the map x (x0 in) where it is not exact: the texels of the cells
+ * whose samples of f it misses by more than tol, solved in least squares. */
 static int fit_map(const sc_mesh *in, int32_t material, const sc_seam_grid *g, const raster *rin,
                    const raster *rlev, const locator *lev, float *x, double tol, int threads, fit_scratch *ws,
                    fit_stats *st, sc_error *err) {
     const int32_t W = g->width, H = g->height;
-    cellgrid cg = {W, H, W + (g->wrap_u == SC_WRAP_REPEAT ? 0 : 1), H + (g->wrap_v == SC_WRAP_REPEAT ? 0 : 1),
-                   g->wrap_u, g->wrap_v};
-    const size_t ncell = (size_t)cg.CW * cg.CH;
-    int32_t *slot = scratch(&ws->slot, &ws->n_slot, ncell, sizeof(int32_t));
-    if (!slot) return sc_fail(err, SC_ENOMEM, "out of memory");
-    /* 1. the cells where x0 may be inexact */
-    int64_t nbad = 0;
-    cell_job cj = {&cg, rin, rlev, slot, ncell};
-    if (sc_seam_parallel(threads, (int32_t)((ncell + CELL_CHUNK - 1) / CELL_CHUNK), cell_band, &cj) != SC_OK)
-        return sc_fail(err, SC_ENOMEM, "out of memory");
-    for (size_t k = 0; k < ncell; k++)
-        if (slot[k] >= 0) slot[k] = nbad < INT32_MAX - 1 ? (int32_t)nbad++ : -1;
-    double *worst = scratch(&ws->worst, &ws->n_worst, (size_t)nbad + 1, sizeof *worst);
-    if (worst) memset(worst, 0, ((size_t)nbad + 1) * sizeof *worst);
-    const int32_t band = 16, nchunks = (cg.CH + band - 1) / band;
-    int64_t *counts = sc_calloc_array((size_t)nchunks, sizeof(int64_t));
-    int32_t *list_start = NULL, *list = NULL;
-    if (!worst || !counts || sample_lists(in, material, &cg, band, nchunks, &list_start, &list) != SC_OK) {
-        free(counts), free(list_start), free(list);
-        return sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)nbad);
+    fit_work f = {.in = in, .material = material, .g = g, .rin = rin, .rlev = rlev, .lev = lev, .x = x, .tol = tol,
+                  .threads = threads, .ws = ws, .st = st};
+    f.cg = (cellgrid){W, H, W + (g->wrap_u == SC_WRAP_REPEAT ? 0 : 1), H + (g->wrap_v == SC_WRAP_REPEAT ? 0 : 1),
+                      g->wrap_u, g->wrap_v};
+    f.ncell = (size_t)f.cg.CW * f.cg.CH;
+    int rc = mark_inexact_cells(&f, err);
+    if (rc == SC_OK) rc = prepare_sampling(&f, err);
+    if (rc != SC_OK) {
+        fit_work_free(&f);
+        return rc;
     }
-    double t0 = sc_now();
-    /* 2. dense samples of f in those cells (4 x 4 per cell inside a face, a
-     * barycentric grid on faces under two texels across): first only how far
-     * x0 misses them; the Gram matrices and residuals (step 4) are summed in
-     * a second pass over the same samples, in the cells next to free texels
-     * only */
-    sample_job job = {in, material, g, cg, slot, NULL, worst, rlev, lev, x, band, tol, list_start, list, counts};
-    int rc = sc_seam_parallel(threads, nchunks, sample_band, &job);
-    for (int32_t c = 0; c < nchunks; c++) st->samples += counts[c];
-    if (rc != SC_OK) rc = sc_fail(err, rc, "sampling the surface failed");
-    st->seconds_sample += sc_now() - t0;
-    t0 = sc_now();
-    /* 3. the free texels: corners of the cells x0 misses by more than tol */
-    int32_t *var = rc == SC_OK ? scratch(&ws->var, &ws->n_var, (size_t)W * H, sizeof(int32_t)) : NULL;
-    if (rc == SC_OK && !var) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    int64_t nvar = 0;
-    int32_t *free_texel = NULL;   /* the free texels, in the order of their index in var */
-    if (rc == SC_OK) {
-        for (size_t t = 0; t < (size_t)W * H; t++) var[t] = -1;
-        for (size_t k = 0; k < ncell; k++) {
-            if (slot[k] < 0) continue;
-            st->cells_inexact++;
-            if (!(worst[slot[k]] > tol)) continue;
-            st->cells_solved++;
-        }
-        free_texel = sc_alloc_array((size_t)st->cells_solved * 4 + 1, sizeof(int32_t));
-        if (!free_texel) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        for (size_t k = 0; k < ncell && rc == SC_OK; k++) {
-            if (slot[k] < 0 || !(worst[slot[k]] > tol)) continue;
-            int32_t id[4];
-            cell_corners(&cg, k, id);
-            for (int q = 0; q < 4; q++)
-                if (var[id[q]] < 0) free_texel[nvar] = id[q], var[id[q]] = (int32_t)nvar++;
-        }
+    rc = measure_misses(&f, err);
+    f.t0 = sc_now();
+    if (rc == SC_OK) rc = find_free_texels(&f, err);
+    if (rc == SC_OK && f.nvar > 0) {   /* 4. the cells the free texels sit in: their Gram and residual */
+        rc = alloc_solve(&f, err);
+        if (rc == SC_OK) rc = cells_with_free_corner(&f, err);
+        if (rc == SC_OK) rc = sum_cell_samples(&f, err);
+        if (rc == SC_OK) active_cells(&f);
+        if (rc == SC_OK) rc = unknown_entries(&f, err);
+        if (rc == SC_OK) rc = solve_free_texels(&f, err);
     }
-    /* 4. the cells the free texels sit in: their Gram and residual */
-    active *act = NULL;
-    int64_t *inc_start = NULL, *inc = NULL, *row = NULL;
-    double *coef = NULL;
-    int32_t *col = NULL;
-    int64_t nact = 0;
-    double *vec = NULL;
-    if (rc == SC_OK && nvar > 0) {
-        act = sc_alloc_array((size_t)nvar * 4 + 1, sizeof *act);
-        vec = sc_calloc_array((size_t)nvar * 3 * 6, sizeof(double));
-        if (!act || !vec) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
-    }
-    /* the cells with a free corner, ascending: those having a free texel
-     * (i, j) as a corner are cells (i - 1 .. i, j - 1 .. j), through the wrap
-     * modes (cell_corners' inverse) */
-    size_t *touched = NULL;
-    int64_t ntouched = 0;
-    int32_t *slot2 = NULL;   /* inexact cells with a free corner: index in `cells` */
-    fit_cell *cells = NULL;
-    if (rc == SC_OK && nvar > 0) {
-        touched = sc_alloc_array((size_t)nvar * 4 + 1, sizeof(size_t));
-        slot2 = scratch(&ws->slot2, &ws->n_slot2, ncell + 1, sizeof(int32_t));
-        if (!touched || !slot2) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    if (rc == SC_OK && nvar > 0) {
-        for (int64_t v = 0; v < nvar; v++) {
-            const int64_t i = free_texel[v] % W, j = free_texel[v] / W;
-            for (int q = 0; q < 4; q++) {
-                size_t key;
-                if (cell_key(&cg, i - 1 + (q & 1), j - 1 + (q >> 1), &key)) touched[ntouched++] = key;
-            }
-        }
-        qsort(touched, (size_t)ntouched, sizeof *touched, cmp_size);
-        int64_t u = 0;
-        for (int64_t a = 0; a < ntouched; a++)
-            if (u == 0 || touched[a] != touched[u - 1]) touched[u++] = touched[a];
-        ntouched = u;
-        for (size_t k = 0; k < ncell; k++) slot2[k] = -1;
-        int64_t nsampled = 0;
-        for (int64_t a = 0; a < ntouched; a++)
-            if (slot[touched[a]] >= 0) slot2[touched[a]] = (int32_t)nsampled++;
-        cells = scratch(&ws->cells, &ws->n_cells, (size_t)nsampled + 1, sizeof *cells);
-        if (cells) memset(cells, 0, ((size_t)nsampled + 1) * sizeof *cells);
-        if (!cells) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld cells", (long long)nsampled);
-    }
-    if (rc == SC_OK && nvar > 0) {   /* the second pass: each cell sums its samples in the first pass's order */
-        double t1 = sc_now();
-        job.slot = slot2, job.cells = cells, job.worst = NULL;
-        int prc = sc_seam_parallel(threads, nchunks, sample_band, &job);
-        if (prc != SC_OK) rc = sc_fail(err, prc, "sampling the surface failed");
-        st->seconds_sample += sc_now() - t1;
-        t0 += sc_now() - t1;
-    }
-    if (rc == SC_OK && nvar > 0) {
-        for (int64_t a = 0; a < ntouched; a++) {
-            const size_t k = touched[a];
-            int32_t id[4];
-            cell_corners(&cg, k, id);
-            active *A = &act[nact];
-            if (slot[k] >= 0) {
-                fit_cell *C = &cells[slot2[k]];
-                if (!(C->n > 0)) continue;
-                for (int i = 0; i < 10; i++) C->G[i] /= C->n;
-                for (int i = 0; i < 4; i++)
-                    for (int c = 0; c < 3; c++) C->b[i][c] /= C->n;
-                A->G = C->G, A->b = (const double(*)[3])C->b;
-            } else {
-                A->G = mass, A->b = NULL;
-            }
-            for (int q = 0; q < 4; q++) A->var[q] = var[id[q]];
-            nact++;
-        }
-        /* each unknown's (cell, corner) entries, cells in ascending order */
-        inc_start = sc_calloc_array((size_t)nvar + 1, sizeof(int64_t));
-        inc = sc_alloc_array((size_t)nact * 4 + 1, sizeof(int64_t));
-        if (!inc_start || !inc) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
-    }
-    if (rc == SC_OK && nvar > 0) {
-        for (int64_t a = 0; a < nact; a++)
-            for (int q = 0; q < 4; q++)
-                if (act[a].var[q] >= 0) inc_start[act[a].var[q] + 1]++;
-        for (int64_t v = 0; v < nvar; v++) inc_start[v + 1] += inc_start[v];
-        for (int64_t a = 0; a < nact; a++)
-            for (int q = 0; q < 4; q++)
-                if (act[a].var[q] >= 0) inc[inc_start[act[a].var[q]]++] = 4 * a + q;
-        for (int64_t v = nvar; v > 0; v--) inc_start[v] = inc_start[v - 1];
-        inc_start[0] = 0;
-        /* each unknown's terms, in the order of its entries and their corners */
-        row = sc_alloc_array((size_t)nvar + 1, sizeof *row);
-        coef = sc_alloc_array((size_t)nact * 16 + 1, sizeof *coef);
-        col = sc_alloc_array((size_t)nact * 16 + 1, sizeof *col);
-        if (!row || !coef || !col) rc = sc_fail(err, SC_ENOMEM, "out of memory for %lld unknowns", (long long)nvar);
-        int64_t nterm = 0;
-        for (int64_t v = 0; v < nvar && rc == SC_OK; v++) {
-            row[v] = nterm;
-            for (int64_t e = inc_start[v]; e < inc_start[v + 1]; e++) {
-                const active *A = &act[inc[e] >> 2];
-                const int q = (int)(inc[e] & 3);
-                for (int s = 0; s < 4; s++)
-                    if (A->var[s] >= 0) coef[nterm] = A->G[gram_index[q][s]], col[nterm++] = A->var[s];
-            }
-        }
-        if (rc == SC_OK) row[nvar] = nterm;
-        /* CG on (sum P^T G P + eps I) d = sum P^T b, three channels at once */
-        const double eps = 1e-4;
-        double *d = vec, *r = vec + 3 * nvar, *z = vec + 6 * nvar, *pp = vec + 9 * nvar, *Ap = vec + 12 * nvar,
-               *diag = vec + 15 * nvar;
-        for (int64_t i = 0; i < nvar; i++) diag[3 * i] = eps;
-        for (int64_t a = 0; a < nact; a++) {
-            const active *A = &act[a];
-            for (int q = 0; q < 4; q++) {
-                int32_t vq = A->var[q];
-                if (vq < 0) continue;
-                diag[3 * vq] += A->G[gram_index[q][q]];
-                if (A->b)
-                    for (int c = 0; c < 3; c++) r[3 * vq + c] += A->b[q][c];
-            }
-        }
-        double rz[3] = {0, 0, 0}, r0[3] = {0, 0, 0};
-        for (int64_t i = 0; i < nvar; i++)
-            for (int c = 0; c < 3; c++) {
-                z[3 * i + c] = r[3 * i + c] / diag[3 * i];
-                pp[3 * i + c] = z[3 * i + c];
-                rz[c] += r[3 * i + c] * z[3 * i + c];
-                r0[c] += r[3 * i + c] * r[3 * i + c];
-            }
-        for (int it = 0; it < 60 && rc == SC_OK; it++) {
-            double rr = 0, rr0 = r0[0] + r0[1] + r0[2];
-            apply_job aj = {row, coef, col, pp, Ap, nvar, 4096};
-            int arc = sc_seam_parallel(threads, (int32_t)((nvar + aj.chunk - 1) / aj.chunk), apply_band, &aj);
-            if (arc != SC_OK) {
-                rc = sc_fail(err, arc, "the conjugate gradients failed");
-                break;
-            }
-            double pAp[3] = {0, 0, 0};
-            for (int64_t i = 0; i < nvar; i++)
-                for (int c = 0; c < 3; c++) {
-                    Ap[3 * i + c] += eps * pp[3 * i + c];
-                    pAp[c] += pp[3 * i + c] * Ap[3 * i + c];
-                }
-            double alpha[3], rz2[3] = {0, 0, 0};
-            for (int c = 0; c < 3; c++) alpha[c] = pAp[c] > 0 ? rz[c] / pAp[c] : 0;
-            for (int64_t i = 0; i < nvar; i++)
-                for (int c = 0; c < 3; c++) {
-                    d[3 * i + c] += alpha[c] * pp[3 * i + c];
-                    r[3 * i + c] -= alpha[c] * Ap[3 * i + c];
-                    rr += r[3 * i + c] * r[3 * i + c];
-                    z[3 * i + c] = r[3 * i + c] / diag[3 * i];
-                    rz2[c] += r[3 * i + c] * z[3 * i + c];
-                }
-            st->iterations++;
-            if (!(rr > 1e-12 * rr0)) break;
-            for (int c = 0; c < 3; c++) {
-                double beta = rz[c] > 0 ? rz2[c] / rz[c] : 0;
-                rz[c] = rz2[c];
-                for (int64_t i = 0; i < nvar; i++) pp[3 * i + c] = z[3 * i + c] + beta * pp[3 * i + c];
-            }
-        }
-        for (size_t t = 0; t < (size_t)W * H && rc == SC_OK; t++)
-            if (var[t] >= 0)
-                for (int c = 0; c < 3; c++) x[3 * t + c] = (float)(x[3 * t + c] + d[3 * (size_t)var[t] + c]);
-        st->texels_solved += nvar;
-    }
-    st->seconds_solve += sc_now() - t0;
-    free(inc_start), free(inc), free(row), free(coef), free(col), free(touched), free(free_texel), free(counts), free(list_start), free(list);
-    free(act), free(vec);
+    st->seconds_solve += sc_now() - f.t0;
+    fit_work_free(&f);
     return rc;
 }
 
@@ -1901,6 +2012,309 @@ static void after_fit_free(after_fit *A) {
 
 /* ---------------------------------------------------------------- run */
 
+/* What run's steps share: the inputs, the maps being made and the work beside them. */
+typedef struct bake_run {
+    const sc_atlas *atlas;
+    const sc_lods *lods;          /* NULL: the atlas is the only level */
+    const sc_mesh *in;
+    int32_t size, pad, nmat, nlevels;
+    bool erase;
+    double diag, tol;             /* the input's bounding-box diagonal; fit_tolerance x diag */
+    int threads;
+    sc_seam_grid *grids;          /* per material */
+    sc_value **geometry;          /* per material */
+    sc_value **disp;              /* level k, material m: k * nmat + m */
+    raster *rin;                  /* the input's, per material */
+    const sc_mesh **meshes;       /* the input, then each level's */
+    fit_stats st;                 /* every fit's */
+    fit_scratch ws;
+    double cov, shared;           /* texels the input's charts cover, and cover twice or more */
+    sc_hausdorff_mesh in_surface; /* the input's, which in_bvh refers to */
+    sc_hausdorff_bvh *in_bvh;
+    after_fit af;
+    bool started;                 /* af was started */
+    sc_value *union_mesh;         /* the geometry images' erase mesh: the union of every level */
+    locator *locs;                /* level k, material m: k * nmat + m */
+    int64_t *texels_fitted;       /* per level */
+    /* a level whose mesh is an earlier level's (a stalled decimation repeats
+     * its last level) gets that level's maps and metrics: job_of[k] is the
+     * after_fit job that made them */
+    int32_t *job_of, *same_as;
+    raster rl;                    /* the level's, one material at a time */
+    double worst, worst_same;     /* the levels' largest reconstruction and same-uv errors */
+    double t_raster, t_fit, t_erase, t_metrics, t_wait;
+} bake_run;
+
+/* Each level's mesh is valid and has the input's materials. */
+static int check_levels(const sc_mesh *in, const sc_lods *lods, int32_t nlevels, sc_error *err) {
+    const int32_t nmat = in->nmat;
+    for (int32_t k = 0; k < nlevels && lods; k++) {
+        const sc_mesh *lm = lods->levels[k]->as.atlas->mesh->as.mesh;
+        int rc = sc_mesh_check(lm, err);
+        if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
+        if (lm->nmat != nmat) return sc_fail(err, SC_EINPUT, "lods: level %d has %d materials, atlas has %d", k, lm->nmat, nmat);
+        for (int32_t m = 0; m < nmat; m++)
+            if (strcmp(lm->materials[m], in->materials[m]) != 0)
+                return sc_fail(err, SC_EINPUT, "lods: level %d material %d is '%s', atlas has '%s'", k, m,
+                               lm->materials[m], in->materials[m]);
+    }
+    return SC_OK;
+}
+
+/* The per-material and per-level arrays; false when out of memory. */
+static bool alloc_maps(bake_run *b) {
+    const size_t nmat = (size_t)b->nmat, nlevels = (size_t)b->nlevels;
+    b->grids = calloc(nmat + 1, sizeof *b->grids);
+    b->geometry = calloc(nmat + 1, sizeof *b->geometry);
+    b->disp = calloc(nmat * nlevels + 1, sizeof *b->disp);
+    b->rin = calloc(nmat + 1, sizeof *b->rin);
+    b->meshes = calloc(nlevels + 1, sizeof *b->meshes);
+    return b->grids && b->geometry && b->disp && b->meshes && b->rin;
+}
+
+/* Each material's grid: size x size, with the wrap modes of its first texture (repeat without one). */
+static void material_grids(bake_run *b) {
+    for (int32_t m = 0; m < b->nmat; m++) {
+        b->grids[m] = (sc_seam_grid){b->size, b->size, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
+        for (int32_t t = 0; t < b->atlas->ntex; t++)
+            if (b->atlas->textures[t].material == m) {
+                b->grids[m].wrap_u = b->atlas->textures[t].wrap_u, b->grids[m].wrap_v = b->atlas->textures[t].wrap_v;
+                break;
+            }
+    }
+}
+
+/* Fails where more than max_shared of the texels the input's charts cover
+ * are covered twice or more: they would hold one value for two places of the surface. */
+static int check_coverage(bake_run *b, double max_shared, sc_error *err) {
+    int rc = SC_OK;
+    for (int32_t m = 0; m < b->nmat && rc == SC_OK; m++) {
+        sc_seam_coverage c;
+        rc = sc_seam_coverage_build(b->in, m, &b->grids[m], b->threads, &c, err);
+        if (rc == SC_OK) b->cov += (double)c.ncovered, b->shared += (double)c.nshared, sc_seam_coverage_free(&c);
+    }
+    if (rc == SC_OK && b->shared > max_shared * b->cov)
+        rc = sc_fail(err, SC_EINPUT,
+                     "max_shared_fraction: %.1f%% of the %.0f texels the input's uv charts cover at %d x %d are "
+                     "covered twice or more (overlapping or mirrored charts; %.3g%% allowed): a geometry image "
+                     "and a displacement map hold one value per texel, so those texels would mix distant parts "
+                     "of the surface. Give the asset an atlas without overlaps",
+                     100.0 * b->shared / b->cov, b->cov, (int)b->size, (int)b->size, 100.0 * max_shared);
+    return rc;
+}
+
+/* The geometry images, padded 2 texels more than the displacement needs. */
+static int fit_geometry_images(bake_run *b, sc_error *err) {
+    int rc = SC_OK;
+    double t0 = sc_now();
+    for (int32_t m = 0; m < b->nmat && rc == SC_OK; m++) {
+        rc = raster_build(b->in, m, &b->grids[m], b->pad + 2, b->threads, &b->rin[m], err);
+        double t1 = sc_now();
+        b->t_raster += t1 - t0;
+        if (rc == SC_OK)
+            rc = make_map(b->in, m, &b->grids[m], &b->rin[m], NULL, NULL, b->tol, b->threads, &b->ws, &b->st,
+                          &b->geometry[m], err);
+        t0 = sc_now();
+        b->t_fit += t0 - t1;
+    }
+    return rc;
+}
+
+/* Start the erasure and metrics after each fit (after_fit), measured
+ * against the input surface, and hand over the geometry images (erased on
+ * the union of every level's mesh). */
+static int hand_geometry_images(bake_run *b, double gap_tolerance, int64_t surface_samples, sc_error *err) {
+    const sc_mesh *in = b->in;
+    b->in_surface = (sc_hausdorff_mesh){in->V, in->nv, in->FV, in->nf};
+    if (!(b->in_bvh = sc_hausdorff_bvh_build(&b->in_surface)))
+        return sc_fail(err, SC_ENOMEM, "out of memory for the input's BVH");
+    b->af = (after_fit){.in = in, .in_bvh = b->in_bvh, .grids = b->grids, .nmat = b->nmat,
+                        .gap_tolerance = gap_tolerance, .diag = b->diag, .surface_samples = surface_samples};
+    if (!(b->started = after_fit_start(&b->af, b->nlevels + 1, b->threads)))
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (b->erase) {
+        const sc_lods *lods = b->lods;
+        const sc_value **mv = calloc((size_t)b->nlevels + 1, sizeof *mv);
+        for (int32_t k = 0; mv && k <= b->nlevels; k++)
+            mv[k] = k == 0 || !lods ? b->atlas->mesh : lods->levels[k - 1]->as.atlas->mesh;
+        b->union_mesh = mv ? sc_atlas_ops_mesh_union_distinct(mv, lods ? b->nlevels + 1 : 1) : NULL;
+        free(mv);
+        if (!b->union_mesh) return sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
+    }
+    after_fit_hand(&b->af, b->union_mesh, b->geometry, -1, NULL);
+    return SC_OK;
+}
+
+/* Level k's displacement maps, handed over as they are fitted; a level
+ * whose mesh is an earlier level's takes that level's maps once the jobs are done. */
+static int fit_level(bake_run *b, int32_t k, sc_error *err) {
+    const sc_lods *lods = b->lods;
+    const int32_t nmat = b->nmat;
+    const sc_mesh *lm = b->meshes[k + 1];
+    fit_stats sk = {0};
+    int rc = SC_OK;
+    b->same_as[k] = -1;
+    for (int32_t j = 0; lods && j < k && b->same_as[k] < 0; j++)   /* the first of equal levels */
+        if (sc_digest_equal(&lods->levels[j]->as.atlas->mesh->digest, &lods->levels[k]->as.atlas->mesh->digest))
+            b->same_as[k] = j;
+    if (b->same_as[k] >= 0) {   /* its maps are taken once the jobs are done */
+        b->job_of[k] = b->job_of[b->same_as[k]];
+        b->texels_fitted[k] = b->texels_fitted[b->same_as[k]];
+        return SC_OK;
+    }
+    b->job_of[k] = b->af.njobs;
+    for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
+        double t0 = sc_now();
+        locator *L = &b->locs[(size_t)k * nmat + m];
+        rc = raster_build(lm, m, &b->grids[m], b->pad, b->threads, &b->rl, err);
+        if (rc == SC_OK) rc = locator_build(lm, m, locator_side(b->size), L, err);
+        double t1 = sc_now();
+        b->t_raster += t1 - t0;
+        if (rc == SC_OK)
+            rc = make_map(b->in, m, &b->grids[m], &b->rin[m], &b->rl, L, b->tol, b->threads, &b->ws, &sk,
+                          &b->disp[(size_t)k * nmat + m], err);
+        b->t_fit += sc_now() - t1;
+    }
+    if (rc == SC_OK)
+        after_fit_hand(&b->af, !b->erase ? NULL : lods ? lods->levels[k]->as.atlas->mesh : b->atlas->mesh,
+                       b->disp + (size_t)k * nmat, k, &b->locs[(size_t)k * nmat]);
+    b->texels_fitted[k] = sk.texels_solved;
+    fit_stats *st = &b->st;
+    st->seconds_sample += sk.seconds_sample, st->seconds_solve += sk.seconds_solve, st->iterations += sk.iterations;
+    st->samples += sk.samples, st->cells_inexact += sk.cells_inexact, st->cells_solved += sk.cells_solved;
+    return rc;
+}
+
+/* Every level's displacement (fit_level), in level order. */
+static int fit_levels(bake_run *b, sc_error *err) {
+    const int32_t nlevels = b->nlevels;
+    b->meshes[0] = b->in;
+    for (int32_t k = 0; k < nlevels; k++)
+        b->meshes[k + 1] = b->lods ? b->lods->levels[k]->as.atlas->mesh->as.mesh : b->in;
+    b->locs = calloc((size_t)b->nmat * nlevels + 1, sizeof *b->locs);
+    b->texels_fitted = calloc((size_t)nlevels + 1, sizeof *b->texels_fitted);
+    b->job_of = calloc((size_t)nlevels + 1, sizeof *b->job_of);
+    b->same_as = calloc((size_t)nlevels + 1, sizeof *b->same_as);
+    if (!b->locs || !b->texels_fitted || !b->job_of || !b->same_as) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = SC_OK;
+    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) rc = fit_level(b, k, err);
+    return rc;
+}
+
+/* Wait for the jobs handed over; rc, or where it is SC_OK their first failure. */
+static int finish_after_fit(bake_run *b, int rc, sc_error *err) {
+    if (!b->started) return rc;
+    int arc = after_fit_finish(&b->af, rc == SC_OK ? err : NULL);
+    if (rc == SC_OK) rc = arc;
+    b->t_erase = b->af.seconds_erase, b->t_metrics = b->af.seconds_metrics;
+    return rc;
+}
+
+/* A level equal to an earlier one takes that level's maps. */
+static void share_repeated_levels(bake_run *b) {
+    for (int32_t k = 0; k < b->nlevels; k++)
+        if (b->same_as[k] >= 0)
+            for (int32_t m = 0; m < b->nmat; m++)
+                b->disp[(size_t)k * b->nmat + m] = sc_value_retain(b->disp[(size_t)b->same_as[k] * b->nmat + m]);
+}
+
+/* The metrics the jobs measured: the geometry image's same-uv error, each
+ * level's same-uv and reconstruction errors, and their worst. */
+static void report_measured(sc_ctx *ctx, bake_run *b) {
+    const after_fit *af = &b->af;
+    report_errors(ctx, "geometry_image_error", af->jobs[0].acc.same, af->jobs[0].acc.nsame);
+    for (int32_t k = 0; k < b->nlevels; k++) {
+        recon *acc = &af->jobs[b->job_of[k]].acc;
+        char name[64];
+        snprintf(name, sizeof name, "lod%d.same_uv_error", k);
+        b->worst_same = fmax(b->worst_same, report_errors(ctx, name, acc->same, acc->nsame));
+        snprintf(name, sizeof name, "lod%d.reconstruction_error", k);
+        sc_ctx_metric(ctx, name, fmax(acc->to_input, acc->from_input));
+        b->worst = fmax(b->worst, fmax(acc->to_input, acc->from_input));
+        snprintf(name, sizeof name, "lod%d.surface_samples_missed", k);
+        sc_ctx_metric(ctx, name, (double)acc->surf_missed);
+        snprintf(name, sizeof name, "lod%d.reconstruction_error_to_input", k);
+        sc_ctx_metric(ctx, name, acc->to_input);
+        snprintf(name, sizeof name, "lod%d.reconstruction_error_from_input", k);
+        sc_ctx_metric(ctx, name, acc->from_input);
+        snprintf(name, sizeof name, "lod%d.samples_missed", k);
+        sc_ctx_metric(ctx, name, (double)acc->missed);
+        snprintf(name, sizeof name, "lod%d.texels_fitted", k);
+        sc_ctx_metric(ctx, name, (double)b->texels_fitted[k]);
+    }
+    sc_ctx_metric(ctx, "reconstruction_error", b->worst), sc_ctx_metric(ctx, "same_uv_error", b->worst_same);
+}
+
+/* Frees what the fits and their jobs used, before the outputs are made. */
+static void free_fit_work(bake_run *b) {
+    if (b->started) after_fit_free(&b->af);
+    for (size_t i = 0; b->locs && i < (size_t)b->nmat * b->nlevels; i++) locator_free(&b->locs[i]);
+    free(b->texels_fitted);
+    free(b->job_of), free(b->same_as);
+    free(b->locs);
+    raster_free(&b->rl);
+    fit_scratch_free(&b->ws);
+    sc_hausdorff_bvh_free(b->in_bvh);
+}
+
+/* The input's coverage, the level count and the geometry images' fitted texels. */
+static void report_totals(sc_ctx *ctx, const bake_run *b) {
+    sc_ctx_metric(ctx, "texels_covered", b->cov);
+    sc_ctx_metric(ctx, "texels_shared", b->shared);
+    sc_ctx_metric(ctx, "levels", b->nlevels);
+    sc_ctx_metric(ctx, "geometry_image.texels_fitted", (double)b->st.texels_solved);
+}
+
+/* The outputs: the atlas with its geometry images, and every level with
+ * them and its own displacement; then the timings and fit statistics. */
+static int set_outputs(sc_ctx *ctx, const bake_run *b, sc_error *err) {
+    const int32_t nmat = b->nmat;
+    int rc = SC_OK;
+    sc_value *out_atlas = atlas_with(b->atlas, "geometry_image", b->geometry, NULL, NULL, b->grids, nmat);
+    sc_lods *out_lods = sc_lods_new();
+    if (!out_atlas || !out_lods) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t k = 0; k < b->nlevels && rc == SC_OK; k++) {
+        const sc_atlas *src = b->lods ? b->lods->levels[k]->as.atlas : b->atlas;
+        sc_value *lv = atlas_with(src, "geometry_image", b->geometry, "displacement", b->disp + (size_t)k * nmat,
+                                  b->grids, nmat);
+        if (!lv || sc_lods_add(out_lods, lv) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    sc_value *lods_value = NULL;
+    if (rc == SC_OK) {
+        lods_value = sc_value_new_lods(out_lods);
+        out_lods = NULL;
+        if (!lods_value) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    if (rc == SC_OK) {
+        sc_ctx_set_output(ctx, "atlas", out_atlas);
+        sc_ctx_set_output(ctx, "lods", lods_value);
+        out_atlas = NULL;
+        sc_ctx_metric(ctx, "seconds_raster", b->t_raster);
+        sc_ctx_metric(ctx, "seconds_fit", b->t_fit);
+        sc_ctx_metric(ctx, "seconds_fit_sample", b->st.seconds_sample);
+        sc_ctx_metric(ctx, "seconds_fit_solve", b->st.seconds_solve);
+        sc_ctx_metric(ctx, "fit_iterations", (double)b->st.iterations);
+        sc_ctx_metric(ctx, "fit_samples", (double)b->st.samples);
+        sc_ctx_metric(ctx, "fit_cells_inexact", (double)b->st.cells_inexact);
+        sc_ctx_metric(ctx, "fit_cells_solved", (double)b->st.cells_solved);
+        sc_ctx_metric(ctx, "seconds_erase", b->t_erase);             /* in the erase kernel, beside the fits */
+        sc_ctx_metric(ctx, "seconds_erase_wait", b->t_wait);         /* left after the last fit */
+        sc_ctx_metric(ctx, "seconds_metrics", b->t_metrics);
+    }
+    sc_value_release(out_atlas);
+    sc_lods_free(out_lods);
+    return rc;
+}
+
+/* Frees the maps and what run kept for the outputs. */
+static void bake_run_free(bake_run *b) {
+    sc_value_release(b->union_mesh);
+    for (int32_t m = 0; b->geometry && m < b->nmat; m++) sc_value_release(b->geometry[m]);
+    for (int32_t m = 0; b->rin && m < b->nmat; m++) raster_free(&b->rin[m]);
+    for (size_t i = 0; b->disp && i < (size_t)b->nmat * b->nlevels; i++) sc_value_release(b->disp[i]);
+    free(b->grids), free(b->geometry), free(b->disp), free(b->meshes), free(b->rin);
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     const sc_atlas *atlas = sc_ctx_atlas(ctx, "atlas");
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
@@ -1918,223 +2332,35 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (in->nf < 1) return sc_fail(err, SC_EINPUT, "atlas: the mesh has no faces");
     if ((uint64_t)size * (uint64_t)size > SC_IMAGE_MAX_PIXELS)
         return sc_fail(err, SC_EINPUT, "size: %d x %d is beyond the image limits", size, size);
-
     const int32_t nlevels = lods ? lods->count : 1;
     if (lods && nlevels < 1) return sc_fail(err, SC_EINPUT, "lods: the list is empty");
-    const int32_t nmat = in->nmat;
-    for (int32_t k = 0; k < nlevels && lods; k++) {
-        const sc_mesh *lm = lods->levels[k]->as.atlas->mesh->as.mesh;
-        rc = sc_mesh_check(lm, err);
-        if (rc != SC_OK) return sc_error_prefix(err, "lods: level %d", k);
-        if (lm->nmat != nmat) return sc_fail(err, SC_EINPUT, "lods: level %d has %d materials, atlas has %d", k, lm->nmat, nmat);
-        for (int32_t m = 0; m < nmat; m++)
-            if (strcmp(lm->materials[m], in->materials[m]) != 0)
-                return sc_fail(err, SC_EINPUT, "lods: level %d material %d is '%s', atlas has '%s'", k, m,
-                               lm->materials[m], in->materials[m]);
-    }
+    if ((rc = check_levels(in, lods, nlevels, err)) != SC_OK) return rc;
 
     /* the unit of tolerances and error metrics (1 for a mesh without extent) */
     const double extent = sc_bbox_diagonal(in->V, in->nv, NULL, 0);
     const double diag = extent > 0 && isfinite(extent) ? extent : 1, tol = fit_tolerance * diag;
-    sc_seam_grid *grids = calloc((size_t)nmat + 1, sizeof *grids);
-    sc_value **geometry = calloc((size_t)nmat + 1, sizeof *geometry);
-    sc_value **disp = calloc((size_t)nmat * nlevels + 1, sizeof *disp);
-    raster *rin = calloc((size_t)nmat + 1, sizeof *rin);
-    const sc_mesh **meshes = calloc((size_t)nlevels + 1, sizeof *meshes);
-    sc_value *union_mesh = NULL, *out_atlas = NULL;
-    sc_lods *out_lods = NULL;
-    fit_stats st = {0};
-    fit_scratch ws = {0};
-    if (!grids || !geometry || !disp || !meshes || !rin) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
-        grids[m] = (sc_seam_grid){size, size, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
-        for (int32_t t = 0; t < atlas->ntex; t++)
-            if (atlas->textures[t].material == m) {
-                grids[m].wrap_u = atlas->textures[t].wrap_u, grids[m].wrap_v = atlas->textures[t].wrap_v;
-                break;
-            }
-    }
-    double t0 = sc_now(), t_raster = 0, t_fit = 0, t_erase = 0, t_metrics = 0;
-    /* texels two charts cover would hold one value for two places of the surface */
-    double cov = 0, shared = 0;
-    for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
-        sc_seam_coverage c;
-        rc = sc_seam_coverage_build(in, m, &grids[m], threads, &c, err);
-        if (rc == SC_OK) cov += (double)c.ncovered, shared += (double)c.nshared, sc_seam_coverage_free(&c);
-    }
-    if (rc == SC_OK && shared > max_shared * cov)
-        rc = sc_fail(err, SC_EINPUT,
-                     "max_shared_fraction: %.1f%% of the %.0f texels the input's uv charts cover at %d x %d are "
-                     "covered twice or more (overlapping or mirrored charts; %.3g%% allowed): a geometry image "
-                     "and a displacement map hold one value per texel, so those texels would mix distant parts "
-                     "of the surface. Give the asset an atlas without overlaps",
-                     100.0 * shared / cov, cov, (int)size, (int)size, 100.0 * max_shared);
-    t_metrics += sc_now() - t0;
+    bake_run b = {.atlas = atlas, .lods = lods, .in = in, .size = size, .pad = pad, .nmat = in->nmat,
+                  .nlevels = nlevels, .erase = erase, .diag = diag, .tol = tol, .threads = threads};
+    if (!alloc_maps(&b)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) material_grids(&b);
+    double t0 = sc_now();
+    if (rc == SC_OK) rc = check_coverage(&b, max_shared, err);
+    b.t_metrics += sc_now() - t0;
+    if (rc == SC_OK) rc = fit_geometry_images(&b, err);
+    if (rc == SC_OK) rc = hand_geometry_images(&b, gap_tolerance, surface_samples, err);
+    if (rc == SC_OK) rc = fit_levels(&b, err);
     t0 = sc_now();
-    /* geometry images, padded 2 texels more than the displacement needs */
-    for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
-        rc = raster_build(in, m, &grids[m], pad + 2, threads, &rin[m], err);
-        double t1 = sc_now();
-        t_raster += t1 - t0;
-        if (rc == SC_OK) rc = make_map(in, m, &grids[m], &rin[m], NULL, NULL, tol, threads, &ws, &st, &geometry[m], err);
-        t0 = sc_now();
-        t_fit += t0 - t1;
-    }
-    meshes[0] = in;
-    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
-        meshes[k + 1] = lods ? lods->levels[k]->as.atlas->mesh->as.mesh : in;
-    /* erasure and metrics after each fit (after_fit), measured against the input surface */
-    const sc_hausdorff_mesh in_surface = {in->V, in->nv, in->FV, in->nf};
-    sc_hausdorff_bvh *in_bvh = rc == SC_OK ? sc_hausdorff_bvh_build(&in_surface) : NULL;
-    if (rc == SC_OK && !in_bvh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the input's BVH");
-    after_fit af = {.in = in, .in_bvh = in_bvh, .grids = grids, .nmat = nmat, .gap_tolerance = gap_tolerance,
-                    .diag = diag, .surface_samples = surface_samples};
-    bool started = rc == SC_OK && after_fit_start(&af, nlevels + 1, threads);
-    if (rc == SC_OK && !started) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    if (rc == SC_OK && erase) {
-        const sc_value **mv = calloc((size_t)nlevels + 1, sizeof *mv);
-        for (int32_t k = 0; mv && k <= nlevels; k++)
-            mv[k] = k == 0 || !lods ? atlas->mesh : lods->levels[k - 1]->as.atlas->mesh;
-        union_mesh = mv ? sc_atlas_ops_mesh_union_distinct(mv, lods ? nlevels + 1 : 1) : NULL;
-        free(mv);
-        if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
-    }
-    if (rc == SC_OK) after_fit_hand(&af, union_mesh, geometry, -1, NULL);
-
-    /* every level's displacement, handed over as it is fitted */
-    locator *locs = calloc((size_t)nmat * nlevels + 1, sizeof *locs);   /* level k, material m: k * nmat + m */
-    int64_t *texels_fitted = calloc((size_t)nlevels + 1, sizeof *texels_fitted);
-    /* a level whose mesh is an earlier level's (a stalled decimation repeats
-     * its last level) gets that level's maps and metrics: job_of[k] is the
-     * after_fit job that made them */
-    int32_t *job_of = calloc((size_t)nlevels + 1, sizeof *job_of), *same_as = calloc((size_t)nlevels + 1, sizeof *same_as);
-    if ((!locs || !texels_fitted || !job_of || !same_as) && rc == SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    raster rl = {0};   /* the level's, one material at a time */
-    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
-        const sc_mesh *lm = meshes[k + 1];
-        fit_stats sk = {0};
-        same_as[k] = -1;
-        for (int32_t j = 0; lods && j < k && same_as[k] < 0; j++)   /* the first of equal levels */
-            if (sc_digest_equal(&lods->levels[j]->as.atlas->mesh->digest, &lods->levels[k]->as.atlas->mesh->digest))
-                same_as[k] = j;
-        if (same_as[k] >= 0) {   /* its maps are taken once the jobs are done */
-            job_of[k] = job_of[same_as[k]];
-            texels_fitted[k] = texels_fitted[same_as[k]];
-            continue;
-        }
-        job_of[k] = af.njobs;
-        for (int32_t m = 0; m < nmat && rc == SC_OK; m++) {
-            t0 = sc_now();
-            locator *L = &locs[(size_t)k * nmat + m];
-            rc = raster_build(lm, m, &grids[m], pad, threads, &rl, err);
-            if (rc == SC_OK) rc = locator_build(lm, m, locator_side(size), L, err);
-            double t1 = sc_now();
-            t_raster += t1 - t0;
-            if (rc == SC_OK)
-                rc = make_map(in, m, &grids[m], &rin[m], &rl, L, tol, threads, &ws, &sk, &disp[(size_t)k * nmat + m],
-                              err);
-            t_fit += sc_now() - t1;
-        }
-        if (rc == SC_OK)
-            after_fit_hand(&af, !erase ? NULL : lods ? lods->levels[k]->as.atlas->mesh : atlas->mesh,
-                           disp + (size_t)k * nmat, k, &locs[(size_t)k * nmat]);
-        texels_fitted[k] = sk.texels_solved;
-        st.seconds_sample += sk.seconds_sample, st.seconds_solve += sk.seconds_solve, st.iterations += sk.iterations;
-        st.samples += sk.samples, st.cells_inexact += sk.cells_inexact, st.cells_solved += sk.cells_solved;
-    }
-    t0 = sc_now();
-    if (started) {
-        int arc = after_fit_finish(&af, rc == SC_OK ? err : NULL);
-        if (rc == SC_OK) rc = arc;
-        t_erase = af.seconds_erase, t_metrics = af.seconds_metrics;
-    }
-    double t_wait = sc_now() - t0;
-    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
-        if (same_as[k] >= 0)
-            for (int32_t m = 0; m < nmat; m++)
-                disp[(size_t)k * nmat + m] = sc_value_retain(disp[(size_t)same_as[k] * nmat + m]);
-
-    /* the metrics the jobs measured */
-    double worst = 0, worst_same = 0;
-    if (rc == SC_OK) report_errors(ctx, "geometry_image_error", af.jobs[0].acc.same, af.jobs[0].acc.nsame);
-    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
-        recon *acc = &af.jobs[job_of[k]].acc;
-        char name[64];
-        snprintf(name, sizeof name, "lod%d.same_uv_error", k);
-        worst_same = fmax(worst_same, report_errors(ctx, name, acc->same, acc->nsame));
-        snprintf(name, sizeof name, "lod%d.reconstruction_error", k);
-        sc_ctx_metric(ctx, name, fmax(acc->to_input, acc->from_input));
-        worst = fmax(worst, fmax(acc->to_input, acc->from_input));
-        snprintf(name, sizeof name, "lod%d.surface_samples_missed", k);
-        sc_ctx_metric(ctx, name, (double)acc->surf_missed);
-        snprintf(name, sizeof name, "lod%d.reconstruction_error_to_input", k);
-        sc_ctx_metric(ctx, name, acc->to_input);
-        snprintf(name, sizeof name, "lod%d.reconstruction_error_from_input", k);
-        sc_ctx_metric(ctx, name, acc->from_input);
-        snprintf(name, sizeof name, "lod%d.samples_missed", k);
-        sc_ctx_metric(ctx, name, (double)acc->missed);
-        snprintf(name, sizeof name, "lod%d.texels_fitted", k);
-        sc_ctx_metric(ctx, name, (double)texels_fitted[k]);
-    }
-    if (started) after_fit_free(&af);
-    for (size_t i = 0; locs && i < (size_t)nmat * nlevels; i++) locator_free(&locs[i]);
-    free(texels_fitted);
-    free(job_of), free(same_as);
-    free(locs);
-    raster_free(&rl);
-    fit_scratch_free(&ws);
-    sc_hausdorff_bvh_free(in_bvh);
-    if (rc == SC_OK) sc_ctx_metric(ctx, "reconstruction_error", worst), sc_ctx_metric(ctx, "same_uv_error", worst_same);
+    rc = finish_after_fit(&b, rc, err);
+    b.t_wait = sc_now() - t0;
+    if (rc == SC_OK) share_repeated_levels(&b);
+    if (rc == SC_OK) report_measured(ctx, &b);
+    free_fit_work(&b);
 
     t0 = sc_now();
-    if (rc == SC_OK) {
-        sc_ctx_metric(ctx, "texels_covered", cov);
-        sc_ctx_metric(ctx, "texels_shared", shared);
-        sc_ctx_metric(ctx, "levels", nlevels);
-        sc_ctx_metric(ctx, "geometry_image.texels_fitted", (double)st.texels_solved);
-    }
-    t_metrics += sc_now() - t0;
-
-    /* outputs */
-    if (rc == SC_OK) {
-        out_atlas = atlas_with(atlas, "geometry_image", geometry, NULL, NULL, grids, nmat);
-        out_lods = sc_lods_new();
-        if (!out_atlas || !out_lods) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
-        const sc_atlas *src = lods ? lods->levels[k]->as.atlas : atlas;
-        sc_value *lv = atlas_with(src, "geometry_image", geometry, "displacement", disp + (size_t)k * nmat, grids, nmat);
-        if (!lv || sc_lods_add(out_lods, lv) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    sc_value *lods_value = NULL;
-    if (rc == SC_OK) {
-        lods_value = sc_value_new_lods(out_lods);
-        out_lods = NULL;
-        if (!lods_value) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    if (rc == SC_OK) {
-        sc_ctx_set_output(ctx, "atlas", out_atlas);
-        sc_ctx_set_output(ctx, "lods", lods_value);
-        out_atlas = NULL;
-        sc_ctx_metric(ctx, "seconds_raster", t_raster);
-        sc_ctx_metric(ctx, "seconds_fit", t_fit);
-        sc_ctx_metric(ctx, "seconds_fit_sample", st.seconds_sample);
-        sc_ctx_metric(ctx, "seconds_fit_solve", st.seconds_solve);
-        sc_ctx_metric(ctx, "fit_iterations", (double)st.iterations);
-        sc_ctx_metric(ctx, "fit_samples", (double)st.samples);
-        sc_ctx_metric(ctx, "fit_cells_inexact", (double)st.cells_inexact);
-        sc_ctx_metric(ctx, "fit_cells_solved", (double)st.cells_solved);
-        sc_ctx_metric(ctx, "seconds_erase", t_erase);             /* in the erase kernel, beside the fits */
-        sc_ctx_metric(ctx, "seconds_erase_wait", t_wait);         /* left after the last fit */
-        sc_ctx_metric(ctx, "seconds_metrics", t_metrics);
-    }
-    sc_value_release(out_atlas);
-    sc_lods_free(out_lods);
-    sc_value_release(union_mesh);
-    for (int32_t m = 0; geometry && m < nmat; m++) sc_value_release(geometry[m]);
-    for (int32_t m = 0; rin && m < nmat; m++) raster_free(&rin[m]);
-    for (size_t i = 0; disp && i < (size_t)nmat * nlevels; i++) sc_value_release(disp[i]);
-    free(grids), free(geometry), free(disp), free(meshes), free(rin);
+    if (rc == SC_OK) report_totals(ctx, &b);
+    b.t_metrics += sc_now() - t0;
+    if (rc == SC_OK) rc = set_outputs(ctx, &b, err);
+    bake_run_free(&b);
     return rc;
 }
 

@@ -1703,8 +1703,8 @@ static double face_importance(const state *st, int32_t f, double area) {
     return r > 1 ? fmin(r, IMPORTANCE_MAX) : 1;
 }
 
-static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
-    int32_t nv = m->nv, nf = m->nf;
+/* The surface's per-vertex and per-face arrays, and the pool of its vertex -> face lists. */
+static int alloc_mesh_arrays(state *st, int32_t nv, int32_t nf, sc_error *err) {
     st->nv = nv;
     st->nf = st->nf_alive = nf;
     st->pos = sc_alloc_array((size_t)nv * 3, sizeof(double));
@@ -1724,15 +1724,23 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     if (!st->pos || !st->vflags || !st->version || !st->vmark || !st->vf_off || !st->vf_len || !st->vf_cap ||
         !st->fv || !st->fz || !st->fmat || !st->falive || !st->input_uv_area || !st->pool)
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    return SC_OK;
+}
 
-    /* centre the positions (costs do not change; rounding does) */
+/* Centre the positions on their bounding box (costs do not change; rounding does). */
+static void center_positions(state *st, const sc_mesh *m) {
+    const int32_t nv = m->nv;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     sc_bbox_add(m->V, nv, lo, hi);
     for (int32_t v = 0; v < nv; v++)
         for (int k = 0; k < 3; k++) st->pos[3 * v + k] = m->V[3 * v + k] - 0.5 * (lo[k] + hi[k]);
     for (int k = 0; k < 3; k++) st->center[k] = nv > 0 ? 0.5 * (lo[k] + hi[k]) : 0;
+}
 
-    /* Z-vertices through a hash table on (vertex, uv index, material) */
+/* Number the Z-vertices through a hash table on (vertex, uv index, material),
+ * in order of first appearance, and copy the faces' corners and materials. */
+static int number_z_vertices(state *st, const sc_mesh *m, sc_error *err) {
+    const int32_t nf = m->nf;
     zkey_table table;
     table.cap = 16;
     while (table.cap < (int64_t)nf * 6) table.cap *= 2;
@@ -1777,6 +1785,12 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     free(table.slot);
     free(zmat);
     st->nz = nz;
+    return SC_OK;
+}
+
+/* The Z-vertices' attribute arrays, with each Z's uv and its storage step. */
+static int init_z_attributes(state *st, const sc_mesh *m, sc_error *err) {
+    const int32_t nz = st->nz;
     st->zuv = sc_alloc_array((size_t)nz * 2, sizeof(double));
     st->zflags = sc_calloc_array((size_t)nz, 1);
     st->zq = sc_calloc_array((size_t)nz * QSIZE, sizeof(double));
@@ -1794,8 +1808,12 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         st->zstep[z] = storage_step(st, st->zuv + 2 * z);
         st->uv_precision = fmax(st->uv_precision, st->zstep[z]);
     }
+    return SC_OK;
+}
 
-    /* vertex -> face lists */
+/* The vertex -> face lists in the pool, each with room for two more; marks used vertices alive. */
+static void build_vertex_faces(state *st) {
+    const int32_t nv = st->nv, nf = st->nf;
     for (int32_t i = 0; i < nf * 3; i++) st->vf_cap[st->fv[i]]++;
     int64_t off = 0;
     for (int32_t v = 0; v < nv; v++) {
@@ -1811,10 +1829,13 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         }
     for (int32_t v = 0; v < nv; v++)
         if (st->vf_len[v] > 0) st->vflags[v] |= V_ALIVE;
+}
 
-    /* uv scale: one unit of uv ~ one unit of surface length */
+/* The uv scale (one unit of uv ~ one unit of surface length), the faces'
+ * input uv areas and the input's surface area. */
+static void measure_uv_scale(state *st, double uv_weight) {
     double area3 = 0, area_uv = 0;
-    for (int32_t f = 0; f < nf; f++) {
+    for (int32_t f = 0; f < st->nf; f++) {
         double n[3];
         const int32_t *c = st->fv + 3 * f;
         sc_triangle_normal(st->pos + 3 * c[0], st->pos + 3 * c[1], st->pos + 3 * c[2], n);
@@ -1824,8 +1845,12 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         area_uv += fabs(st->input_uv_area[f]);
     }
     st->uv_scale = uv_weight * (area_uv > 0 && area3 > 0 ? sqrt(area3 / area_uv) : 1.0);
+    st->input_area = area3;
+}
 
-    /* fans: lock non-manifold vertices, flag silhouettes and pinned Z */
+/* The fans: lock non-manifold vertices, flag border vertices, uv silhouettes and pinned Z. */
+static int classify_fans(state *st, sc_error *err) {
+    const int32_t nv = st->nv, nz = st->nz;
     int32_t maxn = 0;
     for (int32_t v = 0; v < nv; v++) maxn = st->vf_len[v] > maxn ? st->vf_len[v] : maxn;
     int32_t ids = nv > nz ? nv : nz;
@@ -1876,8 +1901,34 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         }
     }
     free(count), free(first), free(fan);
+    return SC_OK;
+}
 
-    /* quadrics */
+/* Face f's surface border edges: a plane through the edge, perpendicular to
+ * the face (unit: its unit normal), into the quadrics of the edge's Z. */
+static void add_border_planes(state *st, int32_t f, const double unit[3]) {
+    for (int k = 0; k < 3; k++) {
+        int32_t x = st->fv[3 * f + k], y = st->fv[3 * f + (k + 1) % 3];
+        int32_t fl[3];
+        if (!(st->vflags[x] & st->vflags[y] & V_BOUNDARY) || edge_faces(st, x, y, fl) != 1) continue;
+        const double *px = st->pos + 3 * x, *py = st->pos + 3 * y;
+        double e[3] = {py[0] - px[0], py[1] - px[1], py[2] - px[2]}, m3[3];
+        sc_cross3(unit, e, m3);
+        double ml = sqrt(sc_dot3(m3, m3));
+        if (!(ml > 0)) continue;
+        for (int j = 0; j < 3; j++) m3[j] /= ml;
+        double d = -sc_dot3(m3, px);
+        double w = BOUNDARY_PLANE_WEIGHT * sc_dot3(e, e);
+        sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + k] * QSIZE, QDIM, m3, d, w);
+        sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + (k + 1) % 3] * QSIZE, QDIM, m3, d, w);
+    }
+}
+
+/* The quadrics: each face's 5-D quadric, plane quadric and normal into its
+ * corners' Z (with map_size, weighted by its importance), the border
+ * planes, then the Z weights. */
+static int add_quadrics(state *st, sc_error *err) {
+    const int32_t nv = st->nv;
     if (st->map_texel_length > 0) {
         if (!(st->importance = sc_alloc_array((size_t)nv, sizeof(double))))
             return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
@@ -1885,7 +1936,7 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         if (!(st->stretch = sc_calloc_array((size_t)nv, sizeof(double))))
             return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     }
-    for (int32_t f = 0; f < nf; f++) {
+    for (int32_t f = 0; f < st->nf; f++) {
         if (st->stretch) {   /* every face, flat ones too */
             const double *S[3], *W[3];
             for (int k = 0; k < 3; k++) S[k] = st->pos + 3 * st->fv[3 * f + k], W[k] = st->zuv + 2 * st->fz[3 * f + k];
@@ -1917,27 +1968,16 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
                 if (importance > st->importance[v]) st->importance[v] = importance;
             }
         }
-        /* surface border edges: a plane through the edge, perpendicular to the face */
-        for (int k = 0; k < 3; k++) {
-            int32_t x = st->fv[3 * f + k], y = st->fv[3 * f + (k + 1) % 3];
-            int32_t fl[3];
-            if (!(st->vflags[x] & st->vflags[y] & V_BOUNDARY) || edge_faces(st, x, y, fl) != 1) continue;
-            const double *px = st->pos + 3 * x, *py = st->pos + 3 * y;
-            double e[3] = {py[0] - px[0], py[1] - px[1], py[2] - px[2]}, m3[3];
-            sc_cross3(unit, e, m3);
-            double ml = sqrt(sc_dot3(m3, m3));
-            if (!(ml > 0)) continue;
-            for (int j = 0; j < 3; j++) m3[j] /= ml;
-            double d = -sc_dot3(m3, px);
-            double w = BOUNDARY_PLANE_WEIGHT * sc_dot3(e, e);
-            sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + k] * QSIZE, QDIM, m3, d, w);
-            sc_quadric_add_plane3(st->zq + (size_t)st->fz[3 * f + (k + 1) % 3] * QSIZE, QDIM, m3, d, w);
-        }
+        add_border_planes(st, f, unit);
     }
-    for (int32_t z = 0; z < nz; z++) update_weight(st, z);
+    for (int32_t z = 0; z < st->nz; z++) update_weight(st, z);
+    return SC_OK;
+}
 
-    /* error tracking: every input vertex stands for itself */
-    st->input_area = area3;
+/* Error tracking: every input vertex stands for itself; with seam_kept, the
+ * input Zs of every seam vertex, with their uv. */
+static int start_error_tracking(state *st, sc_error *err) {
+    const int32_t nv = st->nv, nz = st->nz;
     if (st->error_weight > 0 || st->max_error2 > 0 || st->seam_error2 > 0) {
         st->owned_head = sc_alloc_array((size_t)nv, sizeof(int32_t));
         st->owned_tail = sc_alloc_array((size_t)nv, sizeof(int32_t));
@@ -1967,6 +2007,18 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
         }
     }
     return SC_OK;
+}
+
+/* The state for decimating m: its surface, its Z-vertices and their quadrics. */
+static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
+    int rc = alloc_mesh_arrays(st, m->nv, m->nf, err);
+    if (rc != SC_OK) return rc;
+    center_positions(st, m);
+    if ((rc = number_z_vertices(st, m, err)) != SC_OK || (rc = init_z_attributes(st, m, err)) != SC_OK) return rc;
+    build_vertex_faces(st);
+    measure_uv_scale(st, uv_weight);
+    if ((rc = classify_fans(st, err)) != SC_OK || (rc = add_quadrics(st, err)) != SC_OK) return rc;
+    return start_error_tracking(st, err);
 }
 
 /* ---------------------------------------------------------------- output */

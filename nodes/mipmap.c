@@ -730,6 +730,255 @@ static bool same_texture(const sc_texture *a, const sc_texture *b) {
            sc_digest_equal(&a->image->digest, &b->image->digest) && a->wrap_u == b->wrap_u && a->wrap_v == b->wrap_v;
 }
 
+/* What run's steps share: the sources, their chains and what they made. */
+typedef struct mip_run {
+    const sc_atlas **src;        /* the sources: each level of `lods`, or the atlas */
+    int32_t nsrc;
+    bool lods;                   /* the sources came as levels of detail */
+    chain *chains;               /* shared ones first (in level 0's texture order), then per source */
+    int32_t nchains;
+    int32_t *map;                /* (source, texture) -> chain + 1 */
+    int32_t *first_tex;          /* source k's first entry in map */
+    int32_t nmip, nall;          /* levels output (down to min_size), levels built (down to 1 x 1) */
+    sc_value *union_mesh;        /* the erase mesh of the shared chains; NULL when none */
+    chain_files *files;          /* per chain */
+    erase_counts counts;
+    double worst_energy, worst_gap;   /* over the sources, on the levels output */
+    sc_report *report;
+    sc_lods *out;
+    double t_groups, t_erase, t_files, t_metrics;
+} mip_run;
+
+/* The sources, each with as many materials as level 0 (the last mismatch is the one reported). */
+static int read_sources(mip_run *r, const sc_atlas *single, const sc_lods *lods, sc_error *err) {
+    int rc = SC_OK;
+    for (int32_t k = 0; k < r->nsrc; k++) {
+        r->src[k] = lods ? lods->levels[k]->as.atlas : single;
+        if (r->src[k]->mesh->as.mesh->nmat != r->src[0]->mesh->as.mesh->nmat)
+            rc = sc_fail(err, SC_EINPUT, "lods: level %d has other materials than level 0", k);
+    }
+    return rc;
+}
+
+/* Room for a chain per texture of every source; false when out of memory. */
+static bool alloc_chains(mip_run *r) {
+    int32_t cap = 0;
+    for (int32_t k = 0; k < r->nsrc; k++) cap += r->src[k]->ntex;
+    r->chains = calloc((size_t)cap + 1, sizeof *r->chains);
+    r->map = calloc((size_t)cap + 1, sizeof *r->map);
+    r->first_tex = calloc((size_t)r->nsrc + 1, sizeof *r->first_tex);
+    return r->chains && r->map && r->first_tex;
+}
+
+/* The chains: a shared one for each texture of level 0 that every other
+ * source has too (2 to 256 sources; in level 0's texture order), then one
+ * per other texture of each source. */
+static void make_chains(mip_run *r) {
+    const int32_t nsrc = r->nsrc;
+    const sc_atlas **src = r->src;
+    for (int32_t k = 1; k <= nsrc; k++) r->first_tex[k] = r->first_tex[k - 1] + src[k - 1]->ntex;
+    for (int32_t t = 0; t < src[0]->ntex; t++) {
+        const sc_texture *tx = &src[0]->textures[t];
+        bool shared = nsrc > 1 && nsrc <= 256;
+        int32_t idx[256];
+        for (int32_t k = 1; k < nsrc && shared; k++) {
+            idx[k] = -1;
+            for (int32_t u = 0; u < src[k]->ntex && idx[k] < 0; u++)
+                if (same_texture(tx, &src[k]->textures[u])) idx[k] = u;
+            shared = idx[k] >= 0;
+        }
+        if (!shared) continue;
+        r->chains[r->nchains] = (chain){.tex = tx, .group = nsrc, .source = -1};
+        r->map[t] = r->nchains + 1;
+        for (int32_t k = 1; k < nsrc; k++) r->map[r->first_tex[k] + idx[k]] = r->nchains + 1;
+        r->nchains++;
+    }
+    for (int32_t k = 0; k < nsrc; k++)
+        for (int32_t t = 0; t < src[k]->ntex; t++) {
+            if (r->map[r->first_tex[k] + t]) continue;
+            r->chains[r->nchains] = (chain){.tex = &src[k]->textures[t], .group = k, .source = r->lods ? k : -1};
+            r->map[r->first_tex[k] + t] = ++r->nchains;
+        }
+}
+
+/* Each chain's length (down to 1 x 1), and the levels output and built. */
+static void chain_lengths(mip_run *r, int32_t min_size) {
+    r->nmip = 1, r->nall = 1;
+    for (int32_t c = 0; c < r->nchains; c++) {
+        const sc_image_data *im = r->chains[c].tex->image->as.image;
+        int32_t w = im->width, h = im->height, n = 1, n_out = 0;
+        while (true) {
+            if (!n_out && w <= min_size && h <= min_size) n_out = n;
+            if ((w == 1 && h == 1) || n == MAX_MIP) break;
+            next_size(w, h, &w, &h), n++;
+        }
+        r->chains[c].count = n;
+        if (!n_out) n_out = n;
+        if (n_out > r->nmip) r->nmip = n_out;
+        if (n > r->nall) r->nall = n;
+    }
+}
+
+/* The erase mesh of the shared chains, when there are any: the union of the sources' meshes. */
+static int make_union_mesh(mip_run *r, sc_error *err) {
+    bool any_shared = r->nchains > 0 && r->chains[0].source < 0 && r->chains[0].group == r->nsrc;
+    if (!any_shared) return SC_OK;
+    const sc_value **ms = calloc((size_t)r->nsrc, sizeof *ms);
+    for (int32_t k = 0; ms && k < r->nsrc; k++) ms[k] = r->src[k]->mesh;
+    r->union_mesh = ms ? sc_atlas_ops_mesh_union_distinct(ms, r->nsrc) : NULL;
+    free(ms);
+    if (!r->union_mesh) return sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
+    return SC_OK;
+}
+
+/* Build, erase and encode the groups side by side (build_group); the
+ * first failure in group order. */
+static int erase_groups(mip_run *r, const erase_settings *es, group_result *results, sc_error *err) {
+    const int32_t ngroups = r->nsrc + 1;
+    int32_t busy = 0;   /* groups with chains: as many work side by side, each on every thread */
+    for (int32_t g = 0; g < ngroups; g++) {
+        bool any = false;
+        for (int32_t c = 0; c < r->nchains && !any; c++) any = r->chains[c].group == g;
+        busy += any;
+    }
+    groups_job gj = {r->chains, r->nchains, r->nall, r->nsrc, r->src, r->union_mesh, es, r->files, results};
+    int prc = sc_parallel(es->threads < busy ? es->threads : busy, ngroups, build_group, &gj);
+    int rc = SC_OK;
+    for (int32_t g = 0; g < ngroups && rc == SC_OK; g++)
+        if (results[g].rc != SC_OK) *err = results[g].err, rc = results[g].rc;
+    if (rc == SC_OK && prc != SC_OK) rc = sc_fail(err, prc, "out of memory");
+    for (int32_t g = 0; g < ngroups; g++) {
+        const group_result *res = &results[g];
+        r->counts.runs += res->counts.runs, r->counts.passed += res->counts.passed;
+        r->counts.unerased += res->counts.unerased;
+        r->t_erase += res->seconds_erase, r->t_files += res->seconds_files;
+    }
+    return rc;
+}
+
+/* Source k's seam energy and largest seam gap at every mip level built
+ * (energy, gap: nall each, the largest over its textures). */
+static int source_energies(const mip_run *r, int32_t k, int threads, double *energy, double *gap, sc_error *err) {
+    const sc_atlas *s = r->src[k];
+    const sc_mesh *mesh = s->mesh->as.mesh;
+    int rc = SC_OK;
+    for (int32_t mat = 0; mat < mesh->nmat && rc == SC_OK; mat++) {
+        sc_seam_set seams;
+        bool has = false;
+        for (int32_t t = 0; t < s->ntex; t++) has |= s->textures[t].material == mat;
+        if (!has) continue;
+        rc = sc_seam_find(mesh, mat, &seams, err);
+        if (rc != SC_OK) break;
+        for (int32_t t = 0; t < s->ntex && rc == SC_OK; t++) {
+            if (s->textures[t].material != mat) continue;
+            const chain *ch = &r->chains[r->map[r->first_tex[k] + t] - 1];
+            for (int32_t m = 0; m < ch->count && rc == SC_OK; m++) {
+                const sc_image_data *im = ch->native[m]->as.image;
+                sc_seam_grid g = {im->width, im->height, ch->tex->wrap_u, ch->tex->wrap_v};
+                double e = 0, gp = 0;
+                rc = sc_seam_energy(mesh, &seams, &g, im, threads, &e, &gp, err);
+                energy[m] = fmax(energy[m], e), gap[m] = fmax(gap[m], gp);
+            }
+        }
+        sc_seam_set_free(&seams);
+    }
+    return rc;
+}
+
+/* Metrics: the seam energy and largest gap of every source at every mip
+ * level (into the report too), and their worst on the levels output. */
+static int measure_levels(sc_ctx *ctx, mip_run *r, int threads, sc_error *err) {
+    int rc = SC_OK;
+    for (int32_t k = 0; k < r->nsrc && rc == SC_OK; k++) {
+        double *energy = calloc((size_t)r->nall, sizeof *energy), *gap = calloc((size_t)r->nall, sizeof *gap);
+        if (!energy || !gap) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK) rc = source_energies(r, k, threads, energy, gap, err);
+        for (int32_t m = 0; m < r->nall && rc == SC_OK; m++) {
+            char name[96], pre[24] = "";
+            if (r->lods) snprintf(pre, sizeof pre, "lod%d.", k);
+            snprintf(name, sizeof name, "%slevel%d.seam_energy", pre, m);
+            sc_ctx_metric(ctx, name, energy[m]);   /* every level built, also below min_size */
+            if (sc_report_metric(r->report, name, energy[m]) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            snprintf(name, sizeof name, "%slevel%d.max_seam_gap", pre, m);
+            sc_ctx_metric(ctx, name, gap[m]);
+            if (sc_report_metric(r->report, name, gap[m]) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            if (m < r->nmip)
+                r->worst_energy = fmax(r->worst_energy, energy[m]), r->worst_gap = fmax(r->worst_gap, gap[m]);
+        }
+        free(energy), free(gap);
+    }
+    return rc;
+}
+
+/* The node's totals: levels, chains, erase runs and the worst seams. */
+static int report_totals(sc_ctx *ctx, const mip_run *r, sc_error *err) {
+    sc_ctx_metric(ctx, "levels", r->nmip);
+    sc_ctx_metric(ctx, "chains", r->nchains);
+    sc_ctx_metric(ctx, "erase_runs", r->counts.runs);
+    sc_ctx_metric(ctx, "level0_passed", r->counts.passed);
+    sc_ctx_metric(ctx, "levels_not_erased", r->counts.unerased);
+    sc_ctx_metric(ctx, "seam_energy", r->worst_energy);
+    sc_ctx_metric(ctx, "max_seam_gap", r->worst_gap);
+    if (sc_report_metric(r->report, "levels", r->nmip) || sc_report_metric(r->report, "seam_energy", r->worst_energy) ||
+        sc_report_metric(r->report, "max_seam_gap", r->worst_gap))
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    return SC_OK;
+}
+
+/* The output levels into r->out: source k at mip level m at entry
+ * k * nmip + m, a chain shorter than that repeating its last level. */
+static int add_levels(mip_run *r, sc_error *err) {
+    int rc = SC_OK;
+    for (int32_t k = 0; k < r->nsrc && rc == SC_OK; k++)
+        for (int32_t m = 0; m < r->nmip && rc == SC_OK; m++) {
+            const sc_atlas *s = r->src[k];
+            sc_atlas *a = sc_atlas_new(sc_value_retain(s->mesh));
+            if (!a) rc = SC_ENOMEM;
+            for (int32_t t = 0; a && t < s->ntex && rc == SC_OK; t++) {
+                const sc_texture *tx = &s->textures[t];
+                const chain *ch = &r->chains[r->map[r->first_tex[k] + t] - 1];
+                int32_t lm = m < ch->count ? m : ch->count - 1;
+                rc = sc_atlas_add_texture(a, tx->name, tx->material, tx->wrap_u, tx->wrap_v, tx->source,
+                                          sc_value_retain(ch->native[lm]));
+            }
+            sc_value *v = rc == SC_OK ? sc_value_new_atlas(a) : NULL;
+            if (rc != SC_OK) sc_atlas_free(a);
+            if (!v || sc_lods_add(r->out, v) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+    return rc;
+}
+
+/* The outputs (the levels and the report, taken from r) and the timings. */
+static int set_outputs(sc_ctx *ctx, mip_run *r, sc_error *err) {
+    sc_value *lv = sc_value_new_lods(r->out);
+    r->out = NULL;
+    sc_value *rv = sc_value_new_report(r->report);
+    r->report = NULL;
+    if (!lv || !rv) {
+        sc_value_release(lv), sc_value_release(rv);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    sc_ctx_set_output(ctx, "levels", lv);
+    sc_ctx_set_output(ctx, "report", rv);
+    sc_ctx_metric(ctx, "seconds_groups", r->t_groups);   /* building, erasing, encoding: groups side by side */
+    sc_ctx_metric(ctx, "seconds_erase", r->t_erase);     /* in the erase kernel, summed over the groups */
+    sc_ctx_metric(ctx, "seconds_files", r->t_files);     /* encoding, summed over the groups */
+    sc_ctx_metric(ctx, "seconds_metrics", r->t_metrics);
+    return SC_OK;
+}
+
+/* Frees what r still holds: the outputs not handed over, the chains' levels, the sources. */
+static void mip_run_free(mip_run *r) {
+    sc_lods_free(r->out);
+    sc_report_free(r->report);
+    for (int32_t c = 0; r->chains && c < r->nchains; c++) free(r->chains[c].band);
+    for (int32_t c = 0; r->chains && c < r->nchains; c++)
+        for (int m = 0; m < MAX_MIP; m++)
+            sc_value_release(r->chains[c].native[m]), sc_value_release(r->chains[c].f32[m]);
+    sc_value_release(r->union_mesh);
+    free(r->chains), free(r->map), free(r->first_tex), free(r->src);
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     const sc_atlas *single = sc_ctx_atlas(ctx, "atlas");
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
@@ -744,206 +993,49 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_erase_defaults(&es.erase);
     es.erase.w_seam = sc_ctx_number(ctx, "w_seam");
     es.erase.gap_tolerance = es.gap_tolerance;
-    const sc_atlas **src = calloc((size_t)nsrc, sizeof *src);
-    if (!src) return sc_fail(err, SC_ENOMEM, "out of memory");
-    int rc = SC_OK;
-    for (int32_t k = 0; k < nsrc; k++) {
-        src[k] = lods ? lods->levels[k]->as.atlas : single;
-        if (src[k]->mesh->as.mesh->nmat != src[0]->mesh->as.mesh->nmat)
-            rc = sc_fail(err, SC_EINPUT, "lods: level %d has other materials than level 0", k);
-    }
+    mip_run r = {.nsrc = nsrc, .lods = lods != NULL};
+    r.src = calloc((size_t)nsrc, sizeof *r.src);
+    if (!r.src) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = read_sources(&r, single, lods, err);
 
-    /* the chains: shared ones first (in level 0's texture order), then per source */
-    int32_t cap = 0;
-    for (int32_t k = 0; k < nsrc; k++) cap += src[k]->ntex;
-    chain *chains = calloc((size_t)cap + 1, sizeof *chains);
-    int32_t *map = calloc((size_t)cap + 1, sizeof *map);   /* (source, texture) -> chain */
-    int32_t *first_tex = calloc((size_t)nsrc + 1, sizeof *first_tex);
-    int32_t nchains = 0;
-    if (!chains || !map || !first_tex) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    for (int32_t k = 1; k <= nsrc && rc == SC_OK; k++) first_tex[k] = first_tex[k - 1] + src[k - 1]->ntex;
-    for (int32_t t = 0; t < (rc == SC_OK ? src[0]->ntex : 0); t++) {
-        const sc_texture *tx = &src[0]->textures[t];
-        bool shared = nsrc > 1 && nsrc <= 256;
-        int32_t idx[256];
-        for (int32_t k = 1; k < nsrc && shared; k++) {
-            idx[k] = -1;
-            for (int32_t u = 0; u < src[k]->ntex && idx[k] < 0; u++)
-                if (same_texture(tx, &src[k]->textures[u])) idx[k] = u;
-            shared = idx[k] >= 0;
-        }
-        if (!shared) continue;
-        chains[nchains] = (chain){.tex = tx, .group = nsrc, .source = -1};
-        map[t] = nchains + 1;
-        for (int32_t k = 1; k < nsrc; k++) map[first_tex[k] + idx[k]] = nchains + 1;
-        nchains++;
-    }
-    for (int32_t k = 0; k < nsrc && rc == SC_OK; k++)
-        for (int32_t t = 0; t < src[k]->ntex; t++) {
-            if (map[first_tex[k] + t]) continue;
-            chains[nchains] = (chain){.tex = &src[k]->textures[t], .group = k, .source = lods ? k : -1};
-            map[first_tex[k] + t] = ++nchains;
-        }
-
-    /* chain lengths */
-    int32_t nmip = 1, nall = 1;   /* levels output (down to min_size), levels built (down to 1 x 1) */
-    for (int32_t c = 0; c < nchains && rc == SC_OK; c++) {
-        const sc_image_data *im = chains[c].tex->image->as.image;
-        int32_t w = im->width, h = im->height, n = 1, n_out = 0;
-        while (true) {
-            if (!n_out && w <= min_size && h <= min_size) n_out = n;
-            if ((w == 1 && h == 1) || n == MAX_MIP) break;
-            next_size(w, h, &w, &h), n++;
-        }
-        chains[c].count = n;
-        if (!n_out) n_out = n;
-        if (n_out > nmip) nmip = n_out;
-        if (n > nall) nall = n;
-    }
-
-    /* erase meshes: each source's own, and the union for shared chains */
-    sc_value *union_mesh = NULL;
-    bool any_shared = nchains > 0 && chains[0].source < 0 && chains[0].group == nsrc;
-    if (rc == SC_OK && any_shared) {
-        const sc_value **ms = calloc((size_t)nsrc, sizeof *ms);
-        for (int32_t k = 0; ms && k < nsrc; k++) ms[k] = src[k]->mesh;
-        union_mesh = ms ? sc_atlas_ops_mesh_union_distinct(ms, nsrc) : NULL;
-        free(ms);
-        if (!union_mesh) rc = sc_fail(err, SC_ENOMEM, "out of memory for the union of the levels");
-    }
-
-    /* build, erase and encode the groups, side by side (build_group) */
-    double t0 = sc_now();
-    erase_counts counts = {0};
-    const int32_t ngroups = nsrc + 1;
-    chain_files *files = calloc((size_t)nchains + 1, sizeof *files);
-    group_result *results = calloc((size_t)ngroups, sizeof *results);
-    if (!files || !results) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    double t_erase = 0, t_files = 0;
+    /* the chains, and the erase meshes: each source's own, and the union for shared chains */
+    if (!alloc_chains(&r)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK) {
-        int32_t busy = 0;   /* groups with chains: as many work side by side, each on every thread */
-        for (int32_t g = 0; g < ngroups; g++) {
-            bool any = false;
-            for (int32_t c = 0; c < nchains && !any; c++) any = chains[c].group == g;
-            busy += any;
-        }
-        groups_job gj = {chains, nchains, nall, nsrc, src, union_mesh, &es, files, results};
-        int prc = sc_parallel(threads < busy ? threads : busy, ngroups, build_group, &gj);
-        for (int32_t g = 0; g < ngroups && rc == SC_OK; g++)   /* the first failure in group order */
-            if (results[g].rc != SC_OK) *err = results[g].err, rc = results[g].rc;
-        if (rc == SC_OK && prc != SC_OK) rc = sc_fail(err, prc, "out of memory");
-        for (int32_t g = 0; g < ngroups; g++) {
-            const group_result *r = &results[g];
-            counts.runs += r->counts.runs, counts.passed += r->counts.passed, counts.unerased += r->counts.unerased;
-            t_erase += r->seconds_erase, t_files += r->seconds_files;
-        }
+        make_chains(&r);
+        chain_lengths(&r, min_size);
+        rc = make_union_mesh(&r, err);
     }
+
+    /* build, erase and encode the groups, side by side */
+    double t0 = sc_now();
+    r.files = calloc((size_t)r.nchains + 1, sizeof *r.files);
+    group_result *results = calloc((size_t)nsrc + 1, sizeof *results);
+    if (!r.files || !results) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) rc = erase_groups(&r, &es, results, err);
     free(results);
-    double t_groups = sc_now() - t0;
+    r.t_groups = sc_now() - t0;
 
     /* metrics: seam energy of every LOD at every mip level */
     t0 = sc_now();
-    sc_report *report = rc == SC_OK ? sc_report_new() : NULL;
-    if (rc == SC_OK && !report) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    double worst_energy = 0, worst_gap = 0;
-    for (int32_t k = 0; k < nsrc && rc == SC_OK; k++) {
-        const sc_mesh *mesh = src[k]->mesh->as.mesh;
-        double *energy = calloc((size_t)nall, sizeof *energy), *gap = calloc((size_t)nall, sizeof *gap);
-        if (!energy || !gap) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        for (int32_t mat = 0; mat < mesh->nmat && rc == SC_OK; mat++) {
-            sc_seam_set seams;
-            bool has = false;
-            for (int32_t t = 0; t < src[k]->ntex; t++) has |= src[k]->textures[t].material == mat;
-            if (!has) continue;
-            rc = sc_seam_find(mesh, mat, &seams, err);
-            if (rc != SC_OK) break;
-            for (int32_t t = 0; t < src[k]->ntex && rc == SC_OK; t++) {
-                if (src[k]->textures[t].material != mat) continue;
-                const chain *ch = &chains[map[first_tex[k] + t] - 1];
-                for (int32_t m = 0; m < ch->count && rc == SC_OK; m++) {
-                    const sc_image_data *im = ch->native[m]->as.image;
-                    sc_seam_grid g = {im->width, im->height, ch->tex->wrap_u, ch->tex->wrap_v};
-                    double e = 0, gp = 0;
-                    rc = sc_seam_energy(mesh, &seams, &g, im, threads, &e, &gp, err);
-                    energy[m] = fmax(energy[m], e), gap[m] = fmax(gap[m], gp);
-                }
-            }
-            sc_seam_set_free(&seams);
-        }
-        for (int32_t m = 0; m < nall && rc == SC_OK; m++) {
-            char name[96], pre[24] = "";
-            if (lods) snprintf(pre, sizeof pre, "lod%d.", k);
-            snprintf(name, sizeof name, "%slevel%d.seam_energy", pre, m);
-            sc_ctx_metric(ctx, name, energy[m]);   /* every level built, also below min_size */
-            if (sc_report_metric(report, name, energy[m]) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            snprintf(name, sizeof name, "%slevel%d.max_seam_gap", pre, m);
-            sc_ctx_metric(ctx, name, gap[m]);
-            if (sc_report_metric(report, name, gap[m]) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            if (m < nmip) worst_energy = fmax(worst_energy, energy[m]), worst_gap = fmax(worst_gap, gap[m]);
-        }
-        free(energy), free(gap);
-    }
-    if (rc == SC_OK) {
-        sc_ctx_metric(ctx, "levels", nmip);
-        sc_ctx_metric(ctx, "chains", nchains);
-        sc_ctx_metric(ctx, "erase_runs", counts.runs);
-        sc_ctx_metric(ctx, "level0_passed", counts.passed);
-        sc_ctx_metric(ctx, "levels_not_erased", counts.unerased);
-        sc_ctx_metric(ctx, "seam_energy", worst_energy);
-        sc_ctx_metric(ctx, "max_seam_gap", worst_gap);
-        if (sc_report_metric(report, "levels", nmip) || sc_report_metric(report, "seam_energy", worst_energy) ||
-            sc_report_metric(report, "max_seam_gap", worst_gap))
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    double t_metrics = sc_now() - t0;
+    r.report = rc == SC_OK ? sc_report_new() : NULL;
+    if (rc == SC_OK && !r.report) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) rc = measure_levels(ctx, &r, threads, err);
+    if (rc == SC_OK) rc = report_totals(ctx, &r, err);
+    r.t_metrics = sc_now() - t0;
 
     /* the files, in chain order, and the levels */
-    if (files) {
-        int frc = collect_files(rc == SC_OK ? report : NULL, files, nchains, err);   /* frees the buffers either way */
+    if (r.files) {
+        /* frees the buffers either way */
+        int frc = collect_files(rc == SC_OK ? r.report : NULL, r.files, r.nchains, err);
         if (rc == SC_OK) rc = frc;
-        free(files);
+        free(r.files);
+        r.files = NULL;
     }
-    sc_lods *out = rc == SC_OK ? sc_lods_new() : NULL;
-    if (rc == SC_OK && !out) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    for (int32_t k = 0; k < nsrc && rc == SC_OK; k++)
-        for (int32_t m = 0; m < nmip && rc == SC_OK; m++) {
-            sc_atlas *a = sc_atlas_new(sc_value_retain(src[k]->mesh));
-            if (!a) rc = SC_ENOMEM;
-            for (int32_t t = 0; a && t < src[k]->ntex && rc == SC_OK; t++) {
-                const sc_texture *tx = &src[k]->textures[t];
-                const chain *ch = &chains[map[first_tex[k] + t] - 1];
-                int32_t lm = m < ch->count ? m : ch->count - 1;
-                rc = sc_atlas_add_texture(a, tx->name, tx->material, tx->wrap_u, tx->wrap_v, tx->source,
-                                          sc_value_retain(ch->native[lm]));
-            }
-            sc_value *v = rc == SC_OK ? sc_value_new_atlas(a) : NULL;
-            if (rc != SC_OK) sc_atlas_free(a);
-            if (!v || sc_lods_add(out, v) != SC_OK) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        }
-    if (rc == SC_OK) {
-        sc_value *lv = sc_value_new_lods(out);
-        out = NULL;
-        sc_value *rv = sc_value_new_report(report);
-        report = NULL;
-        if (!lv || !rv) {
-            sc_value_release(lv), sc_value_release(rv);
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        } else {
-            sc_ctx_set_output(ctx, "levels", lv);
-            sc_ctx_set_output(ctx, "report", rv);
-            sc_ctx_metric(ctx, "seconds_groups", t_groups);   /* building, erasing, encoding: groups side by side */
-            sc_ctx_metric(ctx, "seconds_erase", t_erase);     /* in the erase kernel, summed over the groups */
-            sc_ctx_metric(ctx, "seconds_files", t_files);     /* encoding, summed over the groups */
-            sc_ctx_metric(ctx, "seconds_metrics", t_metrics);
-        }
-    }
-    sc_lods_free(out);
-    sc_report_free(report);
-    for (int32_t c = 0; chains && c < nchains; c++) free(chains[c].band);
-    for (int32_t c = 0; chains && c < nchains; c++)
-        for (int m = 0; m < MAX_MIP; m++) sc_value_release(chains[c].native[m]), sc_value_release(chains[c].f32[m]);
-    sc_value_release(union_mesh);
-    free(chains), free(map), free(first_tex), free(src);
+    r.out = rc == SC_OK ? sc_lods_new() : NULL;
+    if (rc == SC_OK && !r.out) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) rc = add_levels(&r, err);
+    if (rc == SC_OK) rc = set_outputs(ctx, &r, err);
+    mip_run_free(&r);
     return rc;
 }
 

@@ -1033,362 +1033,473 @@ static int schur_groups(const sc_mesh *m, const sc_seam_set *seams, const sc_sea
     return rc;
 }
 
-static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *seams,
-                       const sc_texture *textures, const group *gr, const options *o,
-                       tex_state *st, bool several, totals *tot, sc_error *err) {
-    const sc_seam_grid *g = &gr->grid;
+/* What erase_group's steps share: the group and its inputs, its system and
+ * solve (w), and the numbers its metrics and totals take. */
+typedef struct group_run {
+    sc_metric_list *ml;
+    const sc_mesh *m;
+    const sc_seam_set *seams;
+    sc_seam_set seams_only;      /* the seams without the silhouettes: M alone */
+    const sc_texture *textures;
+    const group *gr;
+    const options *o;
+    tex_state *st;
+    bool several;
+    totals *tot;
     group_work w;
-    memset(&w, 0, sizeof w);
-    int rc = SC_OK;
-    double t0 = sc_now();
+    int32_t n;                   /* unknowns */
+    int32_t ncols;               /* right-hand sides: one column per channel of every texture */
+    int64_t n_inside, n_shared_unk;   /* unknowns inside the charts, and shared by two */
+    double w_change_texel, w_pen;
+    sc_seam_terms qterms;        /* the system matrix's, shared by every channel of every texture here */
+    prep_ctx pc;
+    double nullity, seconds_nullity;
+    sc_sparse_stats stats;       /* the solver's */
+    double t0, t1, t2, t3;       /* the stages' times: build, factor, solve */
+    double tq;                   /* time spent quantising */
+} group_run;
 
-    /* which texels are inside, which are unknown, which are the seam texels
-     * (of cells seam edges pass through) */
-    if ((rc = sc_seam_coverage_build(m, gr->material, g, o->threads, &w.cov, err))) goto done;
-    if (sc_seam_texset_init(&w.unk, g->width, g->height) || sc_seam_texset_init(&w.seamset, g->width, g->height)) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        goto done;
+/* Which texels are inside, which are unknown, which are the seam texels (of
+ * cells seam edges pass through); how many unknowns are inside, and shared. */
+static int mark_texels(group_run *r, sc_error *err) {
+    const sc_seam_grid *g = &r->gr->grid;
+    group_work *w = &r->w;
+    int rc = sc_seam_coverage_build(r->m, r->gr->material, g, r->o->threads, &w->cov, err);
+    if (rc) return rc;
+    if (sc_seam_texset_init(&w->unk, g->width, g->height) || sc_seam_texset_init(&w->seamset, g->width, g->height))
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    if ((rc = sc_seam_mark_texels(r->m, r->seams, g, &w->unk, &w->seamset, r->o->threads, err))) return rc;
+    if (sc_seam_texset_finish(&w->unk) || sc_seam_texset_members(&w->unk, &w->ids) ||
+        sc_seam_texset_finish(&w->seamset))
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    r->n = w->unk.count;
+    for (int32_t i = 0; i < r->n; i++) {
+        r->n_inside += sc_seam_texset_has(&w->cov.covered, w->ids[i]);
+        r->n_shared_unk += sc_seam_texset_has(&w->cov.shared, w->ids[i]);
     }
-    if ((rc = sc_seam_mark_texels(m, seams, g, &w.unk, &w.seamset, o->threads, err))) goto done;
-    if (sc_seam_texset_finish(&w.unk) || sc_seam_texset_members(&w.unk, &w.ids) || sc_seam_texset_finish(&w.seamset)) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        goto done;
-    }
-    const int32_t n = w.unk.count;
-    int64_t n_inside = 0, n_shared_unk = 0;
-    for (int32_t r = 0; r < n; r++) {
-        n_inside += sc_seam_texset_has(&w.cov.covered, w.ids[r]);
-        n_shared_unk += sc_seam_texset_has(&w.cov.shared, w.ids[r]);
-    }
-    double w_change_texel = w.cov.ncovered > 0 ? o->w_change / (double)w.cov.ncovered : 0;
+    r->w_change_texel = w->cov.ncovered > 0 ? r->o->w_change / (double)w->cov.ncovered : 0;
+    return SC_OK;
+}
 
-    /* the scale of M on the seam texels */
-    sc_seam_set seams_only = *seams;
-    seams_only.nsil = 0;
+/* The scale of M on the seam texels (w_pen), and the system matrix's terms. */
+static int scale_seam_terms(group_run *r, sc_error *err) {
+    const options *o = r->o;
     double trace = 0;
-    if ((rc = sc_seam_trace(m, seams, g, o->threads, &trace, err))) goto done;
-    double w_pen = o->w_seam * (trace > 0 ? (double)w.seamset.count / trace : 1.0);
+    int rc = sc_seam_trace(r->m, r->seams, &r->gr->grid, o->threads, &trace, err);
+    if (rc) return rc;
+    r->w_pen = o->w_seam * (trace > 0 ? (double)r->w.seamset.count / trace : 1.0);
+    r->qterms = (sc_seam_terms){.w_seam = r->w_pen,
+                                .w_c1 = o->w_c1,
+                                .w_outside = o->outside ? o->w_outside : 0,
+                                .w_lerp = o->lerp ? o->w_lerp : 0};
+    return SC_OK;
+}
 
-    /* the system matrix, shared by every channel of every texture here */
-    sc_seam_terms qterms = {.w_seam = w_pen,
-                            .w_c1 = o->w_c1,
-                            .w_outside = o->outside ? o->w_outside : 0,
-                            .w_lerp = o->lerp ? o->w_lerp : 0};
-    /* right-hand sides: one column per channel of every texture */
-    int32_t ncols = 0;
-    for (int32_t k = 0; k < gr->ntex; k++) ncols += textures[gr->tex[k]].image->as.image->channels;
-    w.rhs = sc_calloc_array((size_t)n * (size_t)ncols, sizeof *w.rhs);
-    w.vv = sc_calloc_array((size_t)gr->ntex, sizeof *w.vv);
-    if (!w.rhs || !w.vv) {
-        rc = sc_fail(err, SC_ENOMEM, "out of memory for %d x %d right-hand sides", (int)n, (int)ncols);
-        goto done;
-    }
-    for (int32_t k = 0; k < gr->ntex; k++) {
-        const sc_texture *tx = &textures[gr->tex[k]];
+/* Room for the right-hand sides (n x ncols) and each texture's vertex values. */
+static int alloc_right_hand_sides(group_run *r, sc_error *err) {
+    for (int32_t k = 0; k < r->gr->ntex; k++) r->ncols += r->textures[r->gr->tex[k]].image->as.image->channels;
+    r->w.rhs = sc_calloc_array((size_t)r->n * (size_t)r->ncols, sizeof *r->w.rhs);
+    r->w.vv = sc_calloc_array((size_t)r->gr->ntex, sizeof *r->w.vv);
+    if (!r->w.rhs || !r->w.vv)
+        return sc_fail(err, SC_ENOMEM, "out of memory for %d x %d right-hand sides", (int)r->n, (int)r->ncols);
+    return SC_OK;
+}
+
+/* Each texture's texels at the unknowns, which must be finite, and with
+ * lerp its values at the mesh's vertices (w.vv). */
+static int read_textures(group_run *r, sc_error *err) {
+    const sc_seam_grid *g = &r->gr->grid;
+    group_work *w = &r->w;
+    for (int32_t k = 0; k < r->gr->ntex; k++) {
+        const sc_texture *tx = &r->textures[r->gr->tex[k]];
         const sc_image_data *img = tx->image->as.image;
-        for (int32_t r = 0; r < n; r++)
+        for (int32_t i = 0; i < r->n; i++)
             for (int32_t c = 0; c < img->channels; c++)
-                if (!isfinite(sc_seam_texel(img, w.ids[r], c))) {
-                    rc = sc_fail(err, SC_EINPUT, "texture %s (%s): non-finite value at texel (%d, %d)",
-                                 tx->name, tx->source, (int)(w.ids[r] % g->width),
-                                 (int)(w.ids[r] / g->width));
-                    goto done;
-                }
-        if (o->lerp && o->w_lerp > 0 && !(w.vv[k] = vertex_values(m, gr->material, g, img))) {
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            goto done;
-        }
+                if (!isfinite(sc_seam_texel(img, w->ids[i], c)))
+                    return sc_fail(err, SC_EINPUT, "texture %s (%s): non-finite value at texel (%d, %d)", tx->name,
+                                   tx->source, (int)(w->ids[i] % g->width), (int)(w->ids[i] / g->width));
+        if (r->o->lerp && r->o->w_lerp > 0 && !(w->vv[k] = vertex_values(r->m, r->gr->material, g, img)))
+            return sc_fail(err, SC_ENOMEM, "out of memory");
     }
-    /* Q's seam terms, and the edge-cluster solver's groups, side by side */
-    w.use_schur = o->solver == SC_ERASE_SOLVER_SCHUR || (o->solver == SC_ERASE_SOLVER_AUTO && n >= o->schur_from);
-    const prep_ctx pc = {m, seams, &seams_only, g, textures, gr, o, &w, &qterms, w_pen, w_change_texel};
-    build_job bj = {.ctx = &pc};
-    sc_seam_parallel(o->threads >= 2 && w.use_schur ? 2 : 1, w.use_schur ? 2 : 1, build_task, &bj);
-    if ((rc = bj.rc[0] ? bj.rc[0] : bj.rc[1])) {
-        if (err) *err = bj.err[bj.rc[0] ? 0 : 1];
-        goto done;
+    return SC_OK;
+}
+
+/* Q's seam terms, and the edge-cluster solver's groups, side by side. */
+static int assemble_seam_terms(group_run *r, sc_error *err) {
+    const options *o = r->o;
+    group_work *w = &r->w;
+    w->use_schur = o->solver == SC_ERASE_SOLVER_SCHUR || (o->solver == SC_ERASE_SOLVER_AUTO && r->n >= o->schur_from);
+    r->pc = (prep_ctx){r->m, r->seams, &r->seams_only, &r->gr->grid, r->textures, r->gr, o, w, &r->qterms, r->w_pen,
+                       r->w_change_texel};
+    build_job bj = {.ctx = &r->pc};
+    sc_seam_parallel(o->threads >= 2 && w->use_schur ? 2 : 1, w->use_schur ? 2 : 1, build_task, &bj);
+    int rc = bj.rc[0] ? bj.rc[0] : bj.rc[1];
+    if (rc && err) *err = bj.err[bj.rc[0] ? 0 : 1];
+    return rc;
+}
+
+/* Solver auto keeps the edge-cluster solver only where its clusters are
+ * most of the system: texels that two chains' cells reach join no cluster,
+ * and where they are most of it (a geometry image of a mesh and its levels
+ * in one uv), every unknown is interface, and one factorisation of Q does
+ * what the edge-cluster solver would, without the iterations. */
+static void choose_solver(group_run *r) {
+    group_work *w = &r->w;
+    if (!w->use_schur) return;
+    int64_t shared = 0;
+    for (int32_t i = 0; i < r->n; i++) shared += w->group[i] < 0;
+    if (r->o->solver == SC_ERASE_SOLVER_AUTO && (double)shared > SCHUR_MAX_SHARED * (double)r->n) {
+        w->use_schur = false;
+        free(w->group), free(w->gamma);
+        w->group = NULL, w->gamma = NULL;
     }
-    if (w.use_schur) {
-        /* texels that two chains' cells reach join no cluster: where they are
-         * most of the system (a geometry image of a mesh and its levels in
-         * one uv), every unknown is interface, and one factorisation of Q
-         * does what the edge-cluster solver would, without the iterations */
-        int64_t shared = 0;
-        for (int32_t r = 0; r < n; r++) shared += w.group[r] < 0;
-        if (o->solver == SC_ERASE_SOLVER_AUTO && (double)shared > SCHUR_MAX_SHARED * (double)n) {
-            w.use_schur = false;
-            free(w.group), free(w.gamma);
-            w.group = NULL, w.gamma = NULL;
-        }
-    }
-    if (w.use_schur) sc_triplets_init(&w.apart, n);
-    if ((rc = grid_terms(g, &w.unk, w.ids, &w.cov.covered, o, o->threads, w_change_texel, &w.q, NULL, NULL,
-                         w.group ? w.group + n : NULL, w.use_schur ? &w.apart : NULL, err)))
-        goto done;
-    /* the texels those couplings join are interface unknowns: the solve
-     * iterates on the interface alone */
-    for (size_t k = 0; w.use_schur && k < w.apart.count; k++) w.group[w.apart.row[k]] = w.group[w.apart.col[k]] = -1;
+}
+
+/* Q's grid terms; for the edge-cluster solver, the couplings between charts
+ * apart, and the texels they join made interface unknowns (the solve
+ * iterates on the interface alone). */
+static int add_grid_terms(group_run *r, sc_error *err) {
+    group_work *w = &r->w;
+    const options *o = r->o;
+    if (w->use_schur) sc_triplets_init(&w->apart, r->n);
+    int rc = grid_terms(&r->gr->grid, &w->unk, w->ids, &w->cov.covered, o, o->threads, r->w_change_texel, &w->q, NULL,
+                        NULL, w->group ? w->group + r->n : NULL, w->use_schur ? &w->apart : NULL, err);
+    if (rc) return rc;
+    for (size_t k = 0; w->use_schur && k < w->apart.count; k++)
+        w->group[w->apart.row[k]] = w->group[w->apart.col[k]] = -1;
+    return SC_OK;
+}
+
+/* The factorisation (for the edge-cluster solver, of its interface alone,
+ * mostly on one thread) and everything else that needs only the seams (the
+ * textures' residuals, the rows of M for rounding, the nullity) side by
+ * side: two independent tasks, the same results on any thread count. The
+ * factorisation is the longer path: the side work (on all threads) runs
+ * behind it, at a lower priority. */
+static int factor_beside_residuals(group_run *r, sc_error *err) {
+    const sc_texture *textures = r->textures;
+    const group *gr = r->gr;
+    group_work *w = &r->w;
     bool want_round = false;
     for (int32_t k = 0; k < gr->ntex; k++)
         want_round |= textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
-                      o->quantize == SC_ERASE_QUANTIZE_OPTIMAL;
-
-    /* the factorisation (for the edge-cluster solver, of its interface
-     * alone, mostly on one thread) and everything else that needs only the
-     * seams (the textures' residuals, the rows of M for rounding, the
-     * nullity) run side by side: two independent tasks, the same results on
-     * any thread count. The factorisation is the longer path: the side work
-     * (on all threads) runs behind it, at a lower priority */
-    prep_job pj = {.ctx = pc,
+                      r->o->quantize == SC_ERASE_QUANTIZE_OPTIMAL;
+    prep_job pj = {.ctx = r->pc,
                    .want_round = want_round,
-                   .want_nullity = w.seamset.count <= NULLITY_MAX_TEXELS,
+                   .want_nullity = w->seamset.count <= NULLITY_MAX_TEXELS,
                    .nullity = NAN};
-    double tp0 = sc_now();
-    if (w.use_schur) prep_clusters(&pj);
-    sc_run_beside(o->threads, prep_front, prep_back, &pj);
-    if ((rc = pj.rc_factor)) {
+    r->t1 = sc_now();
+    if (w->use_schur) prep_clusters(&pj);
+    sc_run_beside(r->o->threads, prep_front, prep_back, &pj);
+    if (pj.rc_factor) {
         if (err) *err = pj.err_factor;
-        sc_error_prefix(err, "material %s", m->materials[gr->material]);
-        goto done;
+        sc_error_prefix(err, "material %s", r->m->materials[gr->material]);
+        return pj.rc_factor;
     }
-    if ((rc = pj.rc_side)) {
+    if (pj.rc_side) {
         if (err) *err = pj.err_side;
-        goto done;
+        return pj.rc_side;
     }
     /* conjugate gradients multiply by Q, and rounding reads it */
-    if (!w.use_schur && !w.round_rows) sc_sparse_free(&w.q);
+    if (!w->use_schur && !w->round_rows) sc_sparse_free(&w->q);
     /* stage times in wall time: the factorisation's stage holds the side
      * work beside it */
-    double t1 = tp0, t2 = sc_now();
-    double ts = t2;
-    if ((rc = solve_unique(&w, o, n, ncols, w.rhs, err))) {
-        sc_error_prefix(err, "material %s", m->materials[gr->material]);
-        goto done;
+    r->t2 = sc_now();
+    r->nullity = pj.nullity;
+    r->seconds_nullity = pj.seconds_nullity;
+    r->tq = pj.seconds_round_prep;
+    return SC_OK;
+}
+
+/* Solve Q X = B for every right-hand side (w.rhs, overwritten by X = the changes). */
+static int solve_group(group_run *r, sc_error *err) {
+    double ts = r->t2;
+    int rc = solve_unique(&r->w, r->o, r->n, r->ncols, r->w.rhs, err);
+    if (rc) {
+        sc_error_prefix(err, "material %s", r->m->materials[r->gr->material]);
+        return rc;
     }
-    double t3 = t2 + (sc_now() - ts);
-    sc_sparse_stats stats = {0};
-    if (w.schur) {
+    r->t3 = r->t2 + (sc_now() - ts);
+    return SC_OK;
+}
+
+/* The solver's statistics (the edge-cluster solver's counts into the
+ * totals), then the solver freed; Q is kept, as M = Q / w_pen, only where
+ * rounding reads it. */
+static void release_solver(group_run *r) {
+    group_work *w = &r->w;
+    totals *tot = r->tot;
+    if (w->schur) {
         sc_schur_stats ss;
-        sc_schur_get_stats(w.schur, &ss);
-        stats.factor_nnz = ss.envelope + ss.interface_factor_nnz;
-        stats.flops = ss.cluster_flops + ss.interface_flops;
-        stats.peak_bytes = ss.peak_bytes;
+        sc_schur_get_stats(w->schur, &ss);
+        r->stats.factor_nnz = ss.envelope + ss.interface_factor_nnz;
+        r->stats.flops = ss.cluster_flops + ss.interface_flops;
+        r->stats.peak_bytes = ss.peak_bytes;
         tot->schur_groups += ss.clusters;
         tot->interface_unknowns += ss.interface_unknowns;
-        if (w.pcg.iterations > tot->pcg_iterations) tot->pcg_iterations = w.pcg.iterations;
-        sc_schur_free(w.schur);
-        w.schur = NULL;
+        if (w->pcg.iterations > tot->pcg_iterations) tot->pcg_iterations = w->pcg.iterations;
+        sc_schur_free(w->schur);
+        w->schur = NULL;
     } else {
-        sc_sparse_chol_stats(w.chol, &stats);
-        sc_sparse_chol_free(w.chol);
-        w.chol = NULL;
+        sc_sparse_chol_stats(w->chol, &r->stats);
+        sc_sparse_chol_free(w->chol);
+        w->chol = NULL;
     }
-    if (!w.round_rows) sc_sparse_free(&w.q);
+    if (!w->round_rows) sc_sparse_free(&w->q);
     else   /* rounding reads M = Q / w_pen on the seam rows */
-        for (int64_t e = 0; e < w.q.nnz; e++) w.q.val[e] /= w_pen;
-    double nullity = pj.nullity;
+        for (int64_t e = 0; e < w->q.nnz; e++) w->q.val[e] /= r->w_pen;
+}
 
-    /* write the solution, measure, quantise */
-    double tq = pj.seconds_round_prep;
-    tot->seconds_nullity += pj.seconds_nullity;
-    tot->seam_edges += seams->nseams;
-    tot->silhouette_edges += seams->nsil;
-    tot->unknowns += n;
-    tot->shared_texels += (double)w.cov.nshared;
-    tot->seconds_build += t1 - t0;
-    tot->seconds_factor += t2 - t1;
-    tot->seconds_solve += t3 - t2;
+/* The group's share of the totals: its system, its solve and its stages' times. */
+static void add_group_totals(const group_run *r) {
+    totals *tot = r->tot;
+    const sc_sparse_stats *stats = &r->stats;
+    tot->seconds_nullity += r->seconds_nullity;
+    tot->seam_edges += r->seams->nseams;
+    tot->silhouette_edges += r->seams->nsil;
+    tot->unknowns += r->n;
+    tot->shared_texels += (double)r->w.cov.nshared;
+    tot->seconds_build += r->t1 - r->t0;
+    tot->seconds_factor += r->t2 - r->t1;
+    tot->seconds_solve += r->t3 - r->t2;
     tot->factorizations++;
-    tot->solver_fallbacks += w.fallback;
-    tot->factor_nnz += stats.factor_nnz;
-    tot->factor_flops += stats.flops;
-    if (stats.peak_bytes / 1048576.0 > tot->solver_peak_mb) tot->solver_peak_mb = stats.peak_bytes / 1048576.0;
-    if (isnan(nullity)) tot->nullity_all = false;
-    else tot->nullity += nullity;
+    tot->solver_fallbacks += r->w.fallback;
+    tot->factor_nnz += stats->factor_nnz;
+    tot->factor_flops += stats->flops;
+    if (stats->peak_bytes / 1048576.0 > tot->solver_peak_mb) tot->solver_peak_mb = stats->peak_bytes / 1048576.0;
+    if (isnan(r->nullity)) tot->nullity_all = false;
+    else tot->nullity += r->nullity;
+}
 
-    for (int32_t k = 0, col = 0; k < gr->ntex; k++) {
-        int32_t ti = gr->tex[k];
-        const sc_texture *tx = &textures[ti];
-        const sc_image_data *img = tx->image->as.image;
-        const int32_t C = img->channels;
-        const char *pre = st[ti].prefix;
-        sc_image_data *out = sc_image_to_f32_threads(img, o->threads);
-        if (!out) {
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            goto done;
-        }
-        float *px = out->pixels;
-        double max_in = 0, sum_in = 0, max_out = 0;
-        bool finite = true;
-        for (int32_t r = 0; r < n; r++) {
-            int32_t t = w.ids[r];
-            bool inside = sc_seam_texset_has(&w.cov.covered, t);
-            for (int32_t c = 0; c < C; c++) {
-                double d = w.rhs[(size_t)(col + c) * n + r];
-                finite &= isfinite(d);
-                float *p = &px[(size_t)t * C + c];
-                float x = (float)((double)*p + d);
-                double ch = fabs((double)x - (double)*p);
-                *p = x;
-                if (inside) {
-                    if (ch > max_in) max_in = ch;
-                    sum_in += ch;
-                } else if (ch > max_out) {
-                    max_out = ch;
-                }
-            }
-        }
-        col += C;
-        if (!finite) {
-            sc_image_free(out);
-            rc = sc_fail(err, SC_EINPUT, "texture %s: the solve gave non-finite texels", tx->name);
-            goto done;
-        }
-        double e0 = 0, e1 = 0, g0 = 0, g1 = 0;
-        sc_value *fv = sc_value_new_image(out);
-        if (!fv) {
-            rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            goto done;
-        }
-        st[ti].f32 = fv;
-        e0 = st[ti].energy_before, g0 = st[ti].gap_before;
-        /* the input's own pixel type: naive rounding, and the optimal one
-         * made from it while the energies of the float and naive results
-         * are measured */
-        double eq_naive = NAN, eq_opt = NAN, gq = NAN;
-        bool quantise = img->pixel != SC_PIXEL_F32 && o->quantize != SC_ERASE_QUANTIZE_NONE;
-        double tq0 = sc_now();
-        sc_image_data *nat = NULL, *opt = NULL;
-        round_job rj = {&w.mfull, NULL, w.seam_ids, px, NULL, C, NULL};
-        int32_t src[4], chan[4];
-        if (quantise) {
-            nat = sc_image_alloc(img->width, img->height, C, img->pixel);
-            if (!nat) {
-                rc = sc_fail(err, SC_ENOMEM, "out of memory");
-                goto done;
-            }
-            nat->colorspace = img->colorspace;
-            memcpy(nat->format, img->format, sizeof nat->format);
-            size_t bytes = (size_t)img->width * img->height * C * (size_t)img->pixel;
-            memcpy(nat->pixels, img->pixels, bytes);
-            double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
-            for (int32_t r = 0; r < n; r++)
-                for (int32_t c = 0; c < C; c++) {
-                    size_t at = (size_t)w.ids[r] * C + c;
-                    double x = px[at];
-                    x = x < 0 ? 0 : x > 1 ? 1 : x;
-                    long v = lrint(x * maxv);
-                    if (img->pixel == SC_PIXEL_U8) ((uint8_t *)nat->pixels)[at] = (uint8_t)v;
-                    else ((uint16_t *)nat->pixels)[at] = (uint16_t)v;
-                }
-            /* M on the seam texels: exactly (small atlases, where the
-             * nullity was measured), or Q's rows there over w_pen */
-            if (w.round_rows && w.q.n > 0) rj.mf = &w.q, rj.rows = w.round_rows, rj.ids = w.ids;
-            if (img->pixel == SC_PIXEL_U8 && o->quantize == SC_ERASE_QUANTIZE_OPTIMAL && rj.mf->n > 0) {
-                if (C > 4) {   /* images hold at most 4 channels */
-                    sc_image_free(nat);
-                    rc = sc_fail(err, SC_EINPUT, "rounding to 8 bits: more than 4 channels");
-                    goto done;
-                }
-                opt = sc_image_alloc(nat->width, nat->height, C, nat->pixel);
-                if (opt) {
-                    opt->colorspace = nat->colorspace;
-                    memcpy(opt->format, nat->format, sizeof opt->format);
-                    memcpy(opt->pixels, nat->pixels, (size_t)nat->width * nat->height * C);
-                }
-                if (!opt) {
-                    sc_image_free(nat);
-                    rc = sc_fail(err, SC_ENOMEM, "out of memory");
-                    goto done;
-                }
-                rj.bytes = opt->pixels, rj.chan = chan;
-            }
-        }
-        measure_job mj = {m, seams, g, o->threads, fv->as.image, nat, opt, opt ? &rj : NULL, src, chan, 0};
-        mj.threads_energy = opt && o->threads > 1 ? o->threads - 1 : o->threads;
-        sc_seam_parallel(opt && o->threads > 1 ? 2 : 1, opt ? 2 : 1, measure_task, &mj);
-        if (mj.rc[0] || mj.rc[1]) {
-            rc = mj.rc[0] ? mj.rc[0] : mj.rc[1];
-            if (err) *err = mj.err[mj.rc[0] ? 0 : 1];
-        } else if (opt) {
-            eq_opt = mj.e_optimal, gq = mj.g_optimal;
-        }
-        if (rc) {
-            sc_image_free(nat), sc_image_free(opt);
-            goto done;
-        }
-        e1 = mj.e_float, g1 = mj.g_float;
-        if (nat) {
-            eq_naive = mj.e_naive;
-            if (!opt) gq = mj.g_naive;
-            if (opt) sc_image_free(nat);
-            st[ti].native = sc_value_new_image(opt ? opt : nat);   /* owns it, even on failure */
-            if (!st[ti].native) {
-                rc = sc_fail(err, SC_ENOMEM, "out of memory");
-                goto done;
-            }
-            tq += sc_now() - tq0;
-        } else {
-            st[ti].native = sc_value_retain(fv);
-        }
+/* One texture of the group, from its solution to its metrics. */
+typedef struct texture_out {
+    int32_t ti;                   /* its index in the atlas */
+    const sc_texture *tx;
+    const sc_image_data *img;     /* the input */
+    sc_value *fv;                 /* the float result (st[ti].f32) */
+    float *px;                    /* its pixels */
+    sc_image_data *nat, *opt;     /* the naive and the optimal rounding, until handed over */
+    round_job rj;
+    int32_t src[4], chan[4];
+    double max_in, sum_in, max_out;   /* the changes: inside the charts (largest, sum), outside */
+    double e0, e1, g0, g1;        /* seam energy and largest gap, before and after */
+    double eq_naive, eq_opt, gq;  /* after rounding to the input's pixel type; NaN when not measured */
+} texture_out;
 
-        /* metrics of this texture */
-        metric(ml, pre, "seam_edges", seams->nseams);
-        metric(ml, pre, "silhouette_edges", seams->nsil);
-        metric(ml, pre, "boundary_edges", seams->nboundary);
-        metric(ml, pre, "foldover_edges", seams->nfoldover);
-        metric(ml, pre, "unknowns", n);
-        metric(ml, pre, "unknowns_inside", (double)n_inside);
-        metric(ml, pre, "seam_texels", w.nseam_texels);
-        metric(ml, pre, "covered_texels", (double)w.cov.ncovered);
-        metric(ml, pre, "shared_texels", (double)w.cov.nshared);
-        metric(ml, pre, "shared_texel_fraction",
-               w.cov.ncovered ? (double)w.cov.nshared / (double)w.cov.ncovered : 0);
-        metric(ml, pre, "shared_unknowns", (double)n_shared_unk);
-        metric(ml, pre, "seam_energy_before", e0);
-        metric(ml, pre, "seam_energy_after", e1);
-        metric(ml, pre, "max_seam_gap_before", g0);
-        metric(ml, pre, "max_seam_gap_after", g1);
-        if (!isnan(eq_naive)) {
-            const char *bits = img->pixel == SC_PIXEL_U8 ? "u8" : "u16";
-            char name[64];
-            snprintf(name, sizeof name, "seam_energy_after_%s_naive", bits);
-            metric(ml, pre, name, eq_naive);
-            if (!isnan(eq_opt)) {
-                snprintf(name, sizeof name, "seam_energy_after_%s_optimal", bits);
-                metric(ml, pre, name, eq_opt);
-            }
-            snprintf(name, sizeof name, "max_seam_gap_after_%s", bits);
-            metric(ml, pre, name, gq);
-            if (img->pixel == SC_PIXEL_U8) {
-                tot->any_u8 = true;
-                tot->energy_u8_naive += eq_naive;
-                if (!isnan(eq_opt)) tot->any_optimal = true, tot->energy_u8_optimal += eq_opt;
-                else tot->energy_u8_optimal += eq_naive;
-                if (gq > tot->gap_u8) tot->gap_u8 = gq;
+/* Write the solution: the input as floats plus its columns of changes,
+ * with the largest and summed changes. */
+static int write_solution(group_run *r, texture_out *t, int32_t col, sc_error *err) {
+    const group_work *w = &r->w;
+    const int32_t C = t->img->channels, n = r->n;
+    sc_image_data *out = sc_image_to_f32_threads(t->img, r->o->threads);
+    if (!out) return sc_fail(err, SC_ENOMEM, "out of memory");
+    float *px = out->pixels;
+    bool finite = true;
+    for (int32_t i = 0; i < n; i++) {
+        int32_t id = w->ids[i];
+        bool inside = sc_seam_texset_has(&w->cov.covered, id);
+        for (int32_t c = 0; c < C; c++) {
+            double d = w->rhs[(size_t)(col + c) * n + i];
+            finite &= isfinite(d);
+            float *p = &px[(size_t)id * C + c];
+            float x = (float)((double)*p + d);
+            double ch = fabs((double)x - (double)*p);
+            *p = x;
+            if (inside) {
+                if (ch > t->max_in) t->max_in = ch;
+                t->sum_in += ch;
+            } else if (ch > t->max_out) {
+                t->max_out = ch;
             }
         }
-        metric(ml, pre, "max_change_interior", max_in);
-        metric(ml, pre, "mean_change_interior", n_inside ? sum_in / ((double)n_inside * C) : 0);
-        metric(ml, pre, "max_change_outside", max_out);
-        if (!isnan(nullity)) metric(ml, pre, "nullity", nullity);
-        if (is_normal_slot(tx->name))
-            metric(ml, pre, "tangent_space_suspect", looks_tangent_space(img) ? 1 : 0);
-        if (several) {
-            metric(ml, pre, "seconds_build", t1 - t0);
-            metric(ml, pre, "seconds_factor", t2 - t1);
-            metric(ml, pre, "seconds_solve", t3 - t2);
-        }
-        tot->energy_before += e0;
-        tot->energy_after += e1;
-        if (g0 > tot->gap_before) tot->gap_before = g0;
-        if (g1 > tot->gap_after) tot->gap_after = g1;
-        if (max_in > tot->max_change_in) tot->max_change_in = max_in;
-        tot->erased++;
     }
-    tot->seconds_quantize += tq;
-done:
-    group_work_free(&w, gr->ntex);
+    if (!finite) {
+        sc_image_free(out);
+        return sc_fail(err, SC_EINPUT, "texture %s: the solve gave non-finite texels", t->tx->name);
+    }
+    sc_value *fv = sc_value_new_image(out);
+    if (!fv) return sc_fail(err, SC_ENOMEM, "out of memory");
+    r->st[t->ti].f32 = fv;
+    t->fv = fv, t->px = px;
+    return SC_OK;
+}
+
+/* A copy of img (its pixels, colour space and format); NULL when out of memory. */
+static sc_image_data *copy_image(const sc_image_data *img) {
+    sc_image_data *copy = sc_image_alloc(img->width, img->height, img->channels, img->pixel);
+    if (!copy) return NULL;
+    copy->colorspace = img->colorspace;
+    memcpy(copy->format, img->format, sizeof copy->format);
+    memcpy(copy->pixels, img->pixels, (size_t)img->width * img->height * img->channels * (size_t)img->pixel);
+    return copy;
+}
+
+/* The input's own pixel type: the naive rounding of the solution (nat)
+ * and, for the optimal one, a copy of it that round_job changes (opt),
+ * with M on the seam texels: exactly (small atlases, where the nullity was
+ * measured), or Q's rows there over w_pen. */
+static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
+    const group_work *w = &r->w;
+    const sc_image_data *img = t->img;
+    const int32_t C = img->channels;
+    if (!(t->nat = copy_image(img))) return sc_fail(err, SC_ENOMEM, "out of memory");
+    double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
+    for (int32_t i = 0; i < r->n; i++)
+        for (int32_t c = 0; c < C; c++) {
+            size_t at = (size_t)w->ids[i] * C + c;
+            double x = t->px[at];
+            x = x < 0 ? 0 : x > 1 ? 1 : x;
+            long v = lrint(x * maxv);
+            if (img->pixel == SC_PIXEL_U8) ((uint8_t *)t->nat->pixels)[at] = (uint8_t)v;
+            else ((uint16_t *)t->nat->pixels)[at] = (uint16_t)v;
+        }
+    if (w->round_rows && w->q.n > 0) t->rj.mf = &w->q, t->rj.rows = w->round_rows, t->rj.ids = w->ids;
+    if (img->pixel != SC_PIXEL_U8 || r->o->quantize != SC_ERASE_QUANTIZE_OPTIMAL || t->rj.mf->n <= 0) return SC_OK;
+    if (C > 4)   /* images hold at most 4 channels */
+        return sc_fail(err, SC_EINPUT, "rounding to 8 bits: more than 4 channels");
+    if (!(t->opt = copy_image(t->nat))) return sc_fail(err, SC_ENOMEM, "out of memory");
+    t->rj.bytes = t->opt->pixels, t->rj.chan = t->chan;
+    return SC_OK;
+}
+
+/* The seam energies of the float result and of the naive rounding, beside
+ * the optimal rounding (measure_task); then the result in the input's
+ * pixel type (st[ti].native): the optimal rounding, the naive one, or the
+ * float result itself. */
+static int measure_and_round(group_run *r, texture_out *t, double tq0, sc_error *err) {
+    const options *o = r->o;
+    measure_job mj = {r->m, r->seams, &r->gr->grid, o->threads, t->fv->as.image, t->nat, t->opt,
+                      t->opt ? &t->rj : NULL, t->src, t->chan, 0};
+    mj.threads_energy = t->opt && o->threads > 1 ? o->threads - 1 : o->threads;
+    sc_seam_parallel(t->opt && o->threads > 1 ? 2 : 1, t->opt ? 2 : 1, measure_task, &mj);
+    if (mj.rc[0] || mj.rc[1]) {
+        if (err) *err = mj.err[mj.rc[0] ? 0 : 1];
+        return mj.rc[0] ? mj.rc[0] : mj.rc[1];
+    }
+    if (t->opt) t->eq_opt = mj.e_optimal, t->gq = mj.g_optimal;
+    t->e1 = mj.e_float, t->g1 = mj.g_float;
+    tex_state *s = &r->st[t->ti];
+    if (!t->nat) {
+        s->native = sc_value_retain(t->fv);
+        return SC_OK;
+    }
+    t->eq_naive = mj.e_naive;
+    if (!t->opt) t->gq = mj.g_naive;
+    if (t->opt) sc_image_free(t->nat);
+    s->native = sc_value_new_image(t->opt ? t->opt : t->nat);   /* owns it, even on failure */
+    t->nat = t->opt = NULL;
+    if (!s->native) return sc_fail(err, SC_ENOMEM, "out of memory");
+    r->tq += sc_now() - tq0;
+    return SC_OK;
+}
+
+/* The metrics of one texture, and its share of the totals. */
+static void texture_metrics(const group_run *r, const texture_out *t) {
+    sc_metric_list *ml = r->ml;
+    const sc_seam_set *seams = r->seams;
+    const group_work *w = &r->w;
+    const char *pre = r->st[t->ti].prefix;
+    const sc_image_data *img = t->img;
+    totals *tot = r->tot;
+    metric(ml, pre, "seam_edges", seams->nseams);
+    metric(ml, pre, "silhouette_edges", seams->nsil);
+    metric(ml, pre, "boundary_edges", seams->nboundary);
+    metric(ml, pre, "foldover_edges", seams->nfoldover);
+    metric(ml, pre, "unknowns", r->n);
+    metric(ml, pre, "unknowns_inside", (double)r->n_inside);
+    metric(ml, pre, "seam_texels", w->nseam_texels);
+    metric(ml, pre, "covered_texels", (double)w->cov.ncovered);
+    metric(ml, pre, "shared_texels", (double)w->cov.nshared);
+    metric(ml, pre, "shared_texel_fraction", w->cov.ncovered ? (double)w->cov.nshared / (double)w->cov.ncovered : 0);
+    metric(ml, pre, "shared_unknowns", (double)r->n_shared_unk);
+    metric(ml, pre, "seam_energy_before", t->e0);
+    metric(ml, pre, "seam_energy_after", t->e1);
+    metric(ml, pre, "max_seam_gap_before", t->g0);
+    metric(ml, pre, "max_seam_gap_after", t->g1);
+    if (!isnan(t->eq_naive)) {
+        const char *bits = img->pixel == SC_PIXEL_U8 ? "u8" : "u16";
+        char name[64];
+        snprintf(name, sizeof name, "seam_energy_after_%s_naive", bits);
+        metric(ml, pre, name, t->eq_naive);
+        if (!isnan(t->eq_opt)) {
+            snprintf(name, sizeof name, "seam_energy_after_%s_optimal", bits);
+            metric(ml, pre, name, t->eq_opt);
+        }
+        snprintf(name, sizeof name, "max_seam_gap_after_%s", bits);
+        metric(ml, pre, name, t->gq);
+        if (img->pixel == SC_PIXEL_U8) {
+            tot->any_u8 = true;
+            tot->energy_u8_naive += t->eq_naive;
+            if (!isnan(t->eq_opt)) tot->any_optimal = true, tot->energy_u8_optimal += t->eq_opt;
+            else tot->energy_u8_optimal += t->eq_naive;
+            if (t->gq > tot->gap_u8) tot->gap_u8 = t->gq;
+        }
+    }
+    metric(ml, pre, "max_change_interior", t->max_in);
+    metric(ml, pre, "mean_change_interior", r->n_inside ? t->sum_in / ((double)r->n_inside * img->channels) : 0);
+    metric(ml, pre, "max_change_outside", t->max_out);
+    if (!isnan(r->nullity)) metric(ml, pre, "nullity", r->nullity);
+    if (is_normal_slot(t->tx->name)) metric(ml, pre, "tangent_space_suspect", looks_tangent_space(img) ? 1 : 0);
+    if (r->several) {
+        metric(ml, pre, "seconds_build", r->t1 - r->t0);
+        metric(ml, pre, "seconds_factor", r->t2 - r->t1);
+        metric(ml, pre, "seconds_solve", r->t3 - r->t2);
+    }
+    tot->energy_before += t->e0;
+    tot->energy_after += t->e1;
+    if (t->g0 > tot->gap_before) tot->gap_before = t->g0;
+    if (t->g1 > tot->gap_after) tot->gap_after = t->g1;
+    if (t->max_in > tot->max_change_in) tot->max_change_in = t->max_in;
+    tot->erased++;
+}
+
+/* Texture k of the group (its changes from column col of w.rhs): write the
+ * solution, measure, quantise, then its metrics. */
+static int finish_texture(group_run *r, int32_t k, int32_t col, sc_error *err) {
+    const int32_t ti = r->gr->tex[k];
+    const sc_texture *tx = &r->textures[ti];
+    texture_out t = {.ti = ti, .tx = tx, .img = tx->image->as.image, .eq_naive = NAN, .eq_opt = NAN, .gq = NAN};
+    int rc = write_solution(r, &t, col, err);
+    if (rc) return rc;
+    t.e0 = r->st[ti].energy_before, t.g0 = r->st[ti].gap_before;
+    bool quantise = t.img->pixel != SC_PIXEL_F32 && r->o->quantize != SC_ERASE_QUANTIZE_NONE;
+    double tq0 = sc_now();
+    t.rj = (round_job){&r->w.mfull, NULL, r->w.seam_ids, t.px, NULL, t.img->channels, NULL};
+    if (quantise) rc = prepare_rounding(r, &t, err);
+    if (rc == SC_OK) rc = measure_and_round(r, &t, tq0, err);
+    sc_image_free(t.nat), sc_image_free(t.opt);   /* not handed over: a failure */
+    if (rc == SC_OK) texture_metrics(r, &t);
+    return rc;
+}
+
+/* Erase the seams of one group: its system, built and factored once, then
+ * every texture solved, measured, quantised. */
+static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *seams,
+                       const sc_texture *textures, const group *gr, const options *o,
+                       tex_state *st, bool several, totals *tot, sc_error *err) {
+    group_run r = {.ml = ml, .m = m, .seams = seams, .seams_only = *seams, .textures = textures, .gr = gr, .o = o,
+                   .st = st, .several = several, .tot = tot};
+    r.seams_only.nsil = 0;
+    r.t0 = sc_now();
+    int rc = mark_texels(&r, err);
+    if (rc == SC_OK) rc = scale_seam_terms(&r, err);
+    if (rc == SC_OK) rc = alloc_right_hand_sides(&r, err);
+    if (rc == SC_OK) rc = read_textures(&r, err);
+    if (rc == SC_OK) rc = assemble_seam_terms(&r, err);
+    if (rc == SC_OK) choose_solver(&r);
+    if (rc == SC_OK) rc = add_grid_terms(&r, err);
+    if (rc == SC_OK) rc = factor_beside_residuals(&r, err);
+    if (rc == SC_OK) rc = solve_group(&r, err);
+    if (rc == SC_OK) {
+        release_solver(&r);
+        add_group_totals(&r);
+    }
+    for (int32_t k = 0, col = 0; k < gr->ntex && rc == SC_OK; k++) {
+        rc = finish_texture(&r, k, col, err);
+        col += textures[gr->tex[k]].image->as.image->channels;
+    }
+    if (rc == SC_OK) tot->seconds_quantize += r.tq;
+    group_work_free(&r.w, gr->ntex);
     return rc;
 }
 
