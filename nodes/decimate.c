@@ -217,6 +217,11 @@
 #define QDIM 5
 #define QSIZE SC_QUADRIC_SIZE(QDIM)
 #define BOUNDARY_PLANE_WEIGHT 1.0
+/* Edges at a vertex of more faces than this never collapse: each look at
+ * such an edge walks its fan, and a vertex that every face touches (a fan-
+ * triangulated polygon) would make decimation quadratic. Real meshes keep
+ * well under it (docs/notes/decimate.md). */
+#define MAX_FAN 256
 #define TRACKING_SPAN 3      /* the tracked error counts from TRACKING_SPAN x target faces ... */
 #define TRACKING_START 8     /* ... but only below 1 / TRACKING_START of the input's faces */
 
@@ -245,6 +250,7 @@ typedef enum block_reason {
     BLOCK_TEXEL_STRETCH,        /* with map_size: a face's texels would span too much surface */
     BLOCK_SEAM_ERROR,           /* with map_size: an input seam point would leave the level by more than seam_error */
     BLOCK_TEXEL_CREASE,         /* with map_size: a crease inside a chart would be too sharp for the map's texels */
+    BLOCK_WIDE_FAN,             /* an endpoint with more than MAX_FAN faces */
     BLOCK_COUNT
 } block_reason;
 
@@ -252,7 +258,7 @@ static const char *const block_names[BLOCK_COUNT] = {
     "none", "nonmanifold_vertex", "silhouette_endpoints", "seam_corner", "seam_not_collinear",
     "seam_length_ratio", "boundary_corner", "boundary_not_collinear", "fixed_silhouette", "placement",
     "link_surface", "link_uv", "valence", "surface_flip", "normal_turn", "uv_flip", "max_error",
-    "texel_stretch", "seam_error", "texel_crease",
+    "texel_stretch", "seam_error", "texel_crease", "wide_fan",
 };
 
 enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8 };
@@ -310,6 +316,7 @@ typedef struct state {
     /* vertex -> live faces, lists in one pool */
     int64_t *vf_off;
     int32_t *vf_len, *vf_cap;
+    int32_t *vf_dead;        /* dead faces a wide fan's list still holds (remove_from_list) */
     int32_t *pool;
     int64_t pool_len, pool_cap;
     /* faces */
@@ -482,10 +489,18 @@ static int vertex_wedges(const state *st, int32_t v, int32_t first_two[2]) {
 /* Faces on the surface edge (a, b); returns their count (up to 3 recorded). */
 static int edge_faces(const state *st, int32_t a, int32_t b, int32_t out[3]) {
     int32_t n;
+    /* a's list, or b's when a's is past MAX_FAN and longer (the faces then
+     * come in b's order): a polygon's fan centre is not walked per edge */
+    if (st->vf_len[a] > MAX_FAN && st->vf_len[b] < st->vf_len[a]) {
+        int32_t t = a;
+        a = b;
+        b = t;
+    }
     const int32_t *list = vfaces(st, a, &n);
     int count = 0;
     for (int32_t i = 0; i < n; i++) {
         const int32_t *c = st->fv + 3 * list[i];
+        if (!st->falive[list[i]]) continue;   /* a wide fan's dead face (remove_from_list) */
         if (c[0] == b || c[1] == b || c[2] == b) {
             if (count < 3) out[count] = list[i];
             count++;
@@ -576,6 +591,10 @@ static void plan_edge(state *st, int32_t a, int32_t b, collapse_plan *p) {
     p->cost = INFINITY;
     if ((st->vflags[a] | st->vflags[b]) & V_LOCKED) {
         p->reason = BLOCK_NONMANIFOLD;
+        return;
+    }
+    if (st->vf_len[a] > MAX_FAN || st->vf_len[b] > MAX_FAN) {
+        p->reason = BLOCK_WIDE_FAN;
         return;
     }
     int32_t fl[3];
@@ -1240,9 +1259,24 @@ static void merge_z_attributes(state *st, int32_t keep, const int32_t *gone, int
     update_weight(st, keep);
 }
 
+/* Face f leaves v's list. A list of more than MAX_FAN faces keeps it, dead,
+ * until half the list is dead, and is then compacted in order (removing
+ * faces one at a time from a fan centre would walk the centre's list each
+ * time); only such a list holds dead faces, and its readers (edge_faces,
+ * vertex_neighbours) skip them. */
 static void remove_from_list(state *st, int32_t v, int32_t f) {
     int32_t n;
     int32_t *list = vfaces(st, v, &n);
+    if (n > MAX_FAN) {
+        if (++st->vf_dead[v] * 2 > n) {
+            int32_t alive = 0;
+            for (int32_t i = 0; i < n; i++)
+                if (st->falive[list[i]]) list[alive++] = list[i];
+            st->vf_len[v] = alive;
+            st->vf_dead[v] = 0;
+        }
+        return;
+    }
     for (int32_t i = 0; i < n; i++)
         if (list[i] == f) {
             memmove(list + i, list + i + 1, sizeof(int32_t) * (size_t)(n - i - 1));
@@ -1500,7 +1534,7 @@ static int32_t vertex_neighbours(state *st, int32_t v, int32_t at) {
     uint32_t mark = fresh_mark(st);
     int32_t count = 0;
     for (int32_t i = 0; i < n; i++)
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < 3 && st->falive[list[i]]; k++) {   /* a wide fan's dead faces skipped */
             int32_t x = st->fv[3 * list[i] + k];
             if (x == v || st->vmark[x] == mark) continue;
             st->vmark[x] = mark;
@@ -1602,7 +1636,7 @@ static uint64_t mix3(uint64_t a, uint64_t b, uint64_t c) {
 
 static void state_free(state *st) {
     free(st->pos), free(st->vflags), free(st->version), free(st->vmark);
-    free(st->vf_off), free(st->vf_len), free(st->vf_cap), free(st->pool);
+    free(st->vf_off), free(st->vf_len), free(st->vf_cap), free(st->vf_dead), free(st->pool);
     free(st->fv), free(st->fz), free(st->fmat), free(st->falive), free(st->input_uv_area);
     free(st->zv), free(st->zuv_index), free(st->zuv), free(st->zflags);
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
@@ -1714,6 +1748,7 @@ static int alloc_mesh_arrays(state *st, int32_t nv, int32_t nf, sc_error *err) {
     st->vf_off = sc_calloc_array((size_t)nv, sizeof(int64_t));
     st->vf_len = sc_calloc_array((size_t)nv, sizeof(int32_t));
     st->vf_cap = sc_calloc_array((size_t)nv, sizeof(int32_t));
+    st->vf_dead = sc_calloc_array((size_t)nv, sizeof(int32_t));
     st->fv = sc_alloc_array((size_t)nf * 3, sizeof(int32_t));
     st->fz = sc_alloc_array((size_t)nf * 3, sizeof(int32_t));
     st->fmat = sc_alloc_array((size_t)nf, sizeof(int32_t));
@@ -1721,7 +1756,7 @@ static int alloc_mesh_arrays(state *st, int32_t nv, int32_t nf, sc_error *err) {
     st->input_uv_area = sc_alloc_array((size_t)nf, sizeof(double));
     st->pool_cap = (int64_t)nf * 3 + (int64_t)nv * 4 + 16;
     st->pool = sc_alloc_array((size_t)st->pool_cap, sizeof(int32_t));
-    if (!st->pos || !st->vflags || !st->version || !st->vmark || !st->vf_off || !st->vf_len || !st->vf_cap ||
+    if (!st->pos || !st->vflags || !st->version || !st->vmark || !st->vf_off || !st->vf_len || !st->vf_cap || !st->vf_dead ||
         !st->fv || !st->fz || !st->fmat || !st->falive || !st->input_uv_area || !st->pool)
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     return SC_OK;
@@ -2818,7 +2853,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quad
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 4,
+    .version = 5,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
