@@ -52,29 +52,29 @@ struct sc_hausdorff_bvh {
     const sc_hausdorff_mesh *mesh;
     bvh_node *nodes;
     int32_t nnodes;
-    int32_t *order;
+    int32_t *order;          /* per reference: its face */
+    double *ref_box;         /* per reference: lo[3], hi[3] (a piece of its face, or all of it) */
+    bool split;              /* thin faces were cut into pieces (build_split) */
 };
 
 static const double *corner(const sc_hausdorff_mesh *m, int32_t f, int k) { return m->V + 3 * m->F[3 * f + k]; }
 
-static void bounds_of(const sc_hausdorff_bvh *b, int32_t first, int32_t count, double lo[3], double hi[3]) {
-    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (int32_t i = first; i < first + count; i++)
-        for (int c = 0; c < 3; c++) {
-            const double *p = corner(b->mesh, b->order[i], c);
-            for (int k = 0; k < 3; k++) {
-                if (p[k] < lo[k]) lo[k] = p[k];
-                if (p[k] > hi[k]) hi[k] = p[k];
-            }
-        }
-}
-
-/* A triangle while the tree is built: its centroid and index side by side,
- * so partitioning reads memory in order. */
+/* A reference while the tree is built: its centroid, face and box side by
+ * side, so partitioning reads memory in order. */
 typedef struct build_item {
     double c[3];
     int32_t f;
+    double lo[3], hi[3];
 } build_item;
+
+static void bounds_of(const build_item *it, int32_t first, int32_t count, double lo[3], double hi[3]) {
+    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int32_t i = first; i < first + count; i++)
+        for (int k = 0; k < 3; k++) {
+            if (it[i].lo[k] < lo[k]) lo[k] = it[i].lo[k];
+            if (it[i].hi[k] > hi[k]) hi[k] = it[i].hi[k];
+        }
+}
 
 /* Partition items[lo, hi) so the median (by centroid along axis, ties by
  * triangle index) sits at `mid`: quickselect with a deterministic middle
@@ -110,8 +110,12 @@ static int32_t build_node(sc_hausdorff_bvh *b, build_item *it, int32_t first, in
     n->count = count;
     n->left = n->right = -1;
     if (count <= LEAF_SIZE) {
-        for (int32_t i = first; i < first + count; i++) b->order[i] = it[i].f;
-        bounds_of(b, first, count, n->lo, n->hi);
+        for (int32_t i = first; i < first + count; i++) {
+            b->order[i] = it[i].f;
+            memcpy(b->ref_box + 6 * (size_t)i, it[i].lo, sizeof it[i].lo);
+            memcpy(b->ref_box + 6 * (size_t)i + 3, it[i].hi, sizeof it[i].hi);
+        }
+        bounds_of(it, first, count, n->lo, n->hi);
         return id;
     }
     double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -139,34 +143,111 @@ static int32_t build_node(sc_hausdorff_bvh *b, build_item *it, int32_t first, in
     return id;
 }
 
-sc_hausdorff_bvh *sc_hausdorff_bvh_build(const sc_hausdorff_mesh *m) {
+static void piece_item(build_item *it, int32_t f, const double *const p[3]) {
+    it->f = f;
+    for (int k = 0; k < 3; k++) {
+        it->c[k] = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
+        it->lo[k] = fmin(p[0][k], fmin(p[1][k], p[2][k]));
+        it->hi[k] = fmax(p[0][k], fmax(p[1][k], p[2][k]));
+    }
+}
+
+/* Whether a piece is a sliver across its box: its area under a quarter of
+ * the box's largest face, and longer than `shortest`. */
+static bool thin(const double *const p[3], double shortest) {
+    double lo[3], hi[3], e[3], n[3];
+    for (int k = 0; k < 3; k++) {
+        lo[k] = fmin(p[0][k], fmin(p[1][k], p[2][k]));
+        hi[k] = fmax(p[0][k], fmax(p[1][k], p[2][k]));
+        e[k] = hi[k] - lo[k];
+    }
+    double face = fmax(e[0] * e[1], fmax(e[1] * e[2], e[0] * e[2]));
+    sc_triangle_normal(p[0], p[1], p[2], n);
+    double area = 0.5 * sqrt(sc_dot3(n, n));
+    return sqrt(sc_dot3(e, e)) > shortest && area < 0.25 * face;
+}
+
+/* Face f as pieces (up to 2^depth): a sliver is cut at the midpoint of its
+ * longest edge, each half again while it is one. `it` NULL: only counts
+ * them. Corners of the pieces are kept in `mid` (three per cut). */
+static int32_t add_pieces(build_item *it, int32_t f, const double *const p[3], int depth, double shortest,
+                          double *mid, int32_t *nmid) {
+    if (depth == 0 || !thin(p, shortest)) {
+        if (it) piece_item(it, f, p);
+        return 1;
+    }
+    int longest = 0;
+    double best = -1;
+    for (int k = 0; k < 3; k++) {
+        double d[3];
+        sc_sub3(p[(k + 1) % 3], p[k], d);
+        if (sc_dot3(d, d) > best) best = sc_dot3(d, d), longest = k;
+    }
+    double *m = mid + 3 * (*nmid)++;
+    for (int k = 0; k < 3; k++) m[k] = 0.5 * (p[longest][k] + p[(longest + 1) % 3][k]);
+    const double *a = p[longest], *b = p[(longest + 1) % 3], *c = p[(longest + 2) % 3];
+    const double *left[3] = {a, m, c}, *right[3] = {m, b, c};
+    int32_t n = add_pieces(it, f, left, depth - 1, shortest, mid, nmid);
+    return n + add_pieces(it ? it + n : NULL, f, right, depth - 1, shortest, mid, nmid);
+}
+
+/* Pieces of every face at this depth (it NULL: the count). */
+static int64_t all_pieces(const sc_hausdorff_mesh *m, build_item *it, int depth, double shortest, double *mid) {
+    int64_t n = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        const double *p[3] = {corner(m, f, 0), corner(m, f, 1), corner(m, f, 2)};
+        int32_t nmid = 0;
+        n += add_pieces(it ? it + n : NULL, f, p, depth, shortest, mid, &nmid);
+    }
+    return n;
+}
+
+#define SPLIT_DEPTH 6    /* up to 64 pieces a face ... */
+#define SPLIT_BUDGET 8    /* ... and up to 8 references a face in all: the depth falls until they fit */
+
+/* The tree over every face whole, or (split) with thin faces in pieces, so
+ * that long slivers meeting at one vertex (a fan) do not all overlap every
+ * query. Distances are to whole faces either way: the same results. */
+static sc_hausdorff_bvh *build(const sc_hausdorff_mesh *m, bool split) {
     if (!m || m->nf <= 0) return NULL;
     sc_hausdorff_bvh *b = calloc(1, sizeof *b);
     if (!b) return NULL;
     b->mesh = m;
-    b->order = sc_alloc_array((size_t)m->nf, sizeof *b->order);
-    /* splits happen from 5 triangles up, so every leaf holds 2 or more
-     * (or the single triangle of a one-face mesh): nf + 1 nodes suffice */
-    b->nodes = sc_alloc_array((size_t)m->nf + 1, sizeof *b->nodes);
-    build_item *items = sc_alloc_array((size_t)m->nf, sizeof *items);
-    if (!b->order || !b->nodes || !items) {
+    b->split = split;
+    double area = 0;
+    for (int32_t f = 0; split && f < m->nf; f++) {
+        double n[3];
+        sc_triangle_normal(corner(m, f, 0), corner(m, f, 1), corner(m, f, 2), n);
+        area += 0.5 * sqrt(sc_dot3(n, n));
+    }
+    double shortest = 2 * sqrt(area / m->nf);   /* pieces stay longer than twice a typical face */
+    double mid[3 << SPLIT_DEPTH];
+    int depth = split ? SPLIT_DEPTH : 0;
+    int64_t nref = all_pieces(m, NULL, depth, shortest, mid);
+    while (depth > 0 && nref > (int64_t)SPLIT_BUDGET * m->nf) nref = all_pieces(m, NULL, --depth, shortest, mid);
+    build_item *items = nref < INT32_MAX ? sc_alloc_array((size_t)nref, sizeof *items) : NULL;
+    b->order = items ? sc_alloc_array((size_t)nref, sizeof *b->order) : NULL;
+    b->ref_box = items ? sc_alloc_array((size_t)nref * 6, sizeof *b->ref_box) : NULL;
+    /* splits happen from 5 references up, so every leaf holds 2 or more
+     * (or the single reference of a one-face mesh): nref + 1 nodes suffice */
+    b->nodes = items ? sc_alloc_array((size_t)nref + 1, sizeof *b->nodes) : NULL;
+    if (!items || !b->order || !b->ref_box || !b->nodes) {
         free(items);
         sc_hausdorff_bvh_free(b);
         return NULL;
     }
-    for (int32_t f = 0; f < m->nf; f++) {
-        items[f].f = f;
-        for (int k = 0; k < 3; k++)
-            items[f].c[k] = (corner(m, f, 0)[k] + corner(m, f, 1)[k] + corner(m, f, 2)[k]) / 3.0;
-    }
-    build_node(b, items, 0, m->nf);
+    all_pieces(m, items, depth, shortest, mid);
+    build_node(b, items, 0, (int32_t)nref);
     free(items);
     return b;
 }
 
+sc_hausdorff_bvh *sc_hausdorff_bvh_build(const sc_hausdorff_mesh *m) { return build(m, false); }
+
 void sc_hausdorff_bvh_free(sc_hausdorff_bvh *b) {
     if (!b) return;
     free(b->order);
+    free(b->ref_box);
     free(b->nodes);
     free(b);
 }
@@ -246,6 +327,17 @@ static double box_distance2(const bvh_node *n, const double p[3]) {
     return d;
 }
 
+/* Squared distance from p to reference i's box. */
+static double ref_distance2(const sc_hausdorff_bvh *b, int32_t i, const double p[3]) {
+    const double *lo = b->ref_box + 6 * (size_t)i, *hi = lo + 3;
+    double d = 0;
+    for (int k = 0; k < 3; k++) {
+        double e = p[k] < lo[k] ? lo[k] - p[k] : p[k] > hi[k] ? p[k] - hi[k] : 0;
+        d += e * e;
+    }
+    return d;
+}
+
 static double point_triangle2(const sc_hausdorff_mesh *m, int32_t f, const double p[3], double q[3]) {
     sc_hausdorff_closest_on_triangle(p, corner(m, f, 0), corner(m, f, 1), corner(m, f, 2), q);
     return (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]);
@@ -276,6 +368,7 @@ static double closest_seeded_until(const sc_hausdorff_bvh *b, const double p[3],
         if (n->count > 0) {
             for (int32_t i = n->first; i < n->first + n->count; i++) {
                 int32_t f = b->order[i];
+                if (b->split && (f == best_face || ref_distance2(b, i, p) >= best)) continue;
                 double q[3];
                 double d = point_triangle2(b->mesh, f, p, q);
                 if (d < best || (d == best && f < best_face)) {
@@ -443,8 +536,8 @@ int sc_hausdorff_with_bvh(const sc_hausdorff_mesh *a, const sc_hausdorff_bvh *a_
     memset(out, 0, sizeof *out);
     if (a->nf <= 0 || b->nf <= 0) return sc_fail(err, SC_EINPUT, "hausdorff: a mesh has no faces");
     if (a_bvh && a_bvh->mesh->nf != a->nf) return sc_fail(err, SC_EINPUT, "hausdorff: the BVH is not of mesh a");
-    sc_hausdorff_bvh *owned = a_bvh ? NULL : sc_hausdorff_bvh_build(a), *bb = sc_hausdorff_bvh_build(b);
-    const sc_hausdorff_bvh *ba = a_bvh ? a_bvh : owned;
+    sc_hausdorff_bvh *owned = a_bvh && a_bvh->split ? NULL : build(a, true), *bb = build(b, true);
+    const sc_hausdorff_bvh *ba = a_bvh && a_bvh->split ? a_bvh : owned;
     if (!ba || !bb) {
         sc_hausdorff_bvh_free(owned);
         sc_hausdorff_bvh_free(bb);
