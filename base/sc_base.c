@@ -382,6 +382,18 @@ int sc_read_file(const char *path, size_t max_bytes, sc_buf *out, sc_error *err)
     return SC_OK;
 }
 
+char *sc_excerpt(const char *s, size_t max, bool word, char *out, size_t n) {
+    size_t k = 0, i = 0;
+    for (; s[i] && !(word && (s[i] == ' ' || s[i] == '\t')) && i < max && k + 5 < n; i++) {
+        unsigned char c = (unsigned char)s[i];
+        if (c >= 32 && c < 127) out[k++] = (char)c;
+        else k += (size_t)snprintf(out + k, n - k, "\\x%02x", c);
+    }
+    if (s[i] && !(word && (s[i] == ' ' || s[i] == '\t')) && k + 4 <= n) memcpy(out + k, "...", 3), k += 3;
+    out[k < n ? k : n - 1] = 0;
+    return out;
+}
+
 /* The process's umask, read once from /proc (umask(2) can only read it by
  * changing it, which races with other threads creating files). */
 static mode_t process_umask = 022;

@@ -152,6 +152,11 @@ int sc_write_file_atomic(const char *path, const void *p, size_t n, sc_error *er
  * gone, or older than an hour. *removed (may be NULL) counts them. */
 int sc_remove_stale_tmp(const char *dir, int *removed);
 
+/* At most `max` bytes of s (to its end, or to its first space or tab when
+ * `word`), for an error message: bytes outside printable ASCII as \xNN,
+ * "..." when cut. Returns out (n >= 5 * max + 4 holds any excerpt). */
+char *sc_excerpt(const char *s, size_t max, bool word, char *out, size_t n);
+
 /* The mode for a new file: 0666 less the process's umask. */
 unsigned sc_file_mode(void);
 

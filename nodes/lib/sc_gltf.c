@@ -238,11 +238,13 @@ static int hex_digit(char c) {
 
 /* A relative file URI as a path: %XX decoded; URLs with a scheme rejected. */
 static int uri_to_path(reader *r, const char *ctx, const char *uri, char **out) {
+    char shown[320];
     if (!*uri) return fail(r, SC_EINPUT, "%s: empty uri", ctx);
     const char *colon = strchr(uri, ':');
     const char *slash = strchr(uri, '/');
     if (colon && (!slash || colon < slash))
-        return fail(r, SC_EINPUT, "%s: uri '%.100s' is not a relative file name", ctx, uri);
+        return fail(r, SC_EINPUT, "%s: uri '%s' is not a relative file name", ctx,
+                    sc_excerpt(uri, 60, false, shown, sizeof shown));
     char *path = malloc(strlen(uri) + 1);
     if (!path) return fail(r, SC_ENOMEM, "out of memory");
     size_t k = 0;
@@ -258,7 +260,8 @@ static int uri_to_path(reader *r, const char *ctx, const char *uri, char **out) 
     path[k] = 0;
     if (k != strlen(path)) {
         free(path);
-        return fail(r, SC_EINPUT, "%s: uri '%.100s' decodes to a NUL byte", ctx, uri);
+        return fail(r, SC_EINPUT, "%s: uri '%s' decodes to a NUL byte", ctx,
+                    sc_excerpt(uri, 60, false, shown, sizeof shown));
     }
     *out = path;
     return SC_OK;

@@ -54,20 +54,7 @@ static void trim_end(char *s) {
 
 /* A short printable quote of some text for messages: non-printable bytes as
  * \xNN, at most ~40 characters. */
-static const char *snippet(const char *s, char out[64]) {
-    size_t k = 0;
-    for (; *s && *s != ' ' && *s != '\t' && k < 40; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c >= 32 && c < 127) {
-            out[k++] = (char)c;
-        } else {
-            snprintf(out + k, 64 - k, "\\x%02x", c);
-            k += 4;
-        }
-    }
-    out[k] = 0;
-    return out;
-}
+static const char *snippet(const char *s, char out[256]) { return sc_excerpt(s, 40, true, out, 256); }
 
 /* ---------------------------------------------------------------- name table */
 
@@ -197,7 +184,7 @@ static char *split_keyword(line_reader *lr, char **rest, sc_error *err) {
         s++;
     }
     if (!ok) {
-        char q[64];
+        char q[256];
         sc_fail(err, SC_EINPUT, "%s:%d: unexpected text '%s' (not a statement)", lr->name,
                 lr->line, snippet(k, q));
         return NULL;
@@ -217,7 +204,7 @@ static int parse_numbers(line_reader *lr, const char *what, const char *s, doubl
         if (!*s) break;
         char *e = NULL;
         double x = strtod(s, &e);
-        char q[64];
+        char q[256];
         if (e == s || (*e && !is_space(*e)))
             return sc_fail(err, SC_EINPUT, "%s:%d: %s: '%s' is not a number", lr->name,
                            lr->line, what, snippet(s, q));
@@ -330,7 +317,7 @@ static int parse_index(parser *p, line_reader *lr, const char *token, const char
     const char *c = *s;
     bool negative = *c == '-';
     if (*c == '-' || *c == '+') c++;
-    char q[64];
+    char q[256];
     if (!is_digit(*c))
         return sc_fail(p->err, SC_EINPUT, "%s:%d: face corner '%s': missing or bad %s index",
                        lr->name, lr->line, snippet(token, q), what);
@@ -370,7 +357,7 @@ static int current_material(parser *p, line_reader *lr, int32_t *out) {
 
 static int add_face(parser *p, line_reader *lr, char *rest) {
     int64_t ncorner = 0;
-    char q[64];
+    char q[256];
     bool normals = true;
     for (const char *s = skip_space(rest); *s; s = skip_space(s)) {
         const char *token = s;

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "sc_nodes.h"
+#include "sc_obj.h"
 
 static void write_text(const char *dir, const char *name, const char *text) {
     char *path = sc_path_join(dir, name);
@@ -159,6 +160,25 @@ SC_TEST(load_atlas_reads_nothing_outside_the_asset_folder) {
         SC_CHECK_MSG(!strstr(err.message, "root:"), "%s", err.message);
     }
     free_tree(&t);
+}
+
+/* Messages quote at most a short excerpt of what they reject, escaped. */
+SC_TEST(messages_quote_short_escaped_excerpts) {
+    char obj[700];
+    int n = snprintf(obj, sizeof obj, "v 0 0 0\n\x01\x1b[2J");
+    while (n < 600) obj[n++] = 'x';
+    obj[n++] = '\n';
+    obj[n] = 0;
+    sc_obj parsed;
+    sc_error err = {0};
+    SC_CHECK(sc_obj_parse("junk.obj", obj, (size_t)n, NULL, NULL, &parsed, &err) != SC_OK);
+    SC_CHECK_MSG(strstr(err.message, "junk.obj:2") && strstr(err.message, "\\x01\\x1b") && !strchr(err.message, '\x1b') &&
+                     strlen(err.message) < 200,
+                 "%s", err.message);
+    char excerpt[64];
+    SC_CHECK(strcmp(sc_excerpt("a\tb c", 10, true, excerpt, sizeof excerpt), "a") == 0);
+    SC_CHECK(strcmp(sc_excerpt("abcdef", 3, false, excerpt, sizeof excerpt), "abc...") == 0);
+    SC_CHECK(strcmp(sc_excerpt("\n", 3, false, excerpt, sizeof excerpt), "\\x0a") == 0);
 }
 
 int main(void) { return sc_test_main(); }
