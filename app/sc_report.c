@@ -89,6 +89,19 @@ static void html_text(sc_buf *b, const char *s) {
     }
 }
 
+/* A picture linked to itself, with a caption. */
+static void figure(sc_buf *b, const char *file, const char *caption) {
+    sc_buf_puts(b, "<figure><a href=\"");
+    html_text(b, file);
+    sc_buf_puts(b, "\"><img src=\"");
+    html_text(b, file);
+    sc_buf_puts(b, "\" alt=\"");
+    html_text(b, file);
+    sc_buf_puts(b, "\"></a><figcaption>");
+    html_text(b, caption);
+    sc_buf_puts(b, "</figcaption></figure>\n");
+}
+
 static void html_metrics(sc_buf *b, const cJSON *metrics, const char *prefix) {
     size_t pl = prefix ? strlen(prefix) : 0;
     int shown = 0;
@@ -210,16 +223,8 @@ char *sc_run_report_html(const sc_run *r) {
             sc_buf_puts(&b, "</div><div class=\"pics\">\n");
             for (int f = 0; f < x->nfiles; f++) {
                 if (!is_png(x->files[f]) || lod_of_file(x->files[f]) != k) continue;
-                sc_buf_puts(&b, "<figure><a href=\"");
-                html_text(&b, x->files[f]);
-                sc_buf_puts(&b, "\"><img src=\"");
-                html_text(&b, x->files[f]);
-                sc_buf_puts(&b, "\" alt=\"");
-                html_text(&b, x->files[f]);
-                sc_buf_puts(&b, "\"></a><figcaption>");
                 const char *base = strrchr(x->files[f], '/');
-                html_text(&b, base ? base + 1 : x->files[f]);
-                sc_buf_puts(&b, "</figcaption></figure>\n");
+                figure(&b, x->files[f], base ? base + 1 : x->files[f]);
             }
             sc_buf_puts(&b, "</div></div>\n");
         }
@@ -229,15 +234,7 @@ char *sc_run_report_html(const sc_run *r) {
             if (!is_png(x->files[f]) || lod_of_file(x->files[f]) >= 0) continue;
             if (!other) sc_buf_puts(&b, "<div class=\"pics\">\n");
             other = true;
-            sc_buf_puts(&b, "<figure><a href=\"");
-            html_text(&b, x->files[f]);
-            sc_buf_puts(&b, "\"><img src=\"");
-            html_text(&b, x->files[f]);
-            sc_buf_puts(&b, "\" alt=\"");
-            html_text(&b, x->files[f]);
-            sc_buf_puts(&b, "\"></a><figcaption>");
-            html_text(&b, x->files[f]);
-            sc_buf_puts(&b, "</figcaption></figure>\n");
+            figure(&b, x->files[f], x->files[f]);
         }
         if (other) sc_buf_puts(&b, "</div>\n");
         if (max_lod < 0) html_metrics(&b, metrics, NULL);

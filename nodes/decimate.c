@@ -1418,17 +1418,8 @@ static bool heap_append(state *st, heap_entry e) {
 }
 
 static bool heap_push(state *st, heap_entry e) {
-    if (st->heap_len == st->heap_cap) {
-        int64_t cap = st->heap_cap ? st->heap_cap * 2 : 1024;
-        heap_entry *h = sc_realloc_array(st->heap, (size_t)cap, sizeof *h);
-        if (!h) {
-            st->out_of_memory = true;
-            return false;
-        }
-        st->heap = h;
-        st->heap_cap = cap;
-    }
-    int64_t i = st->heap_len++;
+    if (!heap_append(st, e)) return false;
+    int64_t i = st->heap_len - 1;   /* sifted up from the end */
     while (i > 0) {
         int64_t parent = (i - 1) / HEAP_ARITY;
         if (!entry_less(&e, &st->heap[parent])) break;
