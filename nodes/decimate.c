@@ -1430,22 +1430,27 @@ static bool heap_push(state *st, heap_entry e) {
     return true;
 }
 
-static bool heap_pop(state *st, heap_entry *out) {
-    if (st->heap_len == 0) return false;
-    *out = st->heap[0];
-    heap_entry last = st->heap[--st->heap_len];
-    int64_t i = 0, n = st->heap_len;
+/* Put `moving` at slot i of the first n entries, moving it down past its
+ * least child while that child is less. */
+static void sift_down(state *st, int64_t i, int64_t n, heap_entry moving) {
     for (;;) {
         int64_t first = HEAP_ARITY * i + 1;
         if (first >= n) break;
         int64_t best = first, end = first + HEAP_ARITY < n ? first + HEAP_ARITY : n;
         for (int64_t c = first + 1; c < end; c++)
             if (entry_less(&st->heap[c], &st->heap[best])) best = c;
-        if (!entry_less(&st->heap[best], &last)) break;
+        if (!entry_less(&st->heap[best], &moving)) break;
         st->heap[i] = st->heap[best];
         i = best;
     }
-    if (n > 0) st->heap[i] = last;
+    st->heap[i] = moving;
+}
+
+static bool heap_pop(state *st, heap_entry *out) {
+    if (st->heap_len == 0) return false;
+    *out = st->heap[0];
+    heap_entry last = st->heap[--st->heap_len];
+    if (st->heap_len > 0) sift_down(st, 0, st->heap_len, last);
     return true;
 }
 
@@ -1463,21 +1468,7 @@ static void heap_compact(state *st) {
             st->heap[n++] = *e;
     }
     st->heap_len = st->heap_compacted = n;
-    for (int64_t start = (n - 2) / HEAP_ARITY; start >= 0 && n > 1; start--) {
-        heap_entry moving = st->heap[start];
-        int64_t i = start;
-        for (;;) {
-            int64_t first = HEAP_ARITY * i + 1;
-            if (first >= n) break;
-            int64_t best = first, end = first + HEAP_ARITY < n ? first + HEAP_ARITY : n;
-            for (int64_t c = first + 1; c < end; c++)
-                if (entry_less(&st->heap[c], &st->heap[best])) best = c;
-            if (!entry_less(&st->heap[best], &moving)) break;
-            st->heap[i] = st->heap[best];
-            i = best;
-        }
-        st->heap[i] = moving;
-    }
+    for (int64_t start = (n - 2) / HEAP_ARITY; start >= 0 && n > 1; start--) sift_down(st, start, n, st->heap[start]);
 }
 
 /* Pop stale entries (a dead endpoint or an older version) off the top, so

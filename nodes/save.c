@@ -41,6 +41,16 @@ static void put_number(sc_buf *b, double v) {
     sc_buf_puts(b, text);
 }
 
+/* One OBJ line: the keyword and n numbers. */
+static void put_row(sc_buf *out, const char *keyword, const double *x, int n) {
+    sc_buf_puts(out, keyword);
+    for (int k = 0; k < n; k++) {
+        sc_buf_puts(out, " ");
+        put_number(out, x[k]);
+    }
+    sc_buf_puts(out, "\n");
+}
+
 static void put_int(sc_buf *b, int64_t v) {
     char text[24];
     int n = 0;
@@ -128,31 +138,9 @@ static int write_obj(const sc_mesh *m, const sc_mesh *set, char *const *set_name
     sc_buf_puts(out, "# seamcook\nmtllib ");
     sc_buf_puts(out, mtl);
     sc_buf_puts(out, "\n");
-    for (int32_t i = 0; i < m->nv; i++) {
-        sc_buf_puts(out, "v ");
-        put_number(out, m->V[3 * i]);
-        sc_buf_puts(out, " ");
-        put_number(out, m->V[3 * i + 1]);
-        sc_buf_puts(out, " ");
-        put_number(out, m->V[3 * i + 2]);
-        sc_buf_puts(out, "\n");
-    }
-    for (int32_t i = 0; i < m->nu; i++) {
-        sc_buf_puts(out, "vt ");
-        put_number(out, m->U[2 * i]);
-        sc_buf_puts(out, " ");
-        put_number(out, m->U[2 * i + 1]);
-        sc_buf_puts(out, "\n");
-    }
-    for (int32_t i = 0; i < m->nn; i++) {
-        sc_buf_puts(out, "vn ");
-        put_number(out, m->N[3 * i]);
-        sc_buf_puts(out, " ");
-        put_number(out, m->N[3 * i + 1]);
-        sc_buf_puts(out, " ");
-        put_number(out, m->N[3 * i + 2]);
-        sc_buf_puts(out, "\n");
-    }
+    for (int32_t i = 0; i < m->nv; i++) put_row(out, "v", m->V + 3 * i, 3);
+    for (int32_t i = 0; i < m->nu; i++) put_row(out, "vt", m->U + 2 * i, 2);
+    for (int32_t i = 0; i < m->nn; i++) put_row(out, "vn", m->N + 3 * i, 3);
     int32_t current = -1;
     for (int32_t f = 0; f < m->nf; f++) {
         if (m->FM[f] != current) {
