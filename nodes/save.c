@@ -22,9 +22,10 @@
  * file-safe ([A-Za-z0-9_.-], others become '_'; duplicates get a suffix). A
  * texture image shared by several (material, slot) pairs is written once.
  *
- * Texture format: auto keeps an 8/16-bit image's own format (jpg stays jpg,
- * anything else becomes png) and writes float data as EXR; png, jpg and exr
- * force one. exr_too also writes every texture as float EXR beside it.
+ * Texture format: auto writes 8/16-bit images as PNG, which holds every
+ * byte (a JPEG input too: re-encoding it lossily would undo what erasure
+ * and mip-mapping made of it), and float data as EXR; png, jpg and exr force
+ * one. exr_too also writes every texture as float EXR beside it.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -182,8 +183,7 @@ static int add_file(sc_report *r, const char *path, sc_buf *b, sc_error *err) {
 /* The extension a texture is written with under `format`. */
 static const char *texture_ext(const sc_image_data *im, const char *format) {
     if (strcmp(format, "auto") != 0) return format;
-    if (im->pixel == SC_PIXEL_F32) return "exr";
-    return strcmp(im->format, "jpg") == 0 && im->pixel == SC_PIXEL_U8 ? "jpg" : "png";
+    return im->pixel == SC_PIXEL_F32 ? "exr" : "png";
 }
 
 static int encode(const sc_image_data *im, const char *ext, sc_buf *out, sc_error *err) {
@@ -381,7 +381,8 @@ static const sc_param_desc params[] = {
     {.name = "file", .type = SC_PARAM_STRING, .def_string = "asset",
      .doc = "base file name of everything written"},
     {.name = "format", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = format_choices,
-     .doc = "texture format; auto: the texture's own (png/jpg) for 8/16-bit images, exr for float"},
+     .doc = "texture format; auto: png for 8/16-bit images (lossless, a JPEG input too), exr for float; "
+            "jpg only when asked"},
     {.name = "exr_too", .type = SC_PARAM_BOOL, .def = 0,
      .doc = "also write every texture as float EXR"},
 };
@@ -401,7 +402,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_imageio, NULL};
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 1,
+    .version = 2,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -645,7 +645,17 @@ SC_TEST(corpus_save_round_trip) {
     if (rc == SC_OK) {
         const sc_report *r = sc_ctx_output(save, 0)->as.report;
         const sc_bytes *obj_bytes = report_file(r, "asset.obj");
-        SC_CHECK(report_file(r, "asset_default_color.jpg") != NULL);   /* auto keeps jpg */
+        /* a JPEG input is written as PNG, every decoded byte kept */
+        SC_CHECK(report_file(r, "asset_default_color.jpg") == NULL);
+        const sc_bytes *png = report_file(r, "asset_default_color.png");
+        sc_image_data *back = NULL;
+        SC_CHECK_MSG(png && sc_image_decode("asset_default_color.png", png->data, png->size, &back, &err) == SC_OK,
+                     "%s", err.message);
+        const sc_image_data *in = atlas->as.atlas->textures[0].image->as.image;
+        SC_CHECK(back && back->width == in->width && back->height == in->height && back->channels == in->channels &&
+                 back->pixel == in->pixel &&
+                 memcmp(back->pixels, in->pixels, (size_t)in->width * in->height * in->channels) == 0);
+        sc_image_free(back);
         sc_obj obj;
         SC_CHECK(obj_bytes && sc_obj_parse("asset.obj", obj_bytes->data, obj_bytes->size, NULL, NULL, &obj, &err) == SC_OK);
         const sc_mesh *a = atlas->as.atlas->mesh->as.mesh;
@@ -656,7 +666,7 @@ SC_TEST(corpus_save_round_trip) {
             SC_CHECK(memcmp(obj.mesh->FU, a->FU, sizeof(int32_t) * 3 * a->nf) == 0);
             sc_obj_free(&obj);
         }
-        printf("pizza: save (OBJ %.1f MB + 4096^2 JPEG) %.3f s\n", obj_bytes ? obj_bytes->size / 1e6 : 0, seconds);
+        printf("pizza: save (OBJ %.1f MB + 4096^2 PNG) %.3f s\n", obj_bytes ? obj_bytes->size / 1e6 : 0, seconds);
     }
     sc_ctx_free(save);
     sc_ctx_free(load);
