@@ -344,12 +344,23 @@ SC_TEST(bad_input_exit_statuses) {
     /* an unused --set is an error, not silence */
     g = data("proc_save.lua");
     a = sc_strprintf("run '%s' --cache cache --out out --set resolutoin=3", g);
-    SC_CHECK(cook(dir, a) != 0);
+    SC_CHECK_INT(cook(dir, a), 2);
     err = slurp(dir, "err.txt");
     SC_CHECK_MSG(err && strstr(err, "resolutoin"), "stderr: %s", err ? err : "(nothing)");
-    free(err), free(a), free(g);
+    free(err), free(a);
+    /* a --set value the parameter refuses is a usage error naming node:param and the --set */
+    const char *refused[][2] = {{"resolution=abc", "--set resolution=abc: not a number"},
+                                {"resolution=100000", "--set resolution=100000: asset:resolution: 100000 is outside"},
+                                {"asset.resolution=abc", "--set asset.resolution=abc: asset:resolution: 'abc' is not a number"},
+                                {"asset.resolution=0", "--set asset.resolution=0: asset:resolution: 0 is outside"}};
+    for (int i = 0; i < 4; i++) {
+        a = sc_strprintf("run '%s' --cache cache --out out --set %s", g, refused[i][0]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, refused[i][1]) && strstr(err, "proc_save.lua"), "stderr: %s", err ? err : "");
+        free(err), free(a);
+    }
     /* a name set twice is a usage error, not the last one silently */
-    g = data("proc_save.lua");
     a = sc_strprintf("run '%s' --cache cache --out out --set resolution=3 --set resolution=4", g);
     SC_CHECK_INT(cook(dir, a), 2);
     err = slurp(dir, "err.txt");
@@ -383,6 +394,102 @@ SC_TEST(bad_input_exit_statuses) {
                  "stderr: %s", err ? err : "(nothing)");
     free(err), free(a);
     free(dir);
+}
+
+/* A dry run checks parameters exactly as the cook does: a list decimate
+ * refuses fails both, as a usage error naming the --set; so does a list with
+ * an element that is not a number (it used to shrink to one level). */
+SC_TEST(dry_run_checks_parameters_like_the_cook) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("lods_save.lua");
+    const char *modes[] = {"-n", ""};
+    for (int m = 0; m < 2; m++) {
+        char *a = sc_strprintf("run '%s' --cache cache --out out %s --set ratios=0.1,0.5", g, modes[m]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        char *err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, "lods_save.lua:3: --set ratios=0.1,0.5: lods:ratio: targets must not increase"),
+                     "%s: stderr: %s", modes[m], err ? err : "");
+        free(err), free(a);
+        a = sc_strprintf("run '%s' --cache cache --out out %s --set ratios=0.5,abc", g, modes[m]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, "--set ratios=0.5,abc: element 2 ('abc') is not a number"), "stderr: %s",
+                     err ? err : "");
+        free(err), free(a);
+        a = sc_strprintf("run '%s' --cache cache --out out %s --set lods.ratio=0.5,0.6", g, modes[m]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, "--set lods.ratio=0.5,0.6: lods:ratio: targets must not increase"),
+                     "stderr: %s", err ? err : "");
+        free(err), free(a);
+    }
+    /* a text a node would refuse when it cooks: a render mode it does not know */
+    char *r = data("golden_small.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out -n --set check.modes=textured,wireframe", r);
+    SC_CHECK_INT(cook(dir, a), 2);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "check:modes: unknown mode 'wireframe'"), "stderr: %s", err ? err : "");
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK(!exists(out));
+    free(out), free(err), free(a), free(r), free(g), free(dir);
+}
+
+/* The key of the node named `name` in dir/out/report.json ("" if none). */
+static const char *node_key(const char *dir, const char *name, char *buf, size_t n) {
+    snprintf(buf, n, "%s", "");
+    char *out = sc_path_join(dir, "out");
+    char *json = slurp(out, "report.json");
+    cJSON *root = json ? cJSON_Parse(json) : NULL;
+    const cJSON *node;
+    cJSON_ArrayForEach(node, cJSON_GetObjectItemCaseSensitive(root, "nodes")) {
+        const cJSON *key = cJSON_GetObjectItemCaseSensitive(node, "key");
+        if (!strcmp(cJSON_GetObjectItemCaseSensitive(node, "name")->valuestring, name) && cJSON_IsString(key))
+            snprintf(buf, n, "%s", key->valuestring);
+    }
+    cJSON_Delete(root);
+    free(json), free(out);
+    return buf;
+}
+
+/* --set node.param=value is a parameter value like any: the same value
+ * through param() or by the node's name makes the same key. */
+SC_TEST(node_settings_enter_the_key) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    char plain[80], by_param[80], by_node[80];
+    char *a = sc_strprintf("run '%s' --cache cache --out out -q", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    node_key(dir, "asset", plain, sizeof plain);
+    free(a);
+    a = sc_strprintf("run '%s' --cache cache --out out -q --set resolution=5", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    node_key(dir, "asset", by_param, sizeof by_param);
+    free(a);
+    a = sc_strprintf("run '%s' --cache cache --out out --set asset.resolution=5 --explain", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    node_key(dir, "asset", by_node, sizeof by_node);
+    SC_CHECK_MSG(*plain && strcmp(plain, by_param) != 0, "keys %s %s", plain, by_param);
+    SC_CHECK_STR(by_node, by_param);
+    char st[32];
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK_STR(node_status(out, "asset", st, sizeof st), "cached");
+    free(a);
+    /* over what the graph gives: the node's name wins */
+    a = sc_strprintf("run '%s' --cache cache --out out --set resolution=7 --set asset.resolution=5 --explain", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_STR(node_status(out, "asset", st, sizeof st), "cached");
+    free(a);
+    /* unknown node or parameter: a usage error naming it */
+    a = sc_strprintf("run '%s' --cache cache --out out --set aset.resolution=5", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "no node named 'aset'; did you mean 'asset'?"), "stderr: %s", err ? err : "");
+    free(err), free(a);
+    a = sc_strprintf("run '%s' --cache cache --out out --set save.bogus=5", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "node 'save' (save) has no parameter 'bogus'"), "stderr: %s", err ? err : "");
+    free(err), free(a), free(out), free(g), free(dir);
 }
 
 SC_TEST(failed_node_leaves_no_entry_and_no_output) {
