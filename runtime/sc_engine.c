@@ -170,9 +170,42 @@ static const sc_graph_node *gnode(engine *e, int i) { return &e->g->nodes[i]; }
 
 static void hexof(const sc_digest *d, char out[65]) { sc_digest_hex(d, out); }
 
-/* A node's identity across runs: the graph file's real path and its name. */
+/* A node's identity across runs, which explain compares a cook with: the
+ * graph file's real path, its name and its lineage, the values of the PATH
+ * parameters of the node and of every node upstream of it (hashed). So a
+ * chain cooked on one asset and then on another keeps a history per asset:
+ * an edit of the first is explained against its own last cook, not as a
+ * change of path. A node with no path upstream is "graph#name". */
 static char *node_id(engine *e, int i) {
-    return sc_strprintf("%s#%s", e->graph_path, gnode(e, i)->name);
+    const sc_graph *g = e->g;
+    bool *upstream = calloc((size_t)i + 1, sizeof *upstream);
+    if (!upstream) return NULL;
+    upstream[i] = true;
+    sc_buf paths;
+    sc_buf_init(&paths);
+    for (int k = i; k >= 0; k--) {   /* producers come before consumers */
+        if (!upstream[k]) continue;
+        const sc_graph_node *n = &g->nodes[k];
+        for (int port = 0; port < n->desc->ninputs; port++)
+            if (n->input_node[port] >= 0) upstream[n->input_node[port]] = true;
+        for (int p = 0; p < n->desc->nparams; p++)
+            if (n->desc->params[p].type == SC_PARAM_PATH)
+                sc_buf_printf(&paths, "%s.%s=%s\n", n->name, n->desc->params[p].name,
+                              n->params[p].string ? n->params[p].string : "");
+    }
+    free(upstream);
+    char *id = NULL;
+    if (!paths.failed && paths.len == 0) {
+        id = sc_strprintf("%s#%s", e->graph_path, gnode(e, i)->name);
+    } else if (!paths.failed) {
+        sc_digest d;
+        char hex[65];
+        sc_digest_bytes(paths.data, paths.len, &d);
+        hexof(&d, hex);
+        id = sc_strprintf("%s#%s#%s", e->graph_path, gnode(e, i)->name, hex);
+    }
+    sc_buf_free(&paths);
+    return id;
 }
 
 static void say(engine *e, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

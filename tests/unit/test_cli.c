@@ -492,6 +492,27 @@ SC_TEST(node_settings_enter_the_key) {
     free(err), free(a), free(out), free(g), free(dir);
 }
 
+/* --explain compares a node with its last cook on the same asset: editing
+ * the first of two assets cooked in turn is a file change, not a new path. */
+SC_TEST(explain_follows_the_asset) {
+    char *dir = sc_test_tempdir("cli");
+    write_png(dir, "64");
+    write_obj_asset(dir, "two assets");
+    SC_CHECK_INT(sc_test_system("cd '%s' && cp tet.obj a.obj && sed 's/v 1 0 0/v 2 0 0/' tet.obj > b.obj", dir), 0);
+    char *g = data("obj_save.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out -q --set mesh=a.obj", g);
+    char *b = sc_strprintf("run '%s' --cache cache --out out -q --set mesh=b.obj", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_INT(cook(dir, b), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && sed -i 's/v 0 0 1/v 0 0 3/' a.obj", dir), 0);
+    char *again = sc_strprintf("run '%s' --cache cache --out out --explain --set mesh=a.obj", g);
+    SC_CHECK_INT(cook(dir, again), 0);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "why load: file") && strstr(err, "a.obj changed") && !strstr(err, "parameter path"),
+                 "explain said: %s", err ? err : "(nothing)");
+    free(err), free(again), free(a), free(b), free(g), free(dir);
+}
+
 SC_TEST(failed_node_leaves_no_entry_and_no_output) {
     char *dir = sc_test_tempdir("cli");
     char *g = data("fails.lua");
