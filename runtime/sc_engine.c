@@ -504,17 +504,6 @@ static void remember(engine *e, int i, const sc_digest *dep_digests) {
 
 /* ---------------------------------------------------------------- report files */
 
-static bool safe_relative_path(const char *p) {
-    if (!*p || p[0] == '/') return false;
-    for (const char *s = p; *s;) {
-        const char *slash = strchr(s, '/');
-        size_t l = slash ? (size_t)(slash - s) : strlen(s);
-        if (l == 0 || (l == 2 && s[0] == '.' && s[1] == '.') || (l == 1 && s[0] == '.')) return false;
-        s += l + (slash ? 1 : 0);
-    }
-    return true;
-}
-
 /* Claim an output file name for node i: returns i, or the node that claimed
  * it first, or -1 when out of memory. An open-addressing table of names. */
 static int claim_path(engine *e, const char *rel, int i) {
@@ -564,10 +553,11 @@ static int materialize(engine *e, int i, sc_error *err) {
     sc_node_result *r = &e->run->results[i];
     if (!e->opt->out_dir || e->opt->dry_run || rt->nfiles == 0) return SC_OK;
     r->files = calloc((size_t)rt->nfiles, sizeof(char *));
-    if (!r->files) return sc_fail(err, SC_ENOMEM, "out of memory");
+    r->file_digests = calloc((size_t)rt->nfiles, sizeof *r->file_digests);
+    if (!r->files || !r->file_digests) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int f = 0; f < rt->nfiles; f++) {
         const char *rel = rt->files[f].path;
-        if (!safe_relative_path(rel))
+        if (!sc_path_is_plain_relative(rel))
             return sc_fail(err, SC_EINPUT, "output file name '%s' is not a plain relative path", rel);
         int other = claim_path(e, rel, i);
         if (other != i)
@@ -599,6 +589,7 @@ static int materialize(engine *e, int i, sc_error *err) {
         }
         free(path), free(dir);
         if (rc != SC_OK) return rc;
+        r->file_digests[r->nfiles] = rt->files[f].content;
         r->files[r->nfiles++] = sc_strdup(rel);
     }
     return SC_OK;
@@ -688,8 +679,8 @@ static void forget_result(sc_node_result *r) {
     free(r->deps), free(r->dep_digests);
     r->deps = NULL, r->dep_digests = NULL, r->ndeps = 0;
     for (int f = 0; f < r->nfiles; f++) free(r->files[f]);
-    free(r->files);
-    r->files = NULL, r->nfiles = 0;
+    free(r->files), free(r->file_digests);
+    r->files = NULL, r->file_digests = NULL, r->nfiles = 0;
 }
 
 /* Decide hit or miss for a node whose inputs' digests are all known. */
@@ -1192,7 +1183,7 @@ void sc_run_free(sc_run *r) {
         free(x->outputs), free(x->metrics_json), free(x->why), free(x->error);
         for (int f = 0; f < x->nfiles; f++) free(x->files[f]);
         for (int d = 0; d < x->ndeps; d++) free(x->deps[d]);
-        free(x->files), free(x->deps), free(x->dep_digests);
+        free(x->files), free(x->file_digests), free(x->deps), free(x->dep_digests);
     }
     free(r->results);
     free(r);

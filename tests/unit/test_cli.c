@@ -1,8 +1,10 @@
 /* test_cli.c - end-to-end runs of the seamcook command line: cooking, the
- * cache (hits, early cutoff, corrupt blobs, two processes, kill -9), explain,
- * dry runs, bad input and exit statuses, watch. Each test works in its own
- * temporary folder with its own cache. The properties are read back from the
- * files the command writes (report.json, outputs), not from its internals. */
+ * cache (hits, early cutoff, corrupt blobs, two processes, kill -9, trimming),
+ * explain, dry runs, --set, bad input and exit statuses, --help and
+ * --version, --json, test --junit, what --out keeps, watch. Each test works
+ * in its own temporary folder with its own cache. The properties are read
+ * back from the files the command writes (report.json, outputs) and what it
+ * prints, not from its internals. */
 #include "sc_test.h"
 
 #include <signal.h>
@@ -360,6 +362,12 @@ SC_TEST(bad_input_exit_statuses) {
         SC_CHECK_MSG(err && strstr(err, refused[i][1]) && strstr(err, "proc_save.lua"), "stderr: %s", err ? err : "");
         free(err), free(a);
     }
+    /* options a command does not take, and bad values, are usage errors too */
+    SC_CHECK_INT(cook(dir, "nodes --json"), 2);
+    SC_CHECK_INT(cook(dir, "run x.lua --junit j.xml"), 2);
+    SC_CHECK_INT(cook(dir, "watch x.lua --max-runs often"), 2);
+    SC_CHECK_INT(cook(dir, "run x.lua --cache-max-size lots"), 2);
+    SC_CHECK_INT(sc_test_system("cd '%s' && SEAMCOOK_CACHE_MAX_SIZE=lots '%s' run x.lua >out.txt 2>err.txt", dir, bin()), 2);
     /* a name set twice is a usage error, not the last one silently */
     a = sc_strprintf("run '%s' --cache cache --out out --set resolution=3 --set resolution=4", g);
     SC_CHECK_INT(cook(dir, a), 2);
@@ -394,6 +402,40 @@ SC_TEST(bad_input_exit_statuses) {
                  "stderr: %s", err ? err : "(nothing)");
     free(err), free(a);
     free(dir);
+}
+
+SC_TEST(help_and_version) {
+    char *dir = sc_test_tempdir("cli");
+    char *o;
+    SC_CHECK_INT(cook(dir, "--version"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && !strncmp(o, "seamcook ", 9) && strlen(o) > 10, "stdout: %s", o ? o : "");
+    free(o);
+    SC_CHECK_INT(cook(dir, "version"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && !strncmp(o, "seamcook ", 9), "stdout: %s", o ? o : "");
+    free(o);
+    /* every command's --help prints its usage on stdout and succeeds, whatever else is on the line */
+    const char *commands[] = {"run", "watch", "test", "cache", "nodes", "graph", "version"};
+    for (int i = 0; i < 7; i++) {
+        char *args = sc_strprintf("%s --help", commands[i]), *want = sc_strprintf("usage: seamcook %s", commands[i]);
+        SC_CHECK_INT(cook(dir, args), 0);
+        o = slurp(dir, "out.txt");
+        SC_CHECK_MSG(o && strstr(o, want), "%s: stdout: %s", args, o ? o : "");
+        free(o), free(args), free(want);
+    }
+    SC_CHECK_INT(cook(dir, "run graph.lua --set a=1 -h"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "usage: seamcook run") && strstr(o, "--json"), "stdout: %s", o ? o : "");
+    free(o);
+    SC_CHECK_INT(cook(dir, "help cache"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "usage: seamcook cache"), "stdout: %s", o ? o : "");
+    free(o);
+    SC_CHECK_INT(cook(dir, "--help"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "seamcook watch") && strstr(o, "seamcook version"), "stdout: %s", o ? o : "");
+    free(o), free(dir);
 }
 
 /* A dry run checks parameters exactly as the cook does: a list decimate
@@ -492,6 +534,100 @@ SC_TEST(node_settings_enter_the_key) {
     free(err), free(a), free(out), free(g), free(dir);
 }
 
+/* A number in a JSON object, or -1. */
+static int json_int(const cJSON *o, const char *name) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, name);
+    return cJSON_IsNumber(v) ? v->valueint : -1;
+}
+
+/* --json: the run's summary on stdout and nothing else, also for a failure. */
+SC_TEST(json_summary) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out --json", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *o = slurp(dir, "out.txt");
+    cJSON *root = o ? cJSON_Parse(o) : NULL;
+    SC_CHECK_MSG(root != NULL, "stdout is not JSON: %s", o ? o : "");
+    SC_CHECK_INT(json_int(root, "exit_status"), 0);
+    SC_CHECK_INT(json_int(cJSON_GetObjectItemCaseSensitive(root, "totals"), "ran"), 2);
+    const cJSON *node;
+    int n = 0;
+    cJSON_ArrayForEach(node, cJSON_GetObjectItemCaseSensitive(root, "nodes")) {
+        const char *fields[] = {"name", "type", "status", "seconds", "key", "metrics"};
+        for (int f = 0; f < 6; f++)
+            SC_CHECK_MSG(cJSON_GetObjectItemCaseSensitive(node, fields[f]), "node %d has no %s", n, fields[f]);
+        n++;
+    }
+    SC_CHECK_INT(n, 2);
+    cJSON_Delete(root);
+    free(o), free(a), free(g);
+    /* a node that fails: status 1, and the message */
+    g = data("fails.lua");
+    a = sc_strprintf("run '%s' --cache cache --out out --json", g);
+    SC_CHECK_INT(cook(dir, a), 1);
+    o = slurp(dir, "out.txt");
+    root = o ? cJSON_Parse(o) : NULL;
+    SC_CHECK_MSG(root != NULL, "stdout is not JSON: %s", o ? o : "");
+    SC_CHECK_INT(json_int(root, "exit_status"), 1);
+    const cJSON *error = cJSON_GetObjectItemCaseSensitive(root, "error");
+    SC_CHECK(cJSON_IsString(error) && strstr(error->valuestring, "missing.obj"));
+    cJSON_Delete(root);
+    free(o), free(a);
+    /* a usage error: status 2, no nodes */
+    a = sc_strprintf("run '%s' --cache cache --out out --json --set nothing=1", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    o = slurp(dir, "out.txt");
+    root = o ? cJSON_Parse(o) : NULL;
+    SC_CHECK_MSG(json_int(root, "exit_status") == 2, "stdout: %s", o ? o : "");
+    cJSON_Delete(root);
+    free(o), free(a), free(g), free(dir);
+}
+
+/* test --junit FILE: a testcase per graph test file, failures with their message. */
+SC_TEST(junit_report) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    SC_CHECK_INT(sc_test_system("cd '%s' && cp '%s' pass.lua && cp '%s' fail.lua && "
+                                "echo 'expect(asset, \"faces\", \">\", 0)' >> pass.lua && "
+                                "echo 'expect(asset, \"faces\", \"<\", 3)' >> fail.lua", dir, g, g), 0);
+    SC_CHECK_INT(cook(dir, "test pass.lua fail.lua --cache cache --out out --junit results.xml"), 1);
+    char *xml = slurp(dir, "results.xml");
+    SC_CHECK_MSG(xml && strstr(xml, "<?xml version=\"1.0\"") && strstr(xml, "tests=\"2\" failures=\"1\"") &&
+                     strstr(xml, "<testcase classname=\"seamcook\" name=\"pass.lua\" time=\"") &&
+                     strstr(xml, "name=\"fail.lua\"") && strstr(xml, "<failure message=\"") &&
+                     strstr(xml, "faces") && strstr(xml, "&lt; 3"),
+                 "results.xml: %s", xml ? xml : "(none)");
+    const char *pass = xml ? strstr(xml, "name=\"pass.lua\"") : NULL;
+    const char *end = pass ? strchr(pass, '>') : NULL;
+    SC_CHECK_MSG(end && end[-1] == '/', "pass.lua must be a testcase with no failure: %s", xml ? xml : "");
+    free(xml), free(g), free(dir);
+}
+
+/* --out keeps to what the graph writes: a file a run no longer writes goes at
+ * that run; what the user put there, or changed, stays. */
+SC_TEST(out_keeps_to_what_the_graph_writes) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("lods_save.lua");
+    char *three = sc_strprintf("run '%s' --cache cache --out out -q", g);
+    char *two = sc_strprintf("run '%s' --cache cache --out out -q --set ratios=0.5,0.25", g);
+    SC_CHECK_INT(cook(dir, three), 0);
+    char *lod2 = sc_strprintf("%s/out/asset_lod2.obj", dir), *lod1 = sc_strprintf("%s/out/asset_lod1.obj", dir);
+    SC_CHECK(exists(lod2));
+    SC_CHECK_INT(sc_test_system("cd '%s' && echo mine > out/notes.txt && mkdir -p out/sub && echo mine > out/sub/x", dir), 0);
+    SC_CHECK_INT(cook(dir, two), 0);
+    SC_CHECK(!exists(lod2));
+    SC_CHECK(exists(lod1));
+    char *notes = sc_strprintf("%s/out/notes.txt", dir), *sub = sc_strprintf("%s/out/sub/x", dir);
+    SC_CHECK(exists(notes) && exists(sub));
+    /* a file changed since it was written is the user's now */
+    SC_CHECK_INT(cook(dir, three), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && echo '# edited' >> out/asset_lod2.obj", dir), 0);
+    SC_CHECK_INT(cook(dir, two), 0);
+    SC_CHECK(exists(lod2));
+    free(notes), free(sub), free(lod1), free(lod2), free(two), free(three), free(g), free(dir);
+}
+
 /* --explain compares a node with its last cook on the same asset: editing
  * the first of two assets cooked in turn is a file change, not a new path. */
 SC_TEST(explain_follows_the_asset) {
@@ -511,6 +647,38 @@ SC_TEST(explain_follows_the_asset) {
     SC_CHECK_MSG(err && strstr(err, "why load: file") && strstr(err, "a.obj changed") && !strstr(err, "parameter path"),
                  "explain said: %s", err ? err : "(nothing)");
     free(err), free(again), free(a), free(b), free(g), free(dir);
+}
+
+/* The cache trims itself after a run, least recently used first, past
+ * --cache-max-size or $SEAMCOOK_CACHE_MAX_SIZE. */
+SC_TEST(cache_trims_itself) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out --cache-max-size 1K", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "cache trimmed"), "stderr: %s", err ? err : "");
+    free(err);
+    SC_CHECK_INT(cook(dir, "cache stats --cache cache"), 0);
+    char *o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "(0.0 MiB)"), "stats: %s", o ? o : "");
+    free(o);
+    /* what was trimmed cooks again */
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK_INT(report_counts(out).ran, 2);
+    free(a);
+    /* the environment variable; the default keeps a small cache whole */
+    SC_CHECK_INT(sc_test_system("cd '%s' && SEAMCOOK_CACHE_MAX_SIZE=1K '%s' run '%s' --cache env --out out >out.txt 2>err.txt",
+                                dir, bin(), g), 0);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "cache trimmed"), "stderr: %s", err ? err : "");
+    free(err);
+    a = sc_strprintf("run '%s' --cache big --out out", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_INT(report_counts(out).cached, 2);
+    free(out), free(a), free(g), free(dir);
 }
 
 SC_TEST(failed_node_leaves_no_entry_and_no_output) {
