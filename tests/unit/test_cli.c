@@ -1,10 +1,10 @@
 /* test_cli.c - end-to-end runs of the seamcook command line: cooking, the
  * cache (hits, early cutoff, corrupt blobs, two processes, kill -9, trimming),
  * explain, dry runs, --set, bad input and exit statuses, --help and
- * --version, --json, test --junit, what --out keeps, watch. Each test works
- * in its own temporary folder with its own cache. The properties are read
- * back from the files the command writes (report.json, outputs) and what it
- * prints, not from its internals. */
+ * --version, --json, test --junit, what --out keeps, watch, and the command
+ * installed into a prefix. Each test works in its own temporary folder with
+ * its own cache. The properties are read back from the files the command
+ * writes (report.json, outputs) and what it prints, not from its internals. */
 #include "sc_test.h"
 
 #include <signal.h>
@@ -679,6 +679,33 @@ SC_TEST(cache_trims_itself) {
     SC_CHECK_INT(cook(dir, a), 0);
     SC_CHECK_INT(report_counts(out).cached, 2);
     free(out), free(a), free(g), free(dir);
+}
+
+/* cmake --install into a prefix: the installed command runs a graph that
+ * reads and writes PNGs with the image module installed beside it (not the
+ * build folder's), and the graphs, the Lua reference and the manual are there. */
+SC_TEST(install_into_a_prefix) {
+    char *dir = sc_test_tempdir("cli");
+    char *build = sc_path_dirname(bin());
+    SC_CHECK_INT(sc_test_system("cmake --install '%s' --prefix '%s/prefix' >'%s/install.txt' 2>&1", build, dir, dir), 0);
+    write_png(dir, "64");
+    write_obj_asset(dir, "installed");
+    char *g = data("obj_save.lua");
+    SC_CHECK_INT(sc_test_system("cd '%s' && LD_DEBUG=files prefix/bin/seamcook run '%s' --cache cache --out out "
+                                "--set mesh=tet.obj -q 2>ld.txt", dir, g), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && grep 'libseamcook_imageio.so .*dynamically loaded' ld.txt | "
+                                "grep -q \"file=$(pwd -P)/prefix/\"", dir), 0);
+    char *png = sc_strprintf("%s/out/copy_skin_color.png", dir);
+    SC_CHECK_MSG(exists(png), "no %s", png);
+    const char *installed[] = {"share/seamcook/graphs/lod_chain.lua", "share/seamcook/lua/seamcook.lua",
+                               "share/man/man1/seamcook.1"};
+    for (int i = 0; i < 3; i++) {
+        char *p = sc_strprintf("%s/prefix/%s", dir, installed[i]);
+        SC_CHECK_MSG(exists(p), "not installed: %s", p);
+        free(p);
+    }
+    SC_CHECK_INT(sc_test_system("cd '%s' && prefix/bin/seamcook --version | grep -q '^seamcook '", dir), 0);
+    free(png), free(g), free(build), free(dir);
 }
 
 SC_TEST(failed_node_leaves_no_entry_and_no_output) {
