@@ -1,20 +1,27 @@
 /* sc_main.c - the seamcook command line.
  *
- *   seamcook run GRAPH [--set k=v]... [-j N] [--out DIR] [--cache DIR] [-n] [--explain] [--check]
- *   seamcook watch GRAPH [same options]
- *   seamcook test [FILES...] [--update-goldens] [--cache DIR] [--out DIR] [-j N]
+ *   seamcook run GRAPH [--set k=v]... [-j N] [-o DIR] [--cache DIR] [-n] [--explain] [--check] [--json]
+ *   seamcook watch GRAPH [options of run] [--max-runs N]
+ *   seamcook test [FILES...] [--update-goldens] [--junit FILE] [options of run]
  *   seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]
  *   seamcook nodes
  *   seamcook graph GRAPH --dot [--set k=v]...
+ *   seamcook version | --version;  seamcook [COMMAND] --help
  *
  * Design note: this file only parses arguments, wires the modules together
- * and maps errors to exit statuses (0 ok, 1 a node or input failed, 2 usage).
- * Everything it prints about a failure comes from an sc_error, which already
- * names the graph file:line or the node and parameter at fault.
+ * and maps errors to exit statuses (0 ok, 1 a node or input failed, 2 usage:
+ * a bad command line, or a --set value a node refuses). Options are a table:
+ * each says which commands take it, so an option a command would ignore is
+ * a usage error rather than silence. Everything it prints about a failure
+ * comes from an sc_error, which already names the graph file:line or the
+ * node and parameter at fault. Standard output carries only what a command
+ * is asked for (a summary with --json, the DOT text, the node list), so it
+ * can be piped; progress and messages go to standard error.
  */
 #include <errno.h>
 #include <limits.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,18 +34,89 @@
 #include "sc_engine.h"
 #include "sc_golden.h"
 #include "sc_lua.h"
+#include "sc_manifest.h"
 #include "sc_registry.h"
 #include "sc_report.h"
 
+#ifndef SC_VERSION
+#define SC_VERSION "unknown"
+#endif
+
 enum { EXIT_OK = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
 
-static const char *usage_text =
-    "usage: seamcook run GRAPH [--set k=v]... [-j N] [--out DIR] [--cache DIR] [-n] [--explain] [--check]\n"
-    "       seamcook watch GRAPH [options of run]\n"
-    "       seamcook test [FILES...] [--update-goldens] [--cache DIR] [--out DIR] [-j N]\n"
+#define DEFAULT_CACHE_MAX_SIZE ((int64_t)10 << 30)
+
+/* ---------------------------------------------------------------- usage */
+
+#define OPTIONS_OF_COOKS                                                                               \
+    "  -s, --set NAME=VALUE     a graph parameter, read by param(NAME) in the graph file\n"          \
+    "  -s, --set NODE.PARAM=VALUE  the parameter PARAM of the node named NODE\n"                     \
+    "  -j, --jobs N             nodes cooking at once (default: the number of processors)\n"         \
+    "  -o, --out DIR            where saved files, report.json and report.html go (default out)\n" \
+    "  --cache DIR              the cache (default: $SEAMCOOK_CACHE, else\n"                         \
+    "                           $XDG_CACHE_HOME/seamcook, else ~/.cache/seamcook)\n"                 \
+    "  --cache-max-size SIZE    trim the cache to SIZE (500M, 10G) after cooking, least recently\n"  \
+    "                           used first (default: $SEAMCOOK_CACHE_MAX_SIZE, else 10G)\n"          \
+    "  --explain                say why each node cooks\n"                                          \
+    "  --asset-root DIR         the folder every load_atlas may read below\n"                       \
+    "  --lua-timeout SECONDS    how long the graph file may take to build the graph (default 5)\n"  \
+    "  -q, --quiet              no progress, no summary line\n"                                     \
+    "  -h, --help               this text\n"
+
+static const char run_usage[] =
+    "usage: seamcook run GRAPH [options]\n"
+    "Cooks the graph: every node whose inputs, parameters, version or files changed; the rest\n"
+    "comes from the cache. Exit status: 0 ok, 1 a node or an input failed, 2 a usage error.\n"
+    OPTIONS_OF_COOKS
+    "  -n, --dry-run            say what would cook and why; cook and write nothing\n"
+    "  --check                  fail (exit status 1) when an expect() of the graph does not hold\n"
+    "  --json                   print a summary of the run as JSON on standard output\n";
+
+static const char watch_usage[] =
+    "usage: seamcook watch GRAPH [options]\n"
+    "Cooks the graph, then again whenever the graph file or a file it read changes.\n"
+    OPTIONS_OF_COOKS
+    "  --check                  report failed expect()s of the graph\n"
+    "  --max-runs N             stop after N cooks (default: never; Ctrl-C stops)\n";
+
+static const char test_usage[] =
+    "usage: seamcook test FILES... [options]\n"
+    "Runs graph test files and checks what they state: expect(), expect_image() and\n"
+    "expect_metrics() against goldens/<graph>/ beside each file. Exit status 1 when one fails.\n"
+    OPTIONS_OF_COOKS
+    "  --update-goldens         write the goldens from this run instead of comparing\n"
+    "  --junit FILE             write the outcome as JUnit XML to FILE\n";
+
+static const char cache_usage[] =
+    "usage: seamcook cache stats|verify|gc [options]\n"
+    "  stats                    what the cache holds\n"
+    "  verify                   re-hash every blob; remove bad ones (exit status 1 when any)\n"
+    "  gc --max-size SIZE       remove least recently used blobs down to SIZE (500M, 10G)\n"
+    "  --cache DIR              the cache (default as for run)\n"
+    "  -h, --help               this text\n";
+
+static const char nodes_usage[] =
+    "usage: seamcook nodes\n"
+    "Lists every node type: ports, parameters, defaults and ranges.\n";
+
+static const char graph_usage[] =
+    "usage: seamcook graph GRAPH --dot [--set NAME=VALUE]...\n"
+    "Prints the graph in Graphviz's DOT language.\n"
+    "  --set NAME=VALUE, --set NODE.PARAM=VALUE, --asset-root DIR, --lua-timeout SECONDS: as for run\n";
+
+static const char version_usage[] =
+    "usage: seamcook version (or seamcook --version)\n"
+    "Prints the version.\n";
+
+static const char general_usage[] =
+    "usage: seamcook run GRAPH [--set k=v]... [-j N] [-o DIR] [--cache DIR] [-n] [--explain] [--check] [--json]\n"
+    "       seamcook watch GRAPH [options of run] [--max-runs N]\n"
+    "       seamcook test FILES... [options of run] [--update-goldens] [--junit FILE]\n"
     "       seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]\n"
     "       seamcook nodes\n"
-    "       seamcook graph GRAPH --dot [--set k=v]...\n";
+    "       seamcook graph GRAPH --dot [--set k=v]...\n"
+    "       seamcook version\n"
+    "seamcook COMMAND --help says more about each.\n";
 
 typedef struct options {
     const char *command;
@@ -50,21 +128,28 @@ typedef struct options {
     int jobs;
     const char *out_dir;
     const char *cache_dir;
-    bool dry_run, explain, check, dot, quiet, update_goldens;
-    int64_t max_size;
+    bool dry_run, explain, check, dot, quiet, update_goldens, json, help;
+    int64_t max_size;           /* cache gc --max-size */
     bool max_size_given;
+    int64_t cache_max_size;     /* trimmed to after cooking */
     int max_runs;               /* watch: stop after this many cooks (0: never) */
     double lua_timeout;         /* seconds a graph file may take to build its graph (0: the default) */
     const char *asset_root;     /* --asset-root: every load_atlas's asset_root */
+    const char *junit;          /* test --junit FILE */
 } options;
 
-static int usage(const char *fmt, const char *arg) {
+static int usage(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static int usage(const char *fmt, ...) {
     fputs("seamcook: ", stderr);
-    fprintf(stderr, fmt, arg);
-    fputc('\n', stderr);
-    fputs(usage_text, stderr);
+    va_list ap;
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputs("\n(seamcook --help lists the commands; seamcook COMMAND --help their options)\n", stderr);
     return EXIT_USAGE;
 }
+
+/* ---------------------------------------------------------------- arguments */
 
 static int parse_size(const char *s, int64_t *out) {
     char *end;
@@ -75,100 +160,159 @@ static int parse_size(const char *s, int64_t *out) {
     if (*end == 'K' || *end == 'k') mul = 1024, end++;
     else if (*end == 'M' || *end == 'm') mul = 1024.0 * 1024, end++;
     else if (*end == 'G' || *end == 'g') mul = 1024.0 * 1024 * 1024, end++;
+    else if (*end == 'T' || *end == 't') mul = 1024.0 * 1024 * 1024 * 1024, end++;
     if (*end == 'B' || *end == 'b') end++;
     if (*end || v * mul > 9e18) return -1;
     *out = (int64_t)(v * mul);
     return 0;
 }
 
+enum {
+    OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_LUA_TIMEOUT,
+    OPT_MAX_RUNS, OPT_JUNIT, OPT_DRY_RUN, OPT_EXPLAIN, OPT_CHECK, OPT_UPDATE_GOLDENS, OPT_DOT, OPT_QUIET,
+    OPT_JSON, OPT_HELP, OPT_COUNT
+};
+
+static const struct option_spec {
+    const char *name, *alias;   /* "--out", "-o" */
+    bool value;                 /* takes the next argument */
+    const char *commands;       /* the commands that take it, each followed by a space */
+} option_specs[OPT_COUNT] = {
+    [OPT_SET] = {"--set", "-s", true, "run watch test graph "},
+    [OPT_JOBS] = {"--jobs", "-j", true, "run watch test "},
+    [OPT_OUT] = {"--out", "-o", true, "run watch test "},
+    [OPT_CACHE] = {"--cache", NULL, true, "run watch test cache "},
+    [OPT_CACHE_MAX_SIZE] = {"--cache-max-size", NULL, true, "run watch test "},
+    [OPT_MAX_SIZE] = {"--max-size", NULL, true, "cache "},
+    [OPT_ASSET_ROOT] = {"--asset-root", NULL, true, "run watch test graph "},
+    [OPT_LUA_TIMEOUT] = {"--lua-timeout", NULL, true, "run watch test graph "},
+    [OPT_MAX_RUNS] = {"--max-runs", NULL, true, "watch "},
+    [OPT_JUNIT] = {"--junit", NULL, true, "test "},
+    [OPT_DRY_RUN] = {"--dry-run", "-n", false, "run "},
+    [OPT_EXPLAIN] = {"--explain", NULL, false, "run watch test "},
+    [OPT_CHECK] = {"--check", NULL, false, "run watch "},
+    [OPT_UPDATE_GOLDENS] = {"--update-goldens", NULL, false, "test "},
+    [OPT_DOT] = {"--dot", NULL, false, "graph "},
+    [OPT_QUIET] = {"--quiet", "-q", false, "run watch test "},
+    [OPT_JSON] = {"--json", NULL, false, "run "},
+    [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version "},
+};
+
+static bool takes(const char *commands, const char *command) {
+    size_t n = strlen(command);
+    for (const char *p = strstr(commands, command); p; p = strstr(p + 1, command))
+        if ((p == commands || p[-1] == ' ') && p[n] == ' ') return true;
+    return false;
+}
+
+/* --set NAME=VALUE, once per name. */
+static int add_setting(options *o, const char *text) {
+    const char *eq = strchr(text, '=');
+    if (!eq || eq == text) return usage("--set %s: expected name=value or node.param=value", text);
+    for (int k = 0; k < o->nsettings; k++)
+        if (strlen(o->settings[k].name) == (size_t)(eq - text) &&
+            strncmp(o->settings[k].name, text, (size_t)(eq - text)) == 0)
+            return usage("--set %s: this name is set twice", text);
+    char *name = sc_strndup(text, (size_t)(eq - text));
+    if (!name) return usage("%s", "out of memory");
+    o->settings[o->nsettings].name = name;
+    o->settings[o->nsettings].value = eq + 1;
+    o->nsettings++;
+    return EXIT_OK;
+}
+
+/* A whole number from 1 to max, the whole text. */
+static bool parse_count(const char *text, long max, int *out) {
+    char *end;
+    errno = 0;
+    long n = strtol(text, &end, 10);
+    if (end == text || *end || errno || n < 1 || n > max) return false;
+    *out = (int)n;
+    return true;
+}
+
+/* The value of option `id`. */
+static int set_option(options *o, int id, const char *name, const char *v) {
+    char *end;
+    switch (id) {
+    case OPT_SET: return add_setting(o, v);
+    case OPT_JOBS:
+        if (!parse_count(v, 256, &o->jobs)) return usage("%s %s: expected a number of jobs from 1 to 256", name, v);
+        return EXIT_OK;
+    case OPT_OUT: o->out_dir = v; return EXIT_OK;
+    case OPT_CACHE: o->cache_dir = v; return EXIT_OK;
+    case OPT_ASSET_ROOT: o->asset_root = v; return EXIT_OK;
+    case OPT_JUNIT: o->junit = v; return EXIT_OK;
+    case OPT_CACHE_MAX_SIZE:
+    case OPT_MAX_SIZE:
+        if (parse_size(v, id == OPT_MAX_SIZE ? &o->max_size : &o->cache_max_size) != 0)
+            return usage("%s %s: expected a size like 500M or 10G", name, v);
+        if (id == OPT_MAX_SIZE) o->max_size_given = true;
+        return EXIT_OK;
+    case OPT_LUA_TIMEOUT: {
+        double t = strtod(v, &end);
+        if (end == v || *end || !(t > 0) || t > 86400) return usage("%s %s: expected seconds, more than 0", name, v);
+        o->lua_timeout = t;
+        return EXIT_OK;
+    }
+    case OPT_MAX_RUNS:
+        if (!parse_count(v, INT_MAX, &o->max_runs)) return usage("%s %s: expected a number of cooks, 1 or more", name, v);
+        return EXIT_OK;
+    case OPT_DRY_RUN: o->dry_run = true; return EXIT_OK;
+    case OPT_EXPLAIN: o->explain = true; return EXIT_OK;
+    case OPT_CHECK: o->check = true; return EXIT_OK;
+    case OPT_UPDATE_GOLDENS: o->update_goldens = true; return EXIT_OK;
+    case OPT_DOT: o->dot = true; return EXIT_OK;
+    case OPT_QUIET: o->quiet = true; return EXIT_OK;
+    case OPT_JSON: o->json = true; return EXIT_OK;
+    case OPT_HELP: o->help = true; return EXIT_OK;
+    }
+    return usage("unknown option %s", name);
+}
+
+/* argv[1] is a known command. */
 static int parse_args(int argc, char **argv, options *o) {
     memset(o, 0, sizeof *o);
-    o->jobs = 0;
-    if (argc < 2) return usage("%s", "no command given");
     o->command = argv[1];
     o->files = calloc((size_t)argc, sizeof(char *));
     o->settings = calloc((size_t)argc, sizeof(sc_setting));
     if (!o->files || !o->settings) return usage("%s", "out of memory");
     int i = 2;
-    if (strcmp(o->command, "cache") == 0) {
-        if (argc < 3) return usage("%s", "cache needs stats, verify or gc");
-        o->subcommand = argv[2];
-        i = 3;
-    }
+    if (strcmp(o->command, "cache") == 0 && argc > 2 && argv[2][0] != '-') o->subcommand = argv[i++];
     for (; i < argc; i++) {
         const char *a = argv[i];
-        const char *next = i + 1 < argc ? argv[i + 1] : NULL;
-#define NEED_VALUE() do { if (!next) return usage("%s needs a value", a); i++; } while (0)
-        if (strcmp(a, "--set") == 0 || strcmp(a, "-s") == 0) {
-            NEED_VALUE();
-            const char *eq = strchr(next, '=');
-            if (!eq || eq == next) return usage("--set %s: expected name=value", next);
-            for (int k = 0; k < o->nsettings; k++)
-                if (strlen(o->settings[k].name) == (size_t)(eq - next) &&
-                    strncmp(o->settings[k].name, next, (size_t)(eq - next)) == 0)
-                    return usage("--set %s: this name is set twice", next);
-            char *name = sc_strndup(next, (size_t)(eq - next));
-            o->settings[o->nsettings].name = name;
-            o->settings[o->nsettings].value = eq + 1;
-            o->nsettings++;
-        } else if (strncmp(a, "--set=", 6) == 0) {
-            return usage("%s: write --set name=value", a);
-        } else if (strcmp(a, "-j") == 0 || strcmp(a, "--jobs") == 0) {
-            NEED_VALUE();
-            char *end;
-            long j = strtol(next, &end, 10);
-            if (*end || j < 1 || j > 256) return usage("-j %s: expected a number of jobs from 1 to 256", next);
-            o->jobs = (int)j;
-        } else if (strncmp(a, "-j", 2) == 0 && a[2]) {
-            char *end;
-            long j = strtol(a + 2, &end, 10);
-            if (*end || j < 1 || j > 256) return usage("%s: expected a number of jobs from 1 to 256", a);
-            o->jobs = (int)j;
-        } else if (strcmp(a, "--out") == 0 || strcmp(a, "-o") == 0) {
-            NEED_VALUE();
-            o->out_dir = next;
-        } else if (strcmp(a, "--cache") == 0) {
-            NEED_VALUE();
-            o->cache_dir = next;
-        } else if (strcmp(a, "--max-size") == 0) {
-            NEED_VALUE();
-            if (parse_size(next, &o->max_size) != 0) return usage("--max-size %s: expected a size like 500M", next);
-            o->max_size_given = true;
-        } else if (strcmp(a, "--asset-root") == 0) {
-            NEED_VALUE();
-            o->asset_root = next;
-        } else if (strcmp(a, "--lua-timeout") == 0) {
-            NEED_VALUE();
-            char *end;
-            double t = strtod(next, &end);
-            if (end == next || *end || !(t > 0) || t > 86400)
-                return usage("--lua-timeout %s: expected seconds, more than 0", next);
-            o->lua_timeout = t;
-        } else if (strcmp(a, "--max-runs") == 0) {
-            NEED_VALUE();
-            o->max_runs = atoi(next);
-        } else if (strcmp(a, "-n") == 0 || strcmp(a, "--dry-run") == 0) {
-            o->dry_run = true;
-        } else if (strcmp(a, "--explain") == 0) {
-            o->explain = true;
-        } else if (strcmp(a, "--check") == 0) {
-            o->check = true;
-        } else if (strcmp(a, "--update-goldens") == 0) {
-            o->update_goldens = true;
-        } else if (strcmp(a, "--dot") == 0) {
-            o->dot = true;
-        } else if (strcmp(a, "-q") == 0 || strcmp(a, "--quiet") == 0) {
-            o->quiet = true;
-        } else if (a[0] == '-' && a[1]) {
-            return usage("unknown option %s", a);
-        } else {
+        if (a[0] != '-' || !a[1]) {
             o->files[o->nfiles++] = a;
+            continue;
         }
-#undef NEED_VALUE
+        int id = -1;
+        const char *value = NULL;
+        for (int k = 0; k < OPT_COUNT && id < 0; k++)
+            if (!strcmp(a, option_specs[k].name) || (option_specs[k].alias && !strcmp(a, option_specs[k].alias)))
+                id = k;
+        const char *name = a;
+        if (id < 0 && strncmp(a, "-j", 2) == 0 && a[2]) id = OPT_JOBS, name = "-j", value = a + 2;   /* -j8 */
+        if (id < 0 && strncmp(a, "--set=", 6) == 0) return usage("%s: write --set name=value", a);
+        if (id < 0) return usage("unknown option %s", a);
+        if (!takes(option_specs[id].commands, o->command))
+            return usage("%s does not apply to seamcook %s", a, o->command);
+        if (option_specs[id].value && !value) {
+            if (i + 1 >= argc) return usage("%s needs a value", a);
+            value = argv[++i];
+        }
+        int status = set_option(o, id, name, value);
+        if (status != EXIT_OK) return status;
+        if (o->help) return EXIT_OK;   /* the rest does not matter */
     }
     if (o->jobs == 0) {
         long n = sysconf(_SC_NPROCESSORS_ONLN);
         o->jobs = n > 0 ? (int)n : 1;
+    }
+    if (o->cache_max_size == 0) {
+        const char *env = getenv("SEAMCOOK_CACHE_MAX_SIZE");
+        o->cache_max_size = DEFAULT_CACHE_MAX_SIZE;
+        if (env && *env && parse_size(env, &o->cache_max_size) != 0)
+            return usage("SEAMCOOK_CACHE_MAX_SIZE=%s: expected a size like 500M or 10G", env);
     }
     return EXIT_OK;
 }
@@ -178,6 +322,8 @@ static void free_options(options *o) {
     free(o->settings);
     free(o->files);
 }
+
+/* ---------------------------------------------------------------- the cache */
 
 /* $SEAMCOOK_CACHE, else $XDG_CACHE_HOME/seamcook, else ~/.cache/seamcook;
  * NULL when none of them is set (open_cache says so). */
@@ -191,117 +337,179 @@ static char *default_cache_dir(void) {
     return NULL;
 }
 
-static int open_cache(const options *o, sc_cache **cache) {
-    char *dir = o->cache_dir ? sc_strdup(o->cache_dir) : default_cache_dir();
-    if (!dir && !o->cache_dir) {
-        fprintf(stderr, "seamcook: no cache directory: HOME is not set; give --cache DIR or set SEAMCOOK_CACHE\n");
-        return EXIT_USAGE;
-    }
-    sc_error err = {0};
-    int rc = dir ? sc_cache_open(dir, cache, &err) : sc_fail(&err, SC_ENOMEM, "out of memory");
-    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);   /* the message names the cache */
-    else if (sc_cache_notice(*cache)) fprintf(stderr, "seamcook: note: %s\n", sc_cache_notice(*cache));
-    free(dir);
+/* The exit status an error stands for. */
+static int exit_status_of(int rc) {
     return rc == SC_OK ? EXIT_OK : rc == SC_EUSAGE ? EXIT_USAGE : EXIT_FAIL;
 }
 
+/* Open the cache; a failure is printed and kept in err. */
+static int open_cache(const options *o, sc_cache **cache, sc_error *err) {
+    char *dir = o->cache_dir ? sc_strdup(o->cache_dir) : default_cache_dir();
+    int rc;
+    if (!dir && !o->cache_dir)
+        rc = sc_fail(err, SC_EUSAGE, "no cache directory: HOME is not set; give --cache DIR or set SEAMCOOK_CACHE");
+    else
+        rc = dir ? sc_cache_open(dir, cache, err) : sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err->message);   /* the message names the cache */
+    else if (sc_cache_notice(*cache)) fprintf(stderr, "seamcook: note: %s\n", sc_cache_notice(*cache));
+    free(dir);
+    return exit_status_of(rc);
+}
+
+/* After cooking: trim the cache to its maximum size, least recently used
+ * first. The sum is one indexed query; gc, which scans the store, runs only
+ * past the limit. A trim that fails is worth a note, not a failed cook. */
+static void trim_cache(sc_cache *cache, const options *o) {
+    sc_cache_stats st;
+    sc_cache_gc_result gr;
+    sc_error err;
+    if (o->dry_run || sc_cache_stats_get(cache, &st, &err) != SC_OK || st.blob_bytes <= o->cache_max_size) return;
+    if (sc_cache_gc(cache, o->cache_max_size, &gr, &err) != SC_OK)
+        fprintf(stderr, "seamcook: note: the cache was not trimmed: %s\n", err.message);
+    else if (!o->quiet)
+        fprintf(stderr, "cache trimmed to its maximum size (%.1f MiB): %lld blobs (%.1f MiB) removed\n",
+                o->cache_max_size / 1048576.0, (long long)gr.blobs_removed, gr.bytes_removed / 1048576.0);
+}
+
+/* ---------------------------------------------------------------- building */
+
 /* --asset-root DIR: the asset_root of every node that has one (load_atlas),
- * as an absolute path, so that it enters their keys like any PATH. */
-static int set_asset_root(sc_graph **graph, const char *dir) {
-    sc_graph *g = *graph;
+ * as an absolute path, so that it enters their keys like any PATH; a node
+ * whose asset_root a --set NODE.asset_root gives keeps that. */
+static int set_asset_root(sc_graph *g, const options *o, sc_error *err) {
+    const char *dir = o->asset_root;
     struct stat st;
-    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode)) {
-        fprintf(stderr, "seamcook: --asset-root %s: not a folder\n", dir);
-        sc_graph_free(g);
-        *graph = NULL;
-        return EXIT_USAGE;
-    }
+    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))
+        return sc_fail(err, SC_EUSAGE, "--asset-root %s: not a folder", dir);
     char cwd[PATH_MAX];
     char *abs = dir[0] == '/' ? sc_strdup(dir) : getcwd(cwd, sizeof cwd) ? sc_path_join(cwd, dir) : NULL;
-    if (!abs) {
-        fprintf(stderr, "seamcook: --asset-root %s: cannot make it absolute\n", dir);
-        sc_graph_free(g);
-        *graph = NULL;
-        return EXIT_FAIL;
-    }
+    if (!abs) return sc_fail(err, SC_EINPUT, "--asset-root %s: cannot make it absolute", dir);
     for (int i = 0; i < g->count; i++) {
+        const char *name = g->nodes[i].name;
         int p = sc_desc_param(g->nodes[i].desc, "asset_root");
-        if (p < 0) continue;
+        bool given = false;
+        for (int k = 0; k < o->nsettings && p >= 0 && !given; k++)
+            given = !strncmp(o->settings[k].name, name, strlen(name)) &&
+                    !strcmp(o->settings[k].name + strlen(name), ".asset_root");
+        if (p < 0 || given) continue;
         free(g->nodes[i].params[p].string);
         g->nodes[i].params[p].string = sc_strdup(abs);
     }
     free(abs);
-    return EXIT_OK;
+    return SC_OK;
 }
 
-static int build_graph(const char *file, const options *o, sc_graph **g) {
+static int build_graph(const char *file, const options *o, sc_graph **g, sc_error *err) {
     int ntypes;
     const sc_node_desc *const *types = sc_registry_all(&ntypes);
-    sc_error err = {0};
     const sc_lua_limits limits = {.max_seconds = o->lua_timeout};
-    int rc = sc_lua_build(file, types, ntypes, o->settings, o->nsettings, &limits, g, &err);
+    int rc = sc_lua_build(file, types, ntypes, o->settings, o->nsettings, &limits, g, err);
+    if (rc == SC_OK && o->asset_root) rc = set_asset_root(*g, o, err);
     if (rc != SC_OK) {
-        fprintf(stderr, "seamcook: %s\n", err.message);
-        return rc == SC_EUSAGE ? EXIT_USAGE : EXIT_FAIL;
+        sc_graph_free(*g);
+        *g = NULL;
     }
-    return o->asset_root ? set_asset_root(g, o->asset_root) : EXIT_OK;
+    return rc;
 }
 
-/* ---------------------------------------------------------------- run */
+/* ---------------------------------------------------------------- cooking */
 
-static int write_text(const char *out_dir, const char *name, char *text) {
-    sc_error err = {0};
+static int write_text(const char *out_dir, const char *name, char *text, sc_error *err) {
     char *path = sc_path_join(out_dir, name);
-    int rc = (text && path) ? sc_make_dirs(out_dir, &err) : sc_fail(&err, SC_ENOMEM, "out of memory");
-    if (rc == SC_OK) rc = sc_write_file_atomic(path, text, strlen(text), &err);
-    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);
+    int rc = (text && path) ? sc_make_dirs(out_dir, err) : sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) rc = sc_write_file_atomic(path, text, strlen(text), err);
     free(text), free(path);
     return rc;
 }
 
-static int write_report(const sc_run *run, const char *out_dir) {
-    int rc = write_text(out_dir, "report.json", sc_run_report_json(run));
-    if (rc == SC_OK) rc = write_text(out_dir, "report.html", sc_run_report_html(run));
+/* report.json, report.html and the manifest: a run that cooked every node
+ * removes what an earlier one wrote and this one did not. */
+static int write_outputs(const sc_run *run, const char *out_dir, bool complete, sc_cache *cache, const options *o,
+                         sc_error *err) {
+    int rc = write_text(out_dir, "report.json", sc_run_report_json(run), err);
+    if (rc == SC_OK) rc = write_text(out_dir, "report.html", sc_run_report_html(run), err);
+    if (rc == SC_OK) rc = sc_manifest_update(out_dir, run, complete, cache, o->quiet ? NULL : stderr, err);
     return rc;
 }
 
-/* Cook one graph file; returns the exit status. run_out and graph_out
- * (optional) receive the results and the graph, for test and watch. */
-static int cook(const char *file, const options *o, sc_cache *cache, const char *out_dir,
-                bool check, sc_run **run_out, sc_graph **graph_out) {
-    sc_graph *g = NULL;
-    int status = build_graph(file, o, &g);
-    if (status != EXIT_OK) return status;
+/* sc_golden_check with its lines on stderr and, when some failed, in
+ * failure too (for the JUnit file). Returns how many failed. */
+static int check_goldens(const sc_run *run, const char *out_dir, bool update, sc_error *failure) {
+    char *text = NULL;
+    size_t len = 0;
+    FILE *log = open_memstream(&text, &len);
+    int bad = sc_golden_check(run, out_dir, update, log ? log : stderr);
+    if (log && fclose(log) == 0 && text) {
+        fputs(text, stderr);
+        if (bad) sc_fail(failure, SC_EINPUT, "%s", text);
+    }
+    free(text);
+    return bad;
+}
+
+/* What cooking one graph file left: the graph and the results (either may
+ * be NULL) and, when something failed, the message printed for it. */
+typedef struct cooked {
+    sc_graph *graph;
+    sc_run *run;
+    sc_error failure;
+} cooked;
+
+static void cooked_free(cooked *c) {
+    sc_run_free(c->run);
+    sc_graph_free(c->graph);
+    memset(c, 0, sizeof *c);
+}
+
+/* Cook one graph file into out_dir; returns the exit status. */
+static int cook(const char *file, const options *o, sc_cache *cache, const char *out_dir, bool check, cooked *c) {
+    memset(c, 0, sizeof *c);
+    int rc = build_graph(file, o, &c->graph, &c->failure);
+    if (rc != SC_OK) {
+        fprintf(stderr, "seamcook: %s\n", c->failure.message);
+        return exit_status_of(rc);
+    }
+    const sc_graph *g = c->graph;
     sc_engine_options eo = {
         .jobs = o->jobs, .out_dir = out_dir, .dry_run = o->dry_run, .explain = o->explain,
         .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2),
     };
-    if (out_dir && !o->dry_run) sc_remove_stale_tmp(out_dir, NULL);   /* a killed run's half-written files */
-    sc_run *run = NULL;
+    bool writes = out_dir && !o->dry_run;
+    if (writes) sc_remove_stale_tmp(out_dir, NULL);   /* a killed run's half-written files */
+    rc = sc_engine_run(g, cache, &eo, &c->run, &c->failure);
+    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", c->failure.message);
     sc_error err = {0};
-    int rc = sc_engine_run(g, cache, &eo, &run, &err);
-    status = rc == SC_OK ? EXIT_OK : EXIT_FAIL;
-    if (run && !o->dry_run && out_dir && write_report(run, out_dir) != SC_OK) status = EXIT_FAIL;
-    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);
+    if (c->run && writes && write_outputs(c->run, out_dir, rc == SC_OK, cache, o, &err) != SC_OK) {
+        fprintf(stderr, "seamcook: %s\n", err.message);
+        if (rc == SC_OK) {
+            rc = err.code ? err.code : SC_EIO;
+            c->failure = err;
+        }
+    }
+    const sc_run *run = c->run;
     if (run && !o->quiet)
         fprintf(stderr, "%s: %d nodes, %d cooked, %d cached, %d failed, %d skipped in %.3f s%s%s\n",
                 file, g->count, run->ran, run->cached, run->failed, run->skipped, run->seconds,
-                (out_dir && !o->dry_run) ? "; report: " : "", (out_dir && !o->dry_run) ? out_dir : "");
-    if (run && status == EXIT_OK && check && !o->dry_run && sc_golden_check(run, out_dir, false, stderr) > 0)
-        status = EXIT_FAIL;
-    if (run_out) *run_out = run;
-    else sc_run_free(run);
-    if (graph_out) *graph_out = g;
-    else sc_graph_free(g);
-    return status;
+                writes ? "; report: " : "", writes ? out_dir : "");
+    if (run && rc == SC_OK && check && writes && check_goldens(run, out_dir, false, &c->failure) > 0) rc = SC_EINPUT;
+    return rc == SC_OK ? EXIT_OK : EXIT_FAIL;
 }
 
 static int cmd_run(const options *o) {
     if (o->nfiles != 1) return usage("%s", "run needs exactly one graph file");
     sc_cache *cache = NULL;
-    int opened = open_cache(o, &cache);
-    if (opened != EXIT_OK) return opened;
-    int status = cook(o->files[0], o, cache, o->out_dir ? o->out_dir : "out", o->check, NULL, NULL);
+    cooked c = {0};
+    int status = open_cache(o, &cache, &c.failure);
+    if (status == EXIT_OK) {
+        status = cook(o->files[0], o, cache, o->out_dir ? o->out_dir : "out", o->check, &c);
+        trim_cache(cache, o);
+    }
+    if (o->json) {
+        char *summary = sc_run_summary_json(o->files[0], c.run, status, status ? c.failure.message : NULL);
+        if (summary) puts(summary);
+        free(summary);
+    }
+    cooked_free(&c);
     sc_cache_close(cache);
     return status;
 }
@@ -420,9 +628,11 @@ static void watch_rebuild(uv_timer_t *timer) {
     sc_digest graph_seen = {0};
     sc_error ignored;
     sc_cache_file_digest(w->cache, graph, &graph_seen, &ignored);
-    sc_run *run = NULL;
-    sc_graph *g = NULL;
-    cook(w->o->files[0], w->o, w->cache, w->out_dir, w->o->check, &run, &g);
+    cooked c;
+    cook(w->o->files[0], w->o, w->cache, w->out_dir, w->o->check, &c);
+    trim_cache(w->cache, w->o);
+    const sc_run *run = c.run;
+    const sc_graph *g = c.graph;
     w->runs++;
     sc_release_memory();   /* a watch waits long between cooks */
     /* the graph file itself plus every file any node read or found missing */
@@ -444,8 +654,7 @@ static void watch_rebuild(uv_timer_t *timer) {
             stale = changed_since(w->cache, run->results[i].deps[d], &run->results[i].dep_digests[d]);
     for (int k = 0; files && k < n; k++) free(files[k]);
     free(files);
-    sc_run_free(run);
-    sc_graph_free(g);
+    cooked_free(&c);
     bool last = w->o->max_runs > 0 && w->runs >= w->o->max_runs;
     if (stale && !last) {
         if (!w->o->quiet) fprintf(stderr, "a file changed during the cook: cooking again\n");
@@ -471,9 +680,9 @@ static void on_sigint(uv_signal_t *h, int sig) {
 
 static int cmd_watch(const options *o) {
     if (o->nfiles != 1) return usage("%s", "watch needs exactly one graph file");
-    if (o->dry_run) return usage("%s", "watch cannot be a dry run");
     sc_cache *cache = NULL;
-    int opened = open_cache(o, &cache);
+    sc_error err;
+    int opened = open_cache(o, &cache, &err);
     if (opened != EXIT_OK) return opened;
     watcher w = {.loop = uv_default_loop(), .o = o, .cache = cache,
                  .out_dir = o->out_dir ? o->out_dir : "out"};
@@ -491,48 +700,76 @@ static int cmd_watch(const options *o) {
 
 /* ---------------------------------------------------------------- test */
 
+/* A graph test file's own output folder: OUT/<file name up to its first '.'>. */
+static char *test_out_dir(const options *o, const char *file) {
+    const char *base = strrchr(file, '/') ? strrchr(file, '/') + 1 : file;
+    return sc_strprintf("%s/%.*s", o->out_dir ? o->out_dir : "out/test", (int)strcspn(base, "."), base);
+}
+
+static int write_junit(const char *path, const sc_test_case *cases, int n) {
+    char *xml = sc_junit_xml(cases, n);
+    sc_error err = {0};
+    int rc = xml ? sc_write_file_atomic(path, xml, strlen(xml), &err) : sc_fail(&err, SC_ENOMEM, "out of memory");
+    if (rc != SC_OK) fprintf(stderr, "seamcook: --junit %s: %s\n", path, err.message);
+    free(xml);
+    return rc;
+}
+
 static int cmd_test(const options *o) {
     if (o->nfiles == 0) return usage("%s", "test needs graph test files");
     sc_cache *cache = NULL;
-    int opened = open_cache(o, &cache);
+    sc_error err;
+    int opened = open_cache(o, &cache, &err);
     if (opened != EXIT_OK) return opened;
+    sc_test_case *cases = calloc((size_t)o->nfiles, sizeof *cases);
+    char **failures = calloc((size_t)o->nfiles, sizeof *failures);
     int passed = 0, failed = 0;
-    for (int f = 0; f < o->nfiles; f++) {
+    for (int f = 0; cases && failures && f < o->nfiles; f++) {
         const char *file = o->files[f];
-        const char *base = strrchr(file, '/') ? strrchr(file, '/') + 1 : file;
-        char *out = sc_strprintf("%s/%.*s", o->out_dir ? o->out_dir : "out/test",
-                                 (int)(strcspn(base, ".")), base);
-        sc_run *run = NULL;
-        sc_graph *g = NULL;
-        int status = out ? cook(file, o, cache, out, false, &run, &g) : EXIT_FAIL;
-        int bad = status == EXIT_OK ? sc_golden_check(run, out, o->update_goldens, stderr) : 1;
-        if (status == EXIT_OK && g->nexpect == 0) {
+        char *out = test_out_dir(o, file);
+        cooked c = {0};
+        double t0 = sc_now();
+        int status = out ? cook(file, o, cache, out, false, &c) : EXIT_FAIL;
+        if (!out) sc_fail(&c.failure, SC_ENOMEM, "out of memory");
+        int bad = status == EXIT_OK ? check_goldens(c.run, out, o->update_goldens, &c.failure) : 1;
+        if (status == EXIT_OK && c.graph->nexpect == 0) {
             fprintf(stderr, "%s: states no expectation\n", file);
+            sc_fail(&c.failure, SC_EINPUT, "%s: states no expectation", file);
             bad = 1;
         }
         if (bad) failed++;
         else passed++;
-        printf("%s %s (%d expectations)\n", bad ? "FAIL" : "ok  ", file, g ? g->nexpect : 0);
-        sc_run_free(run);
-        sc_graph_free(g);
+        printf("%s %s (%d expectations)\n", bad ? "FAIL" : "ok  ", file, c.graph ? c.graph->nexpect : 0);
+        cases[f] = (sc_test_case){.name = file, .seconds = sc_now() - t0};
+        if (bad) cases[f].failure = failures[f] = sc_strdup(c.failure.message[0] ? c.failure.message : "failed");
+        cooked_free(&c);
         free(out);
     }
+    trim_cache(cache, o);
     sc_cache_close(cache);
     printf("%d passed, %d failed\n", passed, failed);
-    return failed ? EXIT_FAIL : EXIT_OK;
+    int status = failed || !cases || !failures ? EXIT_FAIL : EXIT_OK;
+    if (o->junit && cases && failures && write_junit(o->junit, cases, o->nfiles) != SC_OK) status = EXIT_FAIL;
+    for (int f = 0; failures && f < o->nfiles; f++) free(failures[f]);
+    free(failures), free(cases);
+    return status;
 }
 
-/* ---------------------------------------------------------------- cache, nodes, graph */
+/* ---------------------------------------------------------------- cache, nodes, graph, version */
 
 static int cmd_cache(const options *o) {
-    sc_cache *cache = NULL;
+    if (!o->subcommand) return usage("%s", "cache needs stats, verify or gc");
     if (strcmp(o->subcommand, "stats") && strcmp(o->subcommand, "verify") && strcmp(o->subcommand, "gc"))
         return usage("unknown cache command '%s'", o->subcommand);
     if (!strcmp(o->subcommand, "gc") && !o->max_size_given)
         return usage("%s", "gc needs --max-size");
-    int opened = open_cache(o, &cache);
-    if (opened != EXIT_OK) return opened;
+    if (strcmp(o->subcommand, "gc") && o->max_size_given)
+        return usage("--max-size goes with gc, not %s", o->subcommand);
+    if (o->nfiles) return usage("cache %s: unexpected argument '%s'", o->subcommand, o->files[0]);
+    sc_cache *cache = NULL;
     sc_error err = {0};
+    int opened = open_cache(o, &cache, &err);
+    if (opened != EXIT_OK) return opened;
     int rc;
     if (!strcmp(o->subcommand, "stats")) {
         sc_cache_stats s;
@@ -577,7 +814,8 @@ static const char *param_type_name(sc_param_type t) {
     return "?";
 }
 
-static int cmd_nodes(void) {
+static int cmd_nodes(const options *o) {
+    if (o->nfiles) return usage("nodes: unexpected argument '%s'", o->files[0]);
     int n;
     const sc_node_desc *const *all = sc_registry_all(&n);
     for (int i = 0; i < n; i++) {
@@ -609,8 +847,12 @@ static int cmd_graph(const options *o) {
     if (o->nfiles != 1) return usage("%s", "graph needs exactly one graph file");
     if (!o->dot) return usage("%s", "graph needs --dot");
     sc_graph *g = NULL;
-    int status = build_graph(o->files[0], o, &g);
-    if (status != EXIT_OK) return status;
+    sc_error err;
+    int rc = build_graph(o->files[0], o, &g, &err);
+    if (rc != SC_OK) {
+        fprintf(stderr, "seamcook: %s\n", err.message);
+        return exit_status_of(rc);
+    }
     printf("digraph seamcook {\n  rankdir=LR;\n  node [shape=box, fontname=\"sans-serif\"];\n");
     for (int i = 0; i < g->count; i++)
         printf("  n%d [label=\"%s\\n(%s)\"];\n", i, g->nodes[i].name, g->nodes[i].desc->type);
@@ -625,10 +867,44 @@ static int cmd_graph(const options *o) {
     return EXIT_OK;
 }
 
+static int cmd_version(const options *o) {
+    if (o->nfiles) return usage("version: unexpected argument '%s'", o->files[0]);
+    printf("seamcook %s\n", SC_VERSION);
+    return EXIT_OK;
+}
+
+static const struct command {
+    const char *name;
+    const char *usage;
+    int (*run)(const options *o);
+} commands[] = {
+    {"run", run_usage, cmd_run},
+    {"watch", watch_usage, cmd_watch},
+    {"test", test_usage, cmd_test},
+    {"cache", cache_usage, cmd_cache},
+    {"nodes", nodes_usage, cmd_nodes},
+    {"graph", graph_usage, cmd_graph},
+    {"version", version_usage, cmd_version},
+};
+
 int main(int argc, char **argv) {
+    const char *first = argc > 1 ? argv[1] : "";
+    if (!strcmp(first, "--version")) argv[1] = "version";
+    if (!strcmp(first, "help") && argc > 2) {   /* seamcook help COMMAND */
+        argv[1] = argv[2];
+        argv[2] = "--help";
+    } else if (!strcmp(first, "--help") || !strcmp(first, "-h") || !strcmp(first, "help")) {
+        fputs(general_usage, stdout);
+        return EXIT_OK;
+    }
+    const struct command *cmd = NULL;
+    for (size_t i = 0; argc > 1 && i < sizeof commands / sizeof commands[0]; i++)
+        if (!strcmp(argv[1], commands[i].name)) cmd = &commands[i];
+    if (!cmd) return argc > 1 ? usage("unknown command '%s'", argv[1]) : usage("%s", "no command given");
     options o;
     int status = parse_args(argc, argv, &o);
-    if (status != EXIT_OK) {
+    if (status == EXIT_OK && o.help) fputs(cmd->usage, stdout);
+    if (status != EXIT_OK || o.help) {
         free_options(&o);
         return status;
     }
@@ -637,17 +913,7 @@ int main(int argc, char **argv) {
     char pool[16];
     snprintf(pool, sizeof pool, "%d", o.jobs + 1);
     setenv("UV_THREADPOOL_SIZE", pool, 1);
-
-    if (!strcmp(o.command, "run")) status = cmd_run(&o);
-    else if (!strcmp(o.command, "watch")) status = cmd_watch(&o);
-    else if (!strcmp(o.command, "test")) status = cmd_test(&o);
-    else if (!strcmp(o.command, "cache")) status = cmd_cache(&o);
-    else if (!strcmp(o.command, "nodes")) status = cmd_nodes();
-    else if (!strcmp(o.command, "graph")) status = cmd_graph(&o);
-    else if (!strcmp(o.command, "help") || !strcmp(o.command, "--help") || !strcmp(o.command, "-h")) {
-        fputs(usage_text, stdout);
-        status = EXIT_OK;
-    } else status = usage("unknown command '%s'", o.command);
+    status = cmd->run(&o);
     free_options(&o);
     return status;
 }

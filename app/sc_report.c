@@ -1,7 +1,7 @@
-/* sc_report.c - report.json and report.html from a run's results.
+/* sc_report.c - report.json, report.html, the --json summary and JUnit XML.
  *
- * Design note: both are views of sc_run and nothing else; neither reads the
- * cache or the files. The HTML page groups pictures by level of detail using
+ * Design note: each is a view of what it is given (a run, or the outcomes of
+ * graph tests) and nothing else; none reads the cache or the files. The HTML page groups pictures by level of detail using
  * the file names the render node writes (render/lod<k>_<mode>_<view>.png) and
  * the metrics it reports (lod<k>.<mode>.<metric>), so it needs no knowledge of
  * any node beyond those conventions. It has no scripts and no remote content.
@@ -15,8 +15,23 @@
 
 static void hexof(const sc_digest *d, char out[65]) { sc_digest_hex(d, out); }
 
+/* Text as XML or HTML character data or attribute value: the five escapes,
+ * and control characters XML 1.0 cannot hold as spaces. */
+static void markup_text(sc_buf *b, const char *s) {
+    for (; *s; s++) {
+        switch (*s) {
+        case '<': sc_buf_puts(b, "&lt;"); break;
+        case '>': sc_buf_puts(b, "&gt;"); break;
+        case '&': sc_buf_puts(b, "&amp;"); break;
+        case '"': sc_buf_puts(b, "&quot;"); break;
+        case '\'': sc_buf_puts(b, "&apos;"); break;
+        default: sc_buf_u8(b, (unsigned char)*s < 0x20 && *s != '\n' && *s != '\t' ? ' ' : (uint8_t)*s);
+        }
+    }
+}
 
-char *sc_run_report_json(const sc_run *r) {
+/* The content of report.json, as a tree. */
+static cJSON *report_object(const sc_run *r) {
     const sc_graph *g = r->graph;
     cJSON *root = cJSON_CreateObject();
     cJSON_AddStringToObject(root, "graph", g->file);
@@ -70,35 +85,75 @@ char *sc_run_report_json(const sc_run *r) {
         if (x->error) cJSON_AddStringToObject(o, "error", x->error);
         cJSON_AddItemToArray(nodes, o);
     }
+    return root;
+}
+
+char *sc_run_report_json(const sc_run *r) {
+    cJSON *root = report_object(r);
     char *s = cJSON_Print(root);
     cJSON_Delete(root);
     return s;
 }
 
-/* ---------------------------------------------------------------- report.html */
-
-static void html_text(sc_buf *b, const char *s) {
-    for (; *s; s++) {
-        switch (*s) {
-        case '<': sc_buf_puts(b, "&lt;"); break;
-        case '>': sc_buf_puts(b, "&gt;"); break;
-        case '&': sc_buf_puts(b, "&amp;"); break;
-        case '"': sc_buf_puts(b, "&quot;"); break;
-        default: sc_buf_append(b, s, 1);
-        }
+char *sc_run_summary_json(const char *graph, const sc_run *r, int exit_status, const char *error) {
+    cJSON *root = r ? report_object(r) : cJSON_CreateObject();
+    if (!r) {
+        cJSON_AddStringToObject(root, "graph", graph);
+        cJSON_AddArrayToObject(root, "nodes");
     }
+    cJSON_AddNumberToObject(root, "exit_status", exit_status);
+    if (error && *error) cJSON_AddStringToObject(root, "error", error);
+    char *s = cJSON_Print(root);
+    cJSON_Delete(root);
+    return s;
 }
+
+/* ---------------------------------------------------------------- JUnit */
+
+char *sc_junit_xml(const sc_test_case *cases, int n) {
+    int failures = 0;
+    double seconds = 0;
+    for (int i = 0; i < n; i++) failures += cases[i].failure != NULL, seconds += cases[i].seconds;
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_buf_printf(&b, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+                      "<testsuites tests=\"%d\" failures=\"%d\" time=\"%.3f\">\n"
+                      "  <testsuite name=\"seamcook\" tests=\"%d\" failures=\"%d\" errors=\"0\" time=\"%.3f\">\n",
+                  n, failures, seconds, n, failures, seconds);
+    for (int i = 0; i < n; i++) {
+        sc_buf_puts(&b, "    <testcase classname=\"seamcook\" name=\"");
+        markup_text(&b, cases[i].name);
+        sc_buf_printf(&b, "\" time=\"%.3f\"", cases[i].seconds);
+        if (!cases[i].failure) {
+            sc_buf_puts(&b, "/>\n");
+            continue;
+        }
+        /* the attribute holds the first line, the element all of it */
+        size_t first = strcspn(cases[i].failure, "\n");
+        char *line = sc_strndup(cases[i].failure, first);
+        sc_buf_puts(&b, ">\n      <failure message=\"");
+        markup_text(&b, line ? line : "");
+        sc_buf_puts(&b, "\">");
+        markup_text(&b, cases[i].failure);
+        sc_buf_puts(&b, "</failure>\n    </testcase>\n");
+        free(line);
+    }
+    sc_buf_puts(&b, "  </testsuite>\n</testsuites>\n");
+    return sc_buf_take_string(&b);
+}
+
+/* ---------------------------------------------------------------- report.html */
 
 /* A picture linked to itself, with a caption. */
 static void figure(sc_buf *b, const char *file, const char *caption) {
     sc_buf_puts(b, "<figure><a href=\"");
-    html_text(b, file);
+    markup_text(b, file);
     sc_buf_puts(b, "\"><img src=\"");
-    html_text(b, file);
+    markup_text(b, file);
     sc_buf_puts(b, "\" alt=\"");
-    html_text(b, file);
+    markup_text(b, file);
     sc_buf_puts(b, "\"></a><figcaption>");
-    html_text(b, caption);
+    markup_text(b, caption);
     sc_buf_puts(b, "</figcaption></figure>\n");
 }
 
@@ -110,7 +165,7 @@ static void html_metrics(sc_buf *b, const cJSON *metrics, const char *prefix) {
         if (prefix && strncmp(m->string, prefix, pl) != 0) continue;
         if (!shown++) sc_buf_puts(b, "<table class=\"metrics\">\n");
         sc_buf_puts(b, "<tr><td>");
-        html_text(b, m->string + pl);
+        markup_text(b, m->string + pl);
         if (cJSON_IsNumber(m)) sc_buf_printf(b, "</td><td>%.6g</td></tr>\n", m->valuedouble);
         else sc_buf_puts(b, "</td><td>&mdash;</td></tr>\n");
     }
@@ -137,7 +192,7 @@ char *sc_run_report_html(const sc_run *r) {
     sc_buf b;
     sc_buf_init(&b);
     sc_buf_puts(&b, "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>seamcook: ");
-    html_text(&b, g->file);
+    markup_text(&b, g->file);
     sc_buf_puts(&b,
                 "</title>\n<style>\n"
                 "body{font-family:sans-serif;margin:1.5em;color:#222}\n"
@@ -150,7 +205,7 @@ char *sc_run_report_html(const sc_run *r) {
                 ".pics figcaption{font-size:.7em;color:#555;max-width:160px;overflow-wrap:anywhere}\n"
                 ".ran{color:#0a5} .cached{color:#555} .failed{color:#c00;font-weight:bold} .skipped{color:#a60}\n"
                 "</style></head><body>\n<h1>seamcook: ");
-    html_text(&b, g->file);
+    markup_text(&b, g->file);
     sc_buf_printf(&b, "</h1>\n<p>%d nodes: %d cooked, %d cached, %d failed, %d skipped, %.3f s.</p>\n", g->count,
                   r->ran, r->cached, r->failed, r->skipped, r->seconds);
 
@@ -159,16 +214,16 @@ char *sc_run_report_html(const sc_run *r) {
         const sc_node_result *x = &r->results[i];
         const char *st = sc_status_name(x->status);
         sc_buf_puts(&b, "<tr><td><a href=\"#node-");
-        html_text(&b, g->nodes[i].name);
+        markup_text(&b, g->nodes[i].name);
         sc_buf_puts(&b, "\">");
-        html_text(&b, g->nodes[i].name);
+        markup_text(&b, g->nodes[i].name);
         sc_buf_puts(&b, "</a></td><td>");
-        html_text(&b, g->nodes[i].desc->type);
+        markup_text(&b, g->nodes[i].desc->type);
         sc_buf_printf(&b, "</td><td class=\"%s\">%s</td><td>%.3f</td><td>", st, st,
                       x->status == SC_STATUS_CACHED ? x->cooked_seconds : x->seconds);
         char line[32];
         snprintf(line, sizeof line, ":%d", g->nodes[i].line);
-        html_text(&b, g->nodes[i].file);
+        markup_text(&b, g->nodes[i].file);
         sc_buf_puts(&b, line);
         sc_buf_puts(&b, "</td></tr>\n");
     }
@@ -178,20 +233,20 @@ char *sc_run_report_html(const sc_run *r) {
         const sc_node_result *x = &r->results[i];
         cJSON *metrics = x->metrics_json ? cJSON_Parse(x->metrics_json) : NULL;
         sc_buf_puts(&b, "<h2 id=\"node-");
-        html_text(&b, g->nodes[i].name);
+        markup_text(&b, g->nodes[i].name);
         sc_buf_puts(&b, "\">");
-        html_text(&b, g->nodes[i].name);
+        markup_text(&b, g->nodes[i].name);
         sc_buf_puts(&b, " <small>(");
-        html_text(&b, g->nodes[i].desc->type);
+        markup_text(&b, g->nodes[i].desc->type);
         sc_buf_puts(&b, ")</small></h2>\n");
         if (x->error) {
             sc_buf_puts(&b, "<p class=\"failed\">");
-            html_text(&b, x->error);
+            markup_text(&b, x->error);
             sc_buf_puts(&b, "</p>\n");
         }
         if (x->why) {
             sc_buf_puts(&b, "<p>cooked because: ");
-            html_text(&b, x->why);
+            markup_text(&b, x->why);
             sc_buf_puts(&b, "</p>\n");
         }
         /* pictures of each level of detail beside that level's metrics */
@@ -210,14 +265,14 @@ char *sc_run_report_html(const sc_run *r) {
                 cJSON_ArrayForEach(m, other) has |= strncmp(m->string, prefix, strlen(prefix)) == 0;
                 if (has) {
                     sc_buf_puts(&b, "<small>");
-                    html_text(&b, g->nodes[j].name);
+                    markup_text(&b, g->nodes[j].name);
                     sc_buf_puts(&b, "</small>\n");
                     html_metrics(&b, other, prefix);
                 }
                 cJSON_Delete(other);
             }
             sc_buf_puts(&b, "<small>");
-            html_text(&b, g->nodes[i].name);
+            markup_text(&b, g->nodes[i].name);
             sc_buf_puts(&b, "</small>\n");
             html_metrics(&b, metrics, prefix);
             sc_buf_puts(&b, "</div><div class=\"pics\">\n");

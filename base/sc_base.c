@@ -528,6 +528,17 @@ char *sc_path_dirname(const char *path) {
     return sc_strndup(path, (size_t)(slash - path));
 }
 
+bool sc_path_is_plain_relative(const char *path) {
+    if (!*path || path[0] == '/') return false;
+    for (const char *s = path; *s;) {
+        const char *slash = strchr(s, '/');
+        size_t l = slash ? (size_t)(slash - s) : strlen(s);
+        if (l == 0 || (l == 2 && s[0] == '.' && s[1] == '.') || (l == 1 && s[0] == '.')) return false;
+        s += l + (slash ? 1 : 0);
+    }
+    return true;
+}
+
 /* path (absolute) with "." and ".." removed by the text alone, in place. */
 static void normalise_lexically(char *path) {
     char *out = path;   /* path[0] == '/' */

@@ -168,6 +168,9 @@ int sc_make_dirs(const char *path, sc_error *err);
 char *sc_path_join(const char *dir, const char *name);
 /* The directory part of path ("." when none), as a new string. */
 char *sc_path_dirname(const char *path);
+/* Whether path names something inside a folder by its text alone: relative,
+ * not empty, no empty, "." or ".." segment. */
+bool sc_path_is_plain_relative(const char *path);
 
 /* A file that an asset names (`rel`, as written in an MTL, OBJ or glTF),
  * resolved against the folder `dir` that names it, when it stays inside the

@@ -88,8 +88,9 @@ int sc_cache_file_digest(sc_cache *c, const char *path, sc_digest *out, sc_error
 
 /* ---------------------------------------------------------------- history */
 
-/* The last description recorded for a node identity (graph file + node name):
- * engine-defined text the engine compares to explain why a node ran.
+/* The last description recorded for a node identity (the engine's: graph
+ * file, node name and its assets' paths): engine-defined text the engine
+ * compares to explain why a node ran.
  * Returns 0 with *text (caller frees) or SC_EMISS. */
 int sc_cache_get_history(sc_cache *c, const char *node_id, char **text, sc_error *err);
 int sc_cache_put_history(sc_cache *c, const char *node_id, const char *text, sc_error *err);

@@ -4,15 +4,11 @@
 --   seamcook run graphs/lod_chain.lua                       (the procedural asset)
 --   seamcook run graphs/lod_chain.lua --set mesh=assets/cow.obj [--set texture=assets/cow.png]
 --   seamcook run graphs/lod_chain.lua --set straighten=0       (keep the seams as they are)
+--   seamcook run graphs/lod_chain.lua --set ratios=0.5,0.1     (two levels)
+--   seamcook run graphs/lod_chain.lua --set lods.normal_turn=45 (any node's parameter, by the node's name)
 --
 -- load -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
 --      -> bake_displacement (geometry image, displacement per LOD) -> mipmap -> render (every LOD x mip)
-local function numbers(text)   -- "0.5,0.1" -> {0.5, 0.1}
-  local list = {}
-  for item in text:gmatch("[^,%s]+") do list[#list + 1] = tonumber(item) end
-  return list
-end
-
 local mesh = param("mesh", "")
 local asset
 if mesh == "" then
@@ -52,7 +48,7 @@ end
 -- displaced within 8.9e-4 of the diagonal instead of 1.7e-2, at 1,170
 -- faces instead of 886). 0: off.
 local lods = decimate{ name = "lods", mesh = shared,
-                       ratio = numbers(param("ratios", "0.5,0.1,0.01")),
+                       ratio = param("ratios", {0.5, 0.1, 0.01}),   -- --set ratios=0.5,0.1
                        max_error = param("max_error", 0.02),
                        map_size = param("map_size", 0) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = shared }

@@ -35,9 +35,21 @@
 --   param(name [, default])
 --     The value of `--set name=value`, converted to the type of `default`:
 --     a number (an error if the text is not one), a boolean (true/false,
---     yes/no, 1/0) or a string. Without --set it returns `default`; with no
---     default either, the graph fails: "pass --set name=...". Every --set
---     must be read by some param() call, so a misspelt setting is an error.
+--     yes/no, 1/0), a string, or, for a table default, a list of numbers:
+--
+--       ratio = param("ratios", { 0.5, 0.1 })     -- --set ratios=0.5,0.25,0.1
+--
+--     (every element must be a number). Without --set it returns `default`;
+--     with no default either, the graph fails: "pass --set name=...". Every
+--     --set must be read by some param() call, so a misspelt setting is an
+--     error. A value a node refuses because of a --set (out of range, say)
+--     names the --set; the command line exits with status 2 for it.
+--
+--   --set node.param=value (command line, no call needed)
+--     Sets the parameter `param` of the node named `node` (its `name` field)
+--     once the graph file has run, over what the file gave it, read as the
+--     parameter's type. So a graph need not pass every parameter through
+--     param(). An unknown node or parameter is an error naming it.
 --
 -- Tests -------------------------------------------------------------------
 --

@@ -2232,40 +2232,41 @@ static void metric(sc_ctx *ctx, int level, const char *name, double value) {
     sc_ctx_metric(ctx, key, value);
 }
 
+/* The rules of the two target lists, checked wherever a value is (the graph
+ * is built, a dry run too): each level is decimated from the one before, so
+ * targets never increase. A ratio is in (0, 1]; a face count is whole. */
+static int check_targets(const double *x, int n, bool faces, sc_error *err) {
+    for (int i = 0; i < n; i++) {
+        if (faces ? !(x[i] >= 1) || x[i] != floor(x[i]) : !(x[i] > 0 && x[i] <= 1))
+            return sc_fail(err, SC_EINPUT, faces ? "target %d is %g; face counts are whole numbers >= 1"
+                                                 : "target %d is %g; ratios lie in (0, 1]", i, x[i]);
+        if (i > 0 && x[i] > x[i - 1])
+            return sc_fail(err, SC_EINPUT, "targets must not increase (each level is decimated from the one "
+                           "before): target %d is %g after %g", i, x[i], x[i - 1]);
+    }
+    return SC_OK;
+}
+
+static int check_ratios(const double *x, int n, sc_error *err) {
+    if (n == 0) return sc_fail(err, SC_EINPUT, "no targets (give at least one ratio)");
+    return check_targets(x, n, false, err);
+}
+
+static int check_faces(const double *x, int n, sc_error *err) { return check_targets(x, n, true, err); }
+
+/* Face counts per level; rounding keeps them in order, as the ratios are. */
 static int read_targets(sc_ctx *ctx, int32_t nf, int64_t **out, int *count, sc_error *err) {
     int nfaces = 0, nratio = 0;
     const double *faces = sc_ctx_numbers(ctx, "faces", &nfaces);
     const double *ratio = sc_ctx_numbers(ctx, "ratio", &nratio);
     int n = nfaces > 0 ? nfaces : nratio;
-    const char *param = nfaces > 0 ? "faces" : "ratio";
-    if (n == 0) return sc_fail(err, SC_EINPUT, "decimate:ratio: no targets (give ratio or faces)");
+    int rc = nfaces > 0 ? check_faces(faces, nfaces, err) : check_ratios(ratio, nratio, err);
+    if (rc) return sc_error_prefix(err, "decimate:%s", nfaces > 0 ? "faces" : "ratio");
     int64_t *t = sc_alloc_array((size_t)n, sizeof *t);
     if (!t) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     for (int i = 0; i < n; i++) {
-        double x = nfaces > 0 ? faces[i] : ratio[i];
-        if (nfaces > 0) {
-            if (!(x >= 1) || x != floor(x) || x > 2e9) {
-                free(t);
-                return sc_fail(err, SC_EINPUT,
-                               "decimate:faces: target %d is %g; face counts are whole numbers >= 1", i, x);
-            }
-            t[i] = (int64_t)x;
-        } else {
-            if (!(x > 0 && x <= 1)) {
-                free(t);
-                return sc_fail(err, SC_EINPUT, "decimate:ratio: target %d is %g; ratios lie in (0, 1]", i, x);
-            }
-            t[i] = (int64_t)llround(x * nf);
-            if (t[i] < 1) t[i] = 1;
-        }
-        if (i > 0 && t[i] > t[i - 1]) {
-            long long now = (long long)t[i], before = (long long)t[i - 1];
-            free(t);
-            return sc_fail(err, SC_EINPUT,
-                           "decimate:%s: targets must not increase (each level is decimated from the one before): "
-                           "target %d asks for %lld faces after %lld",
-                           param, i, now, before);
-        }
+        t[i] = nfaces > 0 ? (int64_t)faces[i] : (int64_t)llround(ratio[i] * nf);
+        if (t[i] < 1) t[i] = 1;
     }
     *out = t;
     *count = n;
@@ -2773,9 +2774,11 @@ static const char *const weight_modes[] = {"qem", "area_distortion", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "ratio", .type = SC_PARAM_NUMBERS, .def_string = "0.5,0.1,0.01", .min = 0, .max = 1,
-     .doc = "target face counts as fractions of the input, one level each, not increasing"},
+     .doc = "target face counts as fractions of the input, one level each, not increasing",
+     .check_list = check_ratios},
     {.name = "faces", .type = SC_PARAM_NUMBERS, .def_string = "", .min = 1, .max = 2e9,
-     .doc = "absolute target face counts (when given, they replace ratio)"},
+     .doc = "absolute target face counts (when given, they replace ratio), not increasing",
+     .check_list = check_faces},
     {.name = "seam_mode", .type = SC_PARAM_ENUM, .def_string = "aware", .choices = seam_modes,
      .doc = "aware: Liu et al. 2017 seam-aware collapses; fixed: silhouette edges never collapse; "
             "free: uv constraints ignored (breaks seams; a baseline)"},

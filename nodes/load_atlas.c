@@ -150,13 +150,18 @@ static int parse_slots(const char *text, bool wanted[NSLOTS], sc_error *err) {
         int s = slot_index(p, n);
         if (s < 0)
             return sc_fail(err, SC_EINPUT,
-                           "slots: unknown slot '%.*s' (known: all, color, normal, emissive, "
+                           "unknown slot '%.*s' (known: all, color, normal, emissive, "
                            "occlusion, metallic_roughness)",
                            (int)n, p);
         wanted[s] = true;
         p += n;
     }
     return SC_OK;
+}
+
+static int check_slots(const char *text, sc_error *err) {
+    bool wanted[NSLOTS];
+    return parse_slots(text, wanted, err);
 }
 
 /* ---------------------------------------------------------------- parsing */
@@ -371,7 +376,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const char *wrap = sc_ctx_string(ctx, "wrap");
     bool wanted[NSLOTS];
     int rc = parse_slots(sc_ctx_string(ctx, "slots"), wanted, err);
-    if (rc) return rc;
+    if (rc) return sc_error_prefix(err, "slots");
     bool is_obj = has_extension(path, ".obj");
     bool is_gltf = has_extension(path, ".gltf") || has_extension(path, ".glb");
     if (!is_obj && !is_gltf)
@@ -465,7 +470,8 @@ static const sc_param_desc params[] = {
             "empty: the model's own folder (seamcook run --asset-root sets it on every load_atlas)"},
     {.name = "slots", .type = SC_PARAM_STRING, .def_string = "all",
      .doc = "texture slots to load, comma-separated (color, normal, emissive, occlusion, "
-            "metallic_roughness), or all"},
+            "metallic_roughness), or all",
+     .check_text = check_slots},
 };
 
 static const sc_port_desc outputs[] = {

@@ -284,13 +284,39 @@ static int parse_modes(const char *text, bool want[MODE_COUNT], sc_error *err) {
         for (int m = 0; m < MODE_COUNT; m++)
             if (strlen(mode_names[m]) == len && memcmp(mode_names[m], p, len) == 0) found = m;
         if (found < 0)
-            return sc_fail(err, SC_EINPUT, "modes: unknown mode '%.*s' (known: textured, geometry_image, "
+            return sc_fail(err, SC_EINPUT, "unknown mode '%.*s' (known: textured, geometry_image, "
                                            "displaced, tessellated)", (int)len, p);
         want[found] = true;
         n++;
         p = end;
     }
-    if (n == 0) return sc_fail(err, SC_EINPUT, "modes: no mode given");
+    if (n == 0) return sc_fail(err, SC_EINPUT, "no mode given");
+    return SC_OK;
+}
+
+/* The parameters' rules, checked when the graph is built and again here. */
+static int check_modes(const char *text, sc_error *err) {
+    bool want[MODE_COUNT];
+    return parse_modes(text, want, err);
+}
+
+static int check_tess_levels(const double *x, int count, sc_error *err) {
+    if (count > MAX_TESS_LEVELS) return sc_fail(err, SC_EINPUT, "%d levels, at most %d", count, MAX_TESS_LEVELS);
+    for (int i = 0; i < count; i++) {
+        if (x[i] != floor(x[i]) || x[i] < 1 || x[i] > 64)
+            return sc_fail(err, SC_EINPUT, "element %d (%g) is not an integer in [1, 64]", i + 1, x[i]);
+        for (int j = 0; j < i; j++)
+            if (x[j] == x[i]) return sc_fail(err, SC_EINPUT, "level %d is given twice", (int)x[i]);
+    }
+    return SC_OK;
+}
+
+static int check_folder(const char *folder, sc_error *err) {
+    size_t len = strlen(folder);
+    if (len == 0 || len > 64 || folder[0] == '/' || strstr(folder, "..") ||
+        strspn(folder, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-/") != len)
+        return sc_fail(err, SC_EINPUT, "'%s' is not a relative folder name of at most 64 letters, digits, "
+                       "'_', '-' and '/'", folder);
     return SC_OK;
 }
 
@@ -298,17 +324,8 @@ static int parse_levels(sc_ctx *ctx, int *levels, int *nlevels, sc_error *err) {
     int count = 0;
     const double *x = sc_ctx_numbers(ctx, "tess_levels", &count);
     *nlevels = 0;
-    if (count > MAX_TESS_LEVELS)
-        return sc_fail(err, SC_EINPUT, "tess_levels: %d levels, at most %d", count, MAX_TESS_LEVELS);
-    for (int i = 0; i < count; i++) {
-        if (x[i] != floor(x[i]) || x[i] < 1 || x[i] > 64)
-            return sc_fail(err, SC_EINPUT, "tess_levels: element %d (%g) is not an integer in [1, 64]", i + 1,
-                           x[i]);
-        for (int j = 0; j < *nlevels; j++)
-            if (levels[j] == (int)x[i])
-                return sc_fail(err, SC_EINPUT, "tess_levels: level %d is given twice", (int)x[i]);
-        levels[(*nlevels)++] = (int)x[i];
-    }
+    if (check_tess_levels(x, count, err) != SC_OK) return sc_error_prefix(err, "tess_levels");
+    for (int i = 0; i < count; i++) levels[(*nlevels)++] = (int)x[i];
     return SC_OK;
 }
 
@@ -1860,6 +1877,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     bool want[MODE_COUNT];
     int rc = parse_modes(sc_ctx_string(ctx, "modes"), want, err);
+    if (rc != SC_OK) sc_error_prefix(err, "modes");
     int levels[MAX_TESS_LEVELS], ntess = 0;
     if (rc == SC_OK) rc = parse_levels(ctx, levels, &ntess, err);
     if (rc != SC_OK) return rc;
@@ -1870,12 +1888,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     J.seam_points = (int)sc_ctx_integer(ctx, "seam_points");
     J.max_cracks = sc_ctx_number(ctx, "max_crack_pixels");
     J.max_gap = sc_ctx_number(ctx, "max_seam_gap");
-    const char *folder = sc_ctx_string(ctx, "folder");
-    size_t folder_len = strlen(folder);
-    if (folder_len == 0 || folder_len > 64 || folder[0] == '/' || strstr(folder, "..") ||
-        strspn(folder, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-/") != folder_len)
-        return sc_fail(err, SC_EINPUT, "folder: '%s' is not a relative folder name of at most 64 letters, digits, "
-                       "'_', '-' and '/'", folder);
+    if (check_folder(sc_ctx_string(ctx, "folder"), err) != SC_OK) return sc_error_prefix(err, "folder");
 
     /* one framing for every level and the reference */
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
@@ -1985,7 +1998,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
 static const sc_param_desc params[] = {
     {.name = "modes", .type = SC_PARAM_STRING, .def_string = "textured,geometry_image,displaced,tessellated",
      .doc = "comma-separated render modes: textured, geometry_image (needs the texture slot geometry_image), "
-            "displaced (needs displacement), tessellated (needs either)"},
+            "displaced (needs displacement), tessellated (needs either)",
+     .check_text = check_modes},
     {.name = "views", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 64,
      .doc = "views per LOD and mode: 6 axis views, then oblique ones"},
     {.name = "size", .type = SC_PARAM_INTEGER, .def = 512, .min = 16, .max = 4096,
@@ -1993,9 +2007,10 @@ static const sc_param_desc params[] = {
     {.name = "seam_points", .type = SC_PARAM_INTEGER, .def = 16, .min = 2, .max = 4096,
      .doc = "points per seam half-edge in the GPU seam-gap check (untessellated modes)"},
     {.name = "tess_levels", .type = SC_PARAM_NUMBERS, .def_string = "1,2,4,8", .min = 1, .max = 64,
-     .doc = "uniform tessellation levels of the tessellated mode"},
+     .doc = "uniform tessellation levels of the tessellated mode", .check_list = check_tess_levels},
     {.name = "folder", .type = SC_PARAM_STRING, .def_string = "render",
-     .doc = "folder of the report's pictures under --out (two render nodes in one graph need two)"},
+     .doc = "folder of the report's pictures under --out (two render nodes in one graph need two)",
+     .check_text = check_folder},
     {.name = "max_crack_pixels", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
      .doc = "fail when a LOD and mode shows more crack pixels (summed over views); -1: no limit"},
     {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,

@@ -78,16 +78,16 @@ static char *safe_name(const char *s) {
     return out;
 }
 
+/* The `file` parameter: a plain file name (checked when the graph is built). */
 static int check_name(const char *name, sc_error *err) {
-    if (!*name) return sc_fail(err, SC_EINPUT, "file: must not be empty");
+    if (!*name) return sc_fail(err, SC_EINPUT, "must not be empty");
     if (strcmp(name, ".") == 0 || strcmp(name, "..") == 0)
-        return sc_fail(err, SC_EINPUT, "file: '%s' is not a file name", name);
+        return sc_fail(err, SC_EINPUT, "'%s' is not a file name", name);
     for (const char *c = name; *c; c++) {
         bool ok = (*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') ||
                   *c == '_' || *c == '-' || *c == '.';
         if (!ok)
-            return sc_fail(err, SC_EINPUT,
-                           "file: '%s' is not a plain file name (letters, digits, '_', '-', '.')", name);
+            return sc_fail(err, SC_EINPUT, "'%s' is not a plain file name (letters, digits, '_', '-', '.')", name);
     }
     return SC_OK;
 }
@@ -319,7 +319,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     saver s = {.name = sc_ctx_string(ctx, "file"), .format = sc_ctx_string(ctx, "format"),
                .exr_too = sc_ctx_bool(ctx, "exr_too")};
     int rc = check_name(s.name, err);
-    if (rc) return rc;
+    if (rc) return sc_error_prefix(err, "file");
     if (!atlas && !lods && !image)
         return sc_fail(err, SC_EINPUT, "nothing to save: connect atlas, lods or image");
     if (lods && lods->count < 1) return sc_fail(err, SC_EINPUT, "lods: no levels");
@@ -379,7 +379,7 @@ static const char *const format_choices[] = {"auto", "png", "jpg", "exr", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "file", .type = SC_PARAM_STRING, .def_string = "asset",
-     .doc = "base file name of everything written"},
+     .doc = "base file name of everything written", .check_text = check_name},
     {.name = "format", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = format_choices,
      .doc = "texture format; auto: png for 8/16-bit images (lossless, a JPEG input too), exr for float; "
             "jpg only when asked"},

@@ -169,9 +169,42 @@ static const sc_graph_node *gnode(engine *e, int i) { return &e->g->nodes[i]; }
 
 static void hexof(const sc_digest *d, char out[65]) { sc_digest_hex(d, out); }
 
-/* A node's identity across runs: the graph file's real path and its name. */
+/* A node's identity across runs, which explain compares a cook with: the
+ * graph file's real path, its name and its lineage, the values of the PATH
+ * parameters of the node and of every node upstream of it (hashed). So a
+ * chain cooked on one asset and then on another keeps a history per asset:
+ * an edit of the first is explained against its own last cook, not as a
+ * change of path. A node with no path upstream is "graph#name". */
 static char *node_id(engine *e, int i) {
-    return sc_strprintf("%s#%s", e->graph_path, gnode(e, i)->name);
+    const sc_graph *g = e->g;
+    bool *upstream = calloc((size_t)i + 1, sizeof *upstream);
+    if (!upstream) return NULL;
+    upstream[i] = true;
+    sc_buf paths;
+    sc_buf_init(&paths);
+    for (int k = i; k >= 0; k--) {   /* producers come before consumers */
+        if (!upstream[k]) continue;
+        const sc_graph_node *n = &g->nodes[k];
+        for (int port = 0; port < n->desc->ninputs; port++)
+            if (n->input_node[port] >= 0) upstream[n->input_node[port]] = true;
+        for (int p = 0; p < n->desc->nparams; p++)
+            if (n->desc->params[p].type == SC_PARAM_PATH)
+                sc_buf_printf(&paths, "%s.%s=%s\n", n->name, n->desc->params[p].name,
+                              n->params[p].string ? n->params[p].string : "");
+    }
+    free(upstream);
+    char *id = NULL;
+    if (!paths.failed && paths.len == 0) {
+        id = sc_strprintf("%s#%s", e->graph_path, gnode(e, i)->name);
+    } else if (!paths.failed) {
+        sc_digest d;
+        char hex[65];
+        sc_digest_bytes(paths.data, paths.len, &d);
+        hexof(&d, hex);
+        id = sc_strprintf("%s#%s#%s", e->graph_path, gnode(e, i)->name, hex);
+    }
+    sc_buf_free(&paths);
+    return id;
 }
 
 static void say(engine *e, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -470,17 +503,6 @@ static void remember(engine *e, int i, const sc_digest *dep_digests) {
 
 /* ---------------------------------------------------------------- report files */
 
-static bool safe_relative_path(const char *p) {
-    if (!*p || p[0] == '/') return false;
-    for (const char *s = p; *s;) {
-        const char *slash = strchr(s, '/');
-        size_t l = slash ? (size_t)(slash - s) : strlen(s);
-        if (l == 0 || (l == 2 && s[0] == '.' && s[1] == '.') || (l == 1 && s[0] == '.')) return false;
-        s += l + (slash ? 1 : 0);
-    }
-    return true;
-}
-
 /* Claim an output file name for node i: returns i, or the node that claimed
  * it first, or -1 when out of memory. An open-addressing table of names. */
 static int claim_path(engine *e, const char *rel, int i) {
@@ -530,10 +552,11 @@ static int materialize(engine *e, int i, sc_error *err) {
     sc_node_result *r = &e->run->results[i];
     if (!e->opt->out_dir || e->opt->dry_run || rt->nfiles == 0) return SC_OK;
     r->files = calloc((size_t)rt->nfiles, sizeof(char *));
-    if (!r->files) return sc_fail(err, SC_ENOMEM, "out of memory");
+    r->file_digests = calloc((size_t)rt->nfiles, sizeof *r->file_digests);
+    if (!r->files || !r->file_digests) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int f = 0; f < rt->nfiles; f++) {
         const char *rel = rt->files[f].path;
-        if (!safe_relative_path(rel))
+        if (!sc_path_is_plain_relative(rel))
             return sc_fail(err, SC_EINPUT, "output file name '%s' is not a plain relative path", rel);
         int other = claim_path(e, rel, i);
         if (other != i)
@@ -565,6 +588,7 @@ static int materialize(engine *e, int i, sc_error *err) {
         }
         free(path), free(dir);
         if (rc != SC_OK) return rc;
+        r->file_digests[r->nfiles] = rt->files[f].content;
         r->files[r->nfiles++] = sc_strdup(rel);
     }
     return SC_OK;
@@ -654,8 +678,8 @@ static void forget_result(sc_node_result *r) {
     free(r->deps), free(r->dep_digests);
     r->deps = NULL, r->dep_digests = NULL, r->ndeps = 0;
     for (int f = 0; f < r->nfiles; f++) free(r->files[f]);
-    free(r->files);
-    r->files = NULL, r->nfiles = 0;
+    free(r->files), free(r->file_digests);
+    r->files = NULL, r->file_digests = NULL, r->nfiles = 0;
 }
 
 /* Decide hit or miss for a node whose inputs' digests are all known. */
@@ -1158,7 +1182,7 @@ void sc_run_free(sc_run *r) {
         free(x->outputs), free(x->metrics_json), free(x->why), free(x->error);
         for (int f = 0; f < x->nfiles; f++) free(x->files[f]);
         for (int d = 0; d < x->ndeps; d++) free(x->deps[d]);
-        free(x->files), free(x->deps), free(x->dep_digests);
+        free(x->files), free(x->file_digests), free(x->deps), free(x->dep_digests);
     }
     free(r->results);
     free(r);

@@ -60,6 +60,7 @@ typedef struct sc_node_result {
     char *error;            /* the failure message */
     int nfiles;
     char **files;           /* report files written under out_dir (relative) */
+    sc_digest *file_digests;/* per file: the SHA-256 of its bytes */
     int ndeps;
     char **deps;            /* source files it read (absolute); after a failure, also those it could not */
     sc_digest *dep_digests; /* per dep: the content it read, all zero for one it could not read */

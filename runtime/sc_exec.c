@@ -127,44 +127,10 @@ int sc_ctx_set_param(sc_ctx *ctx, const char *name, const char *text, sc_error *
     int i = sc_desc_param(ctx->desc, name);
     if (i < 0) return sc_fail(err, SC_EINPUT, "%s: unknown parameter '%s'", ctx->desc->type, name);
     const sc_param_desc *pd = &ctx->desc->params[i];
-    sc_param_value v = {.type = pd->type};
-    char *end = NULL;
-    switch (pd->type) {
-    case SC_PARAM_NUMBER:
-    case SC_PARAM_INTEGER:
-        v.number = strtod(text, &end);
-        if (end == text || *end) return sc_fail(err, SC_EINPUT, "%s:%s: '%s' is not a number",
-                                                ctx->desc->type, name, text);
-        break;
-    case SC_PARAM_BOOL:
-        v.number = (!strcmp(text, "true") || !strcmp(text, "1") || !strcmp(text, "yes"));
-        break;
-    case SC_PARAM_STRING:
-    case SC_PARAM_ENUM:
-    case SC_PARAM_PATH:
-        v.string = sc_strdup(text);
-        break;
-    case SC_PARAM_NUMBERS: {
-        const char *p = text;
-        while (*p) {
-            double x = strtod(p, &end);
-            if (end == p) {
-                sc_param_value_clear(&v);
-                return sc_fail(err, SC_EINPUT, "%s:%s: '%s' is not a list of numbers",
-                               ctx->desc->type, name, text);
-            }
-            double *nums = realloc(v.numbers, sizeof(double) * (size_t)(v.count + 1));
-            if (!nums) {
-                sc_param_value_clear(&v);
-                return sc_fail(err, SC_ENOMEM, "out of memory");
-            }
-            v.numbers = nums;
-            v.numbers[v.count++] = x;
-            p = end;
-            while (*p == ',' || *p == ' ') p++;
-        }
-        break;
-    }
+    sc_param_value v;
+    if (sc_param_parse(pd, text, &v, err) != SC_OK) {
+        sc_param_value_clear(&v);
+        return sc_error_prefix(err, "%s:%s", ctx->desc->type, name);
     }
     int rc = sc_param_check(pd, &v, ctx->desc->type, err);
     if (rc != SC_OK) {

@@ -20,7 +20,8 @@ sc_ctx *sc_ctx_new(const sc_node_desc *desc, const sc_param_value *params,
 void sc_ctx_free(sc_ctx *ctx);
 
 /* Set an input or a parameter after sc_ctx_new (for tests and benchmarks).
- * set_param parses text as the parameter's type ("1.5", "true", "a,b"). */
+ * set_param parses text as the parameter's type (sc_param_parse: "1.5", "true",
+ * "0.5,0.1") and checks it. */
 int sc_ctx_set_input(sc_ctx *ctx, const char *port, sc_value *value);   /* retains */
 int sc_ctx_set_param(sc_ctx *ctx, const char *name, const char *text, sc_error *err);
 void sc_ctx_set_threads(sc_ctx *ctx, int threads);

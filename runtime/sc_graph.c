@@ -16,6 +16,12 @@
  * (a range admitting only 0 would be pointless), so designated initialisers
  * may simply omit them.
  *
+ * Text forms (sc_param_parse): the command line and descriptor defaults give
+ * values as text; a number is the whole text, a list is numbers between
+ * commas, and any element that is not a number is an error, never dropped.
+ * A descriptor may add a rule on a whole list (check_list) or on a text
+ * (check_text), which sc_param_check applies wherever a value is checked.
+ *
  * The canonical parameter text is what the cache key hashes, so it depends on
  * values only: names sorted bytewise, numbers as the shortest text that reads
  * back exactly (1 and 1.0 print alike), strings quoted with C escapes.
@@ -26,6 +32,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 /* ---------------------------------------------------------------- helpers */
 
@@ -60,37 +67,81 @@ static void format_number(double v, char out[32]) {
     else sc_format_double(v, out);
 }
 
-/* Parse a default list such as "0.5, 0.1,0.01". Stops at the first malformed
- * entry; sc_param_check then judges what was read. */
-static int parse_number_list(const char *text, sc_param_value *v) {
-    v->numbers = NULL;
-    v->count = 0;
-    if (!text) return 0;
+/* ---------------------------------------------------------------- text */
+
+bool sc_parse_bool(const char *s, bool *out) {
+    static const char *const yes[] = {"true", "yes", "1"}, *const no[] = {"false", "no", "0"};
+    for (int i = 0; i < 3; i++) {
+        if (strcasecmp(s, yes[i]) == 0) return *out = true, true;
+        if (strcasecmp(s, no[i]) == 0) return *out = false, true;
+    }
+    return false;
+}
+
+/* One number, the whole of [s, end) but for blanks around it. */
+static bool parse_number(const char *s, const char *end, double *out) {
+    while (s < end && (*s == ' ' || *s == '\t')) s++;
+    while (end > s && (end[-1] == ' ' || end[-1] == '\t')) end--;
+    if (s == end || end - s > 63) return false;
+    char text[64], *stop;
+    memcpy(text, s, (size_t)(end - s));
+    text[end - s] = 0;
+    *out = strtod(text, &stop);
+    return *stop == 0;
+}
+
+int sc_parse_numbers(const char *text, double **out, int *count, sc_error *err) {
+    *out = NULL;
+    *count = 0;
+    const char *p = text ? text : "";
+    while (*p == ' ' || *p == '\t') p++;
+    if (!*p) return SC_OK;   /* an empty list */
     int cap = 1;
-    for (const char *p = text; *p; p++) cap += *p == ',';
+    for (const char *c = p; *c; c++) cap += *c == ',';
     double *numbers = sc_alloc_array((size_t)cap, sizeof *numbers);
-    if (!numbers) return -1;
-    int count = 0;
-    const char *p = text;
+    if (!numbers) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int n = 0;
     for (;;) {
-        while (*p == ' ' || *p == '\t') p++;
-        if (!*p) break;
-        char *end;
-        double x = strtod(p, &end);
-        if (end == p || count == cap) break;
-        numbers[count++] = x;
-        p = end;
-        while (*p == ' ' || *p == '\t') p++;
-        if (*p != ',') break;
-        p++;
+        const char *comma = strchr(p, ',');
+        const char *end = comma ? comma : p + strlen(p);
+        if (!parse_number(p, end, &numbers[n])) {
+            free(numbers);
+            return sc_fail(err, SC_EINPUT, "element %d ('%.*s') is not a number", n + 1,
+                           (int)(end - p > 64 ? 64 : end - p), p);
+        }
+        n++;
+        if (!comma) break;
+        p = comma + 1;
     }
-    if (count == 0) {
-        free(numbers);
-        return 0;
+    *out = numbers;
+    *count = n;
+    return SC_OK;
+}
+
+int sc_param_parse(const sc_param_desc *pd, const char *text, sc_param_value *v, sc_error *err) {
+    memset(v, 0, sizeof *v);
+    v->type = pd->type;
+    bool b;
+    switch (pd->type) {
+    case SC_PARAM_NUMBER:
+    case SC_PARAM_INTEGER:
+        if (!parse_number(text, text + strlen(text), &v->number))
+            return sc_fail(err, SC_EINPUT, "'%s' is not a number", text);
+        return SC_OK;
+    case SC_PARAM_BOOL:
+        if (!sc_parse_bool(text, &b))
+            return sc_fail(err, SC_EINPUT, "'%s' is not a boolean (true/false, yes/no, 1/0)", text);
+        v->number = b;
+        return SC_OK;
+    case SC_PARAM_STRING:
+    case SC_PARAM_ENUM:
+    case SC_PARAM_PATH:
+        v->string = sc_strdup(text);
+        return v->string ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
+    case SC_PARAM_NUMBERS:
+        return sc_parse_numbers(text, &v->numbers, &v->count, err);
     }
-    v->numbers = numbers;
-    v->count = count;
-    return 0;
+    return sc_fail(err, SC_EINPUT, "unknown parameter type %d", (int)pd->type);
 }
 
 static int param_default(const sc_param_desc *pd, sc_param_value *v) {
@@ -112,7 +163,7 @@ static int param_default(const sc_param_desc *pd, sc_param_value *v) {
         return v->string ? 0 : -1;
     }
     case SC_PARAM_NUMBERS:
-        return pd->required ? 0 : parse_number_list(pd->def_string, v);
+        return pd->required || sc_parse_numbers(pd->def_string, &v->numbers, &v->count, NULL) == SC_OK ? 0 : -1;
     }
     return 0;
 }
@@ -336,6 +387,10 @@ int sc_param_check(const sc_param_desc *pd, const sc_param_value *v, const char 
         if (pd->type == SC_PARAM_PATH && pd->required && !*v->string)
             return sc_fail(err, SC_EINPUT, "%s: the path is empty", who);
         if (pd->type == SC_PARAM_ENUM) return check_choice(pd, v->string, who, err);
+        if (pd->check_text && pd->check_text(v->string, err) != SC_OK) {
+            sc_error_prefix(err, "%s", who);
+            return SC_EINPUT;
+        }
         return SC_OK;
     case SC_PARAM_NUMBERS:
         if (v->count < 0 || (v->count > 0 && !v->numbers))
@@ -343,6 +398,10 @@ int sc_param_check(const sc_param_desc *pd, const sc_param_value *v, const char 
         for (int i = 0; i < v->count; i++) {
             int rc = check_number(pd, v->numbers[i], false, who, i + 1, err);
             if (rc) return rc;
+        }
+        if (pd->check_list && pd->check_list(v->numbers, v->count, err) != SC_OK) {
+            sc_error_prefix(err, "%s", who);
+            return SC_EINPUT;
         }
         return SC_OK;
     }

@@ -74,11 +74,21 @@ int sc_desc_output(const sc_node_desc *d, const char *name);
  * (equal kinds, or an atlas feeding a mesh port). */
 bool sc_kind_feeds(sc_kind from, sc_kind to);
 
-/* Check a parameter value against its descriptor (type, range, choice);
- * the message names "node:param". */
+/* Check a parameter value against its descriptor (type, range, choice, a
+ * list's rule); the message names "node:param". */
 int sc_param_check(const sc_param_desc *pd, const sc_param_value *v, const char *node,
                    sc_error *err);
 void sc_param_value_clear(sc_param_value *v);
+
+/* Text as a parameter value of pd's type, as the command line gives it:
+ * a number, a boolean (true/false, yes/no, 1/0), a string, or a list of
+ * numbers "0.5,0.1" (every element a number; "" is the empty list). PATH
+ * text is kept as it is. The value is not checked (sc_param_check); the
+ * message says what is wrong with the text. Clear v after use. */
+int sc_param_parse(const sc_param_desc *pd, const char *text, sc_param_value *v, sc_error *err);
+bool sc_parse_bool(const char *text, bool *out);
+/* "0.5, 0.1,0.01" -> {0.5, 0.1, 0.01} (caller frees *out); "" -> none. */
+int sc_parse_numbers(const char *text, double **out, int *count, sc_error *err);
 
 /* Whole-graph validation: every required input connected with a feeding kind,
  * producers earlier than consumers (no cycles), unique names, required params

@@ -40,6 +40,17 @@
  * fixed order (descriptor order, unknown keys by name) so the same mistake
  * always gives the same message, whatever Lua's hash order.
  *
+ * Settings. param() converts a --set's text to its default's type (a table
+ * default reads a list of numbers) and records, in a registry table keyed by
+ * the value it returns, which --set it came from. A constructor whose check
+ * refuses a value found there blames that --set: the build fails with
+ * SC_EUSAGE, "--set name=value: node:param: why", because the command line,
+ * not the graph, is at fault. The same goes for param()'s own errors, unless
+ * the graph caught one and failed later for a reason of its own. Once the
+ * file has run, every --set that no param() read and whose name has a dot,
+ * NODE.PARAM, sets that parameter of the node so named, parsed as the
+ * parameter's type and checked like any value.
+ *
  * Positions. Messages say "file:line:" with the file as the graph named it
  * (the chunk is "@path"); Lua's own messages use short_src, which truncates
  * long paths, so the final message maps the main chunk's short_src back.
@@ -90,11 +101,14 @@ typedef struct builder {
     char where_file[512];             /* where the graph last ran (sampled) */
     int where_line;
     char limit_message[640];
+    char usage_message[1024];         /* the last error raised about the command line */
 } builder;
 
-/* Registry keys: their addresses are unique. */
+/* Registry keys: their addresses are unique. origins maps each value param()
+ * returned for a --set to that setting's index. */
 static const char handle_meta_key = 'h';
 static const char staging_meta_key = 's';
+static const char origins_key = 'o';
 
 static builder *builder_of(lua_State *L) {
     void *ud;
@@ -214,20 +228,35 @@ static void caller_position(lua_State *L, int level, position *pos) {
 }
 
 /* Raise "file:line: message" at the Lua code that called the running C
- * function (or the metamethod). */
-static int raise_error(lua_State *L, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+ * function (or the metamethod). A usage error is one the command line made
+ * (a --set): the build then fails with SC_EUSAGE, unless the graph caught it
+ * and failed later for a reason of its own. */
+static int raise_text(lua_State *L, bool usage, const char *msg) {
+    if (usage) snprintf(builder_of(L)->usage_message, sizeof builder_of(L)->usage_message, "%s", msg);
+    position pos;
+    caller_position(L, 1, &pos);
+    if (pos.line > 0) lua_pushfstring(L, "%s:%d: %s", pos.file, pos.line, msg);
+    else lua_pushfstring(L, "%s: %s", pos.file, msg);
+    return lua_error(L);
+}
 
+static int raise_error(lua_State *L, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static int raise_error(lua_State *L, const char *fmt, ...) {
     char msg[1024];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    position pos;
-    caller_position(L, 1, &pos);
-    if (pos.line > 0) lua_pushfstring(L, "%s:%d: %s", pos.file, pos.line, msg);
-    else lua_pushfstring(L, "%s: %s", pos.file, msg);
-    return lua_error(L);
+    return raise_text(L, false, msg);
+}
+
+/* An error the command line made: "--set name=value: why", or `why` alone
+ * without a setting. */
+static int raise_usage(lua_State *L, const char *setting, const char *value, const char *why) {
+    char msg[1024];
+    if (setting) snprintf(msg, sizeof msg, "--set %s=%s: %s", setting, value, why);
+    else snprintf(msg, sizeof msg, "%s", why);
+    return raise_text(L, true, msg);
 }
 
 /* Whether a message already starts with a "something:123:" position. */
@@ -604,12 +633,22 @@ static const char *param_expects(const sc_param_desc *pd) {
     return "?";
 }
 
-/* Read a list of numbers (or one number) into v, which the staging owns. */
-static void convert_numbers(lua_State *L, const sc_node_desc *d, const sc_param_desc *pd,
-                            sc_param_value *v) {
+/* The --set (its index) that param() returned the value at idx for, or -1. */
+static int origin_of(lua_State *L, int idx) {
+    idx = lua_absindex(L, idx);
+    lua_rawgetp(L, LUA_REGISTRYINDEX, &origins_key);
+    lua_pushvalue(L, idx);
+    int from = lua_rawget(L, -2) == LUA_TNUMBER ? (int)lua_tointeger(L, -1) : -1;
+    lua_pop(L, 2);
+    return from;
+}
+
+/* Read a list of numbers (or one number) into v, which the staging owns;
+ * `who` is "node:param". */
+static void convert_numbers(lua_State *L, const char *who, sc_param_value *v) {
     if (lua_type(L, -1) == LUA_TNUMBER) {
         v->numbers = malloc(sizeof *v->numbers);
-        if (!v->numbers) raise_error(L, "%s:%s: out of memory", d->type, pd->name);
+        if (!v->numbers) raise_error(L, "%s: out of memory", who);
         v->numbers[0] = lua_tonumber(L, -1);
         v->count = 1;
         return;
@@ -622,25 +661,28 @@ static void convert_numbers(lua_State *L, const sc_node_desc *d, const sc_param_
         lua_pop(L, 1);
     }
     if (keys != n || n > (lua_Unsigned)(INT32_MAX / 8))
-        raise_error(L, "%s:%s: expected a list of numbers {a, b, ...} without holes or "
-                    "named fields", d->type, pd->name);
+        raise_error(L, "%s: expected a list of numbers {a, b, ...} without holes or named fields", who);
     if (n == 0) return;
     v->numbers = sc_alloc_array((size_t)n, sizeof *v->numbers);
-    if (!v->numbers) raise_error(L, "%s:%s: out of memory", d->type, pd->name);
+    if (!v->numbers) raise_error(L, "%s: out of memory", who);
     for (lua_Unsigned i = 1; i <= n; i++) {
         int t = lua_rawgeti(L, -1, (lua_Integer)i);
         if (t != LUA_TNUMBER)
-            raise_error(L, "%s:%s: element %llu is %s, expected a number", d->type, pd->name,
-                        (unsigned long long)i, value_type(L, -1));
+            raise_error(L, "%s: element %llu is %s, expected a number", who, (unsigned long long)i,
+                        value_type(L, -1));
         v->numbers[v->count++] = lua_tonumber(L, -1);
         lua_pop(L, 1);
     }
 }
 
-/* The value on top of the stack becomes parameter p. */
-static void convert_param(lua_State *L, builder *B, const sc_node_desc *d, int p,
+/* The value on top of the stack becomes parameter p of the node `node`
+ * (its name, or its type when it has none). A value that fails the check
+ * because of a --set is the command line's error. */
+static void convert_param(lua_State *L, builder *B, const sc_node_desc *d, const char *node, int p,
                           sc_param_value *v) {
     const sc_param_desc *pd = &d->params[p];
+    char who[320];
+    snprintf(who, sizeof who, "%s:%s", node, pd->name);
     int t = lua_type(L, -1);
     bool fits;
     switch (pd->type) {
@@ -653,9 +695,7 @@ static void convert_param(lua_State *L, builder *B, const sc_node_desc *d, int p
     case SC_PARAM_NUMBERS: fits = t == LUA_TNUMBER || t == LUA_TTABLE; break;
     default: fits = false;
     }
-    if (!fits)
-        raise_error(L, "%s:%s: expected %s, got %s", d->type, pd->name, param_expects(pd),
-                    value_type(L, -1));
+    if (!fits) raise_error(L, "%s: expected %s, got %s", who, param_expects(pd), value_type(L, -1));
     v->type = pd->type;
     switch (pd->type) {
     case SC_PARAM_NUMBER:
@@ -666,20 +706,21 @@ static void convert_param(lua_State *L, builder *B, const sc_node_desc *d, int p
     case SC_PARAM_PATH: {
         size_t len;
         const char *s = lua_tolstring(L, -1, &len);
-        if (strlen(s) != len) raise_error(L, "%s:%s: the string holds a zero byte", d->type, pd->name);
-        if (pd->type == SC_PARAM_PATH && len == 0 && pd->required)
-            raise_error(L, "%s:%s: the path is empty", d->type, pd->name);
+        if (strlen(s) != len) raise_error(L, "%s: the string holds a zero byte", who);
+        if (pd->type == SC_PARAM_PATH && len == 0 && pd->required) raise_error(L, "%s: the path is empty", who);
         /* an empty optional path means "none" and stays empty */
         v->string = (pd->type == SC_PARAM_PATH && len > 0) ? resolve_path(B, s) : sc_strdup(s);
         if (!v->string)
-            raise_error(L, "%s:%s: cannot resolve '%s' (out of memory or no working directory)",
-                        d->type, pd->name, s);
+            raise_error(L, "%s: cannot resolve '%s' (out of memory or no working directory)", who, s);
         break;
     }
-    case SC_PARAM_NUMBERS: convert_numbers(L, d, pd, v); break;
+    case SC_PARAM_NUMBERS: convert_numbers(L, who, v); break;
     }
     sc_error err;
-    if (sc_param_check(pd, v, d->type, &err)) raise_error(L, "%s", err.message);
+    if (sc_param_check(pd, v, node, &err) == SC_OK) return;
+    int from = origin_of(L, -1);
+    if (from >= 0) raise_usage(L, B->settings[from].name, B->settings[from].value, err.message);
+    raise_error(L, "%s", err.message);
 }
 
 static bool name_char(char c) {
@@ -751,13 +792,13 @@ static int construct_node(lua_State *L) {
         if (raw_field(L, 1, d->inputs[p].name) != LUA_TNIL) connect_input(L, B, d, p, st);
         lua_pop(L, 1);
     }
-    for (int p = 0; p < d->nparams; p++) {
-        if (raw_field(L, 1, d->params[p].name) != LUA_TNIL)
-            convert_param(L, B, d, p, &st->params[p]);
-        lua_pop(L, 1);
-    }
     if (sc_desc_input(d, "name") < 0 && sc_desc_param(d, "name") < 0) {
         if (raw_field(L, 1, "name") != LUA_TNIL) convert_name(L, d, st);
+        lua_pop(L, 1);
+    }
+    for (int p = 0; p < d->nparams; p++) {
+        if (raw_field(L, 1, d->params[p].name) != LUA_TNIL)
+            convert_param(L, B, d, st->name ? st->name : d->type, p, &st->params[p]);
         lua_pop(L, 1);
     }
 
@@ -790,16 +831,35 @@ static int construct_node(lua_State *L) {
 
 /* ---------------------------------------------------------------- param, expect */
 
-static bool parse_bool(const char *s, bool *out) {
-    static const char *const yes[] = {"true", "yes", "1"}, *const no[] = {"false", "no", "0"};
-    for (int i = 0; i < 3; i++) {
-        if (strcasecmp(s, yes[i]) == 0) return *out = true, true;
-        if (strcasecmp(s, no[i]) == 0) return *out = false, true;
+/* Push the --set text converted to the type of the default at index 2. */
+static void push_setting(lua_State *L, int def, const char *name, const char *text) {
+    if (def == LUA_TNUMBER) {
+        if (!lua_stringtonumber(L, text)) raise_usage(L, name, text, "not a number");
+        if (!isfinite(lua_tonumber(L, -1))) raise_usage(L, name, text, "not a finite number");
+    } else if (def == LUA_TBOOLEAN) {
+        bool b;
+        if (!sc_parse_bool(text, &b)) raise_usage(L, name, text, "not a boolean (true/false, yes/no, 1/0)");
+        lua_pushboolean(L, b);
+    } else if (def == LUA_TTABLE) {
+        int cap = 1;
+        for (const char *c = text; *c; c++) cap += *c == ',';
+        lua_createtable(L, cap, 0);   /* sized before the parse: filling it cannot raise and leak x */
+        double *x;
+        int n;
+        sc_error err;
+        if (sc_parse_numbers(text, &x, &n, &err) != SC_OK) raise_usage(L, name, text, err.message);
+        for (int i = 0; i < n; i++) {
+            lua_pushnumber(L, x[i]);
+            lua_rawseti(L, -2, i + 1);
+        }
+        free(x);
+    } else {
+        lua_pushstring(L, text);
     }
-    return false;
 }
 
-/* param(name [, default]): the --set value, converted to default's type. */
+/* param(name [, default]): the --set value, converted to default's type (a
+ * list of numbers, "0.5,0.1", when the default is a table). */
 static int graph_param(lua_State *L) {
     builder *B = builder_of(L);
     if (lua_type(L, 1) != LUA_TSTRING)
@@ -808,35 +868,32 @@ static int graph_param(lua_State *L) {
     const char *name = lua_tostring(L, 1);
     int def = lua_type(L, 2);
     if (def != LUA_TNONE && def != LUA_TNIL && def != LUA_TNUMBER && def != LUA_TBOOLEAN &&
-        def != LUA_TSTRING)
+        def != LUA_TSTRING && def != LUA_TTABLE)
         return raise_error(L, "param('%s', ...): the default must be a number, a boolean, "
-                           "a string or nil, got %s", name, value_type(L, 2));
-    const char *text = NULL;
+                           "a string, a list of numbers or nil, got %s", name, value_type(L, 2));
+    int from = -1;
     for (int i = 0; i < B->nsettings; i++) {
         if (strcmp(B->settings[i].name, name) != 0) continue;
-        text = B->settings[i].value ? B->settings[i].value : "";
+        from = i;
         B->setting_used[i] = true;   /* the last one wins; all count as read */
     }
-    if (!text) {
-        if (def == LUA_TNONE || def == LUA_TNIL)
-            return raise_error(L, "parameter '%s' is required: pass --set %s=...", name, name);
+    if (from < 0) {
+        if (def == LUA_TNONE || def == LUA_TNIL) {
+            char why[512];
+            snprintf(why, sizeof why, "parameter '%s' is required: pass --set %s=...", name, name);
+            return raise_usage(L, NULL, NULL, why);
+        }
         lua_settop(L, 2);
         return 1;
     }
-    if (def == LUA_TNUMBER) {
-        if (!lua_stringtonumber(L, text))
-            return raise_error(L, "--set %s=%s: not a number", name, text);
-        if (!isfinite(lua_tonumber(L, -1)))
-            return raise_error(L, "--set %s=%s: not a finite number", name, text);
-    } else if (def == LUA_TBOOLEAN) {
-        bool b;
-        if (!parse_bool(text, &b))
-            return raise_error(L, "--set %s=%s: not a boolean (true/false, yes/no, 1/0)",
-                               name, text);
-        lua_pushboolean(L, b);
-    } else {
-        lua_pushstring(L, text);
-    }
+    const char *text = B->settings[from].value ? B->settings[from].value : "";
+    lua_settop(L, 2);
+    push_setting(L, def, name, text);
+    lua_rawgetp(L, LUA_REGISTRYINDEX, &origins_key);   /* remember where the value came from */
+    lua_pushvalue(L, 3);
+    lua_pushinteger(L, from);
+    lua_rawset(L, -3);
+    lua_pop(L, 1);
     return 1;
 }
 
@@ -1188,6 +1245,9 @@ static void open_sandbox(lua_State *L, builder *B) {
     lua_setfield(L, -2, "__metatable");
     lua_rawsetp(L, LUA_REGISTRYINDEX, &staging_meta_key);
 
+    lua_newtable(L);
+    lua_rawsetp(L, LUA_REGISTRYINDEX, &origins_key);
+
     sc_lua_open_bounded(L, charge_steps);
 
     for (int i = 0; i < B->ntypes; i++) {
@@ -1256,12 +1316,89 @@ static int build_failure(builder *B, lua_State *L, int status, sc_error *err) {
         return memory_failure(B, where, err);
     }
     if (!msg) return sc_fail(err, SC_EINPUT, "%s: the graph failed with a non-string error", B->path);
+    int code = B->usage_message[0] && strstr(msg, B->usage_message) ? SC_EUSAGE : SC_EINPUT;
     size_t n = strlen(B->main_short_src);
     if (n && strcmp(B->main_short_src, B->path) != 0 && strncmp(msg, B->main_short_src, n) == 0 &&
         msg[n] == ':')
-        return sc_fail(err, SC_EINPUT, "%s%s", B->path, msg + n);
-    if (!has_position(msg)) return sc_fail(err, SC_EINPUT, "%s: %s", B->path, msg);
-    return sc_fail(err, SC_EINPUT, "%s", msg);
+        return sc_fail(err, code, "%s%s", B->path, msg + n);
+    if (!has_position(msg)) return sc_fail(err, code, "%s: %s", B->path, msg);
+    return sc_fail(err, code, "%s", msg);
+}
+
+/* The names a mistaken one may have meant: "; did you mean 'x'?" in hint
+ * (or "") and all of them, "a, b, c", in list. */
+typedef const char *(*name_at)(const void *items, int k);
+static const char *graph_node_name(const void *g, int k) { return ((const sc_graph *)g)->nodes[k].name; }
+static const char *desc_param_name(const void *d, int k) { return ((const sc_node_desc *)d)->params[k].name; }
+
+static void suggest(const char *wrong, const void *items, int count, name_at name, char *hint, size_t nhint,
+                    char *list, size_t nlist) {
+    const char *best = NULL;
+    int dist = 0;
+    size_t len = 0;
+    list[0] = 0;
+    for (int k = 0; k < count; k++) {
+        consider(wrong, name(items, k), &best, &dist);
+        list_append(list, nlist, &len, name(items, k));
+    }
+    did_you_mean(best, hint, nhint);
+}
+
+/* --set node.param=value: the parameter `param` of the node named `node`,
+ * set once the graph file has run (over what the file gave it), read as the
+ * parameter's type and checked like any value. Every mistake is the command
+ * line's. */
+static int set_node_param(builder *B, const sc_setting *set, sc_error *err) {
+    const char *dot = strrchr(set->name, '.');
+    const char *value = set->value ? set->value : "";
+    char node[256], hint[128], list[512];
+    snprintf(node, sizeof node, "%.*s", (int)(dot - set->name), set->name);
+    sc_graph_node *n = NULL;
+    for (int k = 0; k < B->graph->count && !n; k++)
+        if (strcmp(B->graph->nodes[k].name, node) == 0) n = &B->graph->nodes[k];
+    if (!n) {
+        suggest(node, B->graph, B->graph->count, graph_node_name, hint, sizeof hint, list, sizeof list);
+        return sc_fail(err, SC_EUSAGE, "%s: --set %s=%s: the graph has no node named '%s'%s (nodes: %s)", B->path,
+                       set->name, value, node, hint, list);
+    }
+    int p = sc_desc_param(n->desc, dot + 1);
+    if (p < 0) {
+        suggest(dot + 1, n->desc, n->desc->nparams, desc_param_name, hint, sizeof hint, list, sizeof list);
+        return sc_fail(err, SC_EUSAGE, "%s: --set %s=%s: node '%s' (%s) has no parameter '%s'%s (parameters: %s)",
+                       B->path, set->name, value, node, n->desc->type, dot + 1, hint, list);
+    }
+    const sc_param_desc *pd = &n->desc->params[p];
+    sc_param_value v;
+    int rc = sc_param_parse(pd, value, &v, err);
+    if (rc == SC_OK && pd->type == SC_PARAM_PATH && *v.string) {
+        char *abs = resolve_path(B, v.string);
+        free(v.string);
+        v.string = abs;
+        if (!abs) rc = sc_fail(err, SC_ENOMEM, "cannot resolve '%s' (out of memory or no working directory)", value);
+    }
+    if (rc != SC_OK) sc_error_prefix(err, "%s:%s", node, pd->name);
+    else rc = sc_param_check(pd, &v, node, err);
+    if (rc != SC_OK) {
+        sc_param_value_clear(&v);
+        sc_error_prefix(err, "%s: --set %s=%s", B->path, set->name, value);
+        if (rc != SC_ENOMEM) err->code = rc = SC_EUSAGE;
+        return rc;
+    }
+    sc_param_value_clear(&n->params[p]);
+    n->params[p] = v;
+    return SC_OK;
+}
+
+/* Every --set that no param() read and whose name has a dot sets a node's
+ * parameter. */
+static int set_node_params(builder *B, sc_error *err) {
+    for (int i = 0; i < B->nsettings; i++) {
+        if (B->setting_used[i] || !strchr(B->settings[i].name, '.')) continue;
+        int rc = set_node_param(B, &B->settings[i], err);
+        if (rc) return rc;
+        B->setting_used[i] = true;
+    }
+    return SC_OK;
 }
 
 /* Every --set must have been read by some param() call. */
@@ -1278,7 +1415,7 @@ static int check_settings_used(const builder *B, sc_error *err) {
         unused++;
     }
     if (!unused) return SC_OK;
-    return sc_fail(err, SC_EINPUT, "%s: %s %s not read by any param() call in the graph",
+    return sc_fail(err, SC_EUSAGE, "%s: %s %s not read by any param() call in the graph",
                    B->path, list, unused == 1 ? "is" : "are");
 }
 
@@ -1338,6 +1475,7 @@ int sc_lua_build(const char *path, const sc_node_desc *const *types, int ntypes,
         if (status != LUA_OK || B.limit_exceeded) rc = build_failure(&B, L, status, err);
         lua_close(L);
     }
+    if (!rc) rc = set_node_params(&B, err);
     if (!rc) rc = check_settings_used(&B, err);
     if (!rc) rc = sc_graph_validate(B.graph, err);
 

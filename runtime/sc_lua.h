@@ -7,7 +7,9 @@
  * global constructor taking one table: input ports (node handles) and
  * parameters by name, plus an optional `name`. It returns a handle; for a
  * node with several outputs, handle.<port> selects one. `param(name, default)`
- * reads `--set name=value`. Running the file only builds the graph.
+ * reads `--set name=value`; a setting `node.param` that no param() reads sets
+ * that parameter of the node named `node`. Running the file only builds the
+ * graph.
  */
 #ifndef SC_LUA_H
 #define SC_LUA_H
@@ -26,9 +28,13 @@ typedef struct sc_lua_limits {
 } sc_lua_limits;
 
 /* Build the graph described by the file at `path`, with `types` as the node
- * constructors (the engine passes sc_registry_all; tests pass their own). Every --set must be read
- * by some param() call, or it is an error naming it. On failure *out is NULL
- * and err says file:line. Errors: SC_EINPUT for graph problems. */
+ * constructors (the engine passes sc_registry_all; tests pass their own).
+ * Every --set must be read by some param() call or name a node's parameter,
+ * or it is an error naming it. On failure *out is NULL and err says
+ * file:line. Errors: SC_EUSAGE for what the settings got wrong (a value that
+ * is not of its type, that a node refuses, an unknown node or parameter, a
+ * setting nothing reads, a required one missing), SC_EINPUT for graph
+ * problems. */
 int sc_lua_build(const char *path, const sc_node_desc *const *types, int ntypes,
                  const sc_setting *settings, int nsettings,
                  const sc_lua_limits *limits, sc_graph **out, sc_error *err);

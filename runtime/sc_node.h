@@ -36,6 +36,14 @@ typedef struct sc_param_desc {
     double min, max;             /* NUMBER, INTEGER, NUMBERS */
     const char *const *choices;  /* ENUM: NULL-terminated */
     bool required;               /* no default: the graph must give it */
+    /* Optional rules a value must meet beyond its type, range and choices:
+     * for NUMBERS, on the whole list (an order, say); for STRING and PATH, on
+     * the text (a list of names it must parse as). They are part of the
+     * parameter's check, so a graph that breaks one fails when it is built
+     * (a dry run too), not when the node cooks; run() may call the same
+     * function. SC_OK, or err filled with text that follows "node:param: ". */
+    int (*check_list)(const double *values, int count, sc_error *err);
+    int (*check_text)(const char *text, sc_error *err);
 } sc_param_desc;
 
 typedef struct sc_port_desc {

@@ -2,7 +2,10 @@
  *
  * Design note: see sc_imageio_codecs.h for why the codecs are a module. The
  * module is looked for, in order: $SEAMCOOK_IMAGEIO_MODULE; beside the running
- * executable; in the build folder it was built in. It is opened once
+ * executable; in the library folder of its installation (SC_IMAGEIO_INSTALL_DIR,
+ * relative to the executable's folder, as /proc/self/exe names it: an
+ * installed tree can move as a whole); in the build folder it was built in.
+ * It is opened once
  * (pthread_once), with RTLD_LOCAL so its hundreds of libraries stay out of the
  * global namespace; a missing module is an error naming the places searched.
  */
@@ -39,27 +42,36 @@ static const sc_imageio_codecs *try_open(const char *path) {
     return c;   /* stays loaded for the life of the process */
 }
 
+/* Open the module in folder `dir` (joined to `base` when not NULL), if it is there. */
+static bool open_in(const char *base, const char *dir) {
+    char *folder = base ? sc_path_join(base, dir) : sc_strdup(dir);
+    char *path = folder ? sc_path_join(folder, SC_IMAGEIO_MODULE) : NULL;
+    if (path && access(path, R_OK) == 0) codecs = try_open(path);
+    free(folder), free(path);
+    return codecs != NULL;
+}
+
 static void load_codecs(void) {
     const char *env = getenv("SEAMCOOK_IMAGEIO_MODULE");
     if (env && *env && (codecs = try_open(env))) return;
     char self[4096];
     ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    char *exe_dir = NULL;
     if (n > 0) {
         self[n] = 0;
-        char *dir = sc_path_dirname(self);
-        char *path = dir ? sc_path_join(dir, SC_IMAGEIO_MODULE) : NULL;
-        if (path && access(path, R_OK) == 0) codecs = try_open(path);
-        free(dir), free(path);
-        if (codecs) return;
+        exe_dir = sc_path_dirname(self);
     }
-#ifdef SC_IMAGEIO_BUILD_DIR
-    char *path = sc_path_join(SC_IMAGEIO_BUILD_DIR, SC_IMAGEIO_MODULE);
-    if (path && access(path, R_OK) == 0) codecs = try_open(path);
-    free(path);
-    if (codecs) return;
+    bool found = exe_dir && open_in(exe_dir, ".");
+#ifdef SC_IMAGEIO_INSTALL_DIR
+    found = found || (exe_dir && open_in(exe_dir, SC_IMAGEIO_INSTALL_DIR));
 #endif
-    if (!load_error[0])
-        snprintf(load_error, sizeof load_error, "%s not found beside the executable or in the build folder",
+#ifdef SC_IMAGEIO_BUILD_DIR
+    found = found || open_in(NULL, SC_IMAGEIO_BUILD_DIR);
+#endif
+    free(exe_dir);
+    if (!found && !load_error[0])
+        snprintf(load_error, sizeof load_error,
+                 "%s not found beside the executable, in its installation's library folder or in the build folder",
                  SC_IMAGEIO_MODULE);
 }
 

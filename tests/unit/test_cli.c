@@ -1,8 +1,10 @@
 /* test_cli.c - end-to-end runs of the seamcook command line: cooking, the
- * cache (hits, early cutoff, corrupt blobs, two processes, kill -9), explain,
- * dry runs, bad input and exit statuses, watch. Each test works in its own
- * temporary folder with its own cache. The properties are read back from the
- * files the command writes (report.json, outputs), not from its internals. */
+ * cache (hits, early cutoff, corrupt blobs, two processes, kill -9, trimming),
+ * explain, dry runs, --set, bad input and exit statuses, --help and
+ * --version, --json, test --junit, what --out keeps, watch, and the command
+ * installed into a prefix. Each test works in its own temporary folder with
+ * its own cache. The properties are read back from the files the command
+ * writes (report.json, outputs) and what it prints, not from its internals. */
 #include "sc_test.h"
 
 #include <signal.h>
@@ -344,12 +346,29 @@ SC_TEST(bad_input_exit_statuses) {
     /* an unused --set is an error, not silence */
     g = data("proc_save.lua");
     a = sc_strprintf("run '%s' --cache cache --out out --set resolutoin=3", g);
-    SC_CHECK(cook(dir, a) != 0);
+    SC_CHECK_INT(cook(dir, a), 2);
     err = slurp(dir, "err.txt");
     SC_CHECK_MSG(err && strstr(err, "resolutoin"), "stderr: %s", err ? err : "(nothing)");
-    free(err), free(a), free(g);
+    free(err), free(a);
+    /* a --set value the parameter refuses is a usage error naming node:param and the --set */
+    const char *refused[][2] = {{"resolution=abc", "--set resolution=abc: not a number"},
+                                {"resolution=100000", "--set resolution=100000: asset:resolution: 100000 is outside"},
+                                {"asset.resolution=abc", "--set asset.resolution=abc: asset:resolution: 'abc' is not a number"},
+                                {"asset.resolution=0", "--set asset.resolution=0: asset:resolution: 0 is outside"}};
+    for (int i = 0; i < 4; i++) {
+        a = sc_strprintf("run '%s' --cache cache --out out --set %s", g, refused[i][0]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, refused[i][1]) && strstr(err, "proc_save.lua"), "stderr: %s", err ? err : "");
+        free(err), free(a);
+    }
+    /* options a command does not take, and bad values, are usage errors too */
+    SC_CHECK_INT(cook(dir, "nodes --json"), 2);
+    SC_CHECK_INT(cook(dir, "run x.lua --junit j.xml"), 2);
+    SC_CHECK_INT(cook(dir, "watch x.lua --max-runs often"), 2);
+    SC_CHECK_INT(cook(dir, "run x.lua --cache-max-size lots"), 2);
+    SC_CHECK_INT(sc_test_system("cd '%s' && SEAMCOOK_CACHE_MAX_SIZE=lots '%s' run x.lua >out.txt 2>err.txt", dir, bin()), 2);
     /* a name set twice is a usage error, not the last one silently */
-    g = data("proc_save.lua");
     a = sc_strprintf("run '%s' --cache cache --out out --set resolution=3 --set resolution=4", g);
     SC_CHECK_INT(cook(dir, a), 2);
     err = slurp(dir, "err.txt");
@@ -383,6 +402,310 @@ SC_TEST(bad_input_exit_statuses) {
                  "stderr: %s", err ? err : "(nothing)");
     free(err), free(a);
     free(dir);
+}
+
+SC_TEST(help_and_version) {
+    char *dir = sc_test_tempdir("cli");
+    char *o;
+    SC_CHECK_INT(cook(dir, "--version"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && !strncmp(o, "seamcook ", 9) && strlen(o) > 10, "stdout: %s", o ? o : "");
+    free(o);
+    SC_CHECK_INT(cook(dir, "version"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && !strncmp(o, "seamcook ", 9), "stdout: %s", o ? o : "");
+    free(o);
+    /* every command's --help prints its usage on stdout and succeeds, whatever else is on the line */
+    const char *commands[] = {"run", "watch", "test", "cache", "nodes", "graph", "version"};
+    for (int i = 0; i < 7; i++) {
+        char *args = sc_strprintf("%s --help", commands[i]), *want = sc_strprintf("usage: seamcook %s", commands[i]);
+        SC_CHECK_INT(cook(dir, args), 0);
+        o = slurp(dir, "out.txt");
+        SC_CHECK_MSG(o && strstr(o, want), "%s: stdout: %s", args, o ? o : "");
+        free(o), free(args), free(want);
+    }
+    SC_CHECK_INT(cook(dir, "run graph.lua --set a=1 -h"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "usage: seamcook run") && strstr(o, "--json"), "stdout: %s", o ? o : "");
+    free(o);
+    SC_CHECK_INT(cook(dir, "help cache"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "usage: seamcook cache"), "stdout: %s", o ? o : "");
+    free(o);
+    SC_CHECK_INT(cook(dir, "--help"), 0);
+    o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "seamcook watch") && strstr(o, "seamcook version"), "stdout: %s", o ? o : "");
+    free(o), free(dir);
+}
+
+/* A dry run checks parameters exactly as the cook does: a list decimate
+ * refuses fails both, as a usage error naming the --set; so does a list with
+ * an element that is not a number (it used to shrink to one level). */
+SC_TEST(dry_run_checks_parameters_like_the_cook) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("lods_save.lua");
+    const char *modes[] = {"-n", ""};
+    for (int m = 0; m < 2; m++) {
+        char *a = sc_strprintf("run '%s' --cache cache --out out %s --set ratios=0.1,0.5", g, modes[m]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        char *err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, "lods_save.lua:3: --set ratios=0.1,0.5: lods:ratio: targets must not increase"),
+                     "%s: stderr: %s", modes[m], err ? err : "");
+        free(err), free(a);
+        a = sc_strprintf("run '%s' --cache cache --out out %s --set ratios=0.5,abc", g, modes[m]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, "--set ratios=0.5,abc: element 2 ('abc') is not a number"), "stderr: %s",
+                     err ? err : "");
+        free(err), free(a);
+        a = sc_strprintf("run '%s' --cache cache --out out %s --set lods.ratio=0.5,0.6", g, modes[m]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, "--set lods.ratio=0.5,0.6: lods:ratio: targets must not increase"),
+                     "stderr: %s", err ? err : "");
+        free(err), free(a);
+    }
+    /* a text a node would refuse when it cooks: a render mode it does not know */
+    char *r = data("golden_small.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out -n --set check.modes=textured,wireframe", r);
+    SC_CHECK_INT(cook(dir, a), 2);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "check:modes: unknown mode 'wireframe'"), "stderr: %s", err ? err : "");
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK(!exists(out));
+    free(out), free(err), free(a), free(r), free(g), free(dir);
+}
+
+/* The key of the node named `name` in dir/out/report.json ("" if none). */
+static const char *node_key(const char *dir, const char *name, char *buf, size_t n) {
+    snprintf(buf, n, "%s", "");
+    char *out = sc_path_join(dir, "out");
+    char *json = slurp(out, "report.json");
+    cJSON *root = json ? cJSON_Parse(json) : NULL;
+    const cJSON *node;
+    cJSON_ArrayForEach(node, cJSON_GetObjectItemCaseSensitive(root, "nodes")) {
+        const cJSON *key = cJSON_GetObjectItemCaseSensitive(node, "key");
+        if (!strcmp(cJSON_GetObjectItemCaseSensitive(node, "name")->valuestring, name) && cJSON_IsString(key))
+            snprintf(buf, n, "%s", key->valuestring);
+    }
+    cJSON_Delete(root);
+    free(json), free(out);
+    return buf;
+}
+
+/* --set node.param=value is a parameter value like any: the same value
+ * through param() or by the node's name makes the same key. */
+SC_TEST(node_settings_enter_the_key) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    char plain[80], by_param[80], by_node[80];
+    char *a = sc_strprintf("run '%s' --cache cache --out out -q", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    node_key(dir, "asset", plain, sizeof plain);
+    free(a);
+    a = sc_strprintf("run '%s' --cache cache --out out -q --set resolution=5", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    node_key(dir, "asset", by_param, sizeof by_param);
+    free(a);
+    a = sc_strprintf("run '%s' --cache cache --out out --set asset.resolution=5 --explain", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    node_key(dir, "asset", by_node, sizeof by_node);
+    SC_CHECK_MSG(*plain && strcmp(plain, by_param) != 0, "keys %s %s", plain, by_param);
+    SC_CHECK_STR(by_node, by_param);
+    char st[32];
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK_STR(node_status(out, "asset", st, sizeof st), "cached");
+    free(a);
+    /* over what the graph gives: the node's name wins */
+    a = sc_strprintf("run '%s' --cache cache --out out --set resolution=7 --set asset.resolution=5 --explain", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_STR(node_status(out, "asset", st, sizeof st), "cached");
+    free(a);
+    /* unknown node or parameter: a usage error naming it */
+    a = sc_strprintf("run '%s' --cache cache --out out --set aset.resolution=5", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "no node named 'aset'; did you mean 'asset'?"), "stderr: %s", err ? err : "");
+    free(err), free(a);
+    a = sc_strprintf("run '%s' --cache cache --out out --set save.bogus=5", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "node 'save' (save) has no parameter 'bogus'"), "stderr: %s", err ? err : "");
+    free(err), free(a), free(out), free(g), free(dir);
+}
+
+/* A number in a JSON object, or -1. */
+static int json_int(const cJSON *o, const char *name) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, name);
+    return cJSON_IsNumber(v) ? v->valueint : -1;
+}
+
+/* --json: the run's summary on stdout and nothing else, also for a failure. */
+SC_TEST(json_summary) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out --json", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *o = slurp(dir, "out.txt");
+    cJSON *root = o ? cJSON_Parse(o) : NULL;
+    SC_CHECK_MSG(root != NULL, "stdout is not JSON: %s", o ? o : "");
+    SC_CHECK_INT(json_int(root, "exit_status"), 0);
+    SC_CHECK_INT(json_int(cJSON_GetObjectItemCaseSensitive(root, "totals"), "ran"), 2);
+    const cJSON *node;
+    int n = 0;
+    cJSON_ArrayForEach(node, cJSON_GetObjectItemCaseSensitive(root, "nodes")) {
+        const char *fields[] = {"name", "type", "status", "seconds", "key", "metrics"};
+        for (int f = 0; f < 6; f++)
+            SC_CHECK_MSG(cJSON_GetObjectItemCaseSensitive(node, fields[f]), "node %d has no %s", n, fields[f]);
+        n++;
+    }
+    SC_CHECK_INT(n, 2);
+    cJSON_Delete(root);
+    free(o), free(a), free(g);
+    /* a node that fails: status 1, and the message */
+    g = data("fails.lua");
+    a = sc_strprintf("run '%s' --cache cache --out out --json", g);
+    SC_CHECK_INT(cook(dir, a), 1);
+    o = slurp(dir, "out.txt");
+    root = o ? cJSON_Parse(o) : NULL;
+    SC_CHECK_MSG(root != NULL, "stdout is not JSON: %s", o ? o : "");
+    SC_CHECK_INT(json_int(root, "exit_status"), 1);
+    const cJSON *error = cJSON_GetObjectItemCaseSensitive(root, "error");
+    SC_CHECK(cJSON_IsString(error) && strstr(error->valuestring, "missing.obj"));
+    cJSON_Delete(root);
+    free(o), free(a);
+    /* a usage error: status 2, no nodes */
+    a = sc_strprintf("run '%s' --cache cache --out out --json --set nothing=1", g);
+    SC_CHECK_INT(cook(dir, a), 2);
+    o = slurp(dir, "out.txt");
+    root = o ? cJSON_Parse(o) : NULL;
+    SC_CHECK_MSG(json_int(root, "exit_status") == 2, "stdout: %s", o ? o : "");
+    cJSON_Delete(root);
+    free(o), free(a), free(g), free(dir);
+}
+
+/* test --junit FILE: a testcase per graph test file, failures with their message. */
+SC_TEST(junit_report) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    SC_CHECK_INT(sc_test_system("cd '%s' && cp '%s' pass.lua && cp '%s' fail.lua && "
+                                "echo 'expect(asset, \"faces\", \">\", 0)' >> pass.lua && "
+                                "echo 'expect(asset, \"faces\", \"<\", 3)' >> fail.lua", dir, g, g), 0);
+    SC_CHECK_INT(cook(dir, "test pass.lua fail.lua --cache cache --out out --junit results.xml"), 1);
+    char *xml = slurp(dir, "results.xml");
+    SC_CHECK_MSG(xml && strstr(xml, "<?xml version=\"1.0\"") && strstr(xml, "tests=\"2\" failures=\"1\"") &&
+                     strstr(xml, "<testcase classname=\"seamcook\" name=\"pass.lua\" time=\"") &&
+                     strstr(xml, "name=\"fail.lua\"") && strstr(xml, "<failure message=\"") &&
+                     strstr(xml, "faces") && strstr(xml, "&lt; 3"),
+                 "results.xml: %s", xml ? xml : "(none)");
+    const char *pass = xml ? strstr(xml, "name=\"pass.lua\"") : NULL;
+    const char *end = pass ? strchr(pass, '>') : NULL;
+    SC_CHECK_MSG(end && end[-1] == '/', "pass.lua must be a testcase with no failure: %s", xml ? xml : "");
+    free(xml), free(g), free(dir);
+}
+
+/* --out keeps to what the graph writes: a file a run no longer writes goes at
+ * that run; what the user put there, or changed, stays. */
+SC_TEST(out_keeps_to_what_the_graph_writes) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("lods_save.lua");
+    char *three = sc_strprintf("run '%s' --cache cache --out out -q", g);
+    char *two = sc_strprintf("run '%s' --cache cache --out out -q --set ratios=0.5,0.25", g);
+    SC_CHECK_INT(cook(dir, three), 0);
+    char *lod2 = sc_strprintf("%s/out/asset_lod2.obj", dir), *lod1 = sc_strprintf("%s/out/asset_lod1.obj", dir);
+    SC_CHECK(exists(lod2));
+    SC_CHECK_INT(sc_test_system("cd '%s' && echo mine > out/notes.txt && mkdir -p out/sub && echo mine > out/sub/x", dir), 0);
+    SC_CHECK_INT(cook(dir, two), 0);
+    SC_CHECK(!exists(lod2));
+    SC_CHECK(exists(lod1));
+    char *notes = sc_strprintf("%s/out/notes.txt", dir), *sub = sc_strprintf("%s/out/sub/x", dir);
+    SC_CHECK(exists(notes) && exists(sub));
+    /* a file changed since it was written is the user's now */
+    SC_CHECK_INT(cook(dir, three), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && echo '# edited' >> out/asset_lod2.obj", dir), 0);
+    SC_CHECK_INT(cook(dir, two), 0);
+    SC_CHECK(exists(lod2));
+    free(notes), free(sub), free(lod1), free(lod2), free(two), free(three), free(g), free(dir);
+}
+
+/* --explain compares a node with its last cook on the same asset: editing
+ * the first of two assets cooked in turn is a file change, not a new path. */
+SC_TEST(explain_follows_the_asset) {
+    char *dir = sc_test_tempdir("cli");
+    write_png(dir, "64");
+    write_obj_asset(dir, "two assets");
+    SC_CHECK_INT(sc_test_system("cd '%s' && cp tet.obj a.obj && sed 's/v 1 0 0/v 2 0 0/' tet.obj > b.obj", dir), 0);
+    char *g = data("obj_save.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out -q --set mesh=a.obj", g);
+    char *b = sc_strprintf("run '%s' --cache cache --out out -q --set mesh=b.obj", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_INT(cook(dir, b), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && sed -i 's/v 0 0 1/v 0 0 3/' a.obj", dir), 0);
+    char *again = sc_strprintf("run '%s' --cache cache --out out --explain --set mesh=a.obj", g);
+    SC_CHECK_INT(cook(dir, again), 0);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "why load: file") && strstr(err, "a.obj changed") && !strstr(err, "parameter path"),
+                 "explain said: %s", err ? err : "(nothing)");
+    free(err), free(again), free(a), free(b), free(g), free(dir);
+}
+
+/* The cache trims itself after a run, least recently used first, past
+ * --cache-max-size or $SEAMCOOK_CACHE_MAX_SIZE. */
+SC_TEST(cache_trims_itself) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    char *a = sc_strprintf("run '%s' --cache cache --out out --cache-max-size 1K", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "cache trimmed"), "stderr: %s", err ? err : "");
+    free(err);
+    SC_CHECK_INT(cook(dir, "cache stats --cache cache"), 0);
+    char *o = slurp(dir, "out.txt");
+    SC_CHECK_MSG(o && strstr(o, "(0.0 MiB)"), "stats: %s", o ? o : "");
+    free(o);
+    /* what was trimmed cooks again */
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK_INT(report_counts(out).ran, 2);
+    free(a);
+    /* the environment variable; the default keeps a small cache whole */
+    SC_CHECK_INT(sc_test_system("cd '%s' && SEAMCOOK_CACHE_MAX_SIZE=1K '%s' run '%s' --cache env --out out >out.txt 2>err.txt",
+                                dir, bin(), g), 0);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "cache trimmed"), "stderr: %s", err ? err : "");
+    free(err);
+    a = sc_strprintf("run '%s' --cache big --out out", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_INT(cook(dir, a), 0);
+    SC_CHECK_INT(report_counts(out).cached, 2);
+    free(out), free(a), free(g), free(dir);
+}
+
+/* cmake --install into a prefix: the installed command runs a graph that
+ * reads and writes PNGs with the image module installed beside it (not the
+ * build folder's), and the graphs, the Lua reference and the manual are there. */
+SC_TEST(install_into_a_prefix) {
+    char *dir = sc_test_tempdir("cli");
+    char *build = sc_path_dirname(bin());
+    SC_CHECK_INT(sc_test_system("cmake --install '%s' --prefix '%s/prefix' >'%s/install.txt' 2>&1", build, dir, dir), 0);
+    write_png(dir, "64");
+    write_obj_asset(dir, "installed");
+    char *g = data("obj_save.lua");
+    SC_CHECK_INT(sc_test_system("cd '%s' && LD_DEBUG=files prefix/bin/seamcook run '%s' --cache cache --out out "
+                                "--set mesh=tet.obj -q 2>ld.txt", dir, g), 0);
+    SC_CHECK_INT(sc_test_system("cd '%s' && grep 'libseamcook_imageio.so .*dynamically loaded' ld.txt | "
+                                "grep -q \"file=$(pwd -P)/prefix/\"", dir), 0);
+    char *png = sc_strprintf("%s/out/copy_skin_color.png", dir);
+    SC_CHECK_MSG(exists(png), "no %s", png);
+    const char *installed[] = {"share/seamcook/graphs/lod_chain.lua", "share/seamcook/lua/seamcook.lua",
+                               "share/man/man1/seamcook.1"};
+    for (int i = 0; i < 3; i++) {
+        char *p = sc_strprintf("%s/prefix/%s", dir, installed[i]);
+        SC_CHECK_MSG(exists(p), "not installed: %s", p);
+        free(p);
+    }
+    SC_CHECK_INT(sc_test_system("cd '%s' && prefix/bin/seamcook --version | grep -q '^seamcook '", dir), 0);
+    free(png), free(g), free(build), free(dir);
 }
 
 SC_TEST(failed_node_leaves_no_entry_and_no_output) {

@@ -15,6 +15,12 @@
 
 static const char *const modes[] = {"fast", "exact", NULL};
 
+static int not_increasing(const double *x, int n, sc_error *err) {
+    for (int i = 1; i < n; i++)
+        if (x[i] > x[i - 1]) return sc_fail(err, SC_EINPUT, "element %d increases", i + 1);
+    return SC_OK;
+}
+
 static const sc_param_desc src_params[] = {
     {.name = "size", .type = SC_PARAM_INTEGER, .def = 64, .min = 1, .max = 4096},
     {.name = "mode", .type = SC_PARAM_ENUM, .def_string = "fast", .choices = modes},
@@ -22,7 +28,8 @@ static const sc_param_desc src_params[] = {
     {.name = "flag", .type = SC_PARAM_BOOL, .def = 0},
     {.name = "label", .type = SC_PARAM_STRING, .def_string = "plain"},
     {.name = "file", .type = SC_PARAM_PATH},
-    {.name = "levels", .type = SC_PARAM_NUMBERS, .def_string = "0.5,0.1", .min = 0, .max = 1},
+    {.name = "levels", .type = SC_PARAM_NUMBERS, .def_string = "0.5,0.1", .min = 0, .max = 1,
+     .check_list = not_increasing},
 };
 static const sc_port_desc src_out[] = {{.name = "atlas", .kind = SC_KIND_ATLAS}};
 static const sc_node_desc src = {
@@ -268,32 +275,34 @@ SC_TEST(param_defaults_and_settings) {
 SC_TEST(param_errors) {
     sc_graph *g = (sc_graph *)1;
     sc_error err;
+    /* What the command line gets wrong is a usage error (SC_EUSAGE: exit status 2). */
     const sc_setting not_number[] = {{"size", "abc"}};
-    SC_CHECK_INT(build("params.lua", not_number, 1, NULL, &g, &err), SC_EINPUT);
+    SC_CHECK_INT(build("params.lua", not_number, 1, NULL, &g, &err), SC_EUSAGE);
     SC_CHECK(g == NULL);
     CHECK_CONTAINS(err.message, "params.lua:1: --set size=abc: not a number");
 
     const sc_setting not_bool[] = {{"fast", "maybe"}};
-    SC_CHECK_INT(build("params.lua", not_bool, 1, NULL, &g, &err), SC_EINPUT);
+    SC_CHECK_INT(build("params.lua", not_bool, 1, NULL, &g, &err), SC_EUSAGE);
     CHECK_CONTAINS(err.message, "params.lua:3: --set fast=maybe: not a boolean");
 
     const sc_setting infinite[] = {{"ratio", "1e999"}};
-    SC_CHECK_INT(build("params.lua", infinite, 1, NULL, &g, &err), SC_EINPUT);
+    SC_CHECK_INT(build("params.lua", infinite, 1, NULL, &g, &err), SC_EUSAGE);
     CHECK_CONTAINS(err.message, "params.lua:2: --set ratio=1e999: not a finite number");
 
-    /* A converted value still meets the node's range, at the node's line. */
+    /* A converted value still meets the node's range, at the node's line,
+     * naming the node's parameter and the --set it came from. */
     const sc_setting too_big[] = {{"ratio", "16"}};
-    SC_CHECK_INT(build("params.lua", too_big, 1, NULL, &g, &err), SC_EINPUT);
-    CHECK_CONTAINS(err.message, "params.lua:5: src:ratio: 16 is outside [0, 1]");
+    SC_CHECK_INT(build("params.lua", too_big, 1, NULL, &g, &err), SC_EUSAGE);
+    CHECK_CONTAINS(err.message, "params.lua:5: --set ratio=16: src:ratio: 16 is outside [0, 1]");
 
     /* A typo on a farm must not pass silently. */
     const sc_setting typo[] = {{"size", "32"}, {"sise", "2"}, {"lable", "x"}};
-    SC_CHECK_INT(build("params.lua", typo, 3, NULL, &g, &err), SC_EINPUT);
+    SC_CHECK_INT(build("params.lua", typo, 3, NULL, &g, &err), SC_EUSAGE);
     SC_CHECK(g == NULL);
     CHECK_CONTAINS(err.message, "params.lua: --set sise=2, --set lable=x are not read by any param()");
     SC_CHECK(!contains(err.message, "size=32"));
 
-    SC_CHECK_INT(build("required.lua", NULL, 0, NULL, &g, &err), SC_EINPUT);
+    SC_CHECK_INT(build("required.lua", NULL, 0, NULL, &g, &err), SC_EUSAGE);
     CHECK_CONTAINS(err.message, "required.lua:2: parameter 'asset' is required: pass --set asset=...");
 
     const sc_setting asset[] = {{"asset", "meshes/../meshes/a.obj"}};
@@ -306,6 +315,80 @@ SC_TEST(param_errors) {
         snprintf(expect_path, sizeof expect_path, "%s/meshes/a.obj", strcmp(cwd, "/") ? cwd : "");
         SC_CHECK_STR(param_of(&g->nodes[0], "file")->string, expect_path);
         sc_graph_free(g);
+    }
+}
+
+/* A table default makes param() read a list of numbers, every element a
+ * number; the list meets the node's rule when the graph is built. */
+SC_TEST(param_lists) {
+    sc_graph *g = NULL;
+    sc_error err;
+    SC_CHECK_INT(build("lists.lua", NULL, 0, NULL, &g, &err), SC_OK);
+    if (g) {
+        const sc_param_value *v = param_of(&g->nodes[0], "levels");
+        SC_CHECK_INT(v->count, 2);
+        SC_CHECK(v->count == 2 && v->numbers[0] == 0.5 && v->numbers[1] == 0.25);
+        sc_graph_free(g);
+    }
+    const sc_setting three[] = {{"levels", " 0.4, 0.2,0.1"}};
+    g = NULL;
+    SC_CHECK_INT(build("lists.lua", three, 1, NULL, &g, &err), SC_OK);
+    if (g) {
+        const sc_param_value *v = param_of(&g->nodes[0], "levels");
+        SC_CHECK(v->count == 3 && v->numbers[0] == 0.4 && v->numbers[2] == 0.1);
+        sc_graph_free(g);
+    }
+    const sc_setting bad[] = {{"levels", "0.5,abc"}};
+    SC_CHECK_INT(build("lists.lua", bad, 1, NULL, &g, &err), SC_EUSAGE);
+    CHECK_CONTAINS(err.message, "lists.lua:2: --set levels=0.5,abc: element 2 ('abc') is not a number");
+    const sc_setting empty_item[] = {{"levels", "0.5,,0.1"}};
+    SC_CHECK_INT(build("lists.lua", empty_item, 1, NULL, &g, &err), SC_EUSAGE);
+    CHECK_CONTAINS(err.message, "element 2 ('') is not a number");
+    const sc_setting increasing[] = {{"levels", "0.1,0.5"}};
+    SC_CHECK_INT(build("lists.lua", increasing, 1, NULL, &g, &err), SC_EUSAGE);
+    CHECK_CONTAINS(err.message, "lists.lua:3: --set levels=0.1,0.5: first:levels: element 2 increases");
+    /* the graph caught a bad --set and then failed for a reason of its own */
+    const sc_setting caught[] = {{"size", "abc"}};
+    SC_CHECK_INT(build("caught.lua", caught, 1, NULL, &g, &err), SC_EINPUT);
+    CHECK_CONTAINS(err.message, "caught.lua:3: src:size: 5000 is outside [1, 4096]");
+}
+
+/* --set node.param=value sets a parameter of the node of that name, over
+ * what the graph gave it; every mistake in it is a usage error. */
+SC_TEST(node_settings) {
+    sc_graph *g = NULL;
+    sc_error err;
+    const sc_setting good[] = {{"second.size", "128"}, {"size", "10"}, {"first.label", "a b"},
+                               {"first.file", "x/../y.obj"}, {"first.levels", "0.3,0.2"}, {"first.flag", "yes"}};
+    SC_CHECK_INT(build("lists.lua", good, SC_COUNT(good), NULL, &g, &err), SC_OK);
+    if (g) {
+        SC_CHECK_NEAR(param_of(&g->nodes[1], "size")->number, 128, 0);
+        SC_CHECK_STR(param_of(&g->nodes[0], "label")->string, "a b");
+        SC_CHECK(strncmp(param_of(&g->nodes[0], "file")->string, "/", 1) == 0 &&
+                 contains(param_of(&g->nodes[0], "file")->string, "/y.obj") &&
+                 !contains(param_of(&g->nodes[0], "file")->string, ".."));
+        SC_CHECK_INT(param_of(&g->nodes[0], "levels")->count, 2);
+        SC_CHECK_NEAR(param_of(&g->nodes[0], "flag")->number, 1, 0);
+        sc_graph_free(g);
+    }
+    static const struct {
+        const char *name, *value, *message;
+    } bad[] = {
+        {"first.size", "abc", "--set first.size=abc: first:size: 'abc' is not a number"},
+        {"first.size", "5000", "--set first.size=5000: first:size: 5000 is outside [1, 4096]"},
+        {"first.mode", "slow", "--set first.mode=slow: first:mode: 'slow' is not one of: fast, exact"},
+        {"first.flag", "maybe", "first:flag: 'maybe' is not a boolean"},
+        {"first.levels", "0.1,0.5", "--set first.levels=0.1,0.5: first:levels: element 2 increases"},
+        {"frist.size", "1", "the graph has no node named 'frist'; did you mean 'first'? (nodes: first, second)"},
+        {"first.sise", "1", "node 'first' (src) has no parameter 'sise'; did you mean 'size'?"},
+    };
+    for (size_t i = 0; i < SC_COUNT(bad); i++) {
+        const sc_setting set[] = {{bad[i].name, bad[i].value}};
+        g = NULL;
+        SC_CHECK_INT(build("lists.lua", set, 1, NULL, &g, &err), SC_EUSAGE);
+        SC_CHECK(g == NULL);
+        CHECK_CONTAINS(err.message, bad[i].message);
+        CHECK_CONTAINS(err.message, "lists.lua: ");
     }
 }
 

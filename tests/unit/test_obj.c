@@ -358,8 +358,11 @@ SC_TEST(load_atlas_obj_node) {
         if (a->ntex == 2) SC_CHECK(a->textures[0].image == a->textures[1].image);
         sc_ctx_free(ctx);
     }
-    ctx = run_load(path, &err, "slots", "color,bogus", NULL);
-    SC_CHECK(ctx == NULL && message_has(&err, "slots: unknown slot 'bogus'"));
+    /* an unknown slot is refused with the value, before anything runs */
+    ctx = sc_ctx_new(&sc_node_load_atlas, NULL, NULL);
+    SC_CHECK(sc_ctx_set_param(ctx, "slots", "color,bogus", &err) != SC_OK &&
+             message_has(&err, "load_atlas:slots: unknown slot 'bogus'"));
+    sc_ctx_free(ctx);
     /* a missing texture names the MTL (and line) and the texture */
     sc_test_system("rm -f '%s/blue_normal.png'", dir);
     ctx = run_load(path, &err, NULL);
@@ -520,8 +523,8 @@ SC_TEST(save_then_load_is_exact) {
     }
     /* bad names and nothing to save */
     ctx = sc_ctx_new(&sc_node_save, NULL, inputs);
-    SC_CHECK(sc_ctx_set_param(ctx, "file", "../evil", &err) == SC_OK);
-    SC_CHECK(sc_ctx_run(ctx, &err) != SC_OK && message_has(&err, "file: '../evil' is not a plain file name"));
+    SC_CHECK(sc_ctx_set_param(ctx, "file", "../evil", &err) != SC_OK &&
+             message_has(&err, "save:file: '../evil' is not a plain file name"));
     sc_ctx_free(ctx);
     ctx = sc_ctx_new(&sc_node_save, NULL, NULL);
     SC_CHECK(sc_ctx_run(ctx, &err) != SC_OK && message_has(&err, "nothing to save"));

@@ -580,15 +580,22 @@ SC_TEST(rendering_is_deterministic) {
 SC_TEST(parameters_and_inputs_are_checked) {
     cube_textures tex = cube_textures_make(0);
     sc_value *cube = cube_atlas(2, 0, &tex);
-    run_result r = render(NULL, cube, NULL, (const char *const[]){"modes", "textured,wireframe", NULL});
-    SC_CHECK(r.rc == SC_EINPUT);
-    SC_CHECK_MSG(strstr(r.err.message, "modes") && strstr(r.err.message, "wireframe"), "%s", r.err.message);
-    sc_ctx_free(r.ctx);
-    r = render(NULL, cube, NULL, (const char *const[]){"tess_levels", "2,2.5", NULL});
-    SC_CHECK(r.rc == SC_EINPUT);
-    SC_CHECK_MSG(strstr(r.err.message, "tess_levels") != NULL, "%s", r.err.message);
-    sc_ctx_free(r.ctx);
-    r = render(NULL, NULL, NULL, NULL);
+    /* parameters are refused with the value (so a graph fails when it is built) */
+    const char *const refused[][3] = {
+        {"modes", "textured,wireframe", "render:modes: unknown mode 'wireframe'"},
+        {"tess_levels", "2,2.5", "render:tess_levels: element 2 (2.5) is not an integer"},
+        {"tess_levels", "2,4,2", "render:tess_levels: level 2 is given twice"},
+        {"folder", "../up", "render:folder: '../up' is not a relative folder name"},
+    };
+    for (int i = 0; i < 4; i++) {
+        sc_ctx *ctx = sc_ctx_new(&sc_node_render, NULL, NULL);
+        sc_error e;
+        SC_CHECK_MSG(sc_ctx_set_param(ctx, refused[i][0], refused[i][1], &e) == SC_EINPUT &&
+                         strstr(e.message, refused[i][2]),
+                     "%s=%s: %s", refused[i][0], refused[i][1], e.message);
+        sc_ctx_free(ctx);
+    }
+    run_result r = render(NULL, NULL, NULL, NULL);
     SC_CHECK(r.rc == SC_EINPUT);
     SC_CHECK_MSG(strstr(r.err.message, "lods") != NULL, "%s", r.err.message);
     sc_ctx_free(r.ctx);
