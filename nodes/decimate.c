@@ -1483,28 +1483,23 @@ static void heap_drop_stale_top(state *st) {
     }
 }
 
-/* Evaluate edge (a, b) and queue it when it can collapse (append only:
- * the caller restores the heap order). */
-static void queue_edge_unordered(state *st, int32_t a, int32_t b) {
+/* Evaluate edge (a, b) and queue it when it can collapse: pushed in heap
+ * order, or only appended (`ordered` false: the caller restores the order). */
+static void evaluate_edge(state *st, int32_t a, int32_t b, bool ordered) {
     collapse_plan p;
     plan_edge(st, a, b, &p);
     solve_plan(st, &p);
     if (p.reason != BLOCK_NONE || !isfinite(p.cost)) return;
-    heap_append(st, make_entry(st, p.cost, a, b));
+    if (ordered) heap_push(st, make_entry(st, p.cost, a, b));
+    else heap_append(st, make_entry(st, p.cost, a, b));
 }
 
-/* Evaluate edge (a, b) and queue it when it can collapse. */
+static void queue_edge_unordered(state *st, int32_t a, int32_t b) { evaluate_edge(st, a, b, false); }
+
+/* Evaluate edge (a, b), its ends in either order, and queue it when it can collapse. */
 static void queue_edge(state *st, int32_t a, int32_t b) {
-    if (a > b) {
-        int32_t t = a;
-        a = b;
-        b = t;
-    }
-    collapse_plan p;
-    plan_edge(st, a, b, &p);
-    solve_plan(st, &p);
-    if (p.reason != BLOCK_NONE || !isfinite(p.cost)) return;
-    heap_push(st, make_entry(st, p.cost, a, b));
+    if (a > b) evaluate_edge(st, b, a, true);
+    else evaluate_edge(st, a, b, true);
 }
 
 /* Distinct neighbours of v into the scratch buffer (from index `at`). */

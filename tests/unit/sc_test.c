@@ -10,6 +10,8 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <cjson/cJSON.h>
+
 #define SC_TEST_MAX 256
 
 static struct { const char *name; sc_test_fn fn; } tests[SC_TEST_MAX];
@@ -160,4 +162,20 @@ sc_value *sc_test_lods_without(const sc_value *lods, const char *slot) {
         sc_lods_add(out, sc_value_new_atlas(b));
     }
     return sc_value_new_lods(out);
+}
+
+cJSON *sc_test_corpus_stats(const char *corpus, const char *asset) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s/stats.json", corpus, asset);
+    sc_buf b;
+    sc_buf_init(&b);
+    cJSON *j = NULL;
+    if (sc_read_file(path, 1 << 20, &b, NULL) == SC_OK) j = cJSON_ParseWithLength((const char *)b.data, b.len);
+    sc_buf_free(&b);
+    return j;
+}
+
+double sc_test_stat(const cJSON *stats, const char *key) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(stats, key);
+    return cJSON_IsNumber(v) ? v->valuedouble : NAN;
 }

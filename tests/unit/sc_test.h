@@ -53,6 +53,11 @@ sc_test_run sc_test_run_node(const sc_node_desc *d, const char *const *params, c
  * or the load failed (a failed check then says why). */
 sc_value *sc_test_load_corpus(const char *rel, const char *texture, const char *slots);
 
+/* The corpus's stats.json of an asset (cJSON_Delete it), or NULL; a number
+ * in it, or NAN. */
+struct cJSON *sc_test_corpus_stats(const char *corpus, const char *asset);
+double sc_test_stat(const struct cJSON *stats, const char *key);
+
 /* A copy of a lods value whose levels lack the texture slot `slot`. */
 sc_value *sc_test_lods_without(const sc_value *lods, const char *slot);
 

@@ -439,22 +439,6 @@ SC_TEST(load_atlas_gltf_node) {
 
 /* ---------------------------------------------------------------- corpus */
 
-static double stat_of(const cJSON *stats, const char *key) {
-    const cJSON *v = cJSON_GetObjectItemCaseSensitive(stats, key);
-    return cJSON_IsNumber(v) ? v->valuedouble : NAN;
-}
-
-static cJSON *read_stats(const char *corpus, const char *asset) {
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s/stats.json", corpus, asset);
-    sc_buf b;
-    sc_buf_init(&b);
-    cJSON *j = NULL;
-    if (sc_read_file(path, 1 << 20, &b, NULL) == SC_OK) j = cJSON_ParseWithLength((const char *)b.data, b.len);
-    sc_buf_free(&b);
-    return j;
-}
-
 SC_TEST(corpus_gltf_match_stats_and_welded_objs) {
     const char *corpus = sc_test_corpus();
     if (!corpus) {
@@ -496,15 +480,15 @@ SC_TEST(corpus_gltf_match_stats_and_welded_objs) {
         SC_CHECK_MSG(ctx != NULL, "%s: %s", assets[i].file, err.message);
         sc_ctx *obj = run_load(welded, &err, "slots", "color", NULL);
         SC_CHECK_MSG(obj != NULL, "%s: %s", welded, err.message);
-        cJSON *stats = read_stats(corpus, assets[i].asset);
+        cJSON *stats = sc_test_corpus_stats(corpus, assets[i].asset);
         if (ctx && obj && stats) {
             for (int k = 0; k < 5; k++)
-                SC_CHECK_MSG(sc_ctx_metric_value(ctx, metrics[k]) == stat_of(stats, keys[k]),
+                SC_CHECK_MSG(sc_ctx_metric_value(ctx, metrics[k]) == sc_test_stat(stats, keys[k]),
                              "%s: %s = %.0f, stats.json %s = %.0f", assets[i].file, metrics[k],
-                             sc_ctx_metric_value(ctx, metrics[k]), keys[k], stat_of(stats, keys[k]));
+                             sc_ctx_metric_value(ctx, metrics[k]), keys[k], sc_test_stat(stats, keys[k]));
             SC_CHECK_MSG(sc_ctx_metric_value(ctx, "seam_edges") == sc_ctx_metric_value(obj, "seam_edges"),
                          "%s: glTF and welded OBJ disagree on seams", assets[i].asset);
-            SC_CHECK(sc_ctx_metric_value(ctx, "materials") == stat_of(stats, "materials_used"));
+            SC_CHECK(sc_ctx_metric_value(ctx, "materials") == sc_test_stat(stats, "materials_used"));
             printf("%-18s %6.0f %6.0f %6.0f %6.0f %6.0f %4.0f %9.0f %8.3f %8.3f %8.3f\n", assets[i].file,
                    sc_ctx_metric_value(ctx, "faces"), sc_ctx_metric_value(ctx, "vertices"),
                    sc_ctx_metric_value(ctx, "uv_vertices"), sc_ctx_metric_value(ctx, "seam_edges"),
