@@ -474,13 +474,16 @@ static int open_index(sc_cache *c, const char *index, sc_error *err) {
     return SC_OK;
 }
 
-/* Whether the open index fails SQLite's quick check (or cannot run it). */
+/* Whether the open index fails SQLite's quick check: a result other than
+ * "ok", or a malformed / not-a-database error. Any other failure (busy,
+ * locked, I/O) says nothing of the index and is not taken for damage. */
 static bool index_fails_check(sc_cache *c, char *why, size_t n) {
     sqlite3_stmt *s = NULL;
     int rc = sqlite3_prepare_v2(c->db, "PRAGMA quick_check(1)", -1, &s, NULL);
     if (rc == SQLITE_OK) rc = sqlite3_step(s);
     const char *text = rc == SQLITE_ROW ? (const char *)sqlite3_column_text(s, 0) : NULL;
-    bool bad = !text || strcmp(text, "ok") != 0;
+    bool bad = (rc == SQLITE_ROW && (!text || strcmp(text, "ok") != 0)) ||
+               (rc != SQLITE_ROW && index_damaged_code(sqlite3_errcode(c->db)));
     if (bad) snprintf(why, n, "%.200s", text ? text : sqlite3_errmsg(c->db));
     sqlite3_finalize(s);
     return bad;
@@ -502,13 +505,16 @@ static int heal_index(sc_cache *c, const char *index, const char *why, sc_error 
     free(lock);
     if (lfd >= 0) flock(lfd, LOCK_EX);
     close_index(c);
-    sc_error ignored;
     char again[256] = "";
-    bool still = open_index(c, index, &ignored) != SC_OK || index_fails_check(c, again, sizeof again);
+    int rc = open_index(c, index, err);
+    /* healed meanwhile by another process? (a failure other than damage is
+     * that failure, and the index stays where it is) */
+    bool still = rc == SC_OK ? index_fails_check(c, again, sizeof again)
+                             : index_damaged_code(c->db ? sqlite3_errcode(c->db) : 0);
     char *marker = sc_path_join(c->dir, "index.damaged");
     struct stat st;
-    if (!still && marker && stat(marker, &st) == 0) still = true;   /* a statement found it damaged */
-    int rc = SC_OK;
+    if (!still && rc == SC_OK && marker && stat(marker, &st) == 0) still = true;   /* a statement found it damaged */
+    if (still) rc = SC_OK;
     if (still) {
         close_index(c);
         char *aside = sc_strprintf("%s.damaged-%lld", index, (long long)time(NULL));
