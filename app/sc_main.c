@@ -609,17 +609,6 @@ static void watch_files(watcher *w, char **files, int nfiles) {
     }
 }
 
-/* Whether `path` no longer holds what a cook saw: `seen` is the content it
- * read, all zero when it found the file missing. */
-static bool changed_since(sc_cache *cache, const char *path, const sc_digest *seen) {
-    static const sc_digest missing;
-    sc_digest now;
-    sc_error ignored;
-    bool exists = sc_cache_file_digest(cache, path, &now, &ignored) == SC_OK;
-    if (sc_digest_equal(seen, &missing)) return exists;
-    return !exists || !sc_digest_equal(&now, seen);
-}
-
 static void watch_rebuild(uv_timer_t *timer) {
     watcher *w = timer->data;
     close_watches(w);
@@ -640,18 +629,16 @@ static void watch_rebuild(uv_timer_t *timer) {
     if (run)
         for (int i = 0; i < g->count; i++) cap += run->results[i].ndeps;
     char **files = calloc((size_t)cap + 1, sizeof(char *));
-    if (files) files[n++] = sc_strdup(graph);
-    if (files && run)
-        for (int i = 0; i < g->count; i++)
-            for (int d = 0; d < run->results[i].ndeps; d++) files[n++] = sc_strdup(run->results[i].deps[d]);
-    for (int k = 0; files && k < n; k++)
-        if (!files[k]) files[k--] = files[--n];   /* drop what could not be copied */
+    if (files && (files[n] = sc_strdup(graph))) n++;
+    for (int i = 0; files && run && i < g->count; i++)
+        for (int d = 0; d < run->results[i].ndeps; d++)
+            if ((files[n] = sc_strdup(run->results[i].deps[d]))) n++;
     if (files) watch_files(w, files, n);
     /* a change that landed while the cook ran is cooked next, not lost */
-    bool stale = changed_since(w->cache, graph, &graph_seen);
+    bool stale = sc_cache_file_changed(w->cache, graph, &graph_seen, NULL);
     for (int i = 0; run && !stale && i < g->count; i++)
         for (int d = 0; run->results[i].dep_digests && !stale && d < run->results[i].ndeps; d++)
-            stale = changed_since(w->cache, run->results[i].deps[d], &run->results[i].dep_digests[d]);
+            stale = sc_cache_file_changed(w->cache, run->results[i].deps[d], &run->results[i].dep_digests[d], NULL);
     for (int k = 0; files && k < n; k++) free(files[k]);
     free(files);
     cooked_free(&c);

@@ -594,10 +594,8 @@ static char *real_path_of(const char *path) {
 int sc_path_confine(const char *root, const char *dir, const char *rel, char **out, sc_error *err) {
     *out = NULL;
     if (!*rel) return sc_fail(err, SC_EINPUT, "an empty file name");
-    char shown[80];
-    snprintf(shown, sizeof shown, "%.60s%s", rel, strlen(rel) > 60 ? "..." : "");
-    for (char *c = shown; *c; c++)
-        if ((unsigned char)*c < 32 || *c == 127) *c = '?';
+    char shown[320];
+    sc_excerpt(rel, 60, false, shown, sizeof shown);
     if (rel[0] == '/' || rel[0] == '\\' || (rel[0] && rel[1] == ':' && (rel[2] == '/' || rel[2] == '\\')))
         return sc_fail(err, SC_EINPUT, "'%s' is an absolute path: an asset may name files inside its folder only "
                        "(--asset-root widens it)", shown);

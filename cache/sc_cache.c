@@ -1160,6 +1160,15 @@ static bool same_stat(const struct stat *a, const struct stat *b) {
            mtime_ns_of(a) == mtime_ns_of(b);
 }
 
+bool sc_cache_file_changed(sc_cache *c, const char *path, const sc_digest *seen, sc_digest *now) {
+    sc_digest cur = {0};
+    sc_error ignored;
+    bool exists = sc_cache_file_digest(c, path, &cur, &ignored) == SC_OK;
+    if (now) *now = cur;
+    if (sc_digest_is_zero(seen)) return exists;
+    return !exists || !sc_digest_equal(&cur, seen);
+}
+
 int sc_cache_file_digest(sc_cache *c, const char *path, sc_digest *out, sc_error *err) {
     struct stat st;
     if (stat(path, &st) != 0)

@@ -86,6 +86,11 @@ int sc_cache_put_action(sc_cache *c, const sc_cache_action *a, sc_error *err);
  * SC_EINPUT naming the path when it cannot be read. */
 int sc_cache_file_digest(sc_cache *c, const char *path, sc_digest *out, sc_error *err);
 
+/* Whether the file at path no longer holds what was seen: `seen` is the
+ * digest of its content then, all zero when it was missing (so its
+ * appearing is a change). *now (may be NULL) receives its digest now. */
+bool sc_cache_file_changed(sc_cache *c, const char *path, const sc_digest *seen, sc_digest *now);
+
 /* ---------------------------------------------------------------- history */
 
 /* The last description recorded for a node identity (the engine's: graph

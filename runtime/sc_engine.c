@@ -258,7 +258,7 @@ static bool wants_mesh_only(engine *e, int i, int port) {
 static void kernel_add(const sc_kernel *k, const sc_kernel **out, int *n) {
     for (int i = 0; i < *n; i++)
         if (out[i] == k) return;
-    if (*n == MAX_KERNELS) return;   /* a programming error: test_graph checks every shipped node stays under */
+    if (*n == MAX_KERNELS) return;   /* a programming error: test_engine checks every shipped node stays under */
     out[(*n)++] = k;
     for (int i = 0; k->uses && k->uses[i]; i++) kernel_add(k->uses[i], out, n);
 }
@@ -665,11 +665,6 @@ static void fail_node(engine *e, int i, int rc, const sc_error *err) {
     set_terminal(e, i, ST_FAILED);
 }
 
-static bool digest_is_zero(const sc_digest *d) {
-    static const sc_digest zero;
-    return sc_digest_equal(d, &zero);
-}
-
 /* Drop what a hit filled in, when it turns out not to be usable. */
 static void forget_result(sc_node_result *r) {
     free(r->metrics_json);
@@ -705,15 +700,11 @@ static void resolve(engine *e, int i) {
         dep_digests = calloc((size_t)act.ndeps + 1, sizeof *dep_digests);
         for (int d = 0; d < act.ndeps && !miss; d++) {
             sc_digest cur;
-            sc_error ignored;
-            bool now = sc_cache_file_digest(e->cache, act.deps[d].path, &cur, &ignored) == SC_OK;
-            if (digest_is_zero(&act.deps[d].digest)) {   /* a file the node found missing */
-                if (now) miss = "a file that was missing is there now";
-            } else if (!now || !sc_digest_equal(&cur, &act.deps[d].digest)) {
-                miss = "a source file changed";
-            } else if (dep_digests) {
-                dep_digests[d] = cur;
-            }
+            if (sc_cache_file_changed(e->cache, act.deps[d].path, &act.deps[d].digest, &cur))
+                miss = sc_digest_is_zero(&act.deps[d].digest) ? "a file that was missing is there now"
+                                                              : "a source file changed";
+            else if (dep_digests)
+                dep_digests[d] = cur;   /* all zero for a file still missing */
         }
         if (!miss && read_outputs(e, i, act.outputs) != 0) miss = "the cache entry is unreadable";
         for (int k = 0; !miss && k < r->noutputs; k++)

@@ -24,7 +24,6 @@
 typedef struct dep {
     char *path;
     sc_digest digest;   /* of the bytes read; all zero for a file that could not be read */
-    bool missing;
 } dep;
 
 struct sc_ctx {
@@ -185,7 +184,6 @@ double sc_ctx_metric_value(const sc_ctx *ctx, const char *name) {
 int sc_ctx_ndeps(const sc_ctx *ctx) { return ctx->ndeps; }
 const char *sc_ctx_dep_path(const sc_ctx *ctx, int i) { return ctx->deps[i].path; }
 const sc_digest *sc_ctx_dep_digest(const sc_ctx *ctx, int i) { return &ctx->deps[i].digest; }
-bool sc_ctx_dep_missing(const sc_ctx *ctx, int i) { return ctx->deps[i].missing; }
 
 /* ---------------------------------------------------------------- the node's side */
 
@@ -271,7 +269,7 @@ int sc_ctx_read_file(sc_ctx *ctx, const char *path, size_t max_bytes, sc_buf *ou
     if (!d) return sc_fail(err, SC_ENOMEM, "out of memory");
     ctx->deps = d;
     d += ctx->ndeps;
-    *d = (dep){.path = sc_strdup(path), .missing = rc != SC_OK};
+    *d = (dep){.path = sc_strdup(path)};
     if (!d->path) return sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK) sc_digest_bytes(out->data, out->len, &d->digest);
     ctx->ndeps++;

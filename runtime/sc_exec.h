@@ -38,9 +38,8 @@ const sc_metric *sc_ctx_metrics(const sc_ctx *ctx);
 double sc_ctx_metric_value(const sc_ctx *ctx, const char *name);
 int sc_ctx_ndeps(const sc_ctx *ctx);
 const char *sc_ctx_dep_path(const sc_ctx *ctx, int i);
+/* The digest of the bytes read; all zero for a file the node tried to read
+ * and could not. */
 const sc_digest *sc_ctx_dep_digest(const sc_ctx *ctx, int i);
-/* A file the node tried to read and could not (its digest is all zero):
- * only a failed run has them. */
-bool sc_ctx_dep_missing(const sc_ctx *ctx, int i);
 
 #endif
