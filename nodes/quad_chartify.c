@@ -1,0 +1,253 @@
+/* quad_chartify.c - the node `quad_chartify`: a seamless atlas of square
+ * charts (Purnomo et al. 2004) for any textured mesh, through the quad
+ * kernel (nodes/lib/sc_quad.h, which holds the method).
+ *
+ * mode "always" re-chartifies; "never" passes the atlas through; "auto"
+ * re-chartifies when the input atlas cannot serve the chain as it is: its
+ * uv share texels (overlapping or mirrored charts), it has no uv, or it is
+ * fragmented into more charts than seam-aware decimation can keep
+ * collapsing (`max_charts`). The node measures those on the input and
+ * reports them, so a run says why it chose.
+ *
+ * Outputs: `atlas` (level 0) and `levels`, one atlas per mip level whose uv
+ * carry the level's offset (sc_quad_level_offset), so a renderer samples
+ * each level with plain bilinear filtering and finds no seam.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sc_nodes.h"
+#include "sc_quad.h"
+
+static const char *const mode_choices[] = {"auto", "always", "never", NULL};
+static const char *const layout_choices[] = {"blocks", NULL};
+
+/* Order (a, b, face) triples by (a, b). */
+static int cmp_pair(const void *x, const void *y) {
+    const int32_t *a = x, *b = y;
+    if (a[0] != b[0]) return a[0] < b[0] ? -1 : 1;
+    return a[1] < b[1] ? -1 : a[1] > b[1];
+}
+
+/* Fraction of the covered texels (at w x h) that two or more faces cover,
+ * and the number of uv charts (faces joined by shared uv edges). */
+static int measure_input(const sc_mesh *m, int32_t w, int32_t h, double *shared_fraction, int32_t *charts) {
+    *shared_fraction = 0, *charts = 0;
+    if (m->nu <= 0) return SC_OK;
+    int32_t *parent = malloc((size_t)m->nf * sizeof *parent);
+    int32_t *owner = malloc((size_t)w * h * sizeof *owner);
+    if (!parent || !owner) {
+        free(parent), free(owner);
+        return SC_ENOMEM;
+    }
+    for (int32_t f = 0; f < m->nf; f++) parent[f] = f;
+    /* charts: union faces over edges whose two sides use the same uv indices */
+    typedef struct { int32_t a, b, f; } ek;
+    ek *keys = malloc((size_t)m->nf * 3 * sizeof *keys);
+    if (!keys) {
+        free(parent), free(owner);
+        return SC_ENOMEM;
+    }
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int32_t a = m->FU[3 * f + k], b = m->FU[3 * f + (k + 1) % 3];
+            keys[3 * f + k] = (ek){a < b ? a : b, a < b ? b : a, f};
+        }
+    qsort(keys, (size_t)m->nf * 3, sizeof *keys, cmp_pair);
+    for (int32_t i = 1; i < 3 * m->nf; i++)
+        if (keys[i].a == keys[i - 1].a && keys[i].b == keys[i - 1].b) {
+            int32_t x = keys[i].f, y = keys[i - 1].f;
+            while (parent[x] != x) x = parent[x] = parent[parent[x]];
+            while (parent[y] != y) y = parent[y] = parent[parent[y]];
+            if (x != y) parent[x] = y;
+        }
+    free(keys);
+    for (int32_t f = 0; f < m->nf; f++) *charts += parent[f] == f;
+    /* shared texels: texel centres inside triangles of two different charts
+     * (or the same chart twice: a fold) */
+    for (size_t i = 0; i < (size_t)w * h; i++) owner[i] = -1;
+    int64_t covered = 0, shared = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        double x[3], y[3];
+        for (int k = 0; k < 3; k++) {
+            const double *uv = m->U + 2 * (size_t)m->FU[3 * f + k];
+            x[k] = (uv[0] - floor(uv[0])) * w - 0.5, y[k] = (uv[1] - floor(uv[1])) * h - 0.5;
+        }
+        double area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        if (!(fabs(area) > 0)) continue;
+        int32_t i0 = (int32_t)ceil(fmin(x[0], fmin(x[1], x[2]))), i1 = (int32_t)floor(fmax(x[0], fmax(x[1], x[2])));
+        int32_t j0 = (int32_t)ceil(fmin(y[0], fmin(y[1], y[2]))), j1 = (int32_t)floor(fmax(y[0], fmax(y[1], y[2])));
+        for (int32_t j = j0 < 0 ? 0 : j0; j <= j1 && j < h; j++)
+            for (int32_t i = i0 < 0 ? 0 : i0; i <= i1 && i < w; i++) {
+                double l0 = ((x[1] - i) * (y[2] - j) - (x[2] - i) * (y[1] - j)) / area;
+                double l1 = ((x[2] - i) * (y[0] - j) - (x[0] - i) * (y[2] - j)) / area;
+                if (l0 < 0 || l1 < 0 || 1 - l0 - l1 < 0) continue;
+                int32_t *o = owner + (size_t)j * w + i;
+                if (*o == -1) *o = f, covered++;
+                else if (*o >= 0) *o = -2, shared++;
+            }
+    }
+    free(parent), free(owner);
+    *shared_fraction = covered > 0 ? (double)shared / covered : 0;
+    return SC_OK;
+}
+
+static int pass_through(sc_ctx *ctx, const sc_value *in) {
+    sc_lods *l = sc_lods_new();
+    if (!l || sc_lods_add(l, sc_value_retain((sc_value *)in)) != SC_OK) {
+        sc_lods_free(l);
+        return SC_ENOMEM;
+    }
+    sc_value *lv = sc_value_new_lods(l);
+    if (!lv) return SC_ENOMEM;
+    sc_ctx_set_output(ctx, "atlas", sc_value_retain((sc_value *)in));
+    sc_ctx_set_output(ctx, "levels", lv);
+    return SC_OK;
+}
+
+/* The atlas of level L: the mesh with uv shifted by the level's offset and
+ * every texture's level L. */
+static sc_value *level_atlas(const sc_quad_result *r, sc_value *mesh0, int32_t L) {
+    sc_value *mesh = sc_value_retain(mesh0);
+    if (L > 0) {
+        const sc_mesh *m0 = mesh0->as.mesh;
+        sc_mesh *m = sc_mesh_alloc(m0->nv, m0->nu, 0, m0->nf, 1);
+        if (!m) return sc_value_release(mesh), NULL;
+        memcpy(m->V, m0->V, (size_t)m0->nv * 3 * sizeof(double));
+        memcpy(m->FV, m0->FV, (size_t)m0->nf * 3 * sizeof(int32_t));
+        memcpy(m->FU, m0->FU, (size_t)m0->nf * 3 * sizeof(int32_t));
+        double du, dv;
+        sc_quad_level_offset(r->width, r->height, L, &du, &dv);
+        for (int32_t i = 0; i < m0->nu; i++) m->U[2 * i] = m0->U[2 * i] + du, m->U[2 * i + 1] = m0->U[2 * i + 1] + dv;
+        m->materials[0] = strdup(m0->materials[0]);
+        sc_value_release(mesh);
+        mesh = m->materials[0] ? sc_value_new_mesh(m) : (sc_mesh_free(m), NULL);
+        if (!mesh) return NULL;
+    }
+    sc_atlas *a = sc_atlas_new(mesh);
+    if (!a) return NULL;
+    for (int32_t t = 0; t < r->ntex; t++) {
+        sc_image_data *copy = sc_image_alloc(r->textures[t].levels[L]->width, r->textures[t].levels[L]->height,
+                                             r->textures[t].levels[L]->channels, r->textures[t].levels[L]->pixel);
+        if (!copy) return sc_atlas_free(a), NULL;
+        const sc_image_data *src = r->textures[t].levels[L];
+        memcpy(copy->pixels, src->pixels, (size_t)src->width * src->height * src->channels * src->pixel);
+        copy->colorspace = src->colorspace;
+        sc_value *iv = sc_value_new_image(copy);
+        if (!iv || sc_atlas_add_texture(a, r->textures[t].name, 0, SC_WRAP_CLAMP, SC_WRAP_CLAMP, "", iv) != SC_OK)
+            return sc_atlas_free(a), NULL;
+    }
+    return sc_value_new_atlas(a);
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    const sc_value *in = sc_ctx_input(ctx, "atlas");
+    if (!in || in->kind != SC_KIND_ATLAS) return sc_fail(err, SC_EINPUT, "atlas: no atlas given");
+    const sc_atlas *a = in->as.atlas;
+    const sc_mesh *m = a->mesh->as.mesh;
+    const char *mode = sc_ctx_string(ctx, "mode");
+    int32_t tex_w = 0, tex_h = 0;
+    for (int32_t t = 0; t < a->ntex; t++) {
+        const sc_image_data *im = a->textures[t].image->as.image;
+        if ((int64_t)im->width * im->height > (int64_t)tex_w * tex_h) tex_w = im->width, tex_h = im->height;
+    }
+    double shared = 0;
+    int32_t charts = 0;
+    if (strcmp(mode, "auto") == 0 || strcmp(mode, "always") == 0) {
+        int rc = measure_input(m, tex_w > 0 ? tex_w : 1024, tex_h > 0 ? tex_h : 1024, &shared, &charts);
+        if (rc) return sc_fail(err, rc, "out of memory");
+    }
+    int32_t max_charts = (int32_t)sc_ctx_integer(ctx, "max_charts");
+    bool chartify = strcmp(mode, "always") == 0 ||
+                    (strcmp(mode, "auto") == 0 && (m->nu <= 0 || shared > 0.001 || charts > max_charts));
+    sc_ctx_metric(ctx, "input_shared_texel_fraction", shared);
+    sc_ctx_metric(ctx, "input_charts", charts);
+    sc_ctx_metric(ctx, "chartified", chartify);
+    if (!chartify) return pass_through(ctx, in) ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
+
+    sc_quad_options o;
+    sc_quad_defaults(&o);
+    int32_t ts = (int32_t)sc_ctx_integer(ctx, "texture_size");
+    o.texture_size = ts > 0 ? ts : (tex_w > tex_h ? tex_w : tex_h) > 0 ? (tex_w > tex_h ? tex_w : tex_h) : 1024;
+    o.chart_texels = (int32_t)sc_ctx_integer(ctx, "chart_texels");
+    o.target_patches = (int32_t)sc_ctx_integer(ctx, "target_patches");
+    o.target_quads = (int32_t)sc_ctx_integer(ctx, "target_quads");
+    o.min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
+    o.supersample = (int32_t)sc_ctx_integer(ctx, "supersample");
+    o.psnr_samples = (int32_t)sc_ctx_integer(ctx, "psnr_samples");
+    (void)sc_ctx_string(ctx, "layout");
+    sc_quad_result r;
+    int rc = sc_quad_build(m, a->textures, a->ntex, &o, sc_ctx_threads(ctx), &r, err);
+    if (rc) return rc;
+    for (int32_t i = 0; i < r.metrics.count; i++) sc_ctx_metric(ctx, r.metrics.items[i].name, r.metrics.items[i].value);
+    sc_value *mesh = sc_value_new_mesh(r.mesh);
+    r.mesh = NULL;
+    sc_lods *levels = mesh ? sc_lods_new() : NULL;
+    sc_value *top = NULL;
+    for (int32_t L = 0; L < r.nlevels && levels && rc == SC_OK; L++) {
+        sc_value *lv = level_atlas(&r, mesh, L);
+        if (!lv || sc_lods_add(levels, lv) != SC_OK) rc = SC_ENOMEM;
+        else if (L == 0) top = sc_value_retain(lv);
+    }
+    sc_value_release(mesh);
+    sc_quad_result_free(&r);
+    sc_value *lodv = rc == SC_OK && levels ? sc_value_new_lods(levels) : (sc_lods_free(levels), NULL);
+    if (!lodv || !top) {
+        sc_value_release(lodv), sc_value_release(top);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    sc_ctx_set_output(ctx, "atlas", top);
+    sc_ctx_set_output(ctx, "levels", lodv);
+    return SC_OK;
+}
+
+static const sc_param_desc params[] = {
+    {.name = "mode", .type = SC_PARAM_ENUM, .def_string = "always", .choices = mode_choices,
+     .doc = "always: re-chartify; never: pass the atlas through; auto: re-chartify when the uv share texels, are "
+            "missing, or hold more than max_charts charts"},
+    {.name = "max_charts", .type = SC_PARAM_INTEGER, .def = 256, .min = 1, .max = 1e9,
+     .doc = "auto: more uv charts than this re-chartify (decimation stalls on many non-collinear seams)"},
+    {.name = "texture_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
+     .doc = "the larger side of level 0 in texels; 0: the input's largest texture (1024 without one)"},
+    {.name = "chart_texels", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 16385,
+     .doc = "samples per chart side, 2^k + 1; 0: the largest that fits"},
+    {.name = "target_patches", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 1e9,
+     .doc = "stop merging at this many patches; 0: by target_quads"},
+    {.name = "target_quads", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 1e9,
+     .doc = "stop merging once the patches would make at most this many quads; 0: as many as fill the texture"},
+    {.name = "layout", .type = SC_PARAM_ENUM, .def_string = "blocks", .choices = layout_choices,
+     .doc = "blocks: each chart its own cell with gutters that keep charts apart at every level"},
+    {.name = "min_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
+     .doc = "mip levels down to this larger side (charts keep at least 3 samples a side); 0: until charts hold 9"},
+    {.name = "supersample", .type = SC_PARAM_INTEGER, .def = 2, .min = 1, .max = 8,
+     .doc = "S x S points averaged per texel"},
+    {.name = "psnr_samples", .type = SC_PARAM_INTEGER, .def = 200000, .min = 0, .max = 1e8,
+     .doc = "surface points for the psnr_<slot> metrics (0: none)"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the textured mesh (uv may overlap, mirror or be missing)"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the quad atlas, level 0 (or the input, passed through)"},
+    {.name = "levels", .kind = SC_KIND_LODS,
+     .doc = "one atlas per mip level, uv shifted by the level's offset, seam-free at every level"},
+};
+
+static const sc_kernel *const kernels[] = {&sc_kernel_quad, NULL};
+
+const sc_node_desc sc_node_quad_chartify = {
+    .type = "quad_chartify",
+    .version = 1,
+    .summary = "a seamless quad-chart atlas, seam-free at every mip level (Purnomo et al. 2004)",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+    .kernels = kernels,
+};
