@@ -7,7 +7,9 @@
 --   seamcook run graphs/lod_chain.lua --set ratios=0.5,0.1     (two levels)
 --   seamcook run graphs/lod_chain.lua --set lods.normal_turn=45 (any node's parameter, by the node's name)
 --
--- load -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
+--   seamcook run graphs/lod_chain.lua --set chartify=always   (auto|always|never: a quad atlas first)
+--
+-- load -> quad_chartify -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
 --      -> bake_displacement (geometry image, displacement per LOD) -> mipmap -> render (every LOD x mip)
 local mesh = param("mesh", "")
 local asset
@@ -21,6 +23,18 @@ else
   asset = load_atlas{ name = "asset", path = mesh, texture = param("texture", ""),
                       slots = param("slots", "all") }
 end
+
+-- A new atlas when the input's cannot serve the chain (Purnomo et al. 2004):
+-- auto re-chartifies when its uv share texels (mirrored or overlapping
+-- charts), are missing, or hold more charts than decimation can collapse;
+-- always / never force it. The quad atlas is seam-free by construction and
+-- its chart borders are straight, so the nodes below keep working on it.
+local ratios = param("ratios", {0.5, 0.1, 0.01})   -- --set ratios=0.5,0.1
+local min_ratio = 1
+for _, r in ipairs(ratios) do min_ratio = math.min(min_ratio, r) end
+local chartified = quad_chartify{ name = "chartify", atlas = asset, mode = param("chartify", "auto"),
+                                  texture_size = param("chart_texture_size", 0), min_ratio = min_ratio }
+asset = chartified.atlas
 
 -- Seam-free textures: float for the chain, and in the input's own format.
 local erased = erase_seams{ name = "erased", atlas = asset, preset = param("preset", "local") }
@@ -48,7 +62,7 @@ end
 -- displaced within 8.9e-4 of the diagonal instead of 1.7e-2, at 1,170
 -- faces instead of 886). 0: off.
 local lods = decimate{ name = "lods", mesh = shared,
-                       ratio = param("ratios", {0.5, 0.1, 0.01}),   -- --set ratios=0.5,0.1
+                       ratio = ratios,
                        max_error = param("max_error", 0.02),
                        map_size = param("map_size", 0) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = shared }

@@ -173,6 +173,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.chart_texels = (int32_t)sc_ctx_integer(ctx, "chart_texels");
     o.target_patches = (int32_t)sc_ctx_integer(ctx, "target_patches");
     o.target_quads = (int32_t)sc_ctx_integer(ctx, "target_quads");
+    double min_ratio = sc_ctx_number(ctx, "min_ratio");
+    if (o.target_quads == 0 && o.target_patches == 0 && min_ratio > 0) {
+        /* a quad decimates to two triangles at best: leave the coarsest level room */
+        o.target_quads = (int32_t)floor(m->nf * min_ratio * 0.4);
+        if (o.target_quads < 8) o.target_quads = 8;
+    }
     o.min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
     o.supersample = (int32_t)sc_ctx_integer(ctx, "supersample");
     o.psnr_samples = (int32_t)sc_ctx_integer(ctx, "psnr_samples");
@@ -216,6 +222,9 @@ static const sc_param_desc params[] = {
      .doc = "stop merging at this many patches; 0: by target_quads"},
     {.name = "target_quads", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 1e9,
      .doc = "stop merging once the patches would make at most this many quads; 0: as many as fill the texture"},
+    {.name = "min_ratio", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
+     .doc = "the smallest face ratio the chain decimates to: with no target given, quads stay few enough "
+            "(0.4 x faces x ratio) for that level to reach its face target; 0: fill the texture"},
     {.name = "layout", .type = SC_PARAM_ENUM, .def_string = "blocks", .choices = layout_choices,
      .doc = "blocks: each chart its own cell with gutters that keep charts apart at every level"},
     {.name = "min_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
