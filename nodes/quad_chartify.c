@@ -19,77 +19,59 @@
 
 #include "sc_nodes.h"
 #include "sc_quad.h"
+#include "sc_seam.h"
 
 static const char *const mode_choices[] = {"auto", "always", "never", NULL};
 static const char *const layout_choices[] = {"blocks", NULL};
 
-/* Order (a, b, face) triples by (a, b). */
-static int cmp_pair(const void *x, const void *y) {
-    const int32_t *a = x, *b = y;
-    if (a[0] != b[0]) return a[0] < b[0] ? -1 : 1;
-    return a[1] < b[1] ? -1 : a[1] > b[1];
-}
-
-/* Fraction of the covered texels (at w x h) that two or more faces cover,
- * and the number of uv charts (faces joined by shared uv edges). */
-static int measure_input(const sc_mesh *m, int32_t w, int32_t h, double *shared_fraction, int32_t *charts) {
-    *shared_fraction = 0, *charts = 0;
-    if (m->nu <= 0) return SC_OK;
-    int32_t *parent = malloc((size_t)m->nf * sizeof *parent);
-    int32_t *owner = malloc((size_t)w * h * sizeof *owner);
-    if (!parent || !owner) {
-        free(parent), free(owner);
-        return SC_ENOMEM;
-    }
-    for (int32_t f = 0; f < m->nf; f++) parent[f] = f;
-    /* charts: union faces over edges whose two sides use the same uv indices */
-    typedef struct { int32_t a, b, f; } ek;
-    ek *keys = malloc((size_t)m->nf * 3 * sizeof *keys);
-    if (!keys) {
-        free(parent), free(owner);
-        return SC_ENOMEM;
-    }
+/* The uv charts of m: uv indices joined by the faces that use them. */
+static int32_t count_charts(const sc_mesh *m, int32_t *parent) {
+    for (int32_t i = 0; i < m->nu; i++) parent[i] = -1;
     for (int32_t f = 0; f < m->nf; f++)
         for (int k = 0; k < 3; k++) {
-            int32_t a = m->FU[3 * f + k], b = m->FU[3 * f + (k + 1) % 3];
-            keys[3 * f + k] = (ek){a < b ? a : b, a < b ? b : a, f};
+            int32_t x = m->FU[3 * f + k];
+            if (parent[x] < 0) parent[x] = x;
         }
-    qsort(keys, (size_t)m->nf * 3, sizeof *keys, cmp_pair);
-    for (int32_t i = 1; i < 3 * m->nf; i++)
-        if (keys[i].a == keys[i - 1].a && keys[i].b == keys[i - 1].b) {
-            int32_t x = keys[i].f, y = keys[i - 1].f;
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int k = 1; k < 3; k++) {
+            int32_t x = m->FU[3 * f], y = m->FU[3 * f + k];
             while (parent[x] != x) x = parent[x] = parent[parent[x]];
             while (parent[y] != y) y = parent[y] = parent[parent[y]];
             if (x != y) parent[x] = y;
         }
-    free(keys);
-    for (int32_t f = 0; f < m->nf; f++) *charts += parent[f] == f;
-    /* shared texels: texel centres inside triangles of two different charts
-     * (or the same chart twice: a fold) */
-    for (size_t i = 0; i < (size_t)w * h; i++) owner[i] = -1;
-    int64_t covered = 0, shared = 0;
-    for (int32_t f = 0; f < m->nf; f++) {
-        double x[3], y[3];
-        for (int k = 0; k < 3; k++) {
-            const double *uv = m->U + 2 * (size_t)m->FU[3 * f + k];
-            x[k] = (uv[0] - floor(uv[0])) * w - 0.5, y[k] = (uv[1] - floor(uv[1])) * h - 0.5;
+    int32_t n = 0;
+    for (int32_t i = 0; i < m->nu; i++) n += parent[i] == i;
+    return n;
+}
+
+/* Fraction of the covered texels that two or more faces cover (each
+ * material on its largest texture's grid, sc_seam_coverage), and the number
+ * of uv charts. */
+static int measure_input(const sc_atlas *a, int threads, double *shared_fraction, int32_t *charts, sc_error *err) {
+    const sc_mesh *m = a->mesh->as.mesh;
+    *shared_fraction = 0, *charts = 0;
+    if (m->nu <= 0) return SC_OK;
+    int32_t *parent = malloc((size_t)m->nu * sizeof *parent);
+    if (!parent) return sc_fail(err, SC_ENOMEM, "out of memory");
+    *charts = count_charts(m, parent);
+    free(parent);
+    double covered = 0, shared = 0;
+    for (int32_t mat = 0; mat < m->nmat; mat++) {
+        sc_seam_grid g = {1024, 1024, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
+        int64_t best = 0;
+        for (int32_t t = 0; t < a->ntex; t++) {
+            const sc_image_data *im = a->textures[t].image->as.image;
+            if (a->textures[t].material != mat || (int64_t)im->width * im->height <= best) continue;
+            best = (int64_t)im->width * im->height;
+            g = (sc_seam_grid){im->width, im->height, a->textures[t].wrap_u, a->textures[t].wrap_v};
         }
-        double area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
-        if (!(fabs(area) > 0)) continue;
-        int32_t i0 = (int32_t)ceil(fmin(x[0], fmin(x[1], x[2]))), i1 = (int32_t)floor(fmax(x[0], fmax(x[1], x[2])));
-        int32_t j0 = (int32_t)ceil(fmin(y[0], fmin(y[1], y[2]))), j1 = (int32_t)floor(fmax(y[0], fmax(y[1], y[2])));
-        for (int32_t j = j0 < 0 ? 0 : j0; j <= j1 && j < h; j++)
-            for (int32_t i = i0 < 0 ? 0 : i0; i <= i1 && i < w; i++) {
-                double l0 = ((x[1] - i) * (y[2] - j) - (x[2] - i) * (y[1] - j)) / area;
-                double l1 = ((x[2] - i) * (y[0] - j) - (x[0] - i) * (y[2] - j)) / area;
-                if (l0 < 0 || l1 < 0 || 1 - l0 - l1 < 0) continue;
-                int32_t *o = owner + (size_t)j * w + i;
-                if (*o == -1) *o = f, covered++;
-                else if (*o >= 0) *o = -2, shared++;
-            }
+        sc_seam_coverage c;
+        int rc = sc_seam_coverage_build(m, mat, &g, threads, &c, err);
+        if (rc) return rc;
+        covered += (double)c.ncovered, shared += (double)c.nshared;
+        sc_seam_coverage_free(&c);
     }
-    free(parent), free(owner);
-    *shared_fraction = covered > 0 ? (double)shared / covered : 0;
+    *shared_fraction = covered > 0 ? shared / covered : 0;
     return SC_OK;
 }
 
@@ -107,8 +89,8 @@ static int pass_through(sc_ctx *ctx, const sc_value *in) {
 }
 
 /* The atlas of level L: the mesh with uv shifted by the level's offset and
- * every texture's level L. */
-static sc_value *level_atlas(const sc_quad_result *r, sc_value *mesh0, int32_t L) {
+ * every texture's level L (taken from r). */
+static sc_value *level_atlas(sc_quad_result *r, sc_value *mesh0, int32_t L) {
     sc_value *mesh = sc_value_retain(mesh0);
     if (L > 0) {
         const sc_mesh *m0 = mesh0->as.mesh;
@@ -128,13 +110,8 @@ static sc_value *level_atlas(const sc_quad_result *r, sc_value *mesh0, int32_t L
     sc_atlas *a = sc_atlas_new(mesh);
     if (!a) return NULL;
     for (int32_t t = 0; t < r->ntex; t++) {
-        sc_image_data *copy = sc_image_alloc(r->textures[t].levels[L]->width, r->textures[t].levels[L]->height,
-                                             r->textures[t].levels[L]->channels, r->textures[t].levels[L]->pixel);
-        if (!copy) return sc_atlas_free(a), NULL;
-        const sc_image_data *src = r->textures[t].levels[L];
-        memcpy(copy->pixels, src->pixels, (size_t)src->width * src->height * src->channels * src->pixel);
-        copy->colorspace = src->colorspace;
-        sc_value *iv = sc_value_new_image(copy);
+        sc_value *iv = sc_value_new_image(r->textures[t].levels[L]);   /* takes it */
+        r->textures[t].levels[L] = NULL;
         if (!iv || sc_atlas_add_texture(a, r->textures[t].name, 0, SC_WRAP_CLAMP, SC_WRAP_CLAMP, "", iv) != SC_OK)
             return sc_atlas_free(a), NULL;
     }
@@ -155,8 +132,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     double shared = 0;
     int32_t charts = 0;
     if (strcmp(mode, "auto") == 0 || strcmp(mode, "always") == 0) {
-        int rc = measure_input(m, tex_w > 0 ? tex_w : 1024, tex_h > 0 ? tex_h : 1024, &shared, &charts);
-        if (rc) return sc_fail(err, rc, "out of memory");
+        int rc = measure_input(a, sc_ctx_threads(ctx), &shared, &charts, err);
+        if (rc) return rc;
     }
     int32_t max_charts = (int32_t)sc_ctx_integer(ctx, "max_charts");
     bool chartify = strcmp(mode, "always") == 0 ||
@@ -245,7 +222,7 @@ static const sc_port_desc outputs[] = {
      .doc = "one atlas per mip level, uv shifted by the level's offset, seam-free at every level"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_quad, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_quad, &sc_kernel_seam, NULL};
 
 const sc_node_desc sc_node_quad_chartify = {
     .type = "quad_chartify",

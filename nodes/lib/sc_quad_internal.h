@@ -14,7 +14,6 @@
 typedef struct qmesh {
     int32_t nv, cap_v, nf, cap_f;
     double *pos;      /* 3 nv */
-    double *dom;      /* 2 nv: coordinates in the current patch's domain */
     int32_t *tri;     /* 3 nf */
     int32_t *opp;     /* 3 nf: the opposite half-edge, -1 on the border */
     int32_t *old;     /* nf */
@@ -47,7 +46,7 @@ typedef struct qcharts {
 
 /* Patches, quads and chart maps of input mesh `in` (positions and faces). */
 int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_quads, qcharts *out,
-                   sc_metric_list *metrics, sc_error *err);
+                   sc_error *err);
 void sc_quad_charts_free(qcharts *c);
 
 #endif

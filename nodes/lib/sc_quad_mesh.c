@@ -41,10 +41,8 @@ static bool qm_reserve(qmesh *m, int32_t nv, int32_t nf) {
     if (nv > m->cap_v) {
         int32_t cap = nv > 2 * m->cap_v ? nv : 2 * m->cap_v;
         double *p = realloc(m->pos, (size_t)cap * 3 * sizeof *p);
-        if (p) m->pos = p;
-        double *d = p ? realloc(m->dom, (size_t)cap * 2 * sizeof *d) : NULL;
-        if (d) m->dom = d;
-        if (!p || !d) return false;
+        if (!p) return false;
+        m->pos = p;
         m->cap_v = cap;
     }
     if (nf > m->cap_f) {
@@ -68,7 +66,7 @@ static bool qm_reserve(qmesh *m, int32_t nv, int32_t nf) {
 }
 
 static void qm_free(qmesh *m) {
-    free(m->pos), free(m->dom), free(m->tri), free(m->opp), free(m->old), free(m->bary), free(m->patch), free(m->quad);
+    free(m->pos), free(m->tri), free(m->opp), free(m->old), free(m->bary), free(m->patch), free(m->quad);
     memset(m, 0, sizeof *m);
 }
 
@@ -91,7 +89,6 @@ static int qm_from_mesh(qmesh *m, const sc_mesh *in) {
     if (!qm_reserve(m, in->nv + 16, in->nf + 16)) return SC_ENOMEM;
     m->nv = in->nv, m->nf = in->nf;
     memcpy(m->pos, in->V, (size_t)in->nv * 3 * sizeof(double));
-    memset(m->dom, 0, (size_t)in->nv * 2 * sizeof(double));
     memcpy(m->tri, in->FV, (size_t)in->nf * 3 * sizeof(int32_t));
     for (int32_t f = 0; f < in->nf; f++) {
         m->old[f] = f, m->patch[f] = f, m->quad[f] = -1;
@@ -124,10 +121,9 @@ static int qm_from_mesh(qmesh *m, const sc_mesh *in) {
     return SC_OK;
 }
 
-static int32_t qm_add_vertex(qmesh *m, const double *p, const double *d) {
+static int32_t qm_add_vertex(qmesh *m, const double *p) {
     int32_t v = m->nv++;
     memcpy(m->pos + 3 * (size_t)v, p, 3 * sizeof(double));
-    m->dom[2 * (size_t)v] = d ? d[0] : 0, m->dom[2 * (size_t)v + 1] = d ? d[1] : 0;
     return v;
 }
 
@@ -160,10 +156,9 @@ static int32_t qm_split_face_edge(qmesh *m, int32_t h, int32_t w, double t) {
 static int32_t qm_split_edge(qmesh *m, int32_t h, double t) {
     if (!qm_reserve(m, m->nv + 1, m->nf + 2)) return -1;
     int32_t a = m->tri[h], b = m->tri[qm_next(h)], o = m->opp[h];
-    double p[3], d[2];
+    double p[3];
     for (int i = 0; i < 3; i++) p[i] = (1 - t) * m->pos[3 * (size_t)a + i] + t * m->pos[3 * (size_t)b + i];
-    for (int i = 0; i < 2; i++) d[i] = (1 - t) * m->dom[2 * (size_t)a + i] + t * m->dom[2 * (size_t)b + i];
-    int32_t w = qm_add_vertex(m, p, d);
+    int32_t w = qm_add_vertex(m, p);
     int32_t f = h / 3, k0 = h % 3;
     int32_t g = qm_split_face_edge(m, h, w, t);
     if (o >= 0) {
@@ -177,14 +172,14 @@ static int32_t qm_split_edge(qmesh *m, int32_t h, double t) {
 }
 
 /* Split face f at the point of barycentric coordinates l into three. */
-static int32_t qm_split_face_point(qmesh *m, int32_t f, const double l[3], const double d[2]) {
+static int32_t qm_split_face_point(qmesh *m, int32_t f, const double l[3]) {
     if (!qm_reserve(m, m->nv + 1, m->nf + 2)) return -1;
     int32_t *F = m->tri + 3 * (size_t)f;
     int32_t a = F[0], b = F[1], c = F[2];
     double p[3];
     for (int i = 0; i < 3; i++)
         p[i] = l[0] * m->pos[3 * (size_t)a + i] + l[1] * m->pos[3 * (size_t)b + i] + l[2] * m->pos[3 * (size_t)c + i];
-    int32_t w = qm_add_vertex(m, p, d);
+    int32_t w = qm_add_vertex(m, p);
     double *bf = m->bary + 9 * (size_t)f, B[9], bw[3];
     memcpy(B, bf, sizeof B);
     for (int i = 0; i < 3; i++) bw[i] = l[0] * B[i] + l[1] * B[3 + i] + l[2] * B[6 + i];
@@ -663,11 +658,15 @@ static bool is_corner(const builder *b, int32_t i) {
     return (b->flag[b->lw.verts.a[i]] & FLAG_CORNER) || b->label.a[i] != b->label.a[(i + L - 1) % L];
 }
 
-/* Arc length along the loop from position i to position j (cyclic, j after i). */
+/* Arc length along the loop from position i to position j (cyclic, j
+ * after i; the whole loop when j == i). */
 static double loop_arc(const builder *b, int32_t i, int32_t j) {
-    int32_t L = b->lw.verts.n;
+    int32_t L = b->lw.verts.n, k = i;
     double s = 0;
-    for (int32_t k = i; k != j; k = (k + 1) % L) s += qm_arc(b->m, b->lw.verts.a[k], b->lw.verts.a[(k + 1) % L]);
+    do {
+        s += qm_arc(b->m, b->lw.verts.a[k], b->lw.verts.a[(k + 1) % L]);
+        k = (k + 1) % L;
+    } while (k != j);
     return s;
 }
 
@@ -688,9 +687,11 @@ static int mark_at(builder *b, int32_t i, int32_t j, double at, double lo, doubl
         return SC_OK;
     }
     s = 0;
-    for (int32_t k = i; k != j || k == i; k = (k + 1) % L) {
-        double e = qm_arc(b->m, b->lw.verts.a[k], b->lw.verts.a[(k + 1) % L]);
-        if (s + e >= at * total || (k + 1) % L == j) {
+    int32_t k = i;
+    do {
+        int32_t kn = (k + 1) % L;
+        double e = qm_arc(b->m, b->lw.verts.a[k], b->lw.verts.a[kn]);
+        if (s + e >= at * total || kn == j) {
             double t = e > 0 ? (at * total - s) / e : 0.5;
             t = t < 0.01 ? 0.01 : t > 0.99 ? 0.99 : t;
             int32_t w = b_split_edge(b, b->lw.hs.a[k], t);
@@ -698,9 +699,8 @@ static int mark_at(builder *b, int32_t i, int32_t j, double at, double lo, doubl
             b->flag[w] |= fl;
             return SC_OK;
         }
-        s += e;
-        if ((k + 1) % L == j) break;
-    }
+        s += e, k = kn;
+    } while (k != j);
     return SC_OK;
 }
 
@@ -726,8 +726,7 @@ static int add_corners(builder *b) {
             for (int32_t i = first, n = 0; n < nc; n++) {
                 int32_t j = (i + 1) % L;
                 while (!is_corner(b, j)) j = (j + 1) % L;
-                double len = loop_arc(b, i, j == i ? i : j);
-                if (j == i) len = loop_arc(b, i, (i + L - 1) % L) + qm_arc(b->m, b->lw.verts.a[(i + L - 1) % L], b->lw.verts.a[i]);
+                double len = loop_arc(b, i, j);
                 if (len > blen) blen = len, bi = i, bj = j;
                 i = j;
             }
@@ -901,7 +900,7 @@ static void place_loop(builder *b, const int32_t *cpos, int32_t nc, const double
     int32_t L = b->lw.verts.n;
     for (int32_t s = 0; s < nc; s++) {
         int32_t i = cpos[s], j = cpos[(s + 1) % nc];
-        double total = loop_arc(b, i, j == i ? i : j), acc = 0;
+        double total = loop_arc(b, i, j), acc = 0;
         const double *P = poly[s], *Q = poly[(s + 1) % nc];
         for (int32_t k = i; ; k = (k + 1) % L) {
             int32_t v = b->lw.verts.a[k];
@@ -986,7 +985,7 @@ static int32_t insert_centre(builder *b, int32_t p) {
     double s = l[0] + l[1] + l[2];
     for (int k = 0; k < 3; k++) l[k] /= s;
     int32_t nf0 = m->nf;
-    int32_t w = qm_split_face_point(m, bestf, l, O);
+    int32_t w = qm_split_face_point(m, bestf, l);
     if (w < 0 || !b_fit(b)) return -1;
     for (int32_t f = nf0; f < m->nf; f++)
         if (!iv_push(&b->pf[p], f)) return -1;
@@ -1249,9 +1248,8 @@ static void builder_free(builder *b) {
 }
 
 int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_quads, qcharts *out,
-                   sc_metric_list *metrics, sc_error *err) {
+                   sc_error *err) {
     memset(out, 0, sizeof *out);
-    (void)metrics;
     builder b = {0};
     b.m = &out->m;
     int rc = qm_from_mesh(b.m, in);

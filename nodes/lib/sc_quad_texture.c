@@ -11,8 +11,10 @@
 
 #include "sc_geometry.h"
 #include "sc_quad_internal.h"
+#include "sc_seam.h"
 
-const sc_kernel sc_kernel_quad = {"quad", SC_QUAD_VERSION, NULL};
+static const sc_kernel *const quad_uses[] = {&sc_kernel_seam, NULL};
+const sc_kernel sc_kernel_quad = {"quad", SC_QUAD_VERSION, quad_uses};
 
 void sc_quad_defaults(sc_quad_options *o) {
     memset(o, 0, sizeof *o);
@@ -77,15 +79,6 @@ static int source_load(source *s, const sc_texture *t, bool decode) {
     return SC_OK;
 }
 
-static int32_t wrap_index(int32_t i, int32_t n, sc_wrap w) {
-    if (w == SC_WRAP_CLAMP) return i < 0 ? 0 : i >= n ? n - 1 : i;
-    if (w == SC_WRAP_MIRROR) {
-        int32_t p = 2 * n, k = ((i % p) + p) % p;
-        return k < n ? k : p - 1 - k;
-    }
-    return ((i % n) + n) % n;
-}
-
 static void source_sample(const source *s, double u, double v, float out[4]) {
     double x = u * s->w - 0.5, y = v * s->h - 0.5;
     if (!isfinite(x) || !isfinite(y)) x = y = 0;
@@ -93,8 +86,8 @@ static void source_sample(const source *s, double u, double v, float out[4]) {
     if (fabs(fx) > 1e9 || fabs(fy) > 1e9) fx = fy = 0;
     float ax = (float)(x - fx), ay = (float)(y - fy);
     int32_t i0 = (int32_t)fx, j0 = (int32_t)fy;
-    int32_t i[2] = {wrap_index(i0, s->w, s->tex->wrap_u), wrap_index(i0 + 1, s->w, s->tex->wrap_u)};
-    int32_t j[2] = {wrap_index(j0, s->h, s->tex->wrap_v), wrap_index(j0 + 1, s->h, s->tex->wrap_v)};
+    int32_t i[2] = {sc_seam_wrap(i0, s->w, s->tex->wrap_u), sc_seam_wrap(i0 + 1, s->w, s->tex->wrap_u)};
+    int32_t j[2] = {sc_seam_wrap(j0, s->h, s->tex->wrap_v), sc_seam_wrap(j0 + 1, s->h, s->tex->wrap_v)};
     const float *p00 = s->px + 4 * ((size_t)j[0] * s->w + i[0]), *p10 = s->px + 4 * ((size_t)j[0] * s->w + i[1]);
     const float *p01 = s->px + 4 * ((size_t)j[1] * s->w + i[0]), *p11 = s->px + 4 * ((size_t)j[1] * s->w + i[1]);
     for (int c = 0; c < 4; c++)
@@ -122,9 +115,6 @@ typedef struct job {
     slot *slots;
     double (*frame)[9];    /* per input face: tangent, bitangent, normal (unit) */
     int32_t *chart_x, *chart_y;
-    /* per global side and per corner vertex: samples computed once (level 0) */
-    float *side_val;       /* nsides * (2^k - 1) * 4 per slot, slot-major */
-    uint8_t *side_done;
 } job;
 
 static void input_frame(const sc_mesh *m, int32_t f, double fr[9]) {
@@ -222,7 +212,6 @@ typedef struct sample_task {
 static int sample_chart(void *ud, int32_t q) {
     sample_task *t = ud;
     job *J = t->J;
-    const qmesh *m = &J->c->m;
     int32_t n = (1 << J->k) + 1, S = J->S, G = n * S;
     int32_t *hit = malloc((size_t)G * G * sizeof *hit);
     double *lam = malloc((size_t)G * G * 3 * sizeof *lam);
@@ -269,7 +258,6 @@ static int sample_chart(void *ud, int32_t q) {
                 lam[3 * (size_t)id] = l0, lam[3 * (size_t)id + 1] = l1, lam[3 * (size_t)id + 2] = l2;
             }
     }
-    int rc = SC_OK;
     for (int32_t id = 0; id < G * G; id++) {
         if (hit[id] < 0) continue;
         int32_t ai = id % G, bj = id / G, ti = ai / S, tj = bj / S;
@@ -283,7 +271,6 @@ static int sample_chart(void *ud, int32_t q) {
         }
         cnt[tj * n + ti]++;
     }
-    (void)m;
     int32_t x0 = J->chart_x[q], y0 = J->chart_y[q];
     for (int32_t s = 0; s < J->nslots; s++) {
         float *img = J->slots[s].level[0];
@@ -300,7 +287,7 @@ static int sample_chart(void *ud, int32_t q) {
             }
     }
     free(hit), free(lam), free(acc), free(cnt);
-    return rc;
+    return SC_OK;
 }
 
 /* ---------------------------------------------------------------- shared borders */
@@ -377,7 +364,7 @@ static void filter_level(job *J, int32_t L) {
             for (int32_t j = 0; j < n1; j++)
                 for (int32_t i = 0; i < n1; i++) {
                     float *o = texel(J, sl, L + 1, q, i, j);
-                    int32_t I = 2 * i, Jj = 2 * j, last = 2 * (n1 - 1);
+                    int32_t I = 2 * i, Jj = 2 * j;
                     bool bi = i == 0 || i == n1 - 1, bj = j == 0 || j == n1 - 1;
                     for (int c = 0; c < 4; c++) {
                         double v;
@@ -392,7 +379,6 @@ static void filter_level(job *J, int32_t L) {
                         }
                         o[c] = (float)v;
                     }
-                    (void)last;
                 }
     }
 }
@@ -603,7 +589,7 @@ static void image_sample(const sc_image_data *im, bool decode, double u, double 
     for (int c = 0; c < 4; c++) out[c] = 0;
     for (int b = 0; b < 2; b++)
         for (int a = 0; a < 2; a++) {
-            int32_t i = wrap_index(i0 + a, im->width, SC_WRAP_CLAMP), j = wrap_index(j0 + b, im->height, SC_WRAP_CLAMP);
+            int32_t i = sc_seam_wrap(i0 + a, im->width, SC_WRAP_CLAMP), j = sc_seam_wrap(j0 + b, im->height, SC_WRAP_CLAMP);
             double w = (a ? ax : 1 - ax) * (b ? ay : 1 - ay);
             for (int c = 0; c < im->channels && c < 4; c++) {
                 float t = sc_image_texel(im, i, j, c);
@@ -754,7 +740,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         if (target < 1) target = 1;
     }
     qcharts c;
-    int rc = sc_quad_charts(m, o, target, &c, &out->metrics, err);
+    int rc = sc_quad_charts(m, o, target, &c, err);
     if (rc) return rc;
     double t1 = now_seconds();
     job J = {0};
