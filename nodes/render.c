@@ -1147,18 +1147,25 @@ static int sort_onto_sides(const level_gl *L, const seam_patches *P, const float
     return SC_OK;
 }
 
+/* llvmpipe numbers a tessellation shader's gl_PrimitiveID from 0 again
+ * after every 4,096 vertices a draw reads (1,365 triangle patches): a
+ * capture draws at most that many, so the ids it reads back are its own. */
+#define MAX_CAPTURE_PATCHES 1365
+
 /* Draw the patches material by material and capture what the tessellator
  * made of them.
  * One capture per draw of at most ~16k generated vertices (see
- * draw_patches; gl_PrimitiveID restarts with every draw, hence
- * u_patch_base). A level-L patch makes 3L^2/2 triangles (L even; fewer
- * when odd); a capture that overflows anyway is retried larger. Each
- * vertex is 7 words: position, tessellation coordinate, patch. */
+ * draw_patches) and MAX_CAPTURE_PATCHES patches; gl_PrimitiveID restarts
+ * with every draw, hence u_patch_base. A level-L patch makes 3L^2/2
+ * triangles (L even; fewer when odd); a capture that overflows anyway is
+ * retried larger. Each vertex is 7 words: position, tessellation
+ * coordinate, patch. */
 static int capture_patches(const level_gl *L, const pass *ps, const seam_patches *P, GLuint program, sample_list *S,
                            sc_error *err) {
     const sc_mesh *m = L->mesh;
     int32_t verts = (ps->level + 1) * (ps->level + 2) / 2 + 3 * ps->level;
     int32_t chunk = 16384 / verts > 1 ? 16384 / verts : 1;
+    if (chunk > MAX_CAPTURE_PATCHES) chunk = MAX_CAPTURE_PATCHES;
     size_t tris_per_patch = 3 * (size_t)ps->level * (size_t)ps->level / 2 + 4;
     int rc = SC_OK;
     for (int32_t mat = 0; rc == SC_OK && mat < m->nmat; mat++) {
@@ -2035,7 +2042,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 7,
+    .version = 8,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -243,6 +243,22 @@ SC_TEST(seam_free_geometry_image_has_no_gap) {
     cube_textures_free(&tex);
 }
 
+/* More seam faces than one capture draw holds (1,440 > 1,365): every seam
+ * side still finds its own tessellated vertices, so no gap appears. */
+SC_TEST(many_seam_patches_are_captured_in_several_draws) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *cube = cube_atlas(60, 0, &tex);
+    run_result r = render(NULL, cube, NULL,
+                          (const char *const[]){"size", "64", "views", "1", "tess_levels", "1",
+                                                "modes", "tessellated", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.seam_edges") == 12 * 60);
+    SC_CHECK_MSG(M(&r, "lod0.tessellated1.max_seam_gap") <= 1e-6, "gap %g", M(&r, "lod0.tessellated1.max_seam_gap"));
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
+
 SC_TEST(geometry_image_with_seams_has_gap_and_cracks) {
     cube_textures tex = cube_textures_make(CUBE_GI_SEAMS | CUBE_DISP_SEAMS);
     sc_value *cube = cube_atlas(4, 0, &tex);
