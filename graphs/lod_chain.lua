@@ -89,7 +89,7 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- 128^2 (the whole job passes with mip_min=512: its colour is 2048^2, so the
 -- maps stop at 256^2), Avocado at 256^2, spot and Lantern at 512^2,
 -- WaterBottle and BoomBox at 1024^2 already (thin parts and charts that all
--- but touch).
+-- but touch), MuruCat re-chartified (chartify=auto) at 512^2.
 -- erase_min_size: mip levels with both sides below it are averaged, not
 -- erased (an atlas of thousands of charts, pizza's, cannot be erased once its
 -- charts fall under a texel: --set erase_min_size=2048 there). Levels left

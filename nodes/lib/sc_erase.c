@@ -161,6 +161,7 @@
 #include "sc_sparse.h"
 
 #define TIKHONOV 1e-8
+#define FLOOR_RETRY 1e-12         /* a refused factorisation retries with this share of the largest diagonal added */
 #define NULLITY_MAX_TEXELS 100000
 #define ROUND_MAX_SWEEPS 64
 #define ROUND_ROWS_PER_CHUNK 16384
@@ -760,6 +761,33 @@ static void preconditioner_restore(sc_sparse *full, const sc_triplets *apart, co
     }
 }
 
+/* Factor Q with CHOLMOD (AMD). The Tikhonov floor keeps Q positive
+ * definite in exact arithmetic, but beside a seam stiffness of 1e12 (mipmap)
+ * it is below Q's rounding: a level whose few texels all lie on seams (a 2 x 2
+ * level of hundreds of charts) can stop the factorisation. Then the factor
+ * is made once more of Q plus FLOOR_RETRY times its largest diagonal entry
+ * on the diagonal (counted as a solver fallback); every later use of Q
+ * (refinement, rounding) still reads Q itself. */
+static int factor_q(group_work *w, sc_error *err) {
+    sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
+    int rc = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, err);
+    if (rc != SC_EINPUT) return rc;
+    sc_sparse shifted = w->q;
+    shifted.val = malloc((size_t)w->q.nnz * sizeof *shifted.val);
+    if (!shifted.val) return sc_fail(err, SC_ENOMEM, "out of memory");
+    memcpy(shifted.val, w->q.val, (size_t)w->q.nnz * sizeof *shifted.val);
+    double dmax = 0;
+    for (int32_t j = 0; j < w->q.n; j++) dmax = fmax(dmax, sc_sparse_diag(&w->q, j));
+    for (int32_t j = 0; j < w->q.n; j++) {
+        int64_t at = sc_sparse_find(&w->q, j, j);
+        if (at >= 0) shifted.val[at] += FLOOR_RETRY * dmax;
+    }
+    rc = sc_sparse_chol_factor(&shifted, &sopt, &w->chol, err);
+    free(shifted.val);
+    if (rc == SC_OK) w->fallback = true;
+    return rc;
+}
+
 /* Task 0: analyse and factor Q (supernodal where the factor is big,
  * simplicial where it is tiny), or, for the edge-cluster solver, its
  * interface (prep_clusters did the rest). */
@@ -771,12 +799,10 @@ static int prep_factor(prep_job *pj) {
             sc_schur_free(w->schur);
             w->schur = NULL;
             w->fallback = true;
-            sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
-            pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
+            pj->rc_factor = factor_q(w, &pj->err_factor);
         }
     } else {
-        sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
-        pj->rc_factor = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, &pj->err_factor);
+        pj->rc_factor = factor_q(w, &pj->err_factor);
     }
     return pj->rc_factor;
 }
@@ -943,8 +969,7 @@ static int solve_unique(group_work *w, const options *o, int32_t n, int32_t ncol
             w->schur = NULL;
             w->fallback = true;
             memcpy(rhs, kept, (size_t)n * (size_t)nu * sizeof *rhs);
-            sc_sparse_options sopt = {.ordering = SC_SPARSE_ORDER_AMD, .kind = SC_SPARSE_AUTO};
-            rc = sc_sparse_chol_factor(&w->q, &sopt, &w->chol, err);
+            rc = factor_q(w, err);
             direct = rc == SC_OK;
         }
         free(kept);
