@@ -5,6 +5,7 @@
  */
 #include <math.h>
 #include <stdio.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -718,6 +719,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
     if (o->texture_size < 8) return sc_fail(err, SC_EINPUT, "texture_size: %d is too small", (int)o->texture_size);
     double t0 = now_seconds();
     int32_t target = o->target_quads;
+    int64_t slots = 0;   /* filling: the cells of the texture at the chosen chart size */
     if (target <= 0 && o->target_patches <= 0) {
         /* fill the texture: the quads that fit at the requested (or a middling) chart size */
         int32_t k = 0;
@@ -736,12 +738,30 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         }
         int64_t cell = ((int64_t)1 << k) + ((int64_t)1 << level_depth(o, k));
         int64_t per = o->texture_size / (cell > 0 ? cell : 1);
-        target = (int32_t)(per * per * 9 / 10);
+        slots = per * per;
+        target = (int32_t)(slots * 9 / 10);
         if (target < 1) target = 1;
     }
     qcharts c;
     int rc = sc_quad_charts(m, o, target, &c, err);
     if (rc) return rc;
+    if (slots > 0 && c.nquads < target * 0.9) {
+        /* merging stops on an estimate of the quads (patch sides before
+         * corners are final); aim once more, scaled by how far it fell
+         * short, and keep that atlas if it still fits the cells */
+        qcharts again;
+        int64_t aim = (int64_t)target * target / (c.nquads > 0 ? c.nquads : 1);
+        rc = sc_quad_charts(m, o, (int32_t)(aim < INT32_MAX ? aim : INT32_MAX), &again, err);
+        if (rc) {
+            sc_quad_charts_free(&c);
+            return rc;
+        }
+        if (again.nquads <= slots && again.nquads > c.nquads) {
+            sc_quad_charts_free(&c);
+            c = again;
+        } else
+            sc_quad_charts_free(&again);
+    }
     double t1 = now_seconds();
     job J = {0};
     J.in = m, J.c = &c, J.S = o->supersample > 0 ? o->supersample : 1;
