@@ -148,24 +148,33 @@ static void input_frame(const sc_mesh *m, int32_t f, double fr[9]) {
     for (int i = 0; i < 3; i++) fr[i] = T[i], fr[3 + i] = sign * B[i], fr[6 + i] = n[i];
 }
 
-/* The value of slot s at a point of refined face f with barycentric l. */
-static void sample_point(const job *J, const slot *s, int32_t f, const double l[3], const double newT[3],
-                         float out[4]) {
+/* The input image and old uv of slot s at a point of refined face f with
+ * barycentric l (NULL when the face's material has no such image). */
+static const source *old_point(const job *J, const slot *s, int32_t f, const double l[3], double *u, double *v) {
     const qmesh *m = &J->c->m;
     int32_t of = m->old[f];
-    int32_t mat = J->in->FM ? J->in->FM[of] : 0;
-    const source *src = &s->by_material[mat];
-    if (!src->px) {
-        memcpy(out, s->neutral, 4 * sizeof(float));
-        return;
-    }
+    const source *src = &s->by_material[J->in->FM ? J->in->FM[of] : 0];
+    if (!src->px) return NULL;
     const double *bb = m->bary + 9 * (size_t)f;
     double ob[3];
     for (int i = 0; i < 3; i++) ob[i] = l[0] * bb[i] + l[1] * bb[3 + i] + l[2] * bb[6 + i];
     const int32_t *U = J->in->FU + 3 * (size_t)of;
-    double u = 0, v = 0;
-    for (int k = 0; k < 3; k++) u += ob[k] * J->in->U[2 * (size_t)U[k]], v += ob[k] * J->in->U[2 * (size_t)U[k] + 1];
+    *u = 0, *v = 0;
+    for (int k = 0; k < 3; k++) *u += ob[k] * J->in->U[2 * (size_t)U[k]], *v += ob[k] * J->in->U[2 * (size_t)U[k] + 1];
+    return src;
+}
+
+/* The value of slot s at a point of refined face f with barycentric l. */
+static void sample_point(const job *J, const slot *s, int32_t f, const double l[3], const double newT[3],
+                         float out[4]) {
+    double u, v;
+    const source *src = old_point(J, s, f, l, &u, &v);
+    if (!src) {
+        memcpy(out, s->neutral, 4 * sizeof(float));
+        return;
+    }
     source_sample(src, u, v, out);
+    int32_t of = J->c->m.old[f];
     if (s->kind != SLOT_NORMAL) return;
     const double *fr = J->frame[of];
     double t[3] = {2.0 * out[0] - 1, 2.0 * out[1] - 1, 2.0 * out[2] - 1}, w[3];
@@ -600,14 +609,59 @@ static void image_sample(const sc_image_data *im, bool decode, double u, double 
         }
 }
 
+/* The input image resampled to scale s of its sides (each new texel the
+ * mean of bilinear reads over its footprint), read through the same wrap. */
+static int source_resize(const source *src, double scale, source *out) {
+    int32_t w = (int32_t)lround(src->w * scale), h = (int32_t)lround(src->h * scale);
+    w = w < 1 ? 1 : w, h = h < 1 ? 1 : h;
+    int32_t S = (int32_t)ceil((double)src->w / w);
+    S = S < 1 ? 1 : S > 8 ? 8 : S;
+    *out = (source){src->tex, malloc((size_t)w * h * 4 * sizeof(float)), w, h};
+    if (!out->px) return SC_ENOMEM;
+    for (int32_t j = 0; j < h; j++)
+        for (int32_t i = 0; i < w; i++) {
+            double acc[4] = {0};
+            for (int32_t b = 0; b < S; b++)
+                for (int32_t a = 0; a < S; a++) {
+                    float t[4];
+                    source_sample(src, (i + (a + 0.5) / S) / w, (j + (b + 0.5) / S) / h, t);
+                    for (int c = 0; c < 4; c++) acc[c] += t[c];
+                }
+            for (int c = 0; c < 4; c++) out->px[4 * ((size_t)j * w + i) + c] = (float)(acc[c] / (S * S));
+        }
+    return SC_OK;
+}
+
 /* Surface PSNR of slot s: area-uniform points, the new image (as written,
- * decoded) against the input read through the old uv. */
-static double surface_psnr(const job *J, const slot *s, const sc_image_data *im, const sc_mesh *out, int32_t npts) {
+ * decoded) against the input read through the old uv. The floor: the input
+ * resampled into itself at the new atlas's texel count (its covered texels
+ * scaled to the charts' samples) and read back through the old uv, the
+ * loss any atlas of that many texels starts from. */
+static int surface_psnr(const job *J, const slot *s, const sc_image_data *im, const sc_mesh *out, int32_t npts,
+                        double *psnr, double *floor_psnr, sc_error *err) {
     const qmesh *m = &J->c->m;
-    double *cdf = malloc((size_t)m->nf * sizeof *cdf);
-    if (!cdf || npts <= 0) { free(cdf); return NAN; }
+    *psnr = *floor_psnr = NAN;
+    if (npts <= 0) return SC_OK;
+    int32_t nmat = J->in->nmat;
+    double old_texels = 0, new_texels = (double)J->c->nquads * ((1 << J->k) + 1) * ((1 << J->k) + 1);
+    for (int32_t mat = 0; mat < nmat; mat++) {
+        const source *src = &s->by_material[mat];
+        if (!src->px) continue;
+        sc_seam_grid g = {src->w, src->h, src->tex->wrap_u, src->tex->wrap_v};
+        sc_seam_coverage cov;
+        int rc = sc_seam_coverage_build(J->in, mat, &g, 1, &cov, err);
+        if (rc) return rc;
+        old_texels += (double)cov.ncovered;
+        sc_seam_coverage_free(&cov);
+    }
+    double scale = old_texels > 0 ? sqrt(new_texels / old_texels) : 1;
+    source *small = calloc(nmat > 0 ? (size_t)nmat : 1, sizeof *small);
+    double *cdf = malloc((m->nf > 0 ? (size_t)m->nf : 1) * sizeof *cdf);
+    int rc = small && cdf ? SC_OK : SC_ENOMEM;
+    for (int32_t mat = 0; mat < nmat && rc == SC_OK; mat++)
+        if (s->by_material[mat].px) rc = source_resize(&s->by_material[mat], scale, &small[mat]);
     double acc = 0;
-    for (int32_t f = 0; f < m->nf; f++) {
+    for (int32_t f = 0; f < m->nf && rc == SC_OK; f++) {
         const int32_t *F = m->tri + 3 * (size_t)f;
         double nrm[3];
         sc_triangle_normal(m->pos + 3 * (size_t)F[0], m->pos + 3 * (size_t)F[1], m->pos + 3 * (size_t)F[2], nrm);
@@ -615,10 +669,10 @@ static double surface_psnr(const job *J, const slot *s, const sc_image_data *im,
         cdf[f] = acc;
     }
     uint64_t rng = 0x9e3779b97f4a7c15ull;
-    double se = 0;
-    int64_t count = 0;
+    double se = 0, se_floor = 0;
+    int64_t count = 0, count_floor = 0;
     int nch = s->channels < 3 ? s->channels : 3;
-    for (int32_t p = 0; p < npts; p++) {
+    for (int32_t p = 0; p < npts && rc == SC_OK; p++) {
         double r[3];
         for (int k = 0; k < 3; k++) {
             rng ^= rng << 13, rng ^= rng >> 7, rng ^= rng << 17;
@@ -644,10 +698,23 @@ static double surface_psnr(const job *J, const slot *s, const sc_image_data *im,
         }
         image_sample(im, s->kind == SLOT_COLOUR, u, v, got);
         for (int c = 0; c < nch; c++) se += (double)(got[c] - ref[c]) * (got[c] - ref[c]), count++;
+        double ou, ov;
+        const source *src = old_point(J, s, f, l, &ou, &ov);
+        if (src) {
+            float raw[4], low[4];
+            source_sample(src, ou, ov, raw);
+            source_sample(&small[src - s->by_material], ou, ov, low);
+            for (int c = 0; c < nch; c++) se_floor += (double)(low[c] - raw[c]) * (low[c] - raw[c]), count_floor++;
+        }
     }
-    free(cdf);
-    double mse = count ? se / count : 0;
-    return mse > 0 ? 10 * log10(1 / mse) : INFINITY;
+    if (small)
+        for (int32_t mat = 0; mat < nmat; mat++) free(small[mat].px);
+    free(small), free(cdf);
+    if (rc) return rc == SC_ENOMEM ? sc_fail(err, SC_ENOMEM, "out of memory") : rc;
+    double mse = count ? se / count : 0, mse_floor = count_floor ? se_floor / count_floor : 0;
+    *psnr = mse > 0 ? 10 * log10(1 / mse) : INFINITY;
+    *floor_psnr = count_floor == 0 ? NAN : mse_floor > 0 ? 10 * log10(1 / mse_floor) : INFINITY;
+    return SC_OK;
 }
 
 /* ---------------------------------------------------------------- the whole build */
@@ -851,10 +918,15 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         sc_metric_list_add(ml, "flipped_triangles", c.flipped);
         sc_metric_list_add(ml, "boundary_mismatch", (double)mismatch);
         sc_metric_list_add(ml, "shared_texels", (double)shared);
-        for (int32_t s = 0; s < J.nslots; s++) {
+        for (int32_t s = 0; s < J.nslots && rc == SC_OK; s++) {
             char name[96];
+            double psnr, floor_psnr;
+            rc = surface_psnr(&J, &J.slots[s], out->textures[s].levels[0], out->mesh, o->psnr_samples, &psnr,
+                              &floor_psnr, err);
             snprintf(name, sizeof name, "psnr_%s", J.slots[s].name);
-            sc_metric_list_add(ml, name, surface_psnr(&J, &J.slots[s], out->textures[s].levels[0], out->mesh, o->psnr_samples));
+            sc_metric_list_add(ml, name, psnr);
+            snprintf(name, sizeof name, "psnr_floor_%s", J.slots[s].name);
+            sc_metric_list_add(ml, name, floor_psnr);
         }
         double t5 = now_seconds();
         sc_metric_list_add(ml, "seconds_charts", t1 - t0);
