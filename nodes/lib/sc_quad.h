@@ -43,7 +43,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_quad is re-keyed. */
-#define SC_QUAD_VERSION 1
+#define SC_QUAD_VERSION 2
 extern const sc_kernel sc_kernel_quad;
 
 typedef struct sc_quad_options {

@@ -40,7 +40,8 @@ typedef struct qcharts {
     uint8_t *side_rev;    /* 4 nquads */
     int32_t *corner_v;    /* 4 nquads */
     int32_t sides_hist[9];    /* patches with 3..10+ sides at [n - 3], last bucket 10+ */
-    double stretch_l2, stretch_linf;
+    double stretch_l2, stretch_linf;   /* of the atlas: every chart the same size */
+    double stretch_l2_within;          /* each chart scaled to its own surface area */
     int32_t flipped;
 } qcharts;
 

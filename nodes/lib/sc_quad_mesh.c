@@ -1103,7 +1103,7 @@ static bool face_stretch(const builder *b, int32_t f, double *l2sq, double *gsq,
  * coordinates re-weighted to reduce stretch (Yoshizawa et al. 2004), keeping
  * the map of least L2 stretch; then record chart coordinates per corner. */
 static int parameterize_quad(builder *b, int32_t q, double **st, int32_t *st_cap, double *sum_l2, double *sum_area,
-                             double *max_g, int32_t *flipped, sc_error *err) {
+                             double *within_l2, double *max_g, int32_t *flipped, sc_error *err) {
     static const double square[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
     bool ok, oom = false;
     int32_t cpos[4];
@@ -1177,6 +1177,7 @@ static int parameterize_quad(builder *b, int32_t q, double **st, int32_t *st_cap
         if (!s) return SC_ENOMEM;
         *st = s, *st_cap = cap;
     }
+    double chart_l2 = 0, chart_area = 0;
     for (int32_t i = 0; i < b->qf[q].n; i++) {
         int32_t f = b->qf[q].a[i];
         for (int k = 0; k < 3; k++) {
@@ -1189,8 +1190,11 @@ static int parameterize_quad(builder *b, int32_t q, double **st, int32_t *st_cap
             continue;
         }
         *sum_l2 += a * l2sq, *sum_area += a;
+        chart_l2 += a * l2sq, chart_area += a;
         if (gsq > *max_g) *max_g = gsq;
     }
+    /* the chart on its own: its unit square scaled to its surface area */
+    if (chart_area > 0) *within_l2 += chart_l2 / chart_area;
     return SC_OK;
 }
 
@@ -1266,9 +1270,9 @@ int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_q
     out->npatches = b.np;
     out->nquads = b.qcorner.n / 4;
     int32_t st_cap = 0;
-    double sum_l2 = 0, sum_area = 0, max_g = 0;
+    double sum_l2 = 0, sum_area = 0, within_l2 = 0, max_g = 0;
     for (int32_t q = 0; q < out->nquads && rc == SC_OK; q++)
-        rc = parameterize_quad(&b, q, &out->st, &st_cap, &sum_l2, &sum_area, &max_g, &out->flipped, err);
+        rc = parameterize_quad(&b, q, &out->st, &st_cap, &sum_l2, &sum_area, &within_l2, &max_g, &out->flipped, err);
     if (rc == SC_OK) {
         out->side_id = malloc((size_t)out->nquads * 4 * sizeof *out->side_id);
         out->side_rev = malloc((size_t)out->nquads * 4);
@@ -1280,6 +1284,7 @@ int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_q
         double norm = sum_area > 0 ? sqrt(out->nquads / sum_area) : 0;
         out->stretch_l2 = sum_area > 0 ? sqrt(sum_l2 / sum_area) * norm : 0;
         out->stretch_linf = sqrt(max_g) * norm;
+        out->stretch_l2_within = sum_area > 0 ? sqrt(within_l2 / sum_area) : 0;
         memcpy(out->sides_hist, b.hist, sizeof b.hist);
     }
     builder_free(&b);

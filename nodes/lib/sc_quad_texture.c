@@ -915,6 +915,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         sc_metric_list_add(ml, "utilisation", covered / ((double)J.W * J.H));
         sc_metric_list_add(ml, "stretch_l2", c.stretch_l2);
         sc_metric_list_add(ml, "stretch_linf", c.stretch_linf);
+        sc_metric_list_add(ml, "stretch_l2_within_charts", c.stretch_l2_within);
         sc_metric_list_add(ml, "flipped_triangles", c.flipped);
         sc_metric_list_add(ml, "boundary_mismatch", (double)mismatch);
         sc_metric_list_add(ml, "shared_texels", (double)shared);
