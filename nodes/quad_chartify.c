@@ -194,7 +194,7 @@ static const sc_param_desc params[] = {
     {.name = "texture_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
      .doc = "the larger side of level 0 in texels; 0: the input's largest texture (1024 without one)"},
     {.name = "chart_texels", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 16385,
-     .doc = "samples per chart side, 2^k + 1; 0: the largest that fits"},
+     .doc = "samples per side of every chart, 2^k + 1; 0: by surface area, one texel density for the atlas"},
     {.name = "target_patches", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 1e9,
      .doc = "stop merging at this many patches; 0: by target_quads"},
     {.name = "target_quads", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 1e9,

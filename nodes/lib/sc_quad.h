@@ -24,9 +24,13 @@
  *   levels    (§4.5) interior samples filter with a 3x3 binomial, border
  *             rows with the 1-D binomial along the border (computed once,
  *             copied), corners keep their value: still seam-free.
- *   layout    "blocks": charts in a grid of cells of 2^k + 2^Lmax texels,
- *             cells aligned to 2^Lmax, so no two charts share a texel at any
- *             level down to the last. Level L is sampled at the level-0 uv
+ *   layout    "blocks": each chart in a cell of 2^k + 2^Lmax texels, cells
+ *             aligned to 2^Lmax (shelf packing), so no two charts share a
+ *             texel at any level down to the last. One texel density for
+ *             the whole atlas: a chart's k follows the mean chart area of
+ *             its connected part (charts that share a side have one size,
+ *             so their border samples copy bit for bit), and the density
+ *             is the largest whose packing fits texture_size. Level L is sampled at the level-0 uv
  *             plus (2^L - 1) / 2 texels of level 0 in u and v (the sampling
  *             rule; sc_quad_level_offset); gutters repeat the chart's border
  *             texels for engines that sample without it.
@@ -43,12 +47,12 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_quad is re-keyed. */
-#define SC_QUAD_VERSION 2
+#define SC_QUAD_VERSION 3
 extern const sc_kernel sc_kernel_quad;
 
 typedef struct sc_quad_options {
     int32_t texture_size;    /* the larger side of level 0, in texels */
-    int32_t chart_texels;    /* samples per chart side (2^k + 1); 0: the largest that fits */
+    int32_t chart_texels;    /* samples per side of every chart (2^k + 1); 0: by area, one density */
     int32_t target_patches;  /* stop merging at this many patches; 0: by target_quads */
     int32_t target_quads;    /* stop merging once the quads would be at most this; 0: fill the texture */
     int32_t min_size;        /* levels down to this larger side; 0: until charts hold 9 samples a side */

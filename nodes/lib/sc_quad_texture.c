@@ -111,7 +111,8 @@ typedef struct slot {
 typedef struct job {
     const sc_mesh *in;
     qcharts *c;
-    int32_t k, lmax, cell, cols, W, H, nlevels, S;
+    int32_t lmax, W, H, nlevels, S;
+    int32_t *kq;           /* per chart: 2^kq + 1 samples a side at level 0 */
     int32_t nslots;
     slot *slots;
     double (*frame)[9];    /* per input face: tangent, bitangent, normal (unit) */
@@ -163,6 +164,9 @@ static const source *old_point(const job *J, const slot *s, int32_t f, const dou
     for (int k = 0; k < 3; k++) *u += ob[k] * J->in->U[2 * (size_t)U[k]], *v += ob[k] * J->in->U[2 * (size_t)U[k] + 1];
     return src;
 }
+
+/* Samples a side of chart q at level L. */
+static int32_t chart_n(const job *J, int32_t q, int32_t L) { return (1 << (J->kq[q] - L)) + 1; }
 
 /* The value of slot s at a point of refined face f with barycentric l. */
 static void sample_point(const job *J, const slot *s, int32_t f, const double l[3], const double newT[3],
@@ -222,7 +226,7 @@ typedef struct sample_task {
 static int sample_chart(void *ud, int32_t q) {
     sample_task *t = ud;
     job *J = t->J;
-    int32_t n = (1 << J->k) + 1, S = J->S, G = n * S;
+    int32_t n = chart_n(J, q, 0), S = J->S, G = n * S;
     int32_t *hit = malloc((size_t)G * G * sizeof *hit);
     double *lam = malloc((size_t)G * G * 3 * sizeof *lam);
     double *acc = calloc((size_t)n * n * 4 * J->nslots, sizeof *acc);
@@ -232,7 +236,7 @@ static int sample_chart(void *ud, int32_t q) {
         return SC_ENOMEM;
     }
     for (int32_t i = 0; i < G * G; i++) hit[i] = -1;
-    double scale = (double)(1 << J->k);
+    double scale = (double)(1 << J->kq[q]);
     for (int32_t i = t->cf.start[q]; i < t->cf.start[q + 1]; i++) {
         int32_t f = t->cf.faces[i];
         const double *st = J->c->st + 6 * (size_t)f;
@@ -320,10 +324,11 @@ static void side_cell(int32_t k, int32_t n, int32_t t, int32_t *i, int32_t *j) {
 
 /* Make every side and corner of level L hold one set of samples: the first
  * chart (in order) that holds a side or corner gives its samples, every
- * other chart gets a bitwise copy, its own direction accounted for. */
+ * other chart gets a bitwise copy, its own direction accounted for. Charts
+ * that share a side have one size (choose_layout sizes whole connected
+ * parts alike). */
 static int share_borders(job *J, int32_t L) {
     qcharts *c = J->c;
-    int32_t n = (1 << (J->k - L)) + 1;
     int32_t *side_owner = malloc((size_t)c->nsides * sizeof *side_owner);
     int32_t *corner_owner = malloc((size_t)c->m.nv * 2 * sizeof *corner_owner);
     if (!side_owner || !corner_owner) {
@@ -333,13 +338,14 @@ static int share_borders(job *J, int32_t L) {
     for (int32_t i = 0; i < c->nsides; i++) side_owner[i] = -1;
     for (int32_t i = 0; i < 2 * c->m.nv; i++) corner_owner[i] = -1;
     for (int32_t q = 0; q < c->nquads; q++) {
+        int32_t n = chart_n(J, q, L);
         for (int k = 0; k < 4; k++) {
             int32_t v = c->corner_v[4 * q + k], ci, cj;
             side_cell(k, n, 0, &ci, &cj);
             if (corner_owner[2 * v] < 0) corner_owner[2 * v] = q, corner_owner[2 * v + 1] = k;
             else {
                 int32_t oq = corner_owner[2 * v], ok = corner_owner[2 * v + 1], oi, oj;
-                side_cell(ok, n, 0, &oi, &oj);
+                side_cell(ok, chart_n(J, oq, L), 0, &oi, &oj);
                 for (int32_t s = 0; s < J->nslots; s++)
                     memcpy(texel(J, &J->slots[s], L, q, ci, cj), texel(J, &J->slots[s], L, oq, oi, oj), 4 * sizeof(float));
             }
@@ -367,10 +373,10 @@ static int share_borders(job *J, int32_t L) {
  * nested sample; along a border, the 1-D binomial along it; corners kept.
  * Borders are then made one again by share_borders. */
 static void filter_level(job *J, int32_t L) {
-    int32_t n1 = (1 << (J->k - L - 1)) + 1;
     for (int32_t s = 0; s < J->nslots; s++) {
         slot *sl = &J->slots[s];
-        for (int32_t q = 0; q < J->c->nquads; q++)
+        for (int32_t q = 0; q < J->c->nquads; q++) {
+            int32_t n1 = chart_n(J, q, L + 1);
             for (int32_t j = 0; j < n1; j++)
                 for (int32_t i = 0; i < n1; i++) {
                     float *o = texel(J, sl, L + 1, q, i, j);
@@ -390,16 +396,18 @@ static void filter_level(job *J, int32_t L) {
                         o[c] = (float)v;
                     }
                 }
+        }
     }
 }
 
 /* Gutters: each chart's right column and top row repeat into the gap after
  * it (for engines that sample without the level offset). */
 static void fill_gutters(job *J, int32_t L) {
-    int32_t n = (1 << (J->k - L)) + 1, g = (J->cell >> L) - n, W = J->W >> L, H = J->H >> L;
+    int32_t W = J->W >> L, H = J->H >> L;
     for (int32_t s = 0; s < J->nslots; s++)
         for (int32_t q = 0; q < J->c->nquads; q++) {
-            int32_t x0 = J->chart_x[q] >> L, y0 = J->chart_y[q] >> L;
+            int32_t x0 = J->chart_x[q] >> L, y0 = J->chart_y[q] >> L, n = chart_n(J, q, L);
+            int32_t g = ((1 << J->kq[q]) >> L) + ((1 << J->lmax) >> L) - n;
             for (int32_t j = 0; j < n + g && y0 + j < H; j++)
                 for (int32_t i = 0; i < n + g && x0 + i < W; i++) {
                     if (i < n && j < n) continue;
@@ -431,31 +439,111 @@ static int32_t level_depth(const sc_quad_options *o, int32_t k) {
     return lmax < 0 ? 0 : lmax;
 }
 
-static int choose_layout(job *J, const sc_quad_options *o, int32_t Q, sc_error *err) {
-    int32_t T = o->texture_size, k = -1;
+/* Shelf packing of the charts in `order` (decreasing size): a shelf is as
+ * tall as its first cell; smaller cells stack in columns inside it. Every
+ * cell is 2^kq + G texels (G = 2^lmax), so every position is a multiple of
+ * G. Returns the height used (INT64_MAX when a cell is wider than T). */
+static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, int32_t *x, int32_t *y, int32_t *width) {
+    int64_t G = (int64_t)1 << J->lmax, shelf_y = 0, shelf_h = 0, col_x = 0, col_w = 0, col_y = 0;
+    *width = 0;
+    for (int32_t i = 0; i < Q; i++) {
+        int32_t q = order[i];
+        int64_t c = ((int64_t)1 << J->kq[q]) + G;
+        if (c > T) return INT64_MAX;
+        if (shelf_h == 0) shelf_h = c, col_x = 0, col_w = c, col_y = 0;
+        else if (!(col_w == c && col_y + c <= shelf_h)) {
+            col_x += col_w, col_w = c, col_y = 0;
+            if (col_x + c > T) shelf_y += shelf_h, shelf_h = c, col_x = 0;
+        }
+        x[q] = (int32_t)col_x, y[q] = (int32_t)(shelf_y + col_y);
+        col_y += c;
+        if (col_x + c > *width) *width = (int32_t)(col_x + c);
+    }
+    return shelf_y + shelf_h;
+}
+
+static int cmp_i64(const void *a, const void *b) {
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The charts by decreasing size, then by index. */
+static void order_by_size(const int32_t *kq, int32_t Q, int64_t *keys, int32_t *order) {
+    for (int32_t q = 0; q < Q; q++) keys[q] = ((int64_t)(63 - kq[q]) << 32) | q;
+    qsort(keys, (size_t)Q, sizeof *keys, cmp_i64);
+    for (int32_t i = 0; i < Q; i++) order[i] = (int32_t)(keys[i] & 0xffffffff);
+}
+
+/* Chart sizes and places. One texel density for every chart (samples per
+ * unit of surface length): chart q gets 2^k + 1 samples a side with k the
+ * nearest to log2(density sqrt(area)), within [lmax + 1, kmax]; the
+ * largest density whose packing fits texture_size is kept (bisection).
+ * chart_texels fixes one size for all. lmax (levels below 0) comes from
+ * min_size, else from the size every chart would have alone. */
+static int choose_layout(job *J, const sc_quad_options *o, const double *area, int32_t Q, sc_error *err) {
+    int32_t T = o->texture_size, ku = -1;
     if (o->chart_texels > 0) {
         int32_t c = o->chart_texels - 1, kk = 0;
         while ((1 << kk) < c) kk++;
         if ((1 << kk) != c || kk < 1)
             return sc_fail(err, SC_EINPUT, "chart_texels: %d is not 2^k + 1 (3, 5, 9, 17, ...)", (int)o->chart_texels);
-        k = kk;
-    } else {
+        ku = kk;
+    } else
         for (int32_t kk = 1; kk <= 14; kk++) {
             int32_t cols, rows;
-            if (layout_fits(kk, level_depth(o, kk), T, Q, &cols, &rows)) k = kk;
+            if (layout_fits(kk, level_depth(o, kk), T, Q, &cols, &rows)) ku = kk;
         }
-        if (k < 0)
-            return sc_fail(err, SC_EINPUT, "texture_size: %d texels cannot hold %d charts of 3 x 3 samples", (int)T, (int)Q);
-    }
-    int32_t cols, rows, lmax = level_depth(o, k);
-    if (!layout_fits(k, lmax, T, Q, &cols, &rows))
-        return sc_fail(err, SC_EINPUT, "texture_size: %d texels cannot hold %d charts of %d samples a side", (int)T, (int)Q,
-                       (1 << k) + 1);
-    J->k = k, J->lmax = lmax, J->cell = (1 << k) + (1 << lmax), J->cols = cols;
-    J->W = (Q < cols ? Q : cols) * J->cell, J->H = rows * J->cell, J->nlevels = lmax + 1;
+    if (ku < 0)
+        return sc_fail(err, SC_EINPUT, "texture_size: %d texels cannot hold %d charts of 3 x 3 samples", (int)T, (int)Q);
+    J->lmax = level_depth(o, ku), J->nlevels = J->lmax + 1;
+    int32_t kmin = o->chart_texels > 0 ? ku : J->lmax + 1, kmax = o->chart_texels > 0 ? ku : ku + 4;
+    while (kmax > kmin && ((int64_t)1 << kmax) + ((int64_t)1 << J->lmax) > T) kmax--;
+    J->kq = malloc((size_t)Q * sizeof *J->kq);
     J->chart_x = malloc((size_t)Q * sizeof *J->chart_x), J->chart_y = malloc((size_t)Q * sizeof *J->chart_y);
-    if (!J->chart_x || !J->chart_y) return SC_ENOMEM;
-    for (int32_t q = 0; q < Q; q++) J->chart_x[q] = (q % cols) * J->cell, J->chart_y[q] = (q / cols) * J->cell;
+    int32_t *order = malloc((size_t)Q * sizeof *order), *best = malloc((size_t)Q * sizeof *best);
+    int64_t *keys = malloc((size_t)Q * sizeof *keys);
+    if (!J->kq || !J->chart_x || !J->chart_y || !order || !best || !keys) {
+        free(order), free(best), free(keys);
+        return SC_ENOMEM;
+    }
+    double total = 0;
+    for (int32_t q = 0; q < Q; q++) total += area[q];
+    /* density bounds: every chart at kmin, every chart at kmax */
+    double lo = 0, hi = ((double)((int64_t)1 << kmax) * 4) / sqrt(total / Q > 0 ? total / Q : 1) * 64;
+    bool found = false;
+    int32_t width = 0;
+    for (int it = 0; it < 60; it++) {
+        double d = it == 0 ? 0 : 0.5 * (lo + hi);
+        for (int32_t q = 0; q < Q; q++) {
+            double x = d * sqrt(area[q] > 0 ? area[q] : 0);
+            int32_t k = x > 1 ? (int32_t)lround(log2(x)) : 0;
+            J->kq[q] = k < kmin ? kmin : k > kmax ? kmax : k;
+        }
+        order_by_size(J->kq, Q, keys, order);
+        int32_t w;
+        int64_t h = pack(J, order, Q, T, J->chart_x, J->chart_y, &w);
+        if (h <= T) {
+            found = true, width = w;
+            J->H = (int32_t)h;
+            memcpy(best, J->kq, (size_t)Q * sizeof *best);
+            if (it > 0) lo = d;
+        } else if (it == 0)
+            break;
+        else
+            hi = d;
+        if (o->chart_texels > 0) break;
+    }
+    if (!found) {
+        free(order), free(best), free(keys);
+        return sc_fail(err, SC_EINPUT, "texture_size: %d texels cannot hold %d charts of %d samples a side", (int)T,
+                       (int)Q, (1 << kmin) + 1);
+    }
+    memcpy(J->kq, best, (size_t)Q * sizeof *best);
+    order_by_size(J->kq, Q, keys, order);
+    int32_t w;
+    J->H = (int32_t)pack(J, order, Q, T, J->chart_x, J->chart_y, &w);
+    J->W = w > width ? w : width;
+    free(order), free(best), free(keys);
     return SC_OK;
 }
 
@@ -485,13 +573,13 @@ static sc_mesh *output_mesh(const job *J, const sc_mesh *in) {
     if (!o) { free(keys); return NULL; }
     memcpy(o->V, m->pos, (size_t)m->nv * 3 * sizeof(double));
     memcpy(o->FV, m->tri, nc * sizeof(int32_t));
-    double span = (double)(1 << J->k);
     int32_t u = -1;
     for (size_t i = 0; i < nc; i++) {
         if (i == 0 || keys[i].quad != keys[i - 1].quad || keys[i].vertex != keys[i - 1].vertex) {
             u++;
             int32_t h = keys[i].corner, q = keys[i].quad;
             const double *st = J->c->st + 6 * (size_t)(h / 3) + 2 * (h % 3);
+            double span = (double)(1 << J->kq[q]);
             o->U[2 * (size_t)u] = (J->chart_x[q] + 0.5 + st[0] * span) / J->W;
             o->U[2 * (size_t)u + 1] = (J->chart_y[q] + 0.5 + st[1] * span) / J->H;
         }
@@ -536,7 +624,7 @@ static sc_image_data *encode_level(const job *J, const slot *s, int32_t L) {
  * or corner, at level L of image im. */
 static int64_t border_mismatch(const job *J, const sc_image_data *im, int32_t L) {
     const qcharts *c = J->c;
-    int32_t n = (1 << (J->k - L)) + 1, W = im->width;
+    int32_t W = im->width;
     size_t bpp = (size_t)im->channels * im->pixel;
     int32_t *first = malloc((size_t)c->nsides * sizeof *first);
     if (!first) return -1;
@@ -547,7 +635,8 @@ static int64_t border_mismatch(const job *J, const sc_image_data *im, int32_t L)
         for (int k = 0; k < 4; k++) {
             int32_t sid = c->side_id[4 * q + k];
             if (first[sid] < 0) { first[sid] = 4 * q + k; continue; }
-            int32_t oq = first[sid] / 4, ok = first[sid] % 4;
+            int32_t oq = first[sid] / 4, ok = first[sid] % 4, n = chart_n(J, q, L);
+            if (chart_n(J, oq, L) != n) { bad += n; continue; }
             bool same = c->side_rev[4 * q + k] == c->side_rev[4 * oq + ok];
             for (int32_t t = 0; t < n; t++) {
                 int32_t i, j, oi, oj;
@@ -560,6 +649,13 @@ static int64_t border_mismatch(const job *J, const sc_image_data *im, int32_t L)
         }
     free(first);
     return bad;
+}
+
+/* Samples of every chart at level 0. */
+static double chart_samples(const job *J) {
+    double n = 0;
+    for (int32_t q = 0; q < J->c->nquads; q++) n += (double)chart_n(J, q, 0) * chart_n(J, q, 0);
+    return n;
 }
 
 /* Texels that the bilinear footprints of two charts' triangles both reach
@@ -643,7 +739,7 @@ static int surface_psnr(const job *J, const slot *s, const sc_image_data *im, co
     *psnr = *floor_psnr = NAN;
     if (npts <= 0) return SC_OK;
     int32_t nmat = J->in->nmat;
-    double old_texels = 0, new_texels = (double)J->c->nquads * ((1 << J->k) + 1) * ((1 << J->k) + 1);
+    double old_texels = 0, new_texels = chart_samples(J);
     for (int32_t mat = 0; mat < nmat; mat++) {
         const source *src = &s->by_material[mat];
         if (!src->px) continue;
@@ -717,6 +813,38 @@ static int surface_psnr(const job *J, const slot *s, const sc_image_data *im, co
     return SC_OK;
 }
 
+/* Charts that share a side must have one size (their border samples are
+ * copied bit for bit), so sizes go by connected part: each chart's area is
+ * replaced by the mean chart area of its part (charts joined by sides). */
+static int part_mean_areas(const qcharts *c, double *area) {
+    int32_t Q = c->nquads;
+    int32_t *parent = malloc((size_t)Q * sizeof *parent), *holder = malloc((size_t)c->nsides * sizeof *holder);
+    double *sum = calloc((size_t)Q, sizeof *sum), *count = calloc((size_t)Q, sizeof *count);
+    if (!parent || !holder || !sum || !count) {
+        free(parent), free(holder), free(sum), free(count);
+        return SC_ENOMEM;
+    }
+    for (int32_t q = 0; q < Q; q++) parent[q] = q;
+    for (int32_t i = 0; i < c->nsides; i++) holder[i] = -1;
+    for (int32_t q = 0; q < Q; q++)
+        for (int k = 0; k < 4; k++) {
+            int32_t sid = c->side_id[4 * q + k];
+            if (holder[sid] < 0) { holder[sid] = q; continue; }
+            int32_t x = q, y = holder[sid];
+            while (parent[x] != x) x = parent[x] = parent[parent[x]];
+            while (parent[y] != y) y = parent[y] = parent[parent[y]];
+            if (x != y) parent[x] = y;
+        }
+    for (int32_t q = 0; q < Q; q++) {
+        int32_t r = q;
+        while (parent[r] != r) r = parent[r];
+        parent[q] = r, sum[r] += area[q], count[r] += 1;
+    }
+    for (int32_t q = 0; q < Q; q++) area[q] = sum[parent[q]] / count[parent[q]];
+    free(parent), free(holder), free(sum), free(count);
+    return SC_OK;
+}
+
 /* ---------------------------------------------------------------- the whole build */
 
 static void job_free(job *J) {
@@ -731,7 +859,7 @@ static void job_free(job *J) {
                 for (int32_t L = 0; L < J->nlevels; L++) free(sl->level[L]);
             free(sl->level);
         }
-    free(J->slots), free(J->frame), free(J->chart_x), free(J->chart_y);
+    free(J->slots), free(J->frame), free(J->chart_x), free(J->chart_y), free(J->kq);
 }
 
 static int setup_slots(job *J, const sc_texture *tex, int32_t ntex) {
@@ -832,7 +960,17 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
     double t1 = now_seconds();
     job J = {0};
     J.in = m, J.c = &c, J.S = o->supersample > 0 ? o->supersample : 1;
-    rc = choose_layout(&J, o, c.nquads, err);
+    double *area = calloc((size_t)c.nquads + 1, sizeof *area);
+    if (!area) rc = SC_ENOMEM;
+    for (int32_t f = 0; f < c.m.nf && rc == SC_OK; f++) {
+        const int32_t *F = c.m.tri + 3 * (size_t)f;
+        double nrm[3];
+        sc_triangle_normal(c.m.pos + 3 * (size_t)F[0], c.m.pos + 3 * (size_t)F[1], c.m.pos + 3 * (size_t)F[2], nrm);
+        area[c.m.quad[f]] += 0.5 * sc_norm3(nrm);
+    }
+    if (rc == SC_OK) rc = part_mean_areas(&c, area);
+    if (rc == SC_OK) rc = choose_layout(&J, o, area, c.nquads, err);
+    free(area);
     if (rc == SC_OK) rc = setup_slots(&J, tex, ntex);
     if (rc == SC_OK) {
         J.frame = malloc((size_t)m->nf * sizeof *J.frame);
@@ -898,7 +1036,9 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
             sc_metric_list_add(ml, name, (double)sh);
             shared += sh < 0 ? 0 : sh;
         }
-        double covered = (double)c.nquads * ((1 << J.k) + 1) * ((1 << J.k) + 1);
+        double covered = chart_samples(&J);
+        int32_t kmin = 30, kmax = 0;
+        for (int32_t q = 0; q < c.nquads; q++) kmin = J.kq[q] < kmin ? J.kq[q] : kmin, kmax = J.kq[q] > kmax ? J.kq[q] : kmax;
         sc_metric_list_add(ml, "patches", c.npatches);
         sc_metric_list_add(ml, "quads", c.nquads);
         static const char *const hist[9] = {"patches_3_sided", "patches_4_sided", "patches_5_sided", "patches_6_sided",
@@ -907,7 +1047,8 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         for (int i = 0; i < 9; i++) sc_metric_list_add(ml, hist[i], c.sides_hist[i]);
         sc_metric_list_add(ml, "faces_in", m->nf);
         sc_metric_list_add(ml, "faces_out", c.m.nf);
-        sc_metric_list_add(ml, "chart_texels", (1 << J.k) + 1);
+        sc_metric_list_add(ml, "chart_texels_min", (1 << kmin) + 1);
+        sc_metric_list_add(ml, "chart_texels_max", (1 << kmax) + 1);
         sc_metric_list_add(ml, "width", J.W);
         sc_metric_list_add(ml, "height", J.H);
         sc_metric_list_add(ml, "levels", J.nlevels);
