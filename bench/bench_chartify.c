@@ -62,6 +62,7 @@ typedef struct result {
     int ok;
     double seconds, peak_mb, rss_mb, load_s;
     double charts, patches, utilisation, stretch_l2, levels, mismatch, shared;
+    double faces_in, faces_out, straight_cuts;
     double stage[5];             /* seconds_charts, _sample, _levels, _encode, _measure */
     int nslots;
     char slot[MAX_SLOTS][24];
@@ -173,6 +174,9 @@ static int run_quad(void *ud, int out) {
     r.levels = metric(ml, "levels");
     r.mismatch = metric(ml, "boundary_mismatch");
     r.shared = metric(ml, "shared_texels");
+    r.faces_in = metric(ml, "faces_in");
+    r.faces_out = metric(ml, "faces_out");
+    r.straight_cuts = metric(ml, "patches_cut_straight");
     r.width = q.width, r.height = q.height;
     for (int i = 0; i < 5; i++) r.stage[i] = metric(ml, stage_names[i]);
     for (int32_t i = 0; i < ml->count; i++) {
@@ -383,6 +387,8 @@ int main(int argc, char **argv) {
             double side = assets[k].texture_size;
             printf("%-8s         utilisation %.4f of the %dx%d atlas made, %.4f of %d^2\n", "", r->utilisation,
                    r->width, r->height, r->utilisation * r->width * r->height / (side * side), assets[k].texture_size);
+            printf("%-8s         faces %.0f -> %.0f (x%.3f), patches cut straight %.0f\n", "", r->faces_in,
+                   r->faces_out, r->faces_in > 0 ? r->faces_out / r->faces_in : 0, r->straight_cuts);
             printf("%-8s         seconds: charts %.2f, sample %.2f, levels %.2f, encode %.2f, measure %.2f\n", "",
                    r->stage[0], r->stage[1], r->stage[2], r->stage[3], r->stage[4]);
             printf("%-8s         psnr:", "");

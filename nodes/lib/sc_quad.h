@@ -10,9 +10,12 @@
  *             not at all. Corners are the vertices where three regions (two
  *             patches and the mesh border, or three patches) meet.
  *   quads     (§4.2) each n-sided patch is mapped harmonically onto a
- *             regular n-gon; straight cuts from its centre to the median of
- *             each side split it into n quads (triangles are split where a
- *             cut crosses them, so a cut always exists).
+ *             regular n-gon and cut into n quads by paths from a centre
+ *             vertex to the median of each side: shortest paths along mesh
+ *             edges near the straight domain segment, crossing an edge at
+ *             its middle only where they must. Where no such set of paths
+ *             exists, straight cuts in the domain (splitting every triangle
+ *             they cross, so a cut always exists).
  *   charts    (§4.3) each quad maps onto the unit square: sides by arc
  *             length, the interior by mean-value coordinates, then
  *             stretch-reducing re-weighting (a Tutte map stays one-to-one).
@@ -47,7 +50,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_quad is re-keyed. */
-#define SC_QUAD_VERSION 3
+#define SC_QUAD_VERSION 4
 extern const sc_kernel sc_kernel_quad;
 
 typedef struct sc_quad_options {

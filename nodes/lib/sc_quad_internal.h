@@ -43,6 +43,7 @@ typedef struct qcharts {
     double stretch_l2, stretch_linf;   /* of the atlas: every chart the same size */
     double stretch_l2_within;          /* each chart scaled to its own surface area */
     int32_t flipped;
+    int32_t straight_cuts;    /* patches cut by straight domain segments, not along edges */
 } qcharts;
 
 /* Patches, quads and chart maps of input mesh `in` (positions and faces). */

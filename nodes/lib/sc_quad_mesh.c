@@ -2,9 +2,10 @@
  * (Purnomo et al. 2004 §4.1-4.3; the method is described in sc_quad.h).
  *
  * The mesh is refined where the construction needs a vertex that is not
- * there: a side's median inside an edge, a patch's centre, the points where
- * a cut crosses an edge, an edge that would put a triangle flat on a chart's
- * side. Refinement splits triangles in their own plane, so the surface is
+ * there: a side's median inside an edge, a patch's centre and the fan
+ * around it, the middle of an edge a cut must cross (or every crossing of a
+ * straight cut, where paths along edges fail), an edge that would put a
+ * triangle flat on a chart's side. Refinement splits triangles in their own plane, so the surface is
  * unchanged; each new face remembers the input face it lies in.
  */
 #include <float.h>
@@ -601,6 +602,7 @@ typedef struct builder {
     int32_t vcap;
     ivec label;
     int32_t hist[9];
+    int32_t straight_cuts;   /* patches cut by straight segments (no paths along edges) */
 } builder;
 
 static bool b_fit(builder *b) {
@@ -999,6 +1001,378 @@ static int32_t insert_centre(builder *b, int32_t p) {
     return w;
 }
 
+/* ---------------------------------------------------------------- cuts along edges (§4.2) */
+
+typedef struct dnode {
+    double d;
+    int32_t v;
+} dnode;
+
+static bool dheap_push(dnode **h, int32_t *n, int32_t *cap, dnode x) {
+    if (*n == *cap) {
+        int32_t c = *cap ? 2 * *cap : 256;
+        dnode *a = realloc(*h, (size_t)c * sizeof *a);
+        if (!a) return false;
+        *h = a, *cap = c;
+    }
+    int32_t i = (*n)++;
+    while (i > 0 && (*h)[(i - 1) / 2].d > x.d) (*h)[i] = (*h)[(i - 1) / 2], i = (i - 1) / 2;
+    (*h)[i] = x;
+    return true;
+}
+
+static dnode dheap_pop(dnode *h, int32_t *n) {
+    dnode top = h[0], x = h[--*n];
+    int32_t i = 0;
+    for (;;) {
+        int32_t c = 2 * i + 1;
+        if (c >= *n) break;
+        if (c + 1 < *n && h[c + 1].d < h[c].d) c++;
+        if (h[c].d >= x.d) break;
+        h[i] = h[c], i = c;
+    }
+    if (*n > 0) h[i] = x;
+    return top;
+}
+
+/* Distance in the domain from point P to the segment O-M. */
+static double segment_distance(const double *O, const double *M, const double *P) {
+    double dx = M[0] - O[0], dy = M[1] - O[1], l2 = dx * dx + dy * dy;
+    double t = l2 > 0 ? ((P[0] - O[0]) * dx + (P[1] - O[1]) * dy) / l2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    return hypot(P[0] - O[0] - t * dx, P[1] - O[1] - t * dy);
+}
+
+/* Split the edge of half-edge h at its middle, the new vertex inside the
+ * current region (side -1) at the middle of the edge's domain image. */
+static int32_t split_inner_edge(builder *b, int32_t h) {
+    int32_t va = b->m->tri[h], vb = b->m->tri[qm_next(h)];
+    double x = 0.5 * (b->xy[2 * (size_t)va] + b->xy[2 * (size_t)vb]);
+    double y = 0.5 * (b->xy[2 * (size_t)va + 1] + b->xy[2 * (size_t)vb + 1]);
+    int32_t w = b_split_edge(b, h, 0.5);
+    if (w >= 0) b->xy[2 * (size_t)w] = x, b->xy[2 * (size_t)w + 1] = y, b->side[w] = -1;
+    return w;
+}
+
+/* Inner neighbours of inner vertex v in patch p (one per face around it). */
+static int32_t inner_neighbours(const builder *b, int32_t p, int32_t v) {
+    int32_t n = 0;
+    for (int32_t i = 0; i < b->pf[p].n; i++) {
+        const int32_t *F = b->m->tri + 3 * (size_t)b->pf[p].a[i];
+        for (int k = 0; k < 3; k++)
+            if (F[k] == v) n += b->side[F[(k + 1) % 3]] == -1;
+    }
+    return n;
+}
+
+/* The centre of patch p for cuts along edges: the inner vertex nearest the
+ * domain origin (an inner edge split at its middle when the patch has no
+ * inner vertex), given n inner neighbours by splitting the edges opposite
+ * it in its widest faces, two faces each. -1 when the patch has no inner
+ * edge either. */
+static int centre_vertex(builder *b, int32_t p, int32_t n, int32_t *c) {
+    qmesh *m = b->m;
+    double best = INFINITY;
+    int32_t besth = -1;
+    *c = -1;
+    for (int32_t i = 0; i < b->pf[p].n; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t h = 3 * b->pf[p].a[i] + k, v = m->tri[h], vn = m->tri[qm_next(h)];
+            double r = hypot(b->xy[2 * (size_t)v], b->xy[2 * (size_t)v + 1]);
+            if (b->side[v] == -1 && r < best) best = r, *c = v, besth = -1;
+            if (*c < 0 && m->opp[h] >= 0 && m->patch[m->opp[h] / 3] == p) {
+                r = 0.5 * hypot(b->xy[2 * (size_t)v] + b->xy[2 * (size_t)vn], b->xy[2 * (size_t)v + 1] + b->xy[2 * (size_t)vn + 1]);
+                if (r < best) best = r, besth = h;
+            }
+        }
+    if (*c < 0 && besth >= 0 && (*c = split_inner_edge(b, besth)) < 0) return SC_ENOMEM;
+    if (*c < 0) return SC_OK;
+    for (int32_t guard = 0; guard < 2 * n && inner_neighbours(b, p, *c) < n; guard++) {
+        int32_t widest = -1;
+        double angle = -1;
+        for (int32_t i = 0; i < b->pf[p].n; i++) {
+            int32_t f = b->pf[p].a[i];
+            for (int k = 0; k < 3; k++) {
+                int32_t h = 3 * f + (k + 1) % 3, o = m->opp[h];   /* the edge opposite corner k */
+                if (m->tri[3 * (size_t)f + k] != *c || o < 0 || m->patch[o / 3] != p) continue;
+                const double *V = b->xy + 2 * (size_t)*c, *A = b->xy + 2 * (size_t)m->tri[h];
+                const double *B = b->xy + 2 * (size_t)m->tri[qm_next(h)];
+                double ax = A[0] - V[0], ay = A[1] - V[1], bx = B[0] - V[0], by = B[1] - V[1];
+                double a = atan2(fabs(ax * by - ay * bx), ax * bx + ay * by);
+                if (a > angle) angle = a, widest = h;
+            }
+        }
+        if (widest < 0) break;
+        if (split_inner_edge(b, widest) < 0) return SC_ENOMEM;
+    }
+    return SC_OK;
+}
+
+/* The graph paths run on: the patch's vertices (numbered in b->local) and
+ * the middle of every inner edge, where a path may cross the edge (split
+ * there only if a path takes it). A link joins two vertices along an edge
+ * (lmid: that edge's middle, which a path along it blocks), or crosses face
+ * lface from an edge's middle to the face's opposite vertex or to another
+ * of its edges' middles. Node i's links are [start[i], start[i + 1]). */
+typedef struct path_graph {
+    ivec verts;               /* node i < verts.n: mesh vertex verts.a[i] */
+    ivec mid_ends;            /* node verts.n + j: the middle of edge (mid_ends[2j], mid_ends[2j + 1]) */
+    ivec mid_faces;           /* its two faces (indices into the patch's face list) */
+    int32_t *start, *nb, *lface, *lmid;
+    double *xy;               /* 2 per node */
+} path_graph;
+
+static void path_graph_free(builder *b, path_graph *g) {
+    for (int32_t i = 0; i < g->verts.n; i++) b->local[g->verts.a[i]] = -1;
+    free(g->verts.a), free(g->mid_ends.a), free(g->mid_faces.a);
+    free(g->start), free(g->nb), free(g->lface), free(g->lmid), free(g->xy);
+    memset(g, 0, sizeof *g);
+}
+
+static int path_graph_build(builder *b, int32_t p, path_graph *g) {
+    qmesh *m = b->m;
+    const ivec *pf = &b->pf[p];
+    memset(g, 0, sizeof *g);
+    int32_t nf = pf->n;
+    int32_t *mid = malloc((size_t)nf * 3 * sizeof *mid);   /* per face edge: its middle's node, or -1 */
+    edge_key *keys = malloc((size_t)nf * 3 * sizeof *keys);
+    int rc = mid && keys ? SC_OK : SC_ENOMEM;
+    for (int32_t i = 0; i < nf && rc == SC_OK; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t v = m->tri[3 * (size_t)pf->a[i] + k];
+            if (b->local[v] >= 0) continue;
+            b->local[v] = g->verts.n;
+            if (!iv_push(&g->verts, v)) { rc = SC_ENOMEM; break; }
+        }
+    int32_t nk = 0, nv = g->verts.n;
+    for (int32_t i = 0; i < nf && rc == SC_OK; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t h = 3 * pf->a[i] + k, o = m->opp[h], va = m->tri[h], vb = m->tri[qm_next(h)];
+            mid[3 * i + k] = -1;
+            if (o >= 0 && m->patch[o / 3] == p) keys[nk++] = (edge_key){va < vb ? va : vb, va < vb ? vb : va, 3 * i + k};
+        }
+    if (rc == SC_OK) qsort(keys, (size_t)nk, sizeof *keys, cmp_edge_key);
+    for (int32_t j = 0; j < nk && rc == SC_OK; j++) {
+        bool fresh = j == 0 || keys[j].lo != keys[j - 1].lo || keys[j].hi != keys[j - 1].hi;
+        if (fresh && (!iv_push(&g->mid_ends, keys[j].lo) || !iv_push(&g->mid_ends, keys[j].hi) ||
+                      !iv_push(&g->mid_faces, keys[j].h / 3) || !iv_push(&g->mid_faces, keys[j].h / 3)))
+            rc = SC_ENOMEM;
+        if (!fresh && rc == SC_OK) g->mid_faces.a[g->mid_faces.n - 1] = keys[j].h / 3;
+        mid[keys[j].h] = nv + g->mid_ends.n / 2 - 1;
+    }
+    int32_t nn = nv + g->mid_ends.n / 2;
+    g->start = calloc((size_t)nn + 1, sizeof *g->start);
+    g->xy = malloc((size_t)nn * 2 * sizeof *g->xy);
+    if (rc == SC_OK && (!g->start || !g->xy)) rc = SC_ENOMEM;
+    for (int pass = 0; pass < 2 && rc == SC_OK; pass++) {
+        int32_t *fill = NULL;
+        if (pass == 1) {
+            for (int32_t i = 0; i < nn; i++) g->start[i + 1] += g->start[i];
+            size_t nl = (size_t)g->start[nn];
+            g->nb = malloc(nl * sizeof *g->nb), g->lface = malloc(nl * sizeof *g->lface);
+            g->lmid = malloc(nl * sizeof *g->lmid), fill = malloc((size_t)nn * sizeof *fill);
+            if (!g->nb || !g->lface || !g->lmid || !fill) { free(fill); rc = SC_ENOMEM; break; }
+            memcpy(fill, g->start, (size_t)nn * sizeof *fill);
+        }
+        for (int32_t i = 0; i < nf; i++) {
+            const int32_t *F = m->tri + 3 * (size_t)pf->a[i];
+            for (int k = 0; k < 3; k++) {
+                int32_t a = b->local[F[k]], z = b->local[F[(k + 1) % 3]], apex = b->local[F[(k + 2) % 3]];
+                int32_t md = mid[3 * i + k], md2 = mid[3 * i + (k + 1) % 3];
+                /* along the edge (inner edges only), then across the face */
+                int32_t links[3][4] = {{md >= 0 ? a : -1, z, -1, md}, {md, apex, i, -1}, {md, md2, i, -1}};
+                for (int l = 0; l < 3; l++) {
+                    int32_t x = links[l][0], y = links[l][1];
+                    if (x < 0 || y < 0) continue;
+                    if (pass == 0) {
+                        g->start[x + 1]++, g->start[y + 1]++;
+                        continue;
+                    }
+                    g->nb[fill[x]] = y, g->lface[fill[x]] = links[l][2], g->lmid[fill[x]++] = links[l][3];
+                    g->nb[fill[y]] = x, g->lface[fill[y]] = links[l][2], g->lmid[fill[y]++] = links[l][3];
+                }
+            }
+        }
+        free(fill);
+    }
+    for (int32_t i = 0; i < nv && rc == SC_OK; i++)
+        g->xy[2 * i] = b->xy[2 * (size_t)g->verts.a[i]], g->xy[2 * i + 1] = b->xy[2 * (size_t)g->verts.a[i] + 1];
+    for (int32_t j = 0; j < g->mid_ends.n / 2 && rc == SC_OK; j++) {
+        int32_t va = g->mid_ends.a[2 * j], vb = g->mid_ends.a[2 * j + 1];
+        g->xy[2 * (nv + j)] = 0.5 * (b->xy[2 * (size_t)va] + b->xy[2 * (size_t)vb]);
+        g->xy[2 * (nv + j) + 1] = 0.5 * (b->xy[2 * (size_t)va + 1] + b->xy[2 * (size_t)vb + 1]);
+    }
+    free(mid), free(keys);
+    if (rc) path_graph_free(b, g);
+    return rc;
+}
+
+/* Split the inner edge of patch p between vertices va and vb at its middle
+ * (found by its ends: earlier splits renumber half-edges). */
+static int32_t split_edge_between(builder *b, int32_t p, int32_t va, int32_t vb) {
+    for (int32_t i = 0; i < b->pf[p].n; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t h = 3 * b->pf[p].a[i] + k;
+            if (b->m->tri[h] == va && b->m->tri[qm_next(h)] == vb) return split_inner_edge(b, h);
+        }
+    return -2;
+}
+
+/* Cut patch p into its n quads along mesh edges, as the paper does: a
+ * centre vertex c and, for each side s, the cheapest path from c to the
+ * side's median med[s] near the straight domain segment between them. A
+ * path runs along inner edges, or across a face through the middle of an
+ * edge where it must (that edge is then split, costing two faces); it
+ * shares no node with the other paths and crosses no face another path
+ * crosses or splits. The paths meet only at c and cut the disc into n
+ * sectors, sector s holding corner cor[s]; each face of sector s gets
+ * m->quad = -2 - s. *ok is false (the mesh refined only in its plane) when
+ * no such set of paths exists: no inner edge, a path blocked by the others,
+ * or sectors that do not hold one corner each. */
+static int cut_paths(builder *b, int32_t p, const int32_t *cor, const int32_t *med, int32_t n, int32_t *c_out,
+                     bool *ok) {
+    qmesh *m = b->m;
+    *ok = false;
+    int32_t cv;
+    int rc = centre_vertex(b, p, n, &cv);
+    if (rc || cv < 0) return rc;
+    path_graph g;
+    if ((rc = path_graph_build(b, p, &g))) return rc;
+    int32_t nv = g.verts.n, nn = nv + g.mid_ends.n / 2, c = b->local[cv], hn = 0, hcap = 0;
+    int32_t nfp = b->pf[p].n;
+    int32_t *prev = malloc((size_t)nn * sizeof *prev), *via = malloc((size_t)nn * sizeof *via);
+    int32_t *owner = malloc((size_t)nn * sizeof *owner);   /* the median a node touches, -2 several, -1 none */
+    uint8_t *used = calloc((size_t)nn, 1), *ring = calloc((size_t)nn, 1), *crossed = calloc((size_t)nfp, 1);
+    double *dist = malloc((size_t)nn * sizeof *dist);
+    dnode *dheap = NULL;
+    ivec path = {0}, pathv = {0}, fq = {0};   /* the paths' nodes, c excluded, each ended by -1 */
+    if (!used || !prev || !via || !dist || !ring || !crossed || !owner) { rc = SC_ENOMEM; goto done; }
+    /* c's neighbours are each only a path's first node, and a median's
+     * neighbours serve only its own path, so no path takes another's way in */
+    for (int32_t e = g.start[c]; e < g.start[c + 1]; e++) ring[g.nb[e]] = 1;
+    for (int32_t i = 0; i < nn; i++) owner[i] = -1;
+    for (int32_t s = 0; s < n; s++) {
+        int32_t t = b->local[med[s]];
+        for (int32_t e = g.start[t]; e < g.start[t + 1]; e++) {
+            int32_t w = g.nb[e];
+            owner[w] = owner[w] == -1 || owner[w] == s ? s : -2;
+        }
+    }
+    /* three tries: the paths in side order; with each median's neighbours
+     * kept for its own path; the same in reverse order */
+    const double *O = g.xy + 2 * (size_t)c;
+    bool found = false;
+    for (int attempt = 0; attempt < 3 && !found; attempt++) {
+        path.n = 0;
+        memset(used, 0, (size_t)nn), memset(crossed, 0, (size_t)nfp);
+        found = true;
+        for (int32_t k = 0; k < n && found; k++) {
+            int32_t s = attempt == 2 ? n - 1 - k : k;
+            int32_t target = b->local[med[s]];
+            const double *M = g.xy + 2 * (size_t)target;
+            double seg = hypot(M[0] - O[0], M[1] - O[1]) + 1e-300;
+            for (int32_t i = 0; i < nn; i++) dist[i] = INFINITY, prev[i] = -1;
+            dist[c] = 0, hn = 0;
+            if (!dheap_push(&dheap, &hn, &hcap, (dnode){0, c})) { rc = SC_ENOMEM; goto done; }
+            while (hn > 0) {
+                dnode x = dheap_pop(dheap, &hn);
+                if (x.d > dist[x.v]) continue;
+                if (x.v == target) break;
+                const double *A = g.xy + 2 * (size_t)x.v;
+                for (int32_t e = g.start[x.v]; e < g.start[x.v + 1]; e++) {
+                    int32_t w = g.nb[e];
+                    if (w != target && (used[w] || w == c || (w < nv && b->side[g.verts.a[w]] != -1) ||
+                                        (ring[w] && x.v != c) || (attempt > 0 && owner[w] >= 0 && owner[w] != s)))
+                        continue;
+                    if ((g.lface[e] >= 0 && crossed[g.lface[e]]) || (g.lmid[e] >= 0 && used[g.lmid[e]])) continue;
+                    const double *B = g.xy + 2 * (size_t)w;
+                    double len = hypot(B[0] - A[0], B[1] - A[1]);
+                    double off = 0.5 * (segment_distance(O, M, A) + segment_distance(O, M, B));
+                    double d = x.d + len * (1 + 8 * off / seg) * (g.lface[e] >= 0 ? 2 : 1) + 1e-9 * seg;
+                    if (d < dist[w]) {
+                        dist[w] = d, prev[w] = x.v, via[w] = e;
+                        if (!dheap_push(&dheap, &hn, &hcap, (dnode){d, w})) { rc = SC_ENOMEM; goto done; }
+                    }
+                }
+            }
+            if (prev[target] < 0) {
+                found = false;
+                break;
+            }
+            int32_t first = path.n;
+            for (int32_t w = target; w != c; w = prev[w]) {
+                int32_t e = via[w];
+                used[w] = 1;
+                if (g.lmid[e] >= 0) used[g.lmid[e]] = 1;
+                if (g.lface[e] >= 0) crossed[g.lface[e]] = 1;
+                if (w >= nv) crossed[g.mid_faces.a[2 * (w - nv)]] = crossed[g.mid_faces.a[2 * (w - nv) + 1]] = 1;
+                if (!iv_push(&path, w)) { rc = SC_ENOMEM; goto done; }
+            }
+            for (int32_t i = first, j = path.n - 1; i < j; i++, j--) {
+                int32_t t = path.a[i];
+                path.a[i] = path.a[j], path.a[j] = t;
+            }
+            if (!iv_push(&path, -1)) { rc = SC_ENOMEM; goto done; }
+        }
+    }
+    if (!found) goto done;
+    /* the paths as mesh vertices, splitting each edge they cross */
+    for (int32_t i = 0; i < path.n; i++) {
+        int32_t x = path.a[i], v = x < nv ? (x < 0 ? -1 : g.verts.a[x])
+                                           : split_edge_between(b, p, g.mid_ends.a[2 * (x - nv)], g.mid_ends.a[2 * (x - nv) + 1]);
+        if (v == -2) goto done;   /* an edge split away by an earlier cut: no sectors */
+        if (x >= nv && v < 0) { rc = SC_ENOMEM; goto done; }
+        if (!iv_push(&pathv, v)) { rc = SC_ENOMEM; goto done; }
+    }
+    /* sectors: faces flooded from each corner, never across a path edge
+     * (b->local of a path vertex: its index in pathv) */
+    for (int32_t i = 0; i < nv; i++) b->local[g.verts.a[i]] = -1;
+    g.verts.n = 0;
+    for (int32_t i = 0; i < pathv.n && rc == SC_OK; i++)
+        if (pathv.a[i] >= 0) {
+            b->local[pathv.a[i]] = i;
+            if (!iv_push(&g.verts, pathv.a[i])) rc = SC_ENOMEM;   /* so path_graph_free clears them */
+        }
+    const ivec *pf = &b->pf[p];
+    for (int32_t s = 0; s < n && rc == SC_OK; s++) {
+        fq.n = 0;
+        for (int32_t i = 0; i < pf->n && fq.n == 0; i++) {
+            const int32_t *F = m->tri + 3 * (size_t)pf->a[i];
+            if (F[0] != cor[s] && F[1] != cor[s] && F[2] != cor[s]) continue;
+            if (m->quad[pf->a[i]] != -1) goto unmark;   /* the corner lies in another sector */
+            m->quad[pf->a[i]] = -2 - s;
+            if (!iv_push(&fq, pf->a[i])) { rc = SC_ENOMEM; goto unmark; }
+        }
+        for (int32_t head = 0; head < fq.n; head++) {
+            int32_t f = fq.a[head];
+            for (int k = 0; k < 3; k++) {
+                int32_t h = 3 * f + k, o = m->opp[h];
+                if (o < 0 || m->patch[o / 3] != p) continue;
+                int32_t a = m->tri[h], z = m->tri[qm_next(h)], ia = b->local[a], iz = b->local[z];
+                bool cut = (a == cv && iz >= 0 && (iz == 0 || pathv.a[iz - 1] < 0)) ||
+                           (z == cv && ia >= 0 && (ia == 0 || pathv.a[ia - 1] < 0)) ||
+                           (ia >= 0 && iz >= 0 && abs(ia - iz) == 1);
+                if (cut) continue;
+                int32_t gf = o / 3;
+                if (m->quad[gf] == -2 - s) continue;
+                if (m->quad[gf] != -1) goto unmark;   /* two corners in one sector */
+                m->quad[gf] = -2 - s;
+                if (!iv_push(&fq, gf)) { rc = SC_ENOMEM; goto unmark; }
+            }
+        }
+    }
+    for (int32_t i = 0; i < pf->n && rc == SC_OK; i++)
+        if (m->quad[pf->a[i]] == -1) goto unmark;
+    if (rc == SC_OK) *ok = true, *c_out = cv;
+    if (rc == SC_OK) goto done;
+unmark:
+    for (int32_t i = 0; i < pf->n; i++) m->quad[pf->a[i]] = -1;
+done:
+    path_graph_free(b, &g);
+    free(used), free(ring), free(crossed), free(owner), free(prev), free(via), free(dist), free(dheap), free(path.a), free(pathv.a), free(fq.a);
+    return rc;
+}
+
 static int new_quad(builder *b, int32_t *q) {
     if (b->qcorner.n / 4 == b->qcap) {
         int32_t cap = b->qcap ? 2 * b->qcap : 256;
@@ -1040,11 +1414,15 @@ static int quadrangulate(builder *b, int32_t p, sc_error *err) {
         if (med[s] < 0) rc = sc_fail(err, SC_EINPUT, "patch %d: a side without its median", (int)p);
     }
     int32_t c = -1;
-    if (rc == SC_OK) {
+    bool along_edges = false;
+    if (rc == SC_OK) rc = cut_paths(b, p, cor, med, n, &c, &along_edges);
+    if (rc == SC_OK && !along_edges) {
+        /* no paths along edges: straight cuts in the domain, splitting the edges they cross */
+        b->straight_cuts++;
         c = insert_centre(b, p);
         if (c < 0) rc = sc_fail(err, SC_EINPUT, "patch %d: no centre in its domain", (int)p);
+        for (int32_t s = 0; s < n && rc == SC_OK; s++) rc = cut_segment(b, p, c, med[s]);
     }
-    for (int32_t s = 0; s < n && rc == SC_OK; s++) rc = cut_segment(b, p, c, med[s]);
     /* quads: sector s holds corner s, between the cuts to med[s-1] and med[s] */
     int32_t q0 = b->qcorner.n / 4;
     for (int32_t s = 0; s < n && rc == SC_OK; s++) {
@@ -1054,7 +1432,12 @@ static int quadrangulate(builder *b, int32_t p, sc_error *err) {
                             !iv_push(&b->qcorner, c) || !iv_push(&b->qcorner, med[(s + n - 1) % n])))
             rc = SC_ENOMEM;
     }
-    for (int32_t i = 0; i < b->pf[p].n && rc == SC_OK; i++) {
+    for (int32_t i = 0; i < b->pf[p].n && rc == SC_OK && along_edges; i++) {
+        int32_t f = b->pf[p].a[i];
+        b->m->quad[f] = q0 + (-2 - b->m->quad[f]);
+        if (!iv_push(&b->qf[b->m->quad[f]], f)) rc = SC_ENOMEM;
+    }
+    for (int32_t i = 0; i < b->pf[p].n && rc == SC_OK && !along_edges; i++) {
         int32_t f = b->pf[p].a[i];
         const int32_t *F = b->m->tri + 3 * (size_t)f;
         double g[2] = {0, 0};
@@ -1286,6 +1669,7 @@ int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_q
         out->stretch_linf = sqrt(max_g) * norm;
         out->stretch_l2_within = sum_area > 0 ? sqrt(within_l2 / sum_area) : 0;
         memcpy(out->sides_hist, b.hist, sizeof b.hist);
+        out->straight_cuts = b.straight_cuts;
     }
     builder_free(&b);
     if (rc == SC_ENOMEM && err && !err->message[0]) sc_fail(err, SC_ENOMEM, "quad_chartify: out of memory");

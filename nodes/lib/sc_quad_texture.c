@@ -1047,6 +1047,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         for (int i = 0; i < 9; i++) sc_metric_list_add(ml, hist[i], c.sides_hist[i]);
         sc_metric_list_add(ml, "faces_in", m->nf);
         sc_metric_list_add(ml, "faces_out", c.m.nf);
+        sc_metric_list_add(ml, "patches_cut_straight", c.straight_cuts);
         sc_metric_list_add(ml, "chart_texels_min", (1 << kmin) + 1);
         sc_metric_list_add(ml, "chart_texels_max", (1 << kmax) + 1);
         sc_metric_list_add(ml, "width", J.W);

@@ -324,4 +324,17 @@ SC_TEST(linear_field_reproduced_at_level_zero) {
     sc_value_release(img);
 }
 
+/* The quads are cut along the mesh's own edges where a path exists (the
+ * paper's paths from each patch's centre to its sides' medians), so the
+ * surface keeps nearly the faces it had: counted on the output mesh. */
+SC_TEST(cuts_follow_mesh_edges) {
+    built b;
+    build(&b, 1);
+    double grow = (double)b.r.mesh->nf / b.in->nf;
+    SC_CHECK_MSG(grow <= 1.2, "faces grow %d -> %d (x%.3f)", b.in->nf, b.r.mesh->nf, grow);
+    SC_CHECK_MSG(metric(&b.r, "patches_cut_straight") <= 0.1 * metric(&b.r, "patches"), "%g of %g patches cut straight",
+                 metric(&b.r, "patches_cut_straight"), metric(&b.r, "patches"));
+    built_free(&b);
+}
+
 int main(void) { return sc_test_main(); }
