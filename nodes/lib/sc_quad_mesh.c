@@ -1054,23 +1054,10 @@ static int32_t split_inner_edge(builder *b, int32_t h) {
     return w;
 }
 
-/* Inner neighbours of inner vertex v in patch p (one per face around it). */
-static int32_t inner_neighbours(const builder *b, int32_t p, int32_t v) {
-    int32_t n = 0;
-    for (int32_t i = 0; i < b->pf[p].n; i++) {
-        const int32_t *F = b->m->tri + 3 * (size_t)b->pf[p].a[i];
-        for (int k = 0; k < 3; k++)
-            if (F[k] == v) n += b->side[F[(k + 1) % 3]] == -1;
-    }
-    return n;
-}
-
 /* The centre of patch p for cuts along edges: the inner vertex nearest the
  * domain origin (an inner edge split at its middle when the patch has no
- * inner vertex), given n inner neighbours by splitting the edges opposite
- * it in its widest faces, two faces each. -1 when the patch has no inner
- * edge either. */
-static int centre_vertex(builder *b, int32_t p, int32_t n, int32_t *c) {
+ * inner vertex); -1 when the patch has no inner edge either. */
+static int centre_vertex(builder *b, int32_t p, int32_t *c) {
     qmesh *m = b->m;
     double best = INFINITY;
     int32_t besth = -1;
@@ -1086,26 +1073,27 @@ static int centre_vertex(builder *b, int32_t p, int32_t n, int32_t *c) {
             }
         }
     if (*c < 0 && besth >= 0 && (*c = split_inner_edge(b, besth)) < 0) return SC_ENOMEM;
-    if (*c < 0) return SC_OK;
-    for (int32_t guard = 0; guard < 2 * n && inner_neighbours(b, p, *c) < n; guard++) {
-        int32_t widest = -1;
-        double angle = -1;
-        for (int32_t i = 0; i < b->pf[p].n; i++) {
-            int32_t f = b->pf[p].a[i];
-            for (int k = 0; k < 3; k++) {
-                int32_t h = 3 * f + (k + 1) % 3, o = m->opp[h];   /* the edge opposite corner k */
-                if (m->tri[3 * (size_t)f + k] != *c || o < 0 || m->patch[o / 3] != p) continue;
-                const double *V = b->xy + 2 * (size_t)*c, *A = b->xy + 2 * (size_t)m->tri[h];
-                const double *B = b->xy + 2 * (size_t)m->tri[qm_next(h)];
-                double ax = A[0] - V[0], ay = A[1] - V[1], bx = B[0] - V[0], by = B[1] - V[1];
-                double a = atan2(fabs(ax * by - ay * bx), ax * bx + ay * by);
-                if (a > angle) angle = a, widest = h;
-            }
-        }
-        if (widest < 0) break;
-        if (split_inner_edge(b, widest) < 0) return SC_ENOMEM;
-    }
     return SC_OK;
+}
+
+/* Inner edges of patch p that the straight domain segments from the origin
+ * to the medians cross: the edge splits straight cuts would make. */
+static int64_t straight_crossings(const builder *b, int32_t p, const int32_t *med, int32_t n) {
+    const qmesh *m = b->m;
+    const double O[2] = {0, 0};
+    int64_t count = 0;
+    for (int32_t s = 0; s < n; s++) {
+        const double *M = b->xy + 2 * (size_t)med[s];
+        for (int32_t i = 0; i < b->pf[p].n; i++)
+            for (int k = 0; k < 3; k++) {
+                int32_t h = 3 * b->pf[p].a[i] + k, o = m->opp[h], va = m->tri[h], vb = m->tri[qm_next(h)];
+                if (o < 0 || m->patch[o / 3] != p || va > vb) continue;
+                const double *A = b->xy + 2 * (size_t)va, *B = b->xy + 2 * (size_t)vb;
+                double oa = orient2(O, M, A), ob = orient2(O, M, B), s0 = orient2(A, B, O), s1 = orient2(A, B, M);
+                count += ((oa > 0 && ob < 0) || (oa < 0 && ob > 0)) && ((s0 > 0 && s1 < 0) || (s0 < 0 && s1 > 0));
+            }
+    }
+    return count;
 }
 
 /* The graph paths run on: the patch's vertices (numbered in b->local) and
@@ -1234,7 +1222,7 @@ static int cut_paths(builder *b, int32_t p, const int32_t *cor, const int32_t *m
     qmesh *m = b->m;
     *ok = false;
     int32_t cv;
-    int rc = centre_vertex(b, p, n, &cv);
+    int rc = centre_vertex(b, p, &cv);
     if (rc || cv < 0) return rc;
     path_graph g;
     if ((rc = path_graph_build(b, p, &g))) return rc;
@@ -1316,6 +1304,9 @@ static int cut_paths(builder *b, int32_t p, const int32_t *cor, const int32_t *m
         }
     }
     if (!found) goto done;
+    int64_t splits = 0;
+    for (int32_t i = 0; i < path.n; i++) splits += path.a[i] >= nv;
+    if (splits >= straight_crossings(b, p, med, n)) goto done;   /* straight cuts split no more */
     /* the paths as mesh vertices, splitting each edge they cross */
     for (int32_t i = 0; i < path.n; i++) {
         int32_t x = path.a[i], v = x < nv ? (x < 0 ? -1 : g.verts.a[x])
