@@ -154,10 +154,22 @@ float sc_image_texel(const sc_image_data *im, int32_t i, int32_t j, int32_t c) {
     return 0;
 }
 
+float sc_srgb_to_linear(float c) { return c <= 0.04045f ? c / 12.92f : powf((c + 0.055f) / 1.055f, 2.4f); }
+
+float sc_linear_to_srgb(float c) {
+    if (!(c > 0)) return 0;
+    if (c >= 1) return 1;
+    return c <= 0.0031308f ? 12.92f * c : 1.055f * powf(c, 1 / 2.4f) - 0.055f;
+}
+
+bool sc_channel_is_alpha(int32_t channels, int32_t c) { return (channels == 2 && c == 1) || (channels == 4 && c == 3); }
+
 typedef struct to_f32_job {
     const sc_image_data *in;
     float *dst;
     size_t n;
+    const float *lut;   /* linear: each stored 8/16-bit value's linear light; NULL: as stored */
+    bool linear;        /* colour channels through the sRGB curve */
 } to_f32_job;
 
 #define TO_F32_CHUNK ((size_t)1 << 20)
@@ -175,6 +187,14 @@ static int to_f32_chunk(void *ud, int32_t chunk) {
         const uint16_t *src = j->in->pixels;
         for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 65535.0f);
     }
+    if (!j->linear) return SC_OK;
+    int32_t C = j->in->channels;
+    for (size_t k = k0; k < k1; k++) {
+        if (sc_channel_is_alpha(C, (int32_t)(k % (size_t)C))) continue;
+        if (j->in->pixel == SC_PIXEL_U8) dst[k] = j->lut[((const uint8_t *)j->in->pixels)[k]];
+        else if (j->in->pixel == SC_PIXEL_U16) dst[k] = j->lut[((const uint16_t *)j->in->pixels)[k]];
+        else dst[k] = sc_srgb_to_linear(dst[k]);
+    }
     return SC_OK;
 }
 
@@ -185,10 +205,30 @@ sc_image_data *sc_image_to_f32_threads(const sc_image_data *im, int threads) {
     if (!out) return NULL;
     out->colorspace = im->colorspace;
     memcpy(out->format, im->format, sizeof out->format);
-    to_f32_job j = {im, out->pixels, (size_t)im->width * (size_t)im->height * (size_t)im->channels};
+    to_f32_job j = {im, out->pixels, (size_t)im->width * (size_t)im->height * (size_t)im->channels, NULL, false};
     int32_t chunks = (int32_t)((j.n + TO_F32_CHUNK - 1) / TO_F32_CHUNK);
     if (sc_parallel(threads, chunks, to_f32_chunk, &j) != SC_OK)
         for (int32_t c = 0; c < chunks; c++) to_f32_chunk(&j, c);
+    return out;
+}
+
+sc_image_data *sc_image_to_linear_f32(const sc_image_data *im, int threads) {
+    if (im->colorspace != SC_COLOR_SRGB) return sc_image_to_f32_threads(im, threads);
+    sc_image_data *out = sc_image_alloc(im->width, im->height, im->channels, SC_PIXEL_F32);
+    int32_t levels = im->pixel == SC_PIXEL_U8 ? 256 : im->pixel == SC_PIXEL_U16 ? 65536 : 0;
+    float *lut = levels ? malloc((size_t)levels * sizeof *lut) : NULL;
+    if (!out || (levels && !lut)) {
+        sc_image_free(out), free(lut);
+        return NULL;
+    }
+    for (int32_t v = 0; v < levels; v++) lut[v] = sc_srgb_to_linear(v * (1.0f / (float)(levels - 1)));
+    out->colorspace = SC_COLOR_LINEAR;
+    memcpy(out->format, im->format, sizeof out->format);
+    to_f32_job j = {im, out->pixels, (size_t)im->width * (size_t)im->height * (size_t)im->channels, lut, true};
+    int32_t chunks = (int32_t)((j.n + TO_F32_CHUNK - 1) / TO_F32_CHUNK);
+    if (sc_parallel(threads, chunks, to_f32_chunk, &j) != SC_OK)
+        for (int32_t c = 0; c < chunks; c++) to_f32_chunk(&j, c);
+    free(lut);
     return out;
 }
 

@@ -103,6 +103,19 @@ sc_image_data *sc_image_to_f32(const sc_image_data *im);
 /* The same on up to `threads` threads (the same bytes). */
 sc_image_data *sc_image_to_f32_threads(const sc_image_data *im, int threads);
 
+/* The sRGB transfer curve (IEC 61966-2-1) between a stored colour value and
+ * linear light, in float, so every module decodes a stored value to the
+ * same bits. sc_linear_to_srgb clamps to [0, 1] (NaN -> 0). */
+float sc_srgb_to_linear(float c);
+float sc_linear_to_srgb(float c);
+/* Whether channel c of an image of `channels` channels is alpha (the second
+ * of two, the fourth of four): coverage, linear in every colour space. */
+bool sc_channel_is_alpha(int32_t channels, int32_t c);
+/* A linear-light f32 copy of an SC_COLOR_SRGB image (colour channels through
+ * the transfer curve, alpha as is), tagged SC_COLOR_LINEAR; any other
+ * colour space: sc_image_to_f32_threads. NULL when out of memory. */
+sc_image_data *sc_image_to_linear_f32(const sc_image_data *im, int threads);
+
 /* ---------------------------------------------------------------- atlas */
 
 typedef enum sc_wrap {

@@ -37,15 +37,26 @@ local chartified = quad_chartify{ name = "chartify", atlas = asset, mode = param
 asset = chartified.atlas
 
 -- Seam-free textures: float for the chain, and in the input's own format.
-local erased = erase_seams{ name = "erased", atlas = asset, preset = param("preset", "local") }
-save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr" }
+-- filter_space: sRGB colour is erased, straightened and mip-mapped in linear
+-- light, the way GPUs filter sRGB textures (glTF, GL/Vulkan sRGB formats);
+-- encoded works on the stored values, for engines that filter those.
+local filter_space = param("filter_space", "linear")
+local erased = erase_seams{ name = "erased", atlas = asset, preset = param("preset", "local"),
+                            filter_space = filter_space }
+-- save measures every texture file it writes, decoded as a renderer filters
+-- it, and fails when the file's seams open wider than the image's by more
+-- than max_file_seam_gap (a lossy format or a conversion).
+local max_file_seam_gap = param("max_file_seam_gap", 1e-6)
+save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr",
+      max_seam_gap = max_file_seam_gap }
 
 -- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
 -- them; straighten re-renders the textures into the new uv and erases their
 -- seams again (in float: save rounds them).
 local shared = erased.atlas_native
 if param("straighten", 1) ~= 0 then
-  shared = straighten{ name = "straight", atlas = erased.atlas, tolerance = param("straighten_tolerance", 0.01) }
+  shared = straighten{ name = "straight", atlas = erased.atlas, tolerance = param("straighten_tolerance", 0.01),
+                       filter_space = filter_space }
 end
 
 -- Levels of detail from the mesh alone: new texture bytes never re-decimate.
@@ -66,7 +77,7 @@ local lods = decimate{ name = "lods", mesh = shared,
                        max_error = param("max_error", 0.02),
                        map_size = param("map_size", 0) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = shared }
-save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset") }
+save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset"), max_seam_gap = max_file_seam_gap }
 
 -- The crack check: every level, rendered the way a GPU samples the shared
 -- textures; a crack pixel or a seam gap fails the cook, naming level, mode, view.
@@ -95,7 +106,7 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- charts fall under a texel: --set erase_min_size=2048 there). Levels left
 -- unerased keep their seams, and check_maps's seam-gap limit says so.
 local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16),
-                     erase_min_size = param("erase_min_size", 1) }
+                     erase_min_size = param("erase_min_size", 1), filter_space = filter_space }
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
         size = param("map_render_size", 256), views = param("map_views", 6),
         modes = "geometry_image,displaced,tessellated",

@@ -4,7 +4,8 @@
  * the whole method: it reads the parameters into sc_erase_options (`preset`
  * picks w_change unless w_change is given), runs sc_erase on every texture of
  * the atlas, passes its metrics on as they come, and outputs the atlas with
- * the erased textures as f32 (`atlas`) and in the input's pixel type
+ * the erased textures as f32 (`atlas`; sRGB colour as linear light unless
+ * filter_space is encoded) and in the input's pixel type and encoding
  * (`atlas_native`). When nothing is erased both outputs are the input atlas.
  */
 #include <string.h>
@@ -37,6 +38,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.quantize = strcmp(qm, "none") == 0    ? SC_ERASE_QUANTIZE_NONE
                  : strcmp(qm, "naive") == 0 ? SC_ERASE_QUANTIZE_NAIVE
                                             : SC_ERASE_QUANTIZE_OPTIMAL;
+    o.filter_space = sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space"));
     const char *sv = sc_ctx_string(ctx, "solver");
     o.solver = strcmp(sv, "schur") == 0     ? SC_ERASE_SOLVER_SCHUR
                : strcmp(sv, "cholmod") == 0 ? SC_ERASE_SOLVER_CHOLMOD
@@ -65,6 +67,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 static const char *const preset_choices[] = {"local", "global", NULL};
 static const char *const quantize_choices[] = {"none", "naive", "optimal", NULL};
 static const char *const solver_choices[] = {"auto", "cholmod", "schur", NULL};
+static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "preset", .type = SC_PARAM_ENUM, .def_string = "local", .choices = preset_choices,
@@ -94,6 +97,8 @@ static const sc_param_desc params[] = {
      .doc = "texture slots to erase, comma-separated (color, normal, ...), or all"},
     {.name = "tangent_space_normals", .type = SC_PARAM_BOOL, .def = 0,
      .doc = "the normal slot holds a tangent-space map: leave it and report it unerasable"},
+    {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
+     .doc = SC_ERASE_FILTER_SPACE_DOC},
     {.name = "quantize", .type = SC_PARAM_ENUM, .def_string = "optimal", .choices = quantize_choices,
      .doc = "8/16-bit inputs in atlas_native: none (keep f32), naive (round), optimal (8-bit "
             "rounding that minimises the quantised seam energy)"},

@@ -6,8 +6,9 @@
  *    level m (sides max(1, floor(n / 2)), GL's and OpenEXR's round-down rule;
  *    an odd last row or column is folded into its neighbour's box), down to
  *    1 x 1 (an OpenEXR mip-map holds every level); `levels` stops at
- *    `min_size`. Averaging is on the stored values, the way the erase kernel
- *    and a GPU sampling the stored texture see them. A slot named "normal"
+ *    `min_size`. Averaging is on the values as erased: sRGB colour in linear
+ *    light (filter_space linear, the way GPUs filter and build mips of sRGB
+ *    textures, and the erase kernel solves them), else the stored values. A slot named "normal"
  *    (3+ channels) is renormalised after averaging (decoded as 2 x - 1
  *    unless the image is float DATA with negative values).
  *  - DATA maps (float, colour space DATA, not "normal": geometry image,
@@ -80,7 +81,9 @@
  *    and seconds_files the time in the erase kernel and in encoding, summed
  *    over the groups.
  *  - Metrics: [lod<k>.]level<m>.seam_energy and .max_seam_gap (the largest
- *    over the textures: sc_seam_energy on that LOD's mesh), level<m>.width,
+ *    over the textures: sc_seam_energy on that LOD's mesh, of the level as
+ *    stored and decoded as filtered: sRGB colour in linear light in linear
+ *    mode), level<m>.width,
  *    levels, erase runs, level-0 textures kept as they are, and timings.
  * Measurements and history: docs/notes/mipmap.md.
  */
@@ -440,17 +443,21 @@ static sc_image_data *data_down(const sc_image_data *src, int32_t **band_io) {
     return dst;
 }
 
-/* A float image in another pixel type, rounded to nearest (clamped). */
+/* A float image in another pixel type, rounded to nearest (clamped); linear
+ * colour is stored sRGB-encoded, as 8/16-bit colour always is. */
 static sc_image_data *to_pixel(const sc_image_data *f, sc_pixel pixel) {
     sc_image_data *im = sc_image_alloc(f->width, f->height, f->channels, pixel);
     if (!im) return NULL;
-    im->colorspace = f->colorspace;
+    bool encode = f->colorspace == SC_COLOR_LINEAR;
+    im->colorspace = encode ? SC_COLOR_SRGB : f->colorspace;
     memcpy(im->format, f->format, sizeof im->format);
     size_t n = (size_t)f->width * f->height * f->channels;
     const float *s = f->pixels;
     double max = pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
     for (size_t t = 0; t < n; t++) {
-        double v = s[t] > 0 ? (s[t] < 1 ? s[t] : 1) : 0;
+        float x = encode && !sc_channel_is_alpha(f->channels, (int32_t)(t % (size_t)f->channels)) ? sc_linear_to_srgb(s[t])
+                                                                                                 : s[t];
+        double v = x > 0 ? (x < 1 ? x : 1) : 0;
         long q = lrint(v * max);
         if (pixel == SC_PIXEL_U8) ((uint8_t *)im->pixels)[t] = (uint8_t)q;
         else ((uint16_t *)im->pixels)[t] = (uint16_t)q;
@@ -539,7 +546,9 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
         }
         if (rc == SC_OK && clean) {
             const sc_image_data *im = in[i]->as.image;
-            sc_image_data *f = im->pixel == SC_PIXEL_F32 ? NULL : sc_image_to_f32(im);
+            sc_image_data *f = im->pixel == SC_PIXEL_F32                         ? NULL
+                               : es->erase.filter_space == SC_ERASE_FILTER_LINEAR ? sc_image_to_linear_f32(im, 1)
+                                                                                 : sc_image_to_f32(im);
             sc_value *fv = im->pixel == SC_PIXEL_F32 ? sc_value_retain(in[i]) : f ? sc_value_new_image(f) : NULL;
             if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
             chains[i]->f32[m] = fv, chains[i]->native[m] = fv ? sc_value_retain(in[i]) : NULL;
@@ -735,6 +744,7 @@ typedef struct mip_run {
     const sc_atlas **src;        /* the sources: each level of `lods`, or the atlas */
     int32_t nsrc;
     bool lods;                   /* the sources came as levels of detail */
+    bool linear;                 /* filter_space linear: sRGB colour measured in linear light */
     chain *chains;               /* shared ones first (in level 0's texture order), then per source */
     int32_t nchains;
     int32_t *map;                /* (source, texture) -> chain + 1 */
@@ -876,7 +886,12 @@ static int source_energies(const mip_run *r, int32_t k, int threads, double *ene
                 const sc_image_data *im = ch->native[m]->as.image;
                 sc_seam_grid g = {im->width, im->height, ch->tex->wrap_u, ch->tex->wrap_v};
                 double e = 0, gp = 0;
-                rc = sc_seam_energy(mesh, &seams, &g, im, threads, &e, &gp, err);
+                /* measured as filtered: sRGB colour decoded to linear light in linear mode */
+                sc_image_data *seen = r->linear && im->colorspace == SC_COLOR_SRGB ? sc_image_to_linear_f32(im, threads)
+                                                                                  : NULL;
+                if (r->linear && im->colorspace == SC_COLOR_SRGB && !seen) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                if (rc == SC_OK) rc = sc_seam_energy(mesh, &seams, &g, seen ? seen : im, threads, &e, &gp, err);
+                sc_image_free(seen);
                 energy[m] = fmax(energy[m], e), gap[m] = fmax(gap[m], gp);
             }
         }
@@ -992,8 +1007,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
                          sc_ctx_number(ctx, "level0_gap"), .threads = threads};
     sc_erase_defaults(&es.erase);
     es.erase.w_seam = sc_ctx_number(ctx, "w_seam");
+    es.erase.filter_space = sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space"));
     es.erase.gap_tolerance = es.gap_tolerance;
-    mip_run r = {.nsrc = nsrc, .lods = lods != NULL};
+    mip_run r = {.nsrc = nsrc, .lods = lods != NULL, .linear = es.erase.filter_space == SC_ERASE_FILTER_LINEAR};
     r.src = calloc((size_t)nsrc, sizeof *r.src);
     if (!r.src) return sc_fail(err, SC_ENOMEM, "out of memory");
     int rc = read_sources(&r, single, lods, err);
@@ -1039,7 +1055,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
     return rc;
 }
 
+static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
+
 static const sc_param_desc params[] = {
+    {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
+     .doc = SC_ERASE_FILTER_SPACE_DOC},
     {.name = "min_size", .type = SC_PARAM_INTEGER, .def = 1, .min = 1, .max = 32768,
      .doc = "the chain stops once both sides are at most this many texels"},
     {.name = "gap_tolerance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,

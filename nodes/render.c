@@ -99,9 +99,11 @@
  *    silhouettes over it: seams red, boundaries yellow, foldovers magenta;
  *    lod<k>_uv_<material>.png with several materials),
  *    render/reference_<view>.png when a reference is given, and the
- *    deterministic metrics. Shading works on the stored colour values (no
- *    sRGB round trip: pow() per pixel is dear on llvmpipe, and the pictures
- *    are for finding seams). PNGs are encoded (sc_imageio) on up to 4 worker
+ *    deterministic metrics. Shading works in linear light, as an engine's:
+ *    sRGB colour textures are sampled through sRGB formats (decoded before
+ *    filtering) and the target encodes to sRGB on write, so the seams and
+ *    gaps measured are those a renderer filtering sRGB textures shows, and
+ *    the pictures look as displayed. PNGs are encoded (sc_imageio) on up to 4 worker
  *    threads (sc_ctx_threads) while GL draws the next picture, and go into
  *    the report in submission order, so the bytes never depend on the thread
  *    count. Timings are node metrics only (seconds_*), never part of the
@@ -729,7 +731,9 @@ static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, b
     if (rc != SC_OK) return rc;
     glBindFramebuffer(GL_FRAMEBUFFER, R->target.fbo);
     glViewport(0, 0, R->size, R->size);
-    const float bg[4] = {background[0] / 255.0f, background[1] / 255.0f, background[2] / 255.0f, 0.0f};
+    /* the target encodes to sRGB: the background in linear light */
+    const float bg[4] = {sc_srgb_to_linear(background[0] / 255.0f), sc_srgb_to_linear(background[1] / 255.0f),
+                         sc_srgb_to_linear(background[2] / 255.0f), 0.0f};
     const float one = 1.0f;
     glClearBufferfv(GL_COLOR, 0, bg);
     glClearBufferfv(GL_DEPTH, 0, &one);
@@ -1721,6 +1725,7 @@ static int uv_picture(renderer *R, const level_gl *L, const level_label *k, int3
                 }
             for (int c = 0; c < 3; c++) {
                 double v = sum[c] / ((double)f * f);
+                if (im->colorspace == SC_COLOR_LINEAR) v = sc_linear_to_srgb((float)v);   /* shown as displayed */
                 p[c] = (uint8_t)lrint(255.0 * (v < 0 ? 0 : v > 1 ? 1 : v));
             }
         }
@@ -2042,7 +2047,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 8,
+    .version = 9,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -26,13 +26,23 @@
  * byte (a JPEG input too: re-encoding it lossily would undo what erasure
  * and mip-mapping made of it), and float data as EXR; png, jpg and exr force
  * one. exr_too also writes every texture as float EXR beside it.
+ *
+ * Metrics describe files: every texture file of an atlas or LOD set is
+ * decoded from the bytes written, the way a reader does, and its seams are
+ * measured on the set's mesh as a renderer filters them (sRGB colour in
+ * linear light), beside the image it was encoded from: <file>.seam_energy,
+ * .max_seam_gap and .seam_gap_added (how much wider the file's seams are),
+ * and their worst over the files. max_seam_gap >= 0 fails the save when a
+ * file adds more than that (a JPEG, a clamp, a colour conversion).
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "sc_imageio.h"
 #include "sc_nodes.h"
+#include "sc_seam.h"
 
 /* ---------------------------------------------------------------- text */
 
@@ -200,18 +210,76 @@ typedef struct written {
 } written;
 
 typedef struct saver {
+    sc_ctx *ctx;
     sc_report *report;
     const char *name, *format;
     bool exr_too;
+    double max_seam_gap;      /* a file whose decoded seams open wider than its image's, by more, fails */
     written *files;
     int nfiles;
     int64_t bytes;
+    double worst_energy, worst_gap, worst_added_gap;   /* over the texture files, as decoded */
 } saver;
+
+/* Where a texture's seams are measured: its mesh and material, its wrap modes. */
+typedef struct seam_place {
+    const sc_mesh *mesh;
+    const sc_texture *tex;
+} seam_place;
+
+/* The seam energy and largest gap of an image as its consumer filters it:
+ * sRGB colour decoded to linear light, anything else as stored. */
+static int seen_seams(const seam_place *at, const sc_seam_set *seams, const sc_image_data *im, double *energy,
+                      double *gap, sc_error *err) {
+    sc_image_data *seen = im->colorspace == SC_COLOR_SRGB ? sc_image_to_linear_f32(im, 1) : NULL;
+    if (im->colorspace == SC_COLOR_SRGB && !seen) return sc_fail(err, SC_ENOMEM, "out of memory");
+    sc_seam_grid g = {im->width, im->height, at->tex->wrap_u, at->tex->wrap_v};
+    int rc = sc_seam_energy(at->mesh, seams, &g, seen ? seen : im, 1, energy, gap, err);
+    sc_image_free(seen);
+    return rc;
+}
+
+/* Metrics describe files: the file's bytes decoded the way a reader does,
+ * then its seams measured as filtered, beside the image it was encoded
+ * from. <file>.seam_energy and .max_seam_gap; .seam_gap_added: how much
+ * wider the file's seams are than the image's (a lossy format, a clamp or
+ * a colour conversion), which fails the save beyond max_seam_gap. */
+static int measure_file(saver *s, const seam_place *at, const sc_image_data *im, const char *file,
+                        const sc_buf *bytes, sc_error *err) {
+    sc_seam_set seams;
+    int rc = sc_seam_find(at->mesh, at->tex->material, &seams, err);
+    if (rc) return rc;
+    sc_image_data *decoded = NULL;
+    double e_file = 0, g_file = 0, e_mem = 0, g_mem = 0;
+    rc = sc_image_decode(file, bytes->data, bytes->len, &decoded, err);
+    if (rc == SC_OK) rc = seen_seams(at, &seams, decoded, &e_file, &g_file, err);
+    if (rc == SC_OK) rc = seen_seams(at, &seams, im, &e_mem, &g_mem, err);
+    sc_image_free(decoded);
+    sc_seam_set_free(&seams);
+    if (rc) return rc;
+    double added = g_file > g_mem ? g_file - g_mem : 0;
+    char name[512];
+    const char *keys[3] = {"seam_energy", "max_seam_gap", "seam_gap_added"};
+    const double vals[3] = {e_file, g_file, added};
+    for (int k = 0; k < 3; k++) {
+        snprintf(name, sizeof name, "%s.%s", file, keys[k]);
+        if (sc_report_metric(s->report, name, vals[k])) return sc_fail(err, SC_ENOMEM, "out of memory");
+        sc_ctx_metric(s->ctx, name, vals[k]);
+    }
+    s->worst_energy = fmax(s->worst_energy, e_file), s->worst_gap = fmax(s->worst_gap, g_file);
+    s->worst_added_gap = fmax(s->worst_added_gap, added);
+    if (s->max_seam_gap >= 0 && added > s->max_seam_gap)
+        return sc_fail(err, SC_EINPUT,
+                       "%s: its seams, decoded as a renderer filters them, open %.3g wider than the image's "
+                       "(gap %.3g against %.3g), over max_seam_gap %g: a lossy format or a conversion",
+                       file, added, g_file, g_mem, s->max_seam_gap);
+    return SC_OK;
+}
 
 /* Write image under `path_base`.<ext> (and .exr with exr_too), unless the
  * same image was written already; *path receives the file name used. */
-static int save_image(saver *s, const sc_value *image, const char *path_base, const char **path,
-                      sc_error *err) {
+static int save_image(saver *s, const sc_value *image, const seam_place *at, const char *path_base,
+                      const char **path, sc_error *err) {
     const sc_image_data *im = image->as.image;
     const char *ext = texture_ext(im, s->format);
     const char *exts[2] = {ext, (s->exr_too && strcmp(ext, "exr") != 0) ? "exr" : NULL};
@@ -235,10 +303,11 @@ static int save_image(saver *s, const sc_value *image, const char *path_base, co
         sc_buf b;
         sc_buf_init(&b);
         int rc = encode(im, exts[e], &b, err);
+        if (rc == SC_OK && at) rc = measure_file(s, at, im, file, &b, err);
         if (rc == SC_OK) {
             s->bytes += (int64_t)b.len;
             rc = add_file(s->report, file, &b, err);
-        } else {
+        } else if (!strstr(err->message, file)) {
             sc_error_prefix(err, "%s", file);
         }
         sc_buf_free(&b);
@@ -277,8 +346,9 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
             char *slot = safe_name(tex->name);
             char *base = slot ? sc_strprintf("%s_%s_%s", s->name, names[k], slot) : NULL;
             const char *file = NULL;
+            seam_place at = {m, tex};
             if (!base) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            else rc = save_image(s, tex->image, base, &file, err);
+            else rc = save_image(s, tex->image, &at, base, &file, err);
             if (rc == SC_OK) {
                 const char *statement = mtl_statement(tex->name);
                 if (statement) sc_buf_printf(&mtl, "%s %s\n", statement, file);
@@ -316,8 +386,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const sc_atlas *atlas = sc_ctx_atlas(ctx, "atlas");
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
     const sc_value *image = sc_ctx_input(ctx, "image");
-    saver s = {.name = sc_ctx_string(ctx, "file"), .format = sc_ctx_string(ctx, "format"),
-               .exr_too = sc_ctx_bool(ctx, "exr_too")};
+    saver s = {.ctx = ctx, .name = sc_ctx_string(ctx, "file"), .format = sc_ctx_string(ctx, "format"),
+               .exr_too = sc_ctx_bool(ctx, "exr_too"), .max_seam_gap = sc_ctx_number(ctx, "max_seam_gap")};
     int rc = check_name(s.name, err);
     if (rc) return sc_error_prefix(err, "file");
     if (!atlas && !lods && !image)
@@ -352,14 +422,17 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     if (rc == SC_OK && image) {
         const char *file = NULL;
-        rc = save_image(&s, image, s.name, &file, err);
+        rc = save_image(&s, image, NULL, s.name, &file, err);
         if (rc) sc_error_prefix(err, "image");
     }
     int nfiles = s.report->nfiles;
     for (int i = 0; i < s.nfiles; i++) free(s.files[i].path);
     free(s.files);
     if (rc == SC_OK) {
-        rc = sc_report_metric(s.report, "files", nfiles) || sc_report_metric(s.report, "bytes", (double)s.bytes)
+        rc = sc_report_metric(s.report, "files", nfiles) || sc_report_metric(s.report, "bytes", (double)s.bytes) ||
+                     (set && (sc_report_metric(s.report, "seam_energy", s.worst_energy) ||
+                              sc_report_metric(s.report, "max_seam_gap", s.worst_gap) ||
+                              sc_report_metric(s.report, "seam_gap_added", s.worst_added_gap)))
                  ? sc_fail(err, SC_ENOMEM, "out of memory")
                  : SC_OK;
     }
@@ -372,6 +445,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_ctx_set_output(ctx, "files", v);
     sc_ctx_metric(ctx, "files", nfiles);
     sc_ctx_metric(ctx, "bytes", (double)s.bytes);
+    if (set) {
+        sc_ctx_metric(ctx, "seam_energy", s.worst_energy);
+        sc_ctx_metric(ctx, "max_seam_gap", s.worst_gap);
+        sc_ctx_metric(ctx, "seam_gap_added", s.worst_added_gap);
+    }
     return SC_OK;
 }
 
@@ -385,6 +463,9 @@ static const sc_param_desc params[] = {
             "jpg only when asked"},
     {.name = "exr_too", .type = SC_PARAM_BOOL, .def = 0,
      .doc = "also write every texture as float EXR"},
+    {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e30,
+     .doc = "fail when a texture file, decoded and filtered as a renderer does (sRGB colour in linear light), "
+            "has seams wider than its image's by more than this; -1: measure only"},
 };
 
 static const sc_port_desc inputs[] = {
@@ -398,11 +479,11 @@ static const sc_port_desc outputs[] = {
     {.name = "files", .kind = SC_KIND_REPORT, .doc = "the files, for the engine to write into --out"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_imageio, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, NULL};
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 2,
+    .version = 3,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

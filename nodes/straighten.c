@@ -101,7 +101,8 @@
  * (straightened), boundary_chains_kept (left by `borders`), skipped_chains
  * (halves that do not pair up: left as they are), moved_uv_vertices,
  * flipped_triangles, max_uv_displacement (uv units), degenerate_uv_faces,
- * warp_steps, textures_rendered; psnr: colour at 15 barycentric points of
+ * warp_steps, textures_rendered; psnr: colour (sRGB colour in linear light,
+ * as seen) at 15 barycentric points of
  * every face of every re-rendered texture, old texture at old uv against the
  * output texture at new uv, peak 1; seconds (report only).
  * History and measurements: docs/notes/straighten.md.
@@ -867,10 +868,12 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
     return m;
 }
 
-static int erase_atlas(const sc_value *atlas, int threads, sc_value **out, sc_error *err) {
+static int erase_atlas(const sc_value *atlas, sc_erase_filter_space space, int threads, sc_value **out,
+                       sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
     o.quantize = SC_ERASE_QUANTIZE_NONE;
+    o.filter_space = space;
     const sc_atlas *a = atlas->as.atlas;
     sc_erase_result r;
     int rc = sc_erase(a->mesh->as.mesh, a->textures, a->ntex, &o, threads, &r, err);
@@ -1070,8 +1073,9 @@ static int appearance_step(const job *J, const sc_atlas *result, sc_error *err) 
         const sc_texture *tex = &atlas->textures[i];
         int k = sc_atlas_find_texture(result, tex->material, tex->name);
         if (k < 0) continue;
-        sc_image_data *a = sc_image_to_f32(tex->image->as.image);
-        sc_image_data *b = sc_image_to_f32(result->textures[k].image->as.image);
+        /* compared as seen: sRGB colour in linear light */
+        sc_image_data *a = sc_image_to_linear_f32(tex->image->as.image, 1);
+        sc_image_data *b = sc_image_to_linear_f32(result->textures[k].image->as.image, 1);
         if (!a || !b) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
         else appearance_error(J->mesh, J->Uout, tex, a, b, &sum2, &count);
         sc_image_free(a), sc_image_free(b);
@@ -1117,7 +1121,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (rc == SC_OK) rc = assemble_atlas(&J, &warped, err);
         double t_erase = sc_now();
         if (rc == SC_OK) {
-            if (erase) rc = erase_atlas(warped, threads, &result, err);
+            if (erase)
+                rc = erase_atlas(warped, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")), threads,
+                                 &result, err);
             else result = sc_value_retain(warped);
         }
         t_erase = sc_now() - t_erase;
@@ -1138,7 +1144,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
 static const char *const border_choices[] = {"with_seams", "always", "never", NULL};
 
+static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
+
 static const sc_param_desc params[] = {
+    {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
+     .doc = SC_ERASE_FILTER_SPACE_DOC},
     {.name = "tolerance", .type = SC_PARAM_NUMBER, .def = 0.01, .min = 0, .max = 1,
      .doc = "Ramer-Douglas-Peucker tolerance as a fraction of each seam or boundary chain's bounding-box "
             "diagonal (4D for seams); 0 removes only exactly collinear vertices"},

@@ -23,8 +23,8 @@ void main() {
         gl_FragDepth = min(gl_FragCoord.z + u_back_bias, 1.0);
         return;
     }
-    // Shading works on the stored (sRGB) values directly: these pictures are
-    // for finding seams and cracks, and pow() per pixel is costly on llvmpipe.
+    // Shading works in linear light: sRGB textures decode when sampled, and
+    // the target encodes to sRGB when written.
     gl_FragDepth = gl_FragCoord.z;
     vec3 albedo = u_has_color != 0 ? texture(u_color, v_uv).rgb : vec3(0.7);
     vec3 n = cross(dFdx(v_world), dFdy(v_world));

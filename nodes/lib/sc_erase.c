@@ -120,15 +120,21 @@
  * penalty leaves near-null directions of M (relative eigenvalues ~1e-10)
  * partly free, and a forced second solve would keep easing them.
  *
- * Signals. Solving is in double from the stored values (colour is erased as
- * stored, i.e. in its sRGB encoding, the way a renderer filtering the stored
- * values sees it). The result holds, per texture, an f32 image (same
- * channels, colour space and format tag) and the same texture in the
- * input's own pixel type: 8/16-bit inputs are quantised once, with
- * o->quantize naive (round to nearest) or optimal (8-bit: the rounding
- * direction of every seam texel is chosen by coordinate descent on the
- * quantised seam energy q^T M q, each texel staying within one step of its
- * float value; 16-bit inputs round to nearest). Tangent-space normal maps
+ * Signals. Solving is in double, in the space the texture's consumers
+ * filter it: with o->filter_space linear (the default) an sRGB colour
+ * texture is erased as linear light, from a linear f32 copy (GL and Vulkan
+ * sRGB formats decode before they filter, and glTF, Unity and Unreal sample
+ * base colour so); encoded erases the stored values, for engines that
+ * filter those. Data textures are erased as stored. The result holds, per
+ * texture, an f32 image (same channels and format tag; linear colour is
+ * tagged linear) and the same texture in the input's own pixel type and
+ * encoding: 8/16-bit inputs are quantised once, with o->quantize naive
+ * (round to nearest) or optimal (8-bit: the rounding direction of every
+ * seam texel is chosen by coordinate descent on the quantised seam energy
+ * q^T M q, M applied to the values the consumer filters (linear light for
+ * sRGB colour in linear mode), each byte staying within one step of its
+ * float value; 16-bit inputs round to nearest). Every energy and gap of a
+ * quantised result is measured on its bytes decoded as the consumer does. Tangent-space normal maps
  * cannot be made seam-free in general (the paper's footnote 3): with
  * o->tangent_space_normals the normal slot is left as it is and the metrics
  * say so; without it every normal map is treated as object-space and a
@@ -175,6 +181,7 @@ typedef struct options {
     bool lerp, outside, tangent_space;
     double gap_tolerance;
     sc_erase_quantize quantize;
+    sc_erase_filter_space filter_space;
     sc_erase_solver solver;
     int64_t schur_from;       /* solver auto: the edge-cluster solver from this many unknowns */
     int32_t pcg_iterations;   /* the most conjugate-gradient iterations */
@@ -458,7 +465,16 @@ typedef struct round_job {
     int32_t channels;
     const int32_t *chan;     /* the channel of each chunk */
     int threads;             /* for each channel's start (fewer channels than threads) */
+    /* sRGB colour in linear light: x is linear, each byte k stands for
+     * 255 sc_srgb_to_linear(k / 255) (value[k]) in channels where srgb[c];
+     * elsewhere x is the stored value and byte k stands for k */
+    const double *value;
+    bool srgb[4];
 } round_job;
+
+static inline double round_value(const round_job *job, int32_t c, int32_t q) {
+    return job->value && job->srgb[c] ? job->value[q] : (double)q;
+}
 
 static inline bool round_row(const round_job *job, int32_t k) { return !job->rows || job->rows[k]; }
 
@@ -469,7 +485,7 @@ static int32_t round_unique_channels(const round_job *job, int32_t *src, int32_t
     for (int32_t c = 0; c < C; c++) {
         src[c] = -1;
         for (int32_t e = 0; e < c && src[c] < 0; e++) {
-            if (src[e] >= 0) continue;
+            if (src[e] >= 0 || (job->value && job->srgb[c]) != (job->value && job->srgb[e])) continue;
             bool same = true;
             for (int32_t k = 0; k < n && same; k++) {
                 if (!round_row(job, k)) continue;
@@ -512,7 +528,7 @@ static int round_start_chunk(void *ud, int32_t chunk) {
         }
         if (rs->pass == 0) {
             size_t at = (size_t)job->ids[k] * (size_t)C + (size_t)c;
-            double x = job->x[at] * 255.0;
+            double x = (job->value && job->srgb[c] ? sc_linear_to_srgb(job->x[at]) : job->x[at]) * 255.0;
             if (!(x > 0)) x = 0;
             if (x > 255) x = 255;
             int32_t f = (int32_t)floor(x);
@@ -526,7 +542,7 @@ static int round_start_chunk(void *ud, int32_t chunk) {
         for (int32_t p = mf->colptr[k]; p < mf->colptr[k + 1]; p++) {
             int32_t j = mf->rowind[p];
             if (!round_row(job, j)) continue;
-            s += mf->val[p] * q[j];
+            s += mf->val[p] * round_value(job, c, q[j]);
             if (j == k) d = mf->val[p];
         }
         rs->g[k] = s, rs->dg[k] = d;
@@ -567,8 +583,9 @@ static int round_channel(void *ud, int32_t chunk) {
         for (int32_t k = 0; k < n; k++) {
             if (!dirty[k]) continue;
             dirty[k] = 0;
-            int32_t alt = q[k] == lo[k] ? hi[k] : lo[k], d = alt - q[k];
-            double de = 2.0 * d * g[k] + (double)d * d * dg[k];
+            int32_t alt = q[k] == lo[k] ? hi[k] : lo[k];
+            double d = round_value(job, c, alt) - round_value(job, c, q[k]);
+            double de = 2.0 * d * g[k] + d * d * dg[k];
             if (!(de < -1e-13 * dg[k])) continue;
             q[k] = alt;
             dirty[k] = 1;
@@ -597,8 +614,9 @@ typedef struct measure_job {
     const sc_seam_set *seams;
     const sc_seam_grid *g;
     int threads;
-    const sc_image_data *f32, *naive;  /* naive: NULL when not quantised */
+    const sc_image_data *f32, *naive;  /* naive: NULL when not quantised; as the consumer decodes it */
     const sc_image_data *optimal;      /* the optimal rounding's image (round's bytes) */
+    bool decode;                       /* measure the optimal bytes decoded to linear light */
     round_job *round;                  /* NULL: no optimal rounding */
     int32_t *src, *chan;               /* per channel: the channel it copies, or -1; the channels rounded */
     int threads_energy;
@@ -630,8 +648,11 @@ static int measure_task(void *ud, int32_t chunk) {
                 b[c] = b[j->src[c]];
             }
     if (rc) return j->rc[1] = sc_fail(&j->err[1], rc, "out of memory rounding to 8 bits");
-    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, j->optimal, j->threads, &j->e_optimal, &j->g_optimal,
-                              &j->err[1]);
+    sc_image_data *view = j->decode ? sc_image_to_linear_f32(j->optimal, j->threads) : NULL;
+    if (j->decode && !view) return j->rc[1] = sc_fail(&j->err[1], SC_ENOMEM, "out of memory rounding to 8 bits");
+    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, view ? view : j->optimal, j->threads, &j->e_optimal,
+                              &j->g_optimal, &j->err[1]);
+    sc_image_free(view);
     return j->rc[1];
 }
 
@@ -1066,6 +1087,8 @@ typedef struct group_run {
     const sc_seam_set *seams;
     sc_seam_set seams_only;      /* the seams without the silhouettes: M alone */
     const sc_texture *textures;
+    const sc_image_data *const *stored;   /* per texture: its stored 8/16-bit sRGB image when solved linear, or NULL */
+    double srgb_value[256];               /* 255 x the linear light of each sRGB byte */
     const group *gr;
     const options *o;
     tex_state *st;
@@ -1206,9 +1229,11 @@ static int factor_beside_residuals(group_run *r, sc_error *err) {
     const group *gr = r->gr;
     group_work *w = &r->w;
     bool want_round = false;
-    for (int32_t k = 0; k < gr->ntex; k++)
-        want_round |= textures[gr->tex[k]].image->as.image->pixel == SC_PIXEL_U8 &&
-                      r->o->quantize == SC_ERASE_QUANTIZE_OPTIMAL;
+    for (int32_t k = 0; k < gr->ntex; k++) {
+        const int32_t ti = gr->tex[k];
+        const sc_image_data *as_stored = r->stored[ti] ? r->stored[ti] : textures[ti].image->as.image;
+        want_round |= as_stored->pixel == SC_PIXEL_U8 && r->o->quantize == SC_ERASE_QUANTIZE_OPTIMAL;
+    }
     prep_job pj = {.ctx = r->pc,
                    .want_round = want_round,
                    .want_nullity = w->seamset.count <= NULLITY_MAX_TEXELS,
@@ -1300,7 +1325,9 @@ static void add_group_totals(const group_run *r) {
 typedef struct texture_out {
     int32_t ti;                   /* its index in the atlas */
     const sc_texture *tx;
-    const sc_image_data *img;     /* the input */
+    const sc_image_data *img;     /* the input, as solved (a linear copy of sRGB colour in linear mode) */
+    const sc_image_data *store;   /* the input as stored: the native result's pixel type and encoding */
+    bool decode;                  /* store is sRGB colour solved as linear light */
     sc_value *fv;                 /* the float result (st[ti].f32) */
     float *px;                    /* its pixels */
     sc_image_data *nat, *opt;     /* the naive and the optimal rounding, until handed over */
@@ -1365,14 +1392,14 @@ static sc_image_data *copy_image(const sc_image_data *img) {
  * measured), or Q's rows there over w_pen. */
 static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
     const group_work *w = &r->w;
-    const sc_image_data *img = t->img;
+    const sc_image_data *img = t->store;
     const int32_t C = img->channels;
     if (!(t->nat = copy_image(img))) return sc_fail(err, SC_ENOMEM, "out of memory");
     double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
     for (int32_t i = 0; i < r->n; i++)
         for (int32_t c = 0; c < C; c++) {
             size_t at = (size_t)w->ids[i] * C + c;
-            double x = t->px[at];
+            double x = t->decode && !sc_channel_is_alpha(C, c) ? sc_linear_to_srgb(t->px[at]) : t->px[at];
             x = x < 0 ? 0 : x > 1 ? 1 : x;
             long v = lrint(x * maxv);
             if (img->pixel == SC_PIXEL_U8) ((uint8_t *)t->nat->pixels)[at] = (uint8_t)v;
@@ -1384,6 +1411,10 @@ static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
         return sc_fail(err, SC_EINPUT, "rounding to 8 bits: more than 4 channels");
     if (!(t->opt = copy_image(t->nat))) return sc_fail(err, SC_ENOMEM, "out of memory");
     t->rj.bytes = t->opt->pixels, t->rj.chan = t->chan;
+    if (t->decode) {
+        t->rj.value = r->srgb_value;
+        for (int32_t c = 0; c < C; c++) t->rj.srgb[c] = !sc_channel_is_alpha(C, c);
+    }
     return SC_OK;
 }
 
@@ -1393,10 +1424,13 @@ static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
  * float result itself. */
 static int measure_and_round(group_run *r, texture_out *t, double tq0, sc_error *err) {
     const options *o = r->o;
-    measure_job mj = {r->m, r->seams, &r->gr->grid, o->threads, t->fv->as.image, t->nat, t->opt,
-                      t->opt ? &t->rj : NULL, t->src, t->chan, 0};
+    sc_image_data *nat_view = t->nat && t->decode ? sc_image_to_linear_f32(t->nat, o->threads) : NULL;
+    if (t->nat && t->decode && !nat_view) return sc_fail(err, SC_ENOMEM, "out of memory");
+    measure_job mj = {r->m, r->seams, &r->gr->grid, o->threads, t->fv->as.image, nat_view ? nat_view : t->nat,
+                      t->opt, t->decode, t->opt ? &t->rj : NULL, t->src, t->chan, 0};
     mj.threads_energy = t->opt && o->threads > 1 ? o->threads - 1 : o->threads;
     sc_seam_parallel(t->opt && o->threads > 1 ? 2 : 1, t->opt ? 2 : 1, measure_task, &mj);
+    sc_image_free(nat_view);
     if (mj.rc[0] || mj.rc[1]) {
         if (err) *err = mj.err[mj.rc[0] ? 0 : 1];
         return mj.rc[0] ? mj.rc[0] : mj.rc[1];
@@ -1442,7 +1476,7 @@ static void texture_metrics(const group_run *r, const texture_out *t) {
     metric(ml, pre, "max_seam_gap_before", t->g0);
     metric(ml, pre, "max_seam_gap_after", t->g1);
     if (!isnan(t->eq_naive)) {
-        const char *bits = img->pixel == SC_PIXEL_U8 ? "u8" : "u16";
+        const char *bits = t->store->pixel == SC_PIXEL_U8 ? "u8" : "u16";
         char name[64];
         snprintf(name, sizeof name, "seam_energy_after_%s_naive", bits);
         metric(ml, pre, name, t->eq_naive);
@@ -1452,7 +1486,7 @@ static void texture_metrics(const group_run *r, const texture_out *t) {
         }
         snprintf(name, sizeof name, "max_seam_gap_after_%s", bits);
         metric(ml, pre, name, t->gq);
-        if (img->pixel == SC_PIXEL_U8) {
+        if (t->store->pixel == SC_PIXEL_U8) {
             tot->any_u8 = true;
             tot->energy_u8_naive += t->eq_naive;
             if (!isnan(t->eq_opt)) tot->any_optimal = true, tot->energy_u8_optimal += t->eq_opt;
@@ -1484,10 +1518,12 @@ static int finish_texture(group_run *r, int32_t k, int32_t col, sc_error *err) {
     const int32_t ti = r->gr->tex[k];
     const sc_texture *tx = &r->textures[ti];
     texture_out t = {.ti = ti, .tx = tx, .img = tx->image->as.image, .eq_naive = NAN, .eq_opt = NAN, .gq = NAN};
+    t.store = r->stored[ti] ? r->stored[ti] : t.img;
+    t.decode = t.store != t.img;
     int rc = write_solution(r, &t, col, err);
     if (rc) return rc;
     t.e0 = r->st[ti].energy_before, t.g0 = r->st[ti].gap_before;
-    bool quantise = t.img->pixel != SC_PIXEL_F32 && r->o->quantize != SC_ERASE_QUANTIZE_NONE;
+    bool quantise = t.store->pixel != SC_PIXEL_F32 && r->o->quantize != SC_ERASE_QUANTIZE_NONE;
     double tq0 = sc_now();
     t.rj = (round_job){&r->w.mfull, NULL, r->w.seam_ids, t.px, NULL, t.img->channels, NULL};
     if (quantise) rc = prepare_rounding(r, &t, err);
@@ -1500,10 +1536,11 @@ static int finish_texture(group_run *r, int32_t k, int32_t col, sc_error *err) {
 /* Erase the seams of one group: its system, built and factored once, then
  * every texture solved, measured, quantised. */
 static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *seams,
-                       const sc_texture *textures, const group *gr, const options *o,
-                       tex_state *st, bool several, totals *tot, sc_error *err) {
-    group_run r = {.ml = ml, .m = m, .seams = seams, .seams_only = *seams, .textures = textures, .gr = gr, .o = o,
-                   .st = st, .several = several, .tot = tot};
+                       const sc_texture *textures, const sc_image_data *const *stored, const group *gr,
+                       const options *o, tex_state *st, bool several, totals *tot, sc_error *err) {
+    group_run r = {.ml = ml, .m = m, .seams = seams, .seams_only = *seams, .textures = textures, .stored = stored,
+                   .gr = gr, .o = o, .st = st, .several = several, .tot = tot};
+    for (int k = 0; k < 256; k++) r.srgb_value[k] = 255.0 * sc_srgb_to_linear(k * (1.0f / 255.0f));
     r.seams_only.nsil = 0;
     r.t0 = sc_now();
     int rc = mark_texels(&r, err);
@@ -1644,6 +1681,10 @@ static void emit_totals(sc_metric_list *ml, const totals *t, bool several) {
     sc_metric_list_add(ml, "factor_flops", t->factor_flops);
 }
 
+sc_erase_filter_space sc_erase_filter_space_named(const char *name) {
+    return strcmp(name, "encoded") == 0 ? SC_ERASE_FILTER_ENCODED : SC_ERASE_FILTER_LINEAR;
+}
+
 void sc_erase_defaults(sc_erase_options *o) {
     *o = (sc_erase_options){
         .w_change = SC_ERASE_W_CHANGE_LOCAL,
@@ -1690,6 +1731,28 @@ void sc_erase_result_free(sc_erase_result *res) {
     *res = (sc_erase_result){0};
 }
 
+/* Linear mode: every selected sRGB texture is solved from a linear f32 copy
+ * (one per image value, so slots sharing an image still share it); the
+ * copies go into work[] in place of the inputs, and stored[i] keeps an
+ * 8/16-bit original, whose pixel type and encoding the native result takes. */
+static int linear_copies(const sc_texture *textures, int32_t ntex, const char *list, int threads, sc_texture *work,
+                         sc_value **copies, const sc_image_data **stored, sc_error *err) {
+    for (int32_t i = 0; i < ntex; i++) {
+        work[i] = textures[i];
+        const sc_image_data *img = textures[i].image->as.image;
+        if (!slot_selected(list, textures[i].name) || img->colorspace != SC_COLOR_SRGB) continue;
+        for (int32_t k = 0; k < i && !copies[i]; k++)
+            if (copies[k] && textures[k].image == textures[i].image) copies[i] = sc_value_retain(copies[k]);
+        if (!copies[i]) {
+            sc_image_data *lin = sc_image_to_linear_f32(img, threads);
+            if (!lin || !(copies[i] = sc_value_new_image(lin))) return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        work[i].image = copies[i];
+        if (img->pixel != SC_PIXEL_F32) stored[i] = img;
+    }
+    return SC_OK;
+}
+
 int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const sc_erase_options *eo, int threads,
              sc_erase_result *res, sc_error *err) {
     *res = (sc_erase_result){0};
@@ -1707,6 +1770,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
         .gap_tolerance = eo->gap_tolerance,
         .textures = eo->textures ? eo->textures : "all",
         .quantize = eo->quantize,
+        .filter_space = eo->filter_space,
         .solver = eo->solver,
         .schur_from = eo->schur_from,
         .pcg_iterations = eo->pcg_iterations,
@@ -1720,11 +1784,19 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
     sc_seam_set *sets = sc_calloc_array((size_t)m->nmat, sizeof *sets);
     bool *found = sc_calloc_array((size_t)m->nmat, sizeof *found);
     group *groups = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *groups);
+    sc_texture *work = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *work);
+    sc_value **copies = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *copies);
+    const sc_image_data **stored = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *stored);
+    const sc_texture *inputs = textures;
     int32_t ngroups = 0;
     totals tot = {.nullity_all = true};
-    if (!st || !sets || !found || !groups) {
+    if (!st || !sets || !found || !groups || !work || !copies || !stored) {
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
         goto done;
+    }
+    if (o.filter_space == SC_ERASE_FILTER_LINEAR) {
+        if ((rc = linear_copies(inputs, ntex, list, threads, work, copies, stored, err))) goto done;
+        textures = work;
     }
     int32_t nselected = 0;
     for (int32_t i = 0; i < ntex; i++) nselected += slot_selected(list, textures[i].name);
@@ -1766,7 +1838,10 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             if ((rc = sc_seam_energy(m, &sets[t->material], &g, img, o.threads, &st[i].energy_before,
                                      &st[i].gap_before, err)))
                 goto done;
-            double step = img->pixel == SC_PIXEL_U8 ? 1.0 / 255 : img->pixel == SC_PIXEL_U16 ? 1.0 / 65535 : 0;
+            const sc_image_data *as_stored = stored[i] ? stored[i] : img;
+            double step = as_stored->pixel == SC_PIXEL_U8    ? 1.0 / 255
+                          : as_stored->pixel == SC_PIXEL_U16 ? 1.0 / 65535
+                                                             : 0;
             if (o.gap_tolerance > 0 && st[i].gap_before <= fmax(o.gap_tolerance, step)) {
                 st[i].fate = FATE_CLEAN;
                 const char *pre = st[i].prefix;
@@ -1811,7 +1886,8 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
     }
 
     for (int32_t gi = 0; gi < ngroups && rc == SC_OK; gi++)
-        rc = erase_group(&res->metrics, m, &sets[groups[gi].material], textures, &groups[gi], &o, st, several, &tot, err);
+        rc = erase_group(&res->metrics, m, &sets[groups[gi].material], textures, stored, &groups[gi], &o, st, several,
+                         &tot, err);
     if (rc) goto done;
     for (int32_t i = 0; i < ntex; i++)
         if (st[i].fate == FATE_ERASE && st[i].same_as >= 0) {
@@ -1820,7 +1896,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             metric(&res->metrics, st[i].prefix, "same_image_as_slot", st[i].same_as);
         }
     emit_totals(&res->metrics, &tot, several);
-    rc = collect_results(textures, ntex, st, tot.erased, res, err);
+    rc = collect_results(inputs, ntex, st, tot.erased, res, err);
 
 done:
     if (st)
@@ -1832,7 +1908,9 @@ done:
         for (int32_t k = 0; k < m->nmat; k++) sc_seam_set_free(&sets[k]);
     if (groups)
         for (int32_t gi = 0; gi < ngroups; gi++) free(groups[gi].tex);
-    free(st), free(sets), free(found), free(groups);
+    if (copies)
+        for (int32_t i = 0; i < ntex; i++) sc_value_release(copies[i]);
+    free(st), free(sets), free(found), free(groups), free(work), free(copies), free(stored);
     if (rc != SC_OK) sc_erase_result_free(res);
     return rc;
 }

@@ -25,7 +25,7 @@
 #include "sc_value.h"
 
 /* Bump whenever sc_erase's output bytes for the same inputs can change. */
-#define SC_ERASE_VERSION 1
+#define SC_ERASE_VERSION 2
 extern const sc_kernel sc_kernel_erase;
 
 /* The paper's weights: the defaults of erase_seams's parameters. */
@@ -52,6 +52,17 @@ typedef enum sc_erase_solver {
     SC_ERASE_SOLVER_SCHUR = 2,       /* seam chains eliminated on their own, the rest factored */
 } sc_erase_solver;
 
+typedef enum sc_erase_filter_space {
+    SC_ERASE_FILTER_LINEAR = 0,      /* sRGB colour erased in linear light, as GPUs filter it (sRGB formats) */
+    SC_ERASE_FILTER_ENCODED = 1,     /* colour erased as stored: for engines that filter encoded values */
+} sc_erase_filter_space;
+
+/* The nodes' filter_space parameter: "encoded", or "linear" (anything else). */
+sc_erase_filter_space sc_erase_filter_space_named(const char *name);
+#define SC_ERASE_FILTER_SPACE_DOC                                                                            \
+    "where sRGB colour is erased: linear (light, as GPUs filter sRGB textures: glTF, GL/Vulkan sRGB formats) " \
+    "or encoded (the stored values, for engines that filter those)"
+
 typedef struct sc_erase_options {
     double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
     bool lerp, outside;              /* add E_lerp, E_outside */
@@ -59,6 +70,7 @@ typedef struct sc_erase_options {
     double gap_tolerance;            /* a texture within this (or one encoding step) passes through */
     const char *textures;            /* slots to erase, comma-separated, or "all" (borrowed) */
     sc_erase_quantize quantize;
+    sc_erase_filter_space filter_space;
     sc_erase_solver solver;
     int64_t schur_from;              /* solver auto: schur from this many unknowns */
     int32_t pcg_iterations;          /* the most conjugate-gradient iterations of each schur round */

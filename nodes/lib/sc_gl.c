@@ -300,7 +300,10 @@ int sc_gl_target_create(sc_gl_target *t, int32_t width, int32_t height, sc_error
     GLuint rb[2];
     glGenRenderbuffers(2, rb);
     t->color = rb[0], t->depth = rb[1];
-    const GLenum formats[2] = {GL_RGBA8, GL_DEPTH_COMPONENT32F};
+    /* colour is written sRGB-encoded (GL_FRAMEBUFFER_SRGB): shaders work in
+     * linear light, the way sRGB textures are filtered, and the picture
+     * holds what a display shows */
+    const GLenum formats[2] = {GL_SRGB8_ALPHA8, GL_DEPTH_COMPONENT32F};
     for (int i = 0; i < 2; i++) {
         glBindRenderbuffer(GL_RENDERBUFFER, rb[i]);
         glRenderbufferStorage(GL_RENDERBUFFER, formats[i], width, height);
@@ -311,6 +314,7 @@ int sc_gl_target_create(sc_gl_target *t, int32_t width, int32_t height, sc_error
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, t->color);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->depth);
     glDrawBuffer(GL_COLOR_ATTACHMENT0);
+    glEnable(GL_FRAMEBUFFER_SRGB);
     GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
     int rc = sc_gl_check("creating a framebuffer", err);
     if (rc == SC_OK && status != GL_FRAMEBUFFER_COMPLETE)
@@ -342,6 +346,17 @@ int sc_gl_texture(const sc_image_data *im, GLuint *out, sc_error *err) {
     *out = 0;
     if (!im || !im->pixels || im->channels < 1 || im->channels > 4 || im->width < 1 || im->height < 1)
         return sc_fail(err, SC_EINPUT, "texture: malformed image");
+    /* sRGB colour is sampled as linear light, as an engine samples it: 8-bit
+     * RGB(A) in an sRGB format (decoded before filtering), any other sRGB
+     * image decoded here into a float texture */
+    bool srgb = im->colorspace == SC_COLOR_SRGB;
+    if (srgb && !(im->pixel == SC_PIXEL_U8 && im->channels >= 3)) {
+        sc_image_data *lin = sc_image_to_linear_f32(im, 1);
+        if (!lin) return sc_fail(err, SC_ENOMEM, "out of memory");
+        int rc = sc_gl_texture(lin, out, err);
+        sc_image_free(lin);
+        return rc;
+    }
     GLint max_size = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
     if (im->width > max_size || im->height > max_size)
@@ -352,7 +367,10 @@ int sc_gl_texture(const sc_image_data *im, GLuint *out, sc_error *err) {
     switch (im->pixel) {
     case SC_PIXEL_U8:
         type = GL_UNSIGNED_BYTE;
-        internal = im->channels == 1 ? GL_R8 : im->channels == 2 ? GL_RG8 : GL_RGBA8;
+        internal = srgb ? (im->channels == 3 ? GL_SRGB8 : GL_SRGB8_ALPHA8)
+                   : im->channels == 1 ? GL_R8
+                   : im->channels == 2 ? GL_RG8
+                                       : GL_RGBA8;
         break;
     case SC_PIXEL_U16:
         type = GL_UNSIGNED_SHORT;

@@ -43,14 +43,6 @@ std::string tidy(std::string s) {
 
 std::string global_error() { return tidy(OIIO::geterror()); }
 
-float srgb_to_linear(float c) {
-    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
-
-float linear_to_srgb(float c) {
-    return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
-}
-
 /* Round a value in [0, 1] (clamped; NaN -> 0) to an integer in [0, max]. */
 uint32_t quantize(float x, uint32_t max) {
     if (!(x > 0.0f)) return 0;
@@ -94,8 +86,7 @@ std::vector<T> to_integers(const sc_image_data *im, int out_channels, uint32_t m
                     v = max == 65535 ? u : (u * 255 + 32767) / 65535;
                 } else {
                     float f = ((const float *)im->pixels)[s];
-                    bool alpha = (im->channels == 2 && k == 1) || (im->channels == 4 && k == 3);
-                    if (encode_srgb && !alpha) f = linear_to_srgb(f);
+                    if (encode_srgb && !sc_channel_is_alpha(im->channels, (int32_t)k)) f = sc_linear_to_srgb(f);
                     v = quantize(f, max);
                 }
                 dst[x * (size_t)out_channels + k] = (T)v;
@@ -232,8 +223,7 @@ std::vector<float> exr_pixels(const sc_image_data *im) {
             else if (im->pixel == SC_PIXEL_U16) f = ((const uint16_t *)im->pixels)[src_row + k] * (1.0f / 65535.0f);
             else f = ((const float *)im->pixels)[src_row + k];
             size_t ch = k % c;
-            bool alpha = (c == 2 && ch == 1) || (c == 4 && ch == 3);
-            if (linearise && !alpha) f = srgb_to_linear(f);
+            if (linearise && !sc_channel_is_alpha((int32_t)c, (int32_t)ch)) f = sc_srgb_to_linear(f);
             px[y * w * c + k] = f;
         }
     }

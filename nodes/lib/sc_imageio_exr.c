@@ -77,10 +77,6 @@ static void stream_error(exr_const_context_t ctxt, exr_result_t code, const char
 
 /* ---------------------------------------------------------------- tiles */
 
-static float srgb_to_linear(float c) {
-    return c <= 0.04045f ? c / 12.92f : powf((c + 0.055f) / 1.055f, 2.4f);
-}
-
 /* Sample (x, file row y) of channel c as the file stores it. */
 static float file_sample(const sc_image_data *im, int32_t x, int32_t y, int c) {
     size_t at = ((size_t)(im->height - 1 - y) * (size_t)im->width + (size_t)x) * (size_t)im->channels + (size_t)c;
@@ -88,8 +84,7 @@ static float file_sample(const sc_image_data *im, int32_t x, int32_t y, int c) {
     if (im->pixel == SC_PIXEL_U8) f = ((const uint8_t *)im->pixels)[at] * (1.0f / 255.0f);
     else if (im->pixel == SC_PIXEL_U16) f = ((const uint16_t *)im->pixels)[at] * (1.0f / 65535.0f);
     else f = ((const float *)im->pixels)[at];
-    bool alpha = (im->channels == 2 && c == 1) || (im->channels == 4 && c == 3);
-    if (im->colorspace == SC_COLOR_SRGB && !alpha) f = srgb_to_linear(f);
+    if (im->colorspace == SC_COLOR_SRGB && !sc_channel_is_alpha(im->channels, c)) f = sc_srgb_to_linear(f);
     return f;
 }
 

@@ -32,16 +32,6 @@ static double now_seconds(void) {
 
 /* ---------------------------------------------------------------- reading the old textures */
 
-static float srgb_to_linear(float c) {
-    return c <= 0.04045f ? c / 12.92f : powf((c + 0.055f) / 1.055f, 2.4f);
-}
-
-static float linear_to_srgb(float c) {
-    if (!(c > 0)) return 0;
-    if (c >= 1) return 1;
-    return c <= 0.0031308f ? 12.92f * c : 1.055f * powf(c, 1 / 2.4f) - 0.055f;
-}
-
 typedef enum slot_kind { SLOT_COLOUR, SLOT_NORMAL, SLOT_DATA } slot_kind;
 
 /* One input image as linear floats (colour decoded), for bilinear reads. */
@@ -57,7 +47,7 @@ static int source_load(source *s, const sc_texture *t, bool decode) {
     s->px = malloc((size_t)im->width * im->height * 4 * sizeof(float));
     if (!s->px) return SC_ENOMEM;
     float lut[256];
-    for (int i = 0; i < 256; i++) lut[i] = decode ? srgb_to_linear(i / 255.0f) : i / 255.0f;
+    for (int i = 0; i < 256; i++) lut[i] = decode ? sc_srgb_to_linear(i / 255.0f) : i / 255.0f;
     for (int32_t j = 0; j < im->height; j++)
         for (int32_t i = 0; i < im->width; i++) {
             float *o = s->px + 4 * ((size_t)j * im->width + i);
@@ -68,7 +58,7 @@ static int source_load(source *s, const sc_texture *t, bool decode) {
                         v = lut[((const uint8_t *)im->pixels)[((size_t)j * im->width + i) * im->channels + c]];
                     else {
                         v = sc_image_texel(im, i, j, c);
-                        if (decode && c < 3 && im->pixel != SC_PIXEL_F32) v = srgb_to_linear(v);
+                        if (decode && c < 3 && im->pixel != SC_PIXEL_F32) v = sc_srgb_to_linear(v);
                     }
                     if (im->pixel == SC_PIXEL_U8 && c == 3 && decode)
                         v = ((const uint8_t *)im->pixels)[((size_t)j * im->width + i) * im->channels + c] / 255.0f;
@@ -605,7 +595,7 @@ static sc_image_data *encode_level(const job *J, const slot *s, int32_t L) {
     for (size_t p = 0; p < n; p++)
         for (int c = 0; c < s->channels; c++) {
             float v = src[4 * p + c];
-            if (encode && c < 3) v = linear_to_srgb(v);
+            if (encode && c < 3) v = sc_linear_to_srgb(v);
             if (s->pixel == SC_PIXEL_F32) ((float *)im->pixels)[p * s->channels + c] = v;
             else {
                 double mx = s->pixel == SC_PIXEL_U8 ? 255 : 65535;
@@ -699,7 +689,7 @@ static void image_sample(const sc_image_data *im, bool decode, double u, double 
             double w = (a ? ax : 1 - ax) * (b ? ay : 1 - ay);
             for (int c = 0; c < im->channels && c < 4; c++) {
                 float t = sc_image_texel(im, i, j, c);
-                if (decode && c < 3 && im->pixel != SC_PIXEL_F32) t = srgb_to_linear(t);
+                if (decode && c < 3 && im->pixel != SC_PIXEL_F32) t = sc_srgb_to_linear(t);
                 out[c] += (float)(w * t);
             }
         }

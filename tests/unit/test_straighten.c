@@ -29,19 +29,27 @@ static int32_t wrap_index(int64_t i, int32_t n, sc_wrap w) {
     return (int32_t)(((i % n) + n) % n);
 }
 
+/* A texel as seen: sRGB colour decoded (IEC 61966-2-1) to linear light. */
+static double seen_texel(const sc_image_data *im, int32_t i, int32_t j, int32_t c) {
+    double v = sc_image_texel(im, i, j, c);
+    bool alpha = (im->channels == 2 && c == 1) || (im->channels == 4 && c == 3);
+    if (im->colorspace != SC_COLOR_SRGB || alpha) return v;
+    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+}
+
 static void bilinear(const sc_image_data *im, sc_wrap wu, sc_wrap wv, double u, double v, double *out) {
     double x = u * im->width - 0.5, y = v * im->height - 0.5;
     double fx = floor(x), fy = floor(y), s = x - fx, t = y - fy;
     int32_t i0 = wrap_index((int64_t)fx, im->width, wu), i1 = wrap_index((int64_t)fx + 1, im->width, wu);
     int32_t j0 = wrap_index((int64_t)fy, im->height, wv), j1 = wrap_index((int64_t)fy + 1, im->height, wv);
     for (int32_t c = 0; c < im->channels; c++)
-        out[c] = (1 - s) * (1 - t) * sc_image_texel(im, i0, j0, c) + s * (1 - t) * sc_image_texel(im, i1, j0, c) +
-                 (1 - s) * t * sc_image_texel(im, i0, j1, c) + s * t * sc_image_texel(im, i1, j1, c);
+        out[c] = (1 - s) * (1 - t) * seen_texel(im, i0, j0, c) + s * (1 - t) * seen_texel(im, i1, j0, c) +
+                 (1 - s) * t * seen_texel(im, i0, j1, c) + s * t * seen_texel(im, i1, j1, c);
 }
 
-/* PSNR (peak 1) of every texture of `in` that the output replaced: colour at
- * a barycentric grid of every face, old texture at old uv against new
- * texture at new uv. */
+/* PSNR (peak 1, linear light for sRGB colour) of every texture of `in` that
+ * the output replaced: colour at a barycentric grid of every face, old
+ * texture at old uv against new texture at new uv. */
 static double appearance_psnr(const sc_atlas *in, const sc_atlas *out, int grid, int *compared) {
     const sc_mesh *mi = in->mesh->as.mesh, *mo = out->mesh->as.mesh;
     double sum2 = 0, count = 0, a[4], b[4];
