@@ -52,11 +52,14 @@ save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", for
 
 -- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
 -- them; straighten re-renders the textures into the new uv and erases their
--- seams again (in float: save rounds them).
+-- seams again. The chain carries the textures in the input's own depth (an
+-- 8-bit input stays 8-bit, optimally rounded), so what is checked is what is
+-- written.
 local shared = erased.atlas_native
 if param("straighten", 1) ~= 0 then
-  shared = straighten{ name = "straight", atlas = erased.atlas, tolerance = param("straighten_tolerance", 0.01),
-                       filter_space = filter_space }
+  shared = straighten{ name = "straight", atlas = erased.atlas_native,
+                       tolerance = param("straighten_tolerance", 0.01),
+                       filter_space = filter_space }.atlas_native
 end
 
 -- Levels of detail from the mesh alone: new texture bytes never re-decimate.

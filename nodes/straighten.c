@@ -771,6 +771,8 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
                         int32_t pad, sc_image_data **out, sc_error *err) {
     const sc_image_data *src = tex->image->as.image;
     const int32_t W = src->width, H = src->height, C = src->channels;
+    /* resampled as stored (the erasure after it works as filtered): rendered
+     * appearance keeps closer so (docs/notes/straighten.md) */
     sc_image_data *old = sc_image_to_f32(src);
     sc_image_data *dst = sc_image_to_f32(src);
     size_t npx = (size_t)W * H;
@@ -868,18 +870,26 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
     return m;
 }
 
-static int erase_atlas(const sc_value *atlas, sc_erase_filter_space space, int threads, sc_value **out,
-                       sc_error *err) {
+/* Erase the re-rendered atlas: the float result (*out) and, in each input
+ * texture's own pixel type and encoding, its optimal rounding (*native). */
+static int erase_atlas(const sc_value *atlas, const sc_atlas *input, sc_erase_filter_space space, int threads,
+                       sc_value **out, sc_value **native, sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
-    o.quantize = SC_ERASE_QUANTIZE_NONE;
     o.filter_space = space;
     const sc_atlas *a = atlas->as.atlas;
+    const sc_image_data **like = calloc(a->ntex ? (size_t)a->ntex : 1, sizeof *like);
+    if (!like) return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    for (int32_t i = 0; i < a->ntex && i < input->ntex; i++) like[i] = input->textures[i].image->as.image;
+    o.native_like = like;
     sc_erase_result r;
     int rc = sc_erase(a->mesh->as.mesh, a->textures, a->ntex, &o, threads, &r, err);
-    if (rc == SC_OK && !(*out = sc_erase_result_atlas(atlas, &r, false))) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK && (!(*out = sc_erase_result_atlas(atlas, &r, false)) ||
+                        !(*native = sc_erase_result_atlas(atlas, &r, true))))
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc != SC_OK) sc_error_prefix(err, "straighten: erase_seams");
     sc_erase_result_free(&r);
+    free(like);
     return rc;
 }
 
@@ -1111,8 +1121,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
         sc_ctx_metric(ctx, "max_uv_displacement", 0);
         sc_ctx_metric(ctx, "seconds", sc_now() - started);
         sc_ctx_set_output(ctx, "atlas", sc_value_retain((sc_value *)in_value));
+        sc_ctx_set_output(ctx, "atlas_native", sc_value_retain((sc_value *)in_value));
     } else if (rc == SC_OK) {
-        sc_value *warped = NULL, *result = NULL;
+        sc_value *warped = NULL, *result = NULL, *native = NULL;
         int32_t rendered = 0;
         rc = warp_step(&J, steps, err);
         double t_render = sc_now();
@@ -1122,9 +1133,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
         double t_erase = sc_now();
         if (rc == SC_OK) {
             if (erase)
-                rc = erase_atlas(warped, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")), threads,
-                                 &result, err);
-            else result = sc_value_retain(warped);
+                rc = erase_atlas(warped, atlas, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
+                                 threads, &result, &native, err);
+            else result = sc_value_retain(warped), native = sc_value_retain(warped);
         }
         t_erase = sc_now() - t_erase;
         if (rc == SC_OK) rc = appearance_step(&J, result->as.atlas, err);
@@ -1134,9 +1145,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
             sc_ctx_metric(ctx, "seconds_erase", t_erase);
             sc_ctx_metric(ctx, "seconds", sc_now() - started);
             sc_ctx_set_output(ctx, "atlas", result);
-            result = NULL;
+            sc_ctx_set_output(ctx, "atlas_native", native);
+            result = native = NULL;
         }
-        sc_value_release(warped), sc_value_release(result);
+        sc_value_release(warped), sc_value_release(result), sc_value_release(native);
     }
     job_free(&J);
     return rc;
@@ -1171,6 +1183,9 @@ static const sc_port_desc outputs[] = {
     {.name = "atlas", .kind = SC_KIND_ATLAS,
      .doc = "the same surface mesh with straightened seams and boundaries in uv and its textures re-rendered "
             "(f32); the input itself when nothing moves"},
+    {.name = "atlas_native", .kind = SC_KIND_ATLAS,
+     .doc = "the same with each texture in the input's pixel type and encoding (8-bit: optimal rounding, "
+            "judged as filtered); the input itself when nothing moves"},
 };
 
 static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_topology,
@@ -1178,7 +1193,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &s
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 5,
+    .version = 6,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

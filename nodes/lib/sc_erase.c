@@ -182,6 +182,7 @@ typedef struct options {
     double gap_tolerance;
     sc_erase_quantize quantize;
     sc_erase_filter_space filter_space;
+    const sc_image_data *const *native_like;   /* per texture, or NULL */
     sc_erase_solver solver;
     int64_t schur_from;       /* solver auto: the edge-cluster solver from this many unknowns */
     int32_t pcg_iterations;   /* the most conjugate-gradient iterations */
@@ -1327,7 +1328,8 @@ typedef struct texture_out {
     const sc_texture *tx;
     const sc_image_data *img;     /* the input, as solved (a linear copy of sRGB colour in linear mode) */
     const sc_image_data *store;   /* the input as stored: the native result's pixel type and encoding */
-    bool decode;                  /* store is sRGB colour solved as linear light */
+    bool like;                    /* store is a native_like image: its type only, not its texels */
+    bool decode;                  /* the solution is linear light, store sRGB colour */
     sc_value *fv;                 /* the float result (st[ti].f32) */
     float *px;                    /* its pixels */
     sc_image_data *nat, *opt;     /* the naive and the optimal rounding, until handed over */
@@ -1386,6 +1388,28 @@ static sc_image_data *copy_image(const sc_image_data *img) {
     return copy;
 }
 
+/* Float image f rounded to nearest in like's pixel type, colour space and
+ * format tag (linear colour sRGB-encoded where like holds sRGB colour). */
+static sc_image_data *quantised_like(const sc_image_data *f, const sc_image_data *like) {
+    sc_image_data *q = sc_image_alloc(f->width, f->height, f->channels, like->pixel);
+    if (!q) return NULL;
+    q->colorspace = like->colorspace;
+    memcpy(q->format, like->format, sizeof q->format);
+    bool encode = f->colorspace == SC_COLOR_LINEAR && like->colorspace == SC_COLOR_SRGB;
+    double maxv = like->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
+    size_t n = (size_t)f->width * f->height * f->channels;
+    const float *px = f->pixels;
+    for (size_t k = 0; k < n; k++) {
+        double x = encode && !sc_channel_is_alpha(f->channels, (int32_t)(k % (size_t)f->channels))
+                       ? sc_linear_to_srgb(px[k])
+                       : px[k];
+        long v = lrint((x < 0 ? 0 : x > 1 ? 1 : x) * maxv);
+        if (like->pixel == SC_PIXEL_U8) ((uint8_t *)q->pixels)[k] = (uint8_t)v;
+        else ((uint16_t *)q->pixels)[k] = (uint16_t)v;
+    }
+    return q;
+}
+
 /* The input's own pixel type: the naive rounding of the solution (nat)
  * and, for the optimal one, a copy of it that round_job changes (opt),
  * with M on the seam texels: exactly (small atlases, where the nullity was
@@ -1394,9 +1418,12 @@ static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
     const group_work *w = &r->w;
     const sc_image_data *img = t->store;
     const int32_t C = img->channels;
-    if (!(t->nat = copy_image(img))) return sc_fail(err, SC_ENOMEM, "out of memory");
+    /* the input's own bytes where nothing was solved; a native_like image
+     * lends only its type, so every texel is rounded from the solution */
+    if (!(t->nat = t->like ? quantised_like(t->fv->as.image, img) : copy_image(img)))
+        return sc_fail(err, SC_ENOMEM, "out of memory");
     double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
-    for (int32_t i = 0; i < r->n; i++)
+    for (int32_t i = 0; i < r->n && !t->like; i++)
         for (int32_t c = 0; c < C; c++) {
             size_t at = (size_t)w->ids[i] * C + c;
             double x = t->decode && !sc_channel_is_alpha(C, c) ? sc_linear_to_srgb(t->px[at]) : t->px[at];
@@ -1519,7 +1546,8 @@ static int finish_texture(group_run *r, int32_t k, int32_t col, sc_error *err) {
     const sc_texture *tx = &r->textures[ti];
     texture_out t = {.ti = ti, .tx = tx, .img = tx->image->as.image, .eq_naive = NAN, .eq_opt = NAN, .gq = NAN};
     t.store = r->stored[ti] ? r->stored[ti] : t.img;
-    t.decode = t.store != t.img;
+    t.like = r->o->native_like && r->o->native_like[ti] == t.store;
+    t.decode = t.img->colorspace == SC_COLOR_LINEAR && t.store->colorspace == SC_COLOR_SRGB;
     int rc = write_solution(r, &t, col, err);
     if (rc) return rc;
     t.e0 = r->st[ti].energy_before, t.g0 = r->st[ti].gap_before;
@@ -1704,9 +1732,11 @@ void sc_erase_defaults(sc_erase_options *o) {
 }
 
 /* Each texture's image: erased (its own or an earlier slot's of the same
- * image), or the input's passed through. */
-static int collect_results(const sc_texture *textures, int32_t ntex, const tex_state *st, int32_t erased,
-                           sc_erase_result *res, sc_error *err) {
+ * image), or the input's passed through (its native result in the type of
+ * native_like[i] where that is another image). */
+static int collect_results(const sc_texture *textures, int32_t ntex, const tex_state *st,
+                           const sc_image_data *const *native_like, int32_t erased, sc_erase_result *res,
+                           sc_error *err) {
     res->count = ntex;
     res->erased = erased;
     res->f32 = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *res->f32);
@@ -1715,8 +1745,17 @@ static int collect_results(const sc_texture *textures, int32_t ntex, const tex_s
     for (int32_t i = 0; i < ntex; i++) {
         int32_t src = st[i].same_as >= 0 ? st[i].same_as : i;
         bool own = st[src].fate == FATE_ERASE;
+        const sc_image_data *img = textures[i].image->as.image;
         res->f32[i] = sc_value_retain(own ? st[src].f32 : textures[i].image);
-        res->native[i] = sc_value_retain(own ? st[src].native : textures[i].image);
+        if (own || !native_like || !native_like[i] || native_like[i] == img) {
+            res->native[i] = sc_value_retain(own ? st[src].native : textures[i].image);
+        } else {
+            /* passed through, in native_like's type */
+            sc_image_data *f = img->pixel == SC_PIXEL_F32 ? NULL : sc_image_to_f32(img);
+            sc_image_data *q = quantised_like(f ? f : img, native_like[i]);
+            sc_image_free(f);
+            if (!q || !(res->native[i] = sc_value_new_image(q))) return sc_fail(err, SC_ENOMEM, "out of memory");
+        }
     }
     return SC_OK;
 }
@@ -1771,6 +1810,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
         .textures = eo->textures ? eo->textures : "all",
         .quantize = eo->quantize,
         .filter_space = eo->filter_space,
+        .native_like = eo->native_like,
         .solver = eo->solver,
         .schur_from = eo->schur_from,
         .pcg_iterations = eo->pcg_iterations,
@@ -1797,6 +1837,12 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
     if (o.filter_space == SC_ERASE_FILTER_LINEAR) {
         if ((rc = linear_copies(inputs, ntex, list, threads, work, copies, stored, err))) goto done;
         textures = work;
+    }
+    for (int32_t i = 0; o.native_like && i < ntex; i++) {
+        const sc_image_data *like = o.native_like[i], *img = inputs[i].image->as.image;
+        if (like && like->pixel != SC_PIXEL_F32 && like->width == img->width && like->height == img->height &&
+            like->channels == img->channels)
+            stored[i] = like;
     }
     int32_t nselected = 0;
     for (int32_t i = 0; i < ntex; i++) nselected += slot_selected(list, textures[i].name);
@@ -1896,7 +1942,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             metric(&res->metrics, st[i].prefix, "same_image_as_slot", st[i].same_as);
         }
     emit_totals(&res->metrics, &tot, several);
-    rc = collect_results(inputs, ntex, st, tot.erased, res, err);
+    rc = collect_results(inputs, ntex, st, o.native_like ? stored : NULL, tot.erased, res, err);
 
 done:
     if (st)

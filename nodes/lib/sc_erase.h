@@ -71,6 +71,10 @@ typedef struct sc_erase_options {
     const char *textures;            /* slots to erase, comma-separated, or "all" (borrowed) */
     sc_erase_quantize quantize;
     sc_erase_filter_space filter_space;
+    /* per texture (or NULL): an image of the same size whose pixel type and
+     * encoding the native result takes instead of the texture's own (a float
+     * texture re-rendered from an 8-bit one goes back to 8 bits); borrowed */
+    const sc_image_data *const *native_like;
     sc_erase_solver solver;
     int64_t schur_from;              /* solver auto: schur from this many unknowns */
     int32_t pcg_iterations;          /* the most conjugate-gradient iterations of each schur round */
