@@ -84,8 +84,10 @@ save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset")
 
 -- The crack check: every level, rendered the way a GPU samples the shared
 -- textures; a crack pixel or a seam gap fails the cook, naming level, mode, view.
+-- pictures: a contact sheet per level and the views that fail; all: every view.
+local pictures = param("pictures", "sheets")
 render{ name = "check", lods = chain, reference = shared,
-        size = param("render_size", 512), modes = "textured",
+        size = param("render_size", 512), modes = "textured", pictures = pictures,
         max_crack_pixels = param("max_crack_pixels", 0),
         max_seam_gap = param("max_seam_gap", 1e-6) }
 
@@ -110,7 +112,7 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- unerased keep their seams, and check_maps's seam-gap limit says so.
 local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16),
                      erase_min_size = param("erase_min_size", 1), filter_space = filter_space }
-render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps",
+render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps", pictures = pictures,
         size = param("map_render_size", 256), views = param("map_views", 6),
         modes = "geometry_image,displaced,tessellated",
         max_crack_pixels = param("max_crack_pixels", 0),

@@ -93,12 +93,13 @@
  *    the cube's corners (obl0 ... obl7), then a Fibonacci sphere. Depth
  *    clamping keeps displaced geometry from being cut open by the near or far
  *    plane.
- *  - Output: a REPORT with render/lod<k>_<pass>_<view>.png, one contact sheet
- *    render/lod<k>_sheet.png per LOD (rows: passes in order, columns: views),
+ *  - Output: a REPORT with one contact sheet render/lod<k>_sheet.png per LOD
+ *    (rows: passes in order, columns: views), render/lod<k>_<pass>_<view>.png
+ *    for each view with crack candidates (every view with pictures = all),
  *    render/lod<k>_uv.png (the colour texture with the level's uv
  *    silhouettes over it: seams red, boundaries yellow, foldovers magenta;
  *    lod<k>_uv_<material>.png with several materials),
- *    render/reference_<view>.png when a reference is given, and the
+ *    render/reference_<view>.png when a reference is given (pictures = all), and the
  *    deterministic metrics. Shading works in linear light, as an engine's:
  *    sRGB colour textures are sampled through sRGB formats (decoded before
  *    filtering) and the target encodes to sRGB on write, so the seams and
@@ -1452,6 +1453,7 @@ typedef struct job {
     int seam_points;
     double max_cracks, max_gap;
     double pixels_per_unit;   /* view scale: size / (2 radius) */
+    bool all_pictures;        /* every view's picture; else contact sheets and views with crack candidates */
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
     topology reference_topology;   /* when reference is not NULL */
 } job;
@@ -1546,10 +1548,12 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s, view %s", k->human, ps->name, J->views[v].name);
         int64_t cracks = count_cracks(R, L, J, v, gap_below_grid, &pinholes);
-        char path[200];
-        snprintf(path, sizeof path, "%s/%s_%s_%s.png", o->folder, k->file, ps->name, J->views[v].name);
-        rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err);
-        if (rc != SC_OK) return rc;
+        if (J->all_pictures || cracks > 0) {
+            char path[200];
+            snprintf(path, sizeof path, "%s/%s_%s_%s.png", o->folder, k->file, ps->name, J->views[v].name);
+            rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err);
+            if (rc != SC_OK) return rc;
+        }
         sheet_put(sh, row, v, R->rgba, J->size);
         o->renders++;
         if (no_opening) {
@@ -1633,10 +1637,12 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
                         if (yy >= 0 && yy < s && xx >= 0 && xx < s) mask[(size_t)yy * s + xx] = 1;
                     }
             }
-        char path[200];
-        snprintf(path, sizeof path, "%s/reference_%s.png", o->folder, J->views[v].name);
-        rc = add_png(o, R, path, R->rgba, s, s, false, err);
-        if (rc != SC_OK) break;
+        if (J->all_pictures) {
+            char path[200];
+            snprintf(path, sizeof path, "%s/reference_%s.png", o->folder, J->views[v].name);
+            rc = add_png(o, R, path, R->rgba, s, s, false, err);
+            if (rc != SC_OK) break;
+        }
     }
     level_free(&L);
     if (rc != SC_OK) return sc_error_prefix(err, "reference, view %s", J->views[v].name);
@@ -1900,6 +1906,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     J.seam_points = (int)sc_ctx_integer(ctx, "seam_points");
     J.max_cracks = sc_ctx_number(ctx, "max_crack_pixels");
     J.max_gap = sc_ctx_number(ctx, "max_seam_gap");
+    J.all_pictures = strcmp(sc_ctx_string(ctx, "pictures"), "all") == 0;
     if (check_folder(sc_ctx_string(ctx, "folder"), err) != SC_OK) return sc_error_prefix(err, "folder");
 
     /* one framing for every level and the reference */
@@ -2007,11 +2014,16 @@ static int run(sc_ctx *ctx, sc_error *err) {
     return SC_OK;
 }
 
+static const char *const picture_choices[] = {"sheets", "all", NULL};
+
 static const sc_param_desc params[] = {
     {.name = "modes", .type = SC_PARAM_STRING, .def_string = "textured,geometry_image,displaced,tessellated",
      .doc = "comma-separated render modes: textured, geometry_image (needs the texture slot geometry_image), "
             "displaced (needs displacement), tessellated (needs either)",
      .check_text = check_modes},
+    {.name = "pictures", .type = SC_PARAM_ENUM, .def_string = "sheets", .choices = picture_choices,
+     .doc = "sheets: one contact sheet per LOD (and its uv picture), plus the picture of every view with crack "
+            "candidates; all: every view's picture and the reference's too"},
     {.name = "views", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 64,
      .doc = "views per LOD and mode: 6 axis views, then oblique ones"},
     {.name = "size", .type = SC_PARAM_INTEGER, .def = 512, .min = 16, .max = 4096,
@@ -2047,7 +2059,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 9,
+    .version = 10,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -6,7 +6,8 @@
 local asset = procedural{ name = "asset", resolution = 16, texture_size = 256, chart_tint = 0.3 }
 local lods = decimate{ name = "lods", mesh = asset, ratio = {0.5, 0.1} }
 local chain = share_textures{ name = "chain", lods = lods, atlas = asset }
-local check = render{ name = "check", lods = chain, reference = asset, size = 192, views = 7, modes = "textured" }
+local check = render{ name = "check", lods = chain, reference = asset, size = 192, views = 7, modes = "textured",
+                      pictures = "all" }
 
 for k = 0, 1 do
   expect(check, "lod" .. k .. ".textured.crack_pixels", "==", 0)  -- no cracks: the seams are in colour only

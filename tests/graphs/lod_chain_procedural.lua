@@ -5,7 +5,7 @@ local erased = erase_seams{ name = "erased", atlas = asset }
 local lods = decimate{ name = "lods", mesh = erased.atlas_native, ratio = {0.5, 0.1, 0.02} }
 local chain = share_textures{ name = "chain", lods = lods, atlas = erased.atlas_native }
 local check = render{ name = "check", lods = chain, reference = erased.atlas_native,
-                      size = 128, views = 6, modes = "textured" }
+                      size = 128, views = 6, modes = "textured", pictures = "all" }
 
 expect(erased, "seam_energy_before", ">", 1e-4)          -- the asset has real seams
 expect(erased, "seam_energy_after", "<", 1e-12)

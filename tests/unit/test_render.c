@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "sc_exec.h"
+#include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_test.h"
 
@@ -184,6 +185,8 @@ typedef struct run_result {
 static run_result render(sc_value *lods, sc_value *atlas, sc_value *reference, const char *const *params) {
     run_result r = {0};
     r.ctx = sc_ctx_new(&sc_node_render, NULL, NULL);
+    sc_error pe;
+    SC_CHECK(sc_ctx_set_param(r.ctx, "pictures", "all", &pe) == SC_OK);   /* every picture, unless params say */
     if (lods) sc_ctx_set_input(r.ctx, "lods", lods);
     if (atlas) sc_ctx_set_input(r.ctx, "atlas", atlas);
     if (reference) sc_ctx_set_input(r.ctx, "reference", reference);
@@ -211,6 +214,52 @@ static bool has_file(const run_result *r, const char *path) {
 /* ---------------------------------------------------------------- tests */
 
 static const char *const small[] = {"size", "128", "views", "10", "tess_levels", "1,2,4,8", NULL};
+
+/* pictures = sheets (the default): a contact sheet and the uv picture per
+ * LOD, and a view's own picture only where it has crack candidates. */
+SC_TEST(default_pictures_are_sheets_and_failing_views) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *cube = cube_atlas(4, 0, &tex);
+    run_result r = render(NULL, cube, NULL, (const char *const[]){"size", "64", "views", "6", "pictures", "sheets", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "crack_pixels") == 0);
+    SC_CHECK(has_file(&r, "render/lod0_sheet.png") && has_file(&r, "render/lod0_uv.png"));
+    SC_CHECK(!has_file(&r, "render/lod0_textured_posx.png"));
+    SC_CHECK_INT(report_of(&r)->nfiles, 2);
+    sc_ctx_free(r.ctx);
+    /* an open cube without a reference: the views looking into the hole have crack pixels */
+    sc_value *open = cube_atlas(4, CUBE_OPEN, &tex);
+    r = render(NULL, open, NULL, (const char *const[]){"size", "64", "views", "6", "pictures", "sheets", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    /* the pictures written show back faces (pure red), the others are left out */
+    int failing = 0, written = 0;
+    static const char *const names[6] = {"posx", "negx", "posy", "negy", "posz", "negz"};
+    const sc_report *rep = report_of(&r);
+    for (int i = 0; rep && i < rep->nfiles; i++)
+        for (int v = 0; v < 6; v++) {
+            char path[96];
+            snprintf(path, sizeof path, "render/lod0_textured_%s.png", names[v]);
+            if (strcmp(rep->files[i].path, path) != 0) continue;
+            written++;
+            const sc_bytes *b = rep->files[i].bytes->as.bytes;
+            sc_image_data *im = NULL;
+            sc_error e = {0};
+            if (sc_image_decode(path, b->data, b->size, &im, &e) != SC_OK) continue;
+            int64_t red = 0;
+            for (int64_t k = 0; k < (int64_t)im->width * im->height; k++) {
+                const uint8_t *px = (const uint8_t *)im->pixels + (size_t)k * (size_t)im->channels;
+                red += px[0] == 255 && px[1] == 0 && px[2] == 0;
+            }
+            failing += red > 0;
+            sc_image_free(im);
+        }
+    SC_CHECK_MSG(written > 0 && written < 6 && failing == written, "%d views written, %d showing back faces", written,
+                 failing);
+    sc_ctx_free(r.ctx);
+    sc_value_release(open);
+    sc_value_release(cube);
+    cube_textures_free(&tex);
+}
 
 SC_TEST(seam_free_geometry_image_has_no_gap) {
     cube_textures tex = cube_textures_make(0);

@@ -338,7 +338,7 @@ SC_TEST(bad_tolerance_is_named) {
  * fails. */
 static double render_psnr(sc_value *before, sc_value *after) {
     static const char *const views[] = {"posx", "negx", "posy", "negy", "posz", "negz"};
-    static const char *const params[] = {"modes", "textured", "views", "6", "size", "256", NULL};
+    static const char *const params[] = {"modes", "textured", "views", "6", "size", "256", "pictures", "all", NULL};
     sc_value *reports[2] = {NULL, NULL};
     sc_value *atlases[2] = {before, after};
     for (int k = 0; k < 2; k++) {
