@@ -15,9 +15,12 @@
  *           texture set, written once, from the atlas input when connected,
  *           else from level 0 (the levels share one parameterisation)
  *   image   N.<ext>
- * The MTL names colour maps with map_Kd, normal maps with norm, emissive maps
- * with map_Ke; other slots (occlusion, metallic_roughness, ...) have no MTL
- * statement and are listed in a comment. Faces are written in the mesh's
+ * The MTL names colour maps with map_Kd, normal maps with map_Bump (what
+ * Blender and most OBJ readers take for a normal map; load_atlas reads norm,
+ * map_Bump and bump), emissive maps with map_Ke; other slots have no MTL
+ * statement and are listed in a comment, "# <slot> <file>":
+ * metallic_roughness holds glTF's layout (roughness in G, metallic in B),
+ * occlusion is glTF's (R). Faces are written in the mesh's
  * order with a usemtl wherever the material changes. Material names are made
  * file-safe ([A-Za-z0-9_.-], others become '_'; duplicates get a suffix). A
  * texture image shared by several (material, slot) pairs is written once.
@@ -326,7 +329,7 @@ static int save_image(saver *s, const sc_value *image, const seam_place *at, con
 
 static const char *mtl_statement(const char *slot) {
     if (strcmp(slot, "color") == 0) return "map_Kd";
-    if (strcmp(slot, "normal") == 0) return "norm";
+    if (strcmp(slot, "normal") == 0) return "map_Bump";
     if (strcmp(slot, "emissive") == 0) return "map_Ke";
     return NULL;
 }
@@ -483,7 +486,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, 
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 3,
+    .version = 4,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -486,7 +486,7 @@ SC_TEST(save_then_load_is_exact) {
         if (mtl) {
             char *text = sc_strndup((const char *)mtl->data, mtl->size);
             SC_CHECK(strstr(text, "newmtl skin_one\n") && strstr(text, "map_Kd thing_skin_one_color.png\n"));
-            SC_CHECK(strstr(text, "norm thing_skin_one_normal.png\n"));
+            SC_CHECK(strstr(text, "map_Bump thing_skin_one_normal.png\n"));
             SC_CHECK(strstr(text, "newmtl eyes\nKd 1 1 1\nmap_Kd thing_skin_one_color.png\n"));
             free(text);
         }
