@@ -47,7 +47,7 @@ local erased = erase_seams{ name = "erased", atlas = asset, preset = param("pres
 -- it, and fails when the file's seams open wider than the image's by more
 -- than max_file_seam_gap (a lossy format or a conversion).
 local max_file_seam_gap = param("max_file_seam_gap", 1e-6)
-save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr",
+save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr", glb = false,
       max_seam_gap = max_file_seam_gap }
 
 -- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
@@ -80,6 +80,8 @@ local lods = decimate{ name = "lods", mesh = shared,
                        max_error = param("max_error", 0.02),
                        map_size = param("map_size", 0) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = shared }
+-- save writes OBJ/MTL per level and one asset.glb (glTF 2.0) holding the
+-- full mesh and every level (MSFT_lod) with the textures embedded.
 save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset"), max_seam_gap = max_file_seam_gap }
 
 -- The crack check: every level, rendered the way a GPU samples the shared

@@ -15,6 +15,9 @@
  *           texture set, written once, from the atlas input when connected,
  *           else from level 0 (the levels share one parameterisation)
  *   image   N.<ext>
+ *   glb     N.glb (glb = true, with an atlas or lods): glTF 2.0 holding the
+ *           atlas's mesh and every level as MSFT_lod levels of one node, the
+ *           texture set's PNG/JPEG files embedded (sc_gltf_write_glb)
  * The MTL names colour maps with map_Kd, normal maps with map_Bump (what
  * Blender and most OBJ readers take for a normal map; load_atlas reads norm,
  * map_Bump and bump), emissive maps with map_Ke; other slots have no MTL
@@ -43,6 +46,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sc_gltf.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_seam.h"
@@ -222,6 +226,9 @@ typedef struct saver {
     int nfiles;
     int64_t bytes;
     double worst_energy, worst_gap, worst_added_gap;   /* over the texture files, as decoded */
+    sc_gltf_out_texture *glb_tex;   /* the texture set's PNG/JPEG files, for the .glb (paths in glb_path) */
+    const char **glb_path;
+    int nglb;
 } saver;
 
 /* Where a texture's seams are measured: its mesh and material, its wrap modes. */
@@ -352,6 +359,20 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
             seam_place at = {m, tex};
             if (!base) rc = sc_fail(err, SC_ENOMEM, "out of memory");
             else rc = save_image(s, tex->image, &at, base, &file, err);
+            const char *ext = file ? strrchr(file, '.') : NULL;
+            bool embeddable = ext && (strcmp(ext, ".png") == 0 || strcmp(ext, ".jpg") == 0);
+            if (rc == SC_OK && embeddable) {
+                sc_gltf_out_texture *gt = realloc(s->glb_tex, sizeof *gt * (size_t)(s->nglb + 1));
+                if (gt) s->glb_tex = gt;
+                const char **gp = gt ? realloc(s->glb_path, sizeof *gp * (size_t)(s->nglb + 1)) : NULL;
+                if (gp) s->glb_path = gp;
+                if (!gp) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                else {
+                    s->glb_tex[s->nglb] = (sc_gltf_out_texture){k, tex->name, tex->wrap_u, tex->wrap_v, NULL, 0,
+                                                                 strcmp(ext, ".png") == 0 ? "image/png" : "image/jpeg"};
+                    s->glb_path[s->nglb++] = file;
+                }
+            }
             if (rc == SC_OK) {
                 const char *statement = mtl_statement(tex->name);
                 if (statement) sc_buf_printf(&mtl, "%s %s\n", statement, file);
@@ -381,6 +402,37 @@ static int save_obj(saver *s, const sc_mesh *m, const sc_mesh *set, char *const 
         sc_error_prefix(err, "%s", file);
     }
     free(mtl);
+    sc_buf_free(&b);
+    return rc;
+}
+
+/* <name>.glb: the atlas's mesh (when given) and every level of detail, finest
+ * first, as MSFT_lod levels of one node, with the texture set's PNG/JPEG
+ * files embedded (float textures cannot be: glTF holds PNG and JPEG). */
+static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_error *err) {
+    int32_t n = (atlas ? 1 : 0) + (lods ? lods->count : 0);
+    const sc_mesh **levels = calloc((size_t)n, sizeof *levels);
+    if (!levels) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int32_t k = 0;
+    if (atlas) levels[k++] = atlas->mesh->as.mesh;
+    for (int32_t l = 0; lods && l < lods->count; l++) levels[k++] = lods->levels[l]->as.atlas->mesh->as.mesh;
+    for (int i = 0; i < s->nglb; i++)
+        for (int32_t f = 0; f < s->report->nfiles; f++)
+            if (strcmp(s->report->files[f].path, s->glb_path[i]) == 0) {
+                const sc_bytes *b = s->report->files[f].bytes->as.bytes;
+                s->glb_tex[i].bytes = b->data, s->glb_tex[i].size = b->size;
+            }
+    sc_buf b;
+    sc_buf_init(&b);
+    int rc = sc_gltf_write_glb(levels, n, s->glb_tex, s->nglb, &b, err);
+    char *file = rc == SC_OK ? sc_strprintf("%s.glb", s->name) : NULL;
+    if (rc == SC_OK && !file) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) {
+        s->bytes += (int64_t)b.len;
+        rc = add_file(s->report, file, &b, err);
+    }
+    if (rc) sc_error_prefix(err, "%s.glb", s->name);
+    free(file), free(levels);
     sc_buf_free(&b);
     return rc;
 }
@@ -421,6 +473,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
             if (rc) sc_error_prefix(err, "lods: level %d", k);
             free(file);
         }
+        if (rc == SC_OK && sc_ctx_bool(ctx, "glb")) rc = save_glb(&s, atlas, lods, err);
         free_names(names, set_mesh->nmat);
     }
     if (rc == SC_OK && image) {
@@ -430,7 +483,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     }
     int nfiles = s.report->nfiles;
     for (int i = 0; i < s.nfiles; i++) free(s.files[i].path);
-    free(s.files);
+    free(s.files), free(s.glb_tex), free(s.glb_path);
     if (rc == SC_OK) {
         rc = sc_report_metric(s.report, "files", nfiles) || sc_report_metric(s.report, "bytes", (double)s.bytes) ||
                      (set && (sc_report_metric(s.report, "seam_energy", s.worst_energy) ||
@@ -466,6 +519,8 @@ static const sc_param_desc params[] = {
             "jpg only when asked"},
     {.name = "exr_too", .type = SC_PARAM_BOOL, .def = 0,
      .doc = "also write every texture as float EXR"},
+    {.name = "glb", .type = SC_PARAM_BOOL, .def = 1,
+     .doc = "also write <file>.glb: glTF 2.0 with every level (MSFT_lod) and the PNG/JPEG textures embedded"},
     {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e30,
      .doc = "fail when a texture file, decoded and filtered as a renderer does (sRGB colour in linear light), "
             "has seams wider than its image's by more than this; -1: measure only"},
@@ -482,11 +537,11 @@ static const sc_port_desc outputs[] = {
     {.name = "files", .kind = SC_KIND_REPORT, .doc = "the files, for the engine to write into --out"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, &sc_kernel_gltf, NULL};
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 4,
+    .version = 5,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -90,4 +90,26 @@ int sc_gltf_parse(const char *name, const void *bytes, size_t size, sc_gltf_read
                   void *ud, sc_gltf *out, sc_error *err);
 void sc_gltf_free(sc_gltf *g);
 
+/* ---------------------------------------------------------------- writing (sc_gltf_write.c) */
+
+/* A texture to embed: its material and slot (the reader's slot names), its
+ * wrap modes, and its file's bytes (PNG or JPEG; borrowed). */
+typedef struct sc_gltf_out_texture {
+    int32_t material;
+    const char *slot;
+    sc_wrap wrap_u, wrap_v;
+    const uint8_t *bytes;
+    size_t size;
+    const char *mime;   /* "image/png" or "image/jpeg" */
+} sc_gltf_out_texture;
+
+/* One .glb holding every level of detail: node 0 draws levels[0] and names
+ * the others in MSFT_lod (finest first), each level a mesh with a primitive
+ * per material (unindexed corners welded into glTF vertices: equal position,
+ * uv and normal indices), materials named as the levels' (all levels share
+ * level 0's materials), textures embedded with samplers from their wrap
+ * modes. Positions, uvs (v stored as 1 - v) and normals are float32. */
+int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
+                      int32_t ntextures, sc_buf *out, sc_error *err);
+
 #endif

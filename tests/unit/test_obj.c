@@ -7,6 +7,7 @@
 #include <cjson/cJSON.h>
 
 #include "sc_exec.h"
+#include "sc_gltf.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
 #include "sc_obj.h"
@@ -459,6 +460,48 @@ static const sc_bytes *report_file(const sc_report *r, const char *path) {
     return NULL;
 }
 
+/* The .glb read back with the glTF reader: node 0 is the atlas's mesh, face
+ * for face (material by material, in face order), positions and uvs the
+ * float32 of the source (v stored as 1 - v), its levels named in MSFT_lod,
+ * and the embedded images the very bytes of the texture files. */
+static void check_glb_round_trip(const sc_report *r, const sc_atlas *atlas) {
+    const sc_bytes *glb = report_file(r, "thing.glb");
+    SC_CHECK(glb != NULL);
+    if (!glb) return;
+    sc_gltf g;
+    sc_error err = {0};
+    int rc = sc_gltf_parse("thing.glb", glb->data, glb->size, NULL, NULL, &g, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc != SC_OK) return;
+    const sc_mesh *a = atlas->mesh->as.mesh, *b = g.mesh;
+    SC_CHECK_INT(b->nf, a->nf);
+    int32_t fb = 0, bad_pos = 0, bad_uv = 0;
+    for (int32_t mat = 0; mat < a->nmat; mat++)
+        for (int32_t f = 0; f < a->nf && fb < b->nf; f++) {
+            if (a->FM[f] != mat) continue;
+            for (int c = 0; c < 3; c++) {
+                const double *pa = a->V + 3 * a->FV[3 * f + c], *pb = b->V + 3 * b->FV[3 * fb + c];
+                const double *ua = a->U + 2 * a->FU[3 * f + c], *ub = b->U + 2 * b->FU[3 * fb + c];
+                for (int d = 0; d < 3; d++) bad_pos += pb[d] != (double)(float)pa[d];
+                bad_uv += ub[0] != (double)(float)ua[0] || ub[1] != 1.0 - (double)(float)(1.0 - ua[1]);
+            }
+            fb++;
+        }
+    SC_CHECK_INT(bad_pos, 0);
+    SC_CHECK_INT(bad_uv, 0);
+    const char *json = (const char *)glb->data + 20;
+    SC_CHECK(strstr(json, "\"MSFT_lod\":{\"ids\":[1,2]}") != NULL);
+    SC_CHECK_INT(g.ntextures, 3);   /* colour on both materials, normal on one */
+    for (int32_t t = 0; t < g.ntextures; t++) {
+        const sc_gltf_image *im = &g.images[g.textures[t].image];
+        const char *file = strcmp(g.textures[t].slot, "normal") == 0 ? "thing_skin_one_normal.png"
+                                                                       : "thing_skin_one_color.png";
+        const sc_bytes *png = report_file(r, file);
+        SC_CHECK(png && im->data && im->size == png->size && memcmp(im->data, png->data, png->size) == 0);
+    }
+    sc_gltf_free(&g);
+}
+
 SC_TEST(save_then_load_is_exact) {
     sc_value *atlas = make_atlas();
     sc_lods *l = sc_lods_new();
@@ -475,8 +518,8 @@ SC_TEST(save_then_load_is_exact) {
     char *dir = sc_test_tempdir("save");
     if (rc == SC_OK) {
         const sc_report *r = sc_ctx_output(ctx, 0)->as.report;
-        /* obj, mtl, 2 lods, shared colour png + exr, normal png + exr */
-        SC_CHECK_INT(r->nfiles, 8);
+        /* obj, mtl, 2 lods, shared colour png + exr, normal png + exr, glb */
+        SC_CHECK_INT(r->nfiles, 9);
         SC_CHECK(report_file(r, "thing.obj") && report_file(r, "thing.mtl"));
         SC_CHECK(report_file(r, "thing_lod0.obj") && report_file(r, "thing_lod1.obj"));
         SC_CHECK(report_file(r, "thing_skin_one_color.png") && report_file(r, "thing_skin_one_color.exr"));
@@ -490,6 +533,7 @@ SC_TEST(save_then_load_is_exact) {
             SC_CHECK(strstr(text, "newmtl eyes\nKd 1 1 1\nmap_Kd thing_skin_one_color.png\n"));
             free(text);
         }
+        check_glb_round_trip(r, atlas->as.atlas);
         write_report(r, dir);
     }
     sc_ctx_free(ctx);
