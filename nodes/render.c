@@ -95,7 +95,7 @@
  *    plane.
  *  - Output: a REPORT with one contact sheet render/lod<k>_sheet.png per LOD
  *    (rows: passes in order, columns: views), render/lod<k>_<pass>_<view>.png
- *    for each view with crack candidates (every view with pictures = all),
+ *    for each view with crack pixels (every view with pictures = all),
  *    render/lod<k>_uv.png (the colour texture with the level's uv
  *    silhouettes over it: seams red, boundaries yellow, foldovers magenta;
  *    lod<k>_uv_<material>.png with several materials),
@@ -1548,12 +1548,16 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s, view %s", k->human, ps->name, J->views[v].name);
         int64_t cracks = count_cracks(R, L, J, v, gap_below_grid, &pinholes);
-        if (J->all_pictures || cracks > 0) {
-            char path[200];
-            snprintf(path, sizeof path, "%s/%s_%s_%s.png", o->folder, k->file, ps->name, J->views[v].name);
-            rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err);
-            if (rc != SC_OK) return rc;
-        }
+        /* the view's own picture: always with pictures = all, else only if
+         * crack pixels remain once folds are told apart (the welded draw
+         * below overwrites the picture, so it is held until then) */
+        char path[200];
+        snprintf(path, sizeof path, "%s/%s_%s_%s.png", o->folder, k->file, ps->name, J->views[v].name);
+        size_t picture_bytes = (size_t)J->size * (size_t)J->size * 4;
+        uint8_t *held = !J->all_pictures && cracks > 0 ? malloc(picture_bytes) : NULL;
+        if (!J->all_pictures && cracks > 0 && !held) return sc_fail(err, SC_ENOMEM, "out of memory");
+        if (held) memcpy(held, R->rgba, picture_bytes);
+        if (J->all_pictures && (rc = add_png(o, R, path, R->rgba, J->size, J->size, false, err)) != SC_OK) return rc;
         sheet_put(sh, row, v, R->rgba, J->size);
         o->renders++;
         if (no_opening) {
@@ -1566,14 +1570,19 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
             rc = draw(R, L, ps, &J->views[v], true, err);
             if (rc == SC_OK) rc = read_target(R, err);
             R->t_render += sc_now() - t0;
-            if (rc != SC_OK)
+            if (rc != SC_OK) {
+                free(held);
                 return sc_error_prefix(err, "%s, mode %s, view %s, welded", k->human, ps->name, J->views[v].name);
+            }
             int64_t kept = 0;
             for (int64_t c = 0; c < cracks; c++)
                 if (R->flags[R->cracks[c]] == 2) folds++;
                 else kept++;
             cracks = kept;
         }
+        if (held && cracks > 0) rc = add_png(o, R, path, held, J->size, J->size, false, err);
+        free(held);
+        if (rc != SC_OK) return rc;
         total += cracks;
         if (cracks > worst) worst = cracks, worst_view = v;
     }
@@ -2059,7 +2068,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 10,
+    .version = 11,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
