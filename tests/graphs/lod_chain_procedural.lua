@@ -38,6 +38,14 @@ for k = 0, 2 do
 end
 expect_image(maps, "maps/lod2_sheet.png", { threshold = 3, max_share = 0.002 })
 
+-- the files as written: the 8-bit PNG, decoded and filtered in linear light,
+-- keeps the seams the erasure left (its optimal rounding: far under the
+-- naive rounding's energy), and adds nothing to them
+local saved = save{ name = "save", atlas = erased.atlas_native, lods = chain, max_seam_gap = 1e-6 }
+expect(erased, "seam_energy_after_u8_naive", ">", 1e-6)
+expect(saved, "asset_default_color.png.seam_gap_added", "==", 0)
+expect(saved, "asset_default_color.png.seam_energy", "<", 1e-7)
+
 -- what it looks like, and every decimation metric, against goldens
 expect_image(check, "render/lod1_textured_posx.png", { threshold = 3, max_share = 0.002 })
 expect_metrics(lods, { tolerance = 1e-6 })
