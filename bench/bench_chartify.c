@@ -75,37 +75,6 @@ typedef struct result {
 static const char *const stage_names[5] = {"seconds_charts", "seconds_sample", "seconds_levels", "seconds_encode",
                                            "seconds_measure"};
 
-/* peak resident set since the last reset, in MiB (Linux /proc) */
-static double vm_hwm_mb(void) {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f) return -1;
-    char line[256];
-    double kb = -1;
-    while (fgets(line, sizeof line, f))
-        if (strncmp(line, "VmHWM:", 6) == 0) kb = atof(line + 6);
-    fclose(f);
-    return kb / 1024.0;
-}
-
-static double vm_rss_mb(void) {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f) return -1;
-    char line[256];
-    double kb = -1;
-    while (fgets(line, sizeof line, f))
-        if (strncmp(line, "VmRSS:", 6) == 0) kb = atof(line + 6);
-    fclose(f);
-    return kb / 1024.0;
-}
-
-static void reset_hwm(void) {
-    FILE *f = fopen("/proc/self/clear_refs", "w");
-    if (f) {
-        fputs("5", f);
-        fclose(f);
-    }
-}
-
 static double metric(const sc_metric_list *ml, const char *name) {
     for (int32_t i = 0; i < ml->count; i++)
         if (!strcmp(ml->items[i].name, name)) return ml->items[i].value;
@@ -152,12 +121,12 @@ static int run_quad(void *ud, int out) {
     o.texture_size = a->texture_size;
     sc_quad_result q;
     memset(&q, 0, sizeof q);
-    double rss0 = vm_rss_mb();
-    reset_hwm();
+    double rss0 = bench_resident_mb();
+    bench_reset_peak();
     t0 = sc_now();
     rc = sc_quad_build(at->mesh->as.mesh, at->textures, at->ntex, &o, ra->threads, &q, &err);
     r.seconds = sc_now() - t0;
-    r.peak_mb = vm_hwm_mb();
+    r.peak_mb = bench_peak_mb();
     r.rss_mb = r.peak_mb - rss0;
     sc_value_release(atlas);
     if (rc != SC_OK) {

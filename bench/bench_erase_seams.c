@@ -51,37 +51,6 @@ static const asset assets[] = {
 };
 #define NASSETS ((int)(sizeof assets / sizeof assets[0]))
 
-/* peak resident set since the last reset, in MiB (Linux /proc) */
-static double vm_hwm_mb(void) {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f) return -1;
-    char line[256];
-    double kb = -1;
-    while (fgets(line, sizeof line, f))
-        if (strncmp(line, "VmHWM:", 6) == 0) kb = atof(line + 6);
-    fclose(f);
-    return kb / 1024.0;
-}
-
-static double vm_rss_mb(void) {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f) return -1;
-    char line[256];
-    double kb = -1;
-    while (fgets(line, sizeof line, f))
-        if (strncmp(line, "VmRSS:", 6) == 0) kb = atof(line + 6);
-    fclose(f);
-    return kb / 1024.0;
-}
-
-static void reset_hwm(void) {
-    FILE *f = fopen("/proc/self/clear_refs", "w");
-    if (f) {
-        fputs("5", f);
-        fclose(f);
-    }
-}
-
 static double cpu_seconds(void) {
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
@@ -138,13 +107,13 @@ static int run_asset(void *ud, int out) {
         rc = sc_ctx_set_param(ctx, sets[i], eq + 1, &err);
         *eq = '=';
     }
-    double rss0 = vm_rss_mb();
-    reset_hwm();
+    double rss0 = bench_resident_mb();
+    bench_reset_peak();
     t0 = sc_now();
     double c0 = cpu_seconds();
     if (rc == SC_OK) rc = sc_ctx_run(ctx, &err);
     double t_erase = sc_now() - t0, c_erase = cpu_seconds() - c0;
-    double hwm = vm_hwm_mb();
+    double hwm = bench_peak_mb();
     if (rc != SC_OK) {
         printf("%-12s erase failed: %s\n", a->name, err.message);
     } else {

@@ -3,6 +3,7 @@
 
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -45,4 +46,28 @@ void bench_summary(const char *name, const char *what, double *seconds, int n, d
         printf("; target <= %.2g s met in %d of %d", target, met, n);
     }
     printf("\n");
+}
+
+/* A "Key:   N kB" line of /proc/self/status, in MiB. */
+static double status_mb(const char *key) {
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    char line[256];
+    double kb = -1;
+    size_t n = strlen(key);
+    while (fgets(line, sizeof line, f))
+        if (strncmp(line, key, n) == 0) kb = atof(line + n);
+    fclose(f);
+    return kb / 1024.0;
+}
+
+double bench_resident_mb(void) { return status_mb("VmRSS:"); }
+double bench_peak_mb(void) { return status_mb("VmHWM:"); }
+
+void bench_reset_peak(void) {
+    FILE *f = fopen("/proc/self/clear_refs", "w");
+    if (f) {
+        fputs("5", f);
+        fclose(f);
+    }
 }

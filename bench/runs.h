@@ -22,4 +22,10 @@ int bench_report_seconds(int out, double seconds);
  * n" (target 0: none); sorts seconds[0 .. n). Prints nothing when n < 2. */
 void bench_summary(const char *name, const char *what, double *seconds, int n, double target);
 
+/* This process's resident set now and its peak since the last
+ * bench_reset_peak, in MiB (Linux /proc; -1 where unreadable). */
+double bench_resident_mb(void);
+double bench_peak_mb(void);
+void bench_reset_peak(void);
+
 #endif
