@@ -784,3 +784,23 @@ sc_value *sc_value_deserialize(const void *bytes, size_t n, const sc_digest *exp
     }
     return v;
 }
+
+sc_image_data *sc_image_quantize(const sc_image_data *f, sc_pixel pixel, sc_colorspace space) {
+    sc_image_data *q = sc_image_alloc(f->width, f->height, f->channels, pixel);
+    if (!q) return NULL;
+    q->colorspace = space;
+    memcpy(q->format, f->format, sizeof q->format);
+    bool encode = f->colorspace == SC_COLOR_LINEAR && space == SC_COLOR_SRGB;
+    double maxv = pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
+    size_t n = (size_t)f->width * f->height * f->channels;
+    const float *px = f->pixels;
+    for (size_t k = 0; k < n; k++) {
+        float x = encode && !sc_channel_is_alpha(f->channels, (int32_t)(k % (size_t)f->channels))
+                      ? sc_linear_to_srgb(px[k])
+                      : px[k];
+        long v = lrint((x > 0 ? (x < 1 ? x : 1) : 0) * maxv);
+        if (pixel == SC_PIXEL_U8) ((uint8_t *)q->pixels)[k] = (uint8_t)v;
+        else ((uint16_t *)q->pixels)[k] = (uint16_t)v;
+    }
+    return q;
+}

@@ -115,6 +115,10 @@ bool sc_channel_is_alpha(int32_t channels, int32_t c);
  * the transfer curve, alpha as is), tagged SC_COLOR_LINEAR; any other
  * colour space: sc_image_to_f32_threads. NULL when out of memory. */
 sc_image_data *sc_image_to_linear_f32(const sc_image_data *im, int threads);
+/* An f32 image rounded to nearest in `pixel` (u8 or u16, clamped to [0, 1],
+ * NaN -> 0), tagged `space`; linear colour stored as SC_COLOR_SRGB goes
+ * through the transfer curve (alpha as is). NULL when out of memory. */
+sc_image_data *sc_image_quantize(const sc_image_data *f, sc_pixel pixel, sc_colorspace space);
 
 /* ---------------------------------------------------------------- atlas */
 

@@ -443,28 +443,6 @@ static sc_image_data *data_down(const sc_image_data *src, int32_t **band_io) {
     return dst;
 }
 
-/* A float image in another pixel type, rounded to nearest (clamped); linear
- * colour is stored sRGB-encoded, as 8/16-bit colour always is. */
-static sc_image_data *to_pixel(const sc_image_data *f, sc_pixel pixel) {
-    sc_image_data *im = sc_image_alloc(f->width, f->height, f->channels, pixel);
-    if (!im) return NULL;
-    bool encode = f->colorspace == SC_COLOR_LINEAR;
-    im->colorspace = encode ? SC_COLOR_SRGB : f->colorspace;
-    memcpy(im->format, f->format, sizeof im->format);
-    size_t n = (size_t)f->width * f->height * f->channels;
-    const float *s = f->pixels;
-    double max = pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
-    for (size_t t = 0; t < n; t++) {
-        float x = encode && !sc_channel_is_alpha(f->channels, (int32_t)(t % (size_t)f->channels)) ? sc_linear_to_srgb(s[t])
-                                                                                                 : s[t];
-        double v = x > 0 ? (x < 1 ? x : 1) : 0;
-        long q = lrint(v * max);
-        if (pixel == SC_PIXEL_U8) ((uint8_t *)im->pixels)[t] = (uint8_t)q;
-        else ((uint16_t *)im->pixels)[t] = (uint16_t)q;
-    }
-    return im;
-}
-
 /* ---------------------------------------------------------------- erasing */
 
 /* Whether level 0 of a chain is seam-free already: its largest sampled seam
@@ -705,7 +683,9 @@ static int build_group(void *ud, int32_t item) {
                 bool normal = strcmp(ch->tex->name, "normal") == 0;
                 sc_image_data *f = box_down(ch->f32[m - 1]->as.image, normal);
                 sc_pixel px = ch->tex->image->as.image->pixel;
-                sc_image_data *q = f && px != SC_PIXEL_F32 ? to_pixel(f, px) : NULL;
+                sc_image_data *q = NULL;   /* 8/16-bit colour is stored sRGB-encoded */
+                if (f && px != SC_PIXEL_F32)
+                    q = sc_image_quantize(f, px, f->colorspace == SC_COLOR_LINEAR ? SC_COLOR_SRGB : f->colorspace);
                 if (q) sc_image_free(f), f = q;
                 else if (px != SC_PIXEL_F32) sc_image_free(f), f = NULL;
                 in = f ? sc_value_new_image(f) : NULL;

@@ -1389,24 +1389,10 @@ static sc_image_data *copy_image(const sc_image_data *img) {
 }
 
 /* Float image f rounded to nearest in like's pixel type, colour space and
- * format tag (linear colour sRGB-encoded where like holds sRGB colour). */
+ * format tag. */
 static sc_image_data *quantised_like(const sc_image_data *f, const sc_image_data *like) {
-    sc_image_data *q = sc_image_alloc(f->width, f->height, f->channels, like->pixel);
-    if (!q) return NULL;
-    q->colorspace = like->colorspace;
-    memcpy(q->format, like->format, sizeof q->format);
-    bool encode = f->colorspace == SC_COLOR_LINEAR && like->colorspace == SC_COLOR_SRGB;
-    double maxv = like->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
-    size_t n = (size_t)f->width * f->height * f->channels;
-    const float *px = f->pixels;
-    for (size_t k = 0; k < n; k++) {
-        double x = encode && !sc_channel_is_alpha(f->channels, (int32_t)(k % (size_t)f->channels))
-                       ? sc_linear_to_srgb(px[k])
-                       : px[k];
-        long v = lrint((x < 0 ? 0 : x > 1 ? 1 : x) * maxv);
-        if (like->pixel == SC_PIXEL_U8) ((uint8_t *)q->pixels)[k] = (uint8_t)v;
-        else ((uint16_t *)q->pixels)[k] = (uint16_t)v;
-    }
+    sc_image_data *q = sc_image_quantize(f, like->pixel, like->colorspace);
+    if (q) memcpy(q->format, like->format, sizeof q->format);
     return q;
 }
 
