@@ -231,9 +231,11 @@ typedef struct saver {
     int nglb;
 } saver;
 
-/* Where a texture's seams are measured: its mesh and material, its wrap modes. */
+/* Where a texture's seams are measured: its mesh, its material's seams
+ * (found once per material), its wrap modes. */
 typedef struct seam_place {
     const sc_mesh *mesh;
+    const sc_seam_set *seams;
     const sc_texture *tex;
 } seam_place;
 
@@ -256,16 +258,12 @@ static int seen_seams(const seam_place *at, const sc_seam_set *seams, const sc_i
  * a colour conversion), which fails the save beyond max_seam_gap. */
 static int measure_file(saver *s, const seam_place *at, const sc_image_data *im, const char *file,
                         const sc_buf *bytes, sc_error *err) {
-    sc_seam_set seams;
-    int rc = sc_seam_find(at->mesh, at->tex->material, &seams, err);
-    if (rc) return rc;
     sc_image_data *decoded = NULL;
     double e_file = 0, g_file = 0, e_mem = 0, g_mem = 0;
-    rc = sc_image_decode(file, bytes->data, bytes->len, &decoded, err);
-    if (rc == SC_OK) rc = seen_seams(at, &seams, decoded, &e_file, &g_file, err);
-    if (rc == SC_OK) rc = seen_seams(at, &seams, im, &e_mem, &g_mem, err);
+    int rc = sc_image_decode(file, bytes->data, bytes->len, &decoded, err);
+    if (rc == SC_OK) rc = seen_seams(at, at->seams, decoded, &e_file, &g_file, err);
+    if (rc == SC_OK) rc = seen_seams(at, at->seams, im, &e_mem, &g_mem, err);
     sc_image_free(decoded);
-    sc_seam_set_free(&seams);
     if (rc) return rc;
     double added = g_file > g_mem ? g_file - g_mem : 0;
     char name[512];
@@ -350,15 +348,18 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
     int rc = SC_OK;
     for (int32_t k = 0; k < m->nmat && rc == SC_OK; k++) {
         sc_buf_printf(&mtl, "\nnewmtl %s\nKd 1 1 1\n", names[k]);
+        sc_seam_set seams = {0};
+        bool found = false;
         for (int32_t t = 0; t < set->ntex && rc == SC_OK; t++) {
             const sc_texture *tex = &set->textures[t];
             if (tex->material != k) continue;
             char *slot = safe_name(tex->name);
             char *base = slot ? sc_strprintf("%s_%s_%s", s->name, names[k], slot) : NULL;
             const char *file = NULL;
-            seam_place at = {m, tex};
             if (!base) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-            else rc = save_image(s, tex->image, &at, base, &file, err);
+            if (rc == SC_OK && !found) rc = sc_seam_find(m, k, &seams, err), found = rc == SC_OK;
+            seam_place at = {m, &seams, tex};
+            if (rc == SC_OK) rc = save_image(s, tex->image, &at, base, &file, err);
             const char *ext = file ? strrchr(file, '.') : NULL;
             bool embeddable = ext && (strcmp(ext, ".png") == 0 || strcmp(ext, ".jpg") == 0);
             if (rc == SC_OK && embeddable) {
@@ -380,6 +381,7 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
             }
             free(slot), free(base);
         }
+        if (found) sc_seam_set_free(&seams);
     }
     char *path = rc == SC_OK ? sc_strprintf("%s.mtl", s->name) : NULL;
     if (rc == SC_OK && !path) rc = sc_fail(err, SC_ENOMEM, "out of memory");
