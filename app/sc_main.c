@@ -60,7 +60,9 @@ enum { EXIT_OK = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
     "  --explain                say why each node cooks\n"                                          \
     "  --asset-root DIR         the folder every load_atlas may read below\n"                       \
     "  --lua-timeout SECONDS    how long the graph file may take to build the graph (default 5)\n"  \
-    "  -q, --quiet              no progress, no summary line\n"                                     \
+    "  -q, --quiet              no progress, no summary line (warnings are still printed)\n"         \
+    "  --strict                 exit status 1 when a node warns of a shortfall (a level above its\n" \
+    "                           target, a texture missing or skipped, a map left unerased)\n"       \
     "  -h, --help               this text\n"
 
 static const char run_usage[] =
@@ -128,7 +130,7 @@ typedef struct options {
     int jobs;
     const char *out_dir;
     const char *cache_dir;
-    bool dry_run, explain, check, dot, quiet, update_goldens, json, help;
+    bool dry_run, explain, check, dot, quiet, update_goldens, json, help, strict;
     int64_t max_size;           /* cache gc --max-size */
     bool max_size_given;
     int64_t cache_max_size;     /* trimmed to after cooking */
@@ -170,7 +172,7 @@ static int parse_size(const char *s, int64_t *out) {
 enum {
     OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_LUA_TIMEOUT,
     OPT_MAX_RUNS, OPT_JUNIT, OPT_DRY_RUN, OPT_EXPLAIN, OPT_CHECK, OPT_UPDATE_GOLDENS, OPT_DOT, OPT_QUIET,
-    OPT_JSON, OPT_HELP, OPT_COUNT
+    OPT_JSON, OPT_STRICT, OPT_HELP, OPT_COUNT
 };
 
 static const struct option_spec {
@@ -195,6 +197,7 @@ static const struct option_spec {
     [OPT_DOT] = {"--dot", NULL, false, "graph "},
     [OPT_QUIET] = {"--quiet", "-q", false, "run watch test "},
     [OPT_JSON] = {"--json", NULL, false, "run "},
+    [OPT_STRICT] = {"--strict", NULL, false, "run watch test "},
     [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version "},
 };
 
@@ -265,6 +268,7 @@ static int set_option(options *o, int id, const char *name, const char *v) {
     case OPT_DOT: o->dot = true; return EXIT_OK;
     case OPT_QUIET: o->quiet = true; return EXIT_OK;
     case OPT_JSON: o->json = true; return EXIT_OK;
+    case OPT_STRICT: o->strict = true; return EXIT_OK;
     case OPT_HELP: o->help = true; return EXIT_OK;
     }
     return usage("unknown option %s", name);
@@ -461,6 +465,17 @@ static void cooked_free(cooked *c) {
     memset(c, 0, sizeof *c);
 }
 
+/* Every node's warnings, one line each on stderr; returns how many. */
+static int print_warnings(const sc_run *run) {
+    int count = 0;
+    for (int i = 0; i < run->graph->count; i++) {
+        const sc_graph_node *n = &run->graph->nodes[i];
+        for (int k = 0; k < run->results[i].nwarnings; k++, count++)
+            fprintf(stderr, "seamcook: warning: %s:%d: %s: %s\n", n->file, n->line, n->name, run->results[i].warnings[k]);
+    }
+    return count;
+}
+
 /* Cook one graph file into out_dir; returns the exit status. */
 static int cook(const char *file, const options *o, sc_cache *cache, const char *out_dir, bool check, cooked *c) {
     memset(c, 0, sizeof *c);
@@ -487,11 +502,16 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
         }
     }
     const sc_run *run = c->run;
+    int warnings = run ? print_warnings(run) : 0;
     if (run && !o->quiet)
         fprintf(stderr, "%s: %d nodes, %d cooked, %d cached, %d failed, %d skipped in %.3f s%s%s\n",
                 file, g->count, run->ran, run->cached, run->failed, run->skipped, run->seconds,
                 writes ? "; report: " : "", writes ? out_dir : "");
     if (run && rc == SC_OK && check && writes && check_goldens(run, out_dir, false, &c->failure) > 0) rc = SC_EINPUT;
+    if (rc == SC_OK && o->strict && warnings > 0) {
+        rc = sc_fail(&c->failure, SC_EINPUT, "%s: %d warning%s, and --strict", file, warnings, warnings == 1 ? "" : "s");
+        fprintf(stderr, "seamcook: %s\n", c->failure.message);
+    }
     return rc == SC_OK ? EXIT_OK : EXIT_FAIL;
 }
 

@@ -42,6 +42,9 @@ static cJSON *report_object(const sc_run *r) {
     cJSON_AddNumberToObject(tot, "cached", r->cached);
     cJSON_AddNumberToObject(tot, "failed", r->failed);
     cJSON_AddNumberToObject(tot, "skipped", r->skipped);
+    int warnings = 0;
+    for (int i = 0; i < g->count; i++) warnings += r->results[i].nwarnings;
+    cJSON_AddNumberToObject(tot, "warnings", warnings);
     cJSON *nodes = cJSON_AddArrayToObject(root, "nodes");
     for (int i = 0; i < g->count; i++) {
         const sc_graph_node *n = &g->nodes[i];
@@ -80,6 +83,10 @@ static cJSON *report_object(const sc_run *r) {
         if (x->ndeps) {
             cJSON *deps = cJSON_AddArrayToObject(o, "reads");
             for (int d = 0; d < x->ndeps; d++) cJSON_AddItemToArray(deps, cJSON_CreateString(x->deps[d]));
+        }
+        if (x->nwarnings) {
+            cJSON *w = cJSON_AddArrayToObject(o, "warnings");
+            for (int k = 0; k < x->nwarnings; k++) cJSON_AddItemToArray(w, cJSON_CreateString(x->warnings[k]));
         }
         if (x->why) cJSON_AddStringToObject(o, "why", x->why);
         if (x->error) cJSON_AddStringToObject(o, "error", x->error);

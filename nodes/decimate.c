@@ -2227,6 +2227,27 @@ static void metric(sc_ctx *ctx, int level, const char *name, double value) {
     sc_ctx_metric(ctx, key, value);
 }
 
+/* One line for a level that stopped above its target: the faces, the
+ * target, and the three reasons that blocked the most edges. */
+static void warn_short_level(sc_ctx *ctx, int level, int32_t faces, int64_t target, const int64_t blocked[BLOCK_COUNT]) {
+    char reasons[256] = "";
+    size_t used = 0;
+    bool taken[BLOCK_COUNT] = {false};
+    for (int shown = 0; shown < 3; shown++) {
+        int best = 0;
+        for (int r = 1; r < BLOCK_COUNT; r++)
+            if (!taken[r] && blocked[r] > 0 && (best == 0 || blocked[r] > blocked[best])) best = r;
+        if (best == 0) break;
+        taken[best] = true;
+        int n = snprintf(reasons + used, sizeof reasons - used, "%s%lld %s", shown ? ", " : "",
+                         (long long)blocked[best], block_names[best]);
+        if (n < 0 || (size_t)n >= sizeof reasons - used) break;
+        used += (size_t)n;
+    }
+    sc_ctx_warn(ctx, "lod%d: %d faces for a target of %lld%s%s", level, (int)faces, (long long)target,
+                used ? ": blocked by " : "", reasons);
+}
+
 /* The rules of the two target lists, checked wherever a value is (the graph
  * is built, a dry run too): each level is decimated from the one before, so
  * targets never increase. A ratio is in (0, 1]; a face count is whole. */
@@ -2636,6 +2657,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     detect_uv_storage(&st, in);
     st.error_weight = sc_ctx_number(ctx, "error_weight");
     const double max_error = sc_ctx_number(ctx, "max_error");
+    const double short_tolerance = sc_ctx_number(ctx, "short_tolerance");
     int64_t samples = sc_ctx_integer(ctx, "hausdorff_samples");
     double uv_weight = sc_ctx_number(ctx, "uv_weight");
     int threads = sc_ctx_threads(ctx);
@@ -2706,6 +2728,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         metric(ctx, level, "flipped_uv_faces", (double)count_flipped_uv(&st));
         metric(ctx, level, "seconds", seconds);
         if (stalled && mesh->nf > targets[level]) {
+            if (mesh->nf > (1 + short_tolerance) * (double)targets[level])
+                warn_short_level(ctx, level, mesh->nf, targets[level], blocked);
             metric(ctx, level, "blocked_edges", (double)nblocked);
             for (int r = 1; r < BLOCK_COUNT; r++)
                 if (blocked[r] > 0) {
@@ -2732,6 +2756,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
             hausdorff_seconds += measured;
             metric(ctx, level, "hausdorff_seconds", measured);
             metric(ctx, level, "hausdorff", diagonal > 0 ? hd.distance / diagonal : 0);
+            if (max_error > 0 && hd.distance > max_error * diagonal)
+                sc_ctx_warn(ctx, "lod%d: sampled Hausdorff distance %.3g%% of the diagonal is beyond max_error %.3g%%",
+                            level, 100 * hd.distance / diagonal, 100 * max_error);
             metric(ctx, level, "hausdorff_mean", diagonal > 0 ? 0.5 * (hd.mean_a_to_b + hd.mean_b_to_a) / diagonal : 0);
         }
         sc_value *mv = sc_value_new_mesh(mesh);
@@ -2796,6 +2823,9 @@ static const sc_param_desc params[] = {
      .doc = "weight, near each target, of the tracked distance between the level and the input in the collapse "
             "cost, relative to the quadric of a vertex's share of the target's surface that far off "
             "(0: the quadric alone)"},
+    {.name = "short_tolerance", .type = SC_PARAM_NUMBER, .def = 0.1, .min = 0, .max = 1e6,
+     .doc = "a level that stops above its target by more than this fraction of the target is reported "
+            "short: a warning naming what blocked it (--strict makes that exit status 1)"},
     {.name = "max_error", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
      .doc = "refuse every collapse that would leave the level farther than this from the input (fraction "
             "of the bounding-box diagonal; the tracked error, measured on every collapse); a level that "

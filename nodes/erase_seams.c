@@ -13,6 +13,21 @@
 #include "sc_erase.h"
 #include "sc_nodes.h"
 
+/* A normal map the kernel left unerased, or one that looks tangent-space
+ * but was erased as object-space, is worth a line. */
+static void warn_of_normal_map(sc_ctx *ctx, const sc_metric *m, bool tangent_space) {
+    static const char unerasable[] = ".tangent_space_unerasable", suspect[] = ".tangent_space_suspect";
+    size_t n = strlen(m->name);
+    if (m->value != 1) return;
+    if (n > sizeof unerasable - 1 && !strcmp(m->name + n - (sizeof unerasable - 1), unerasable))
+        sc_ctx_warn(ctx, "%.*s: a tangent-space normal map is left unerased: its seams stay",
+                    (int)(n - (sizeof unerasable - 1)), m->name);
+    else if (!tangent_space && n > sizeof suspect - 1 && !strcmp(m->name + n - (sizeof suspect - 1), suspect))
+        sc_ctx_warn(ctx, "%.*s: the normal map looks tangent-space but is erased as object-space "
+                         "(tangent_space_normals=true leaves it as it is)",
+                    (int)(n - (sizeof suspect - 1)), m->name);
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     const sc_value *in = sc_ctx_input(ctx, "atlas");
     if (!in || in->kind != SC_KIND_ATLAS) return sc_fail(err, SC_EINPUT, "atlas: no atlas given");
@@ -50,7 +65,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_erase_result r;
     int rc = sc_erase(a->mesh->as.mesh, a->textures, a->ntex, &o, sc_ctx_threads(ctx), &r, err);
     if (rc != SC_OK) return rc;
-    for (int32_t i = 0; i < r.metrics.count; i++) sc_ctx_metric(ctx, r.metrics.items[i].name, r.metrics.items[i].value);
+    for (int32_t i = 0; i < r.metrics.count; i++) {
+        const sc_metric *m = &r.metrics.items[i];
+        sc_ctx_metric(ctx, m->name, m->value);
+        warn_of_normal_map(ctx, m, o.tangent_space_normals);
+    }
     sc_value *f32 = sc_erase_result_atlas(in, &r, false), *native = sc_erase_result_atlas(in, &r, true);
     sc_erase_result_free(&r);
     if (!f32 || !native) {

@@ -91,7 +91,7 @@ typedef struct decode_job {
     sc_buf bytes;
     sc_image_data *image;
     sc_value *value;
-    int rc;
+    int rc;                  /* of reading, then of decoding */
     sc_error err;
 } decode_job;
 
@@ -250,6 +250,7 @@ typedef struct decode_pool {
 } decode_pool;
 
 static void decode_one(decode_job *j) {
+    if (j->rc != SC_OK) return;   /* the file could not be read */
     j->rc = sc_image_decode(j->path ? j->path : "embedded image", j->data, j->size, &j->image, &j->err);
     if (j->rc == SC_OK && j->colorspace == SC_COLOR_DATA) j->image->colorspace = SC_COLOR_DATA;
 }
@@ -281,7 +282,9 @@ static const char *material_name(const sc_mesh *m, int32_t k) {
     return (k >= 0 && k < m->nmat && m->materials[k]) ? m->materials[k] : "?";
 }
 
-/* Read every distinct texture file, then decode them. */
+/* Read every distinct texture file, then decode them. A colour map that
+ * cannot be read or decoded fails the node; any other map (normal,
+ * emissive, ...) is optional: it is left out with a warning (r->job = -1). */
 static int load_textures(sc_ctx *ctx, loaded *l, sc_error *err) {
     l->jobs = calloc((size_t)l->nrefs + 1, sizeof *l->jobs);
     if (!l->jobs) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -300,11 +303,10 @@ static int load_textures(sc_ctx *ctx, loaded *l, sc_error *err) {
         j->colorspace = cs;
         sc_buf_init(&j->bytes);
         if (r->path) {
-            int rc = sc_ctx_read_file(ctx, r->path, MAX_IMAGE_BYTES, &j->bytes, err);
-            if (rc != SC_OK) {
-                sc_error_prefix(err, "%s: material '%s': %s texture", r->origin,
-                                material_name(l->mesh, r->material), slot_names[r->slot]);
-                return rc;
+            j->rc = sc_ctx_read_file(ctx, r->path, MAX_IMAGE_BYTES, &j->bytes, &j->err);
+            if (j->rc == SC_ENOMEM) {
+                *err = j->err;
+                return j->rc;
             }
             j->data = j->bytes.data, j->size = j->bytes.len;
         } else {
@@ -316,15 +318,20 @@ static int load_textures(sc_ctx *ctx, loaded *l, sc_error *err) {
     for (int i = 0; i < l->nrefs; i++) {
         texref *r = &l->refs[i];
         decode_job *j = &l->jobs[r->job];
-        if (j->rc != SC_OK) {
+        if (j->rc == SC_OK) continue;
+        if (r->slot == 0 || j->rc == SC_ENOMEM) {
             *err = j->err;
             return sc_error_prefix(err, "%s: material '%s': %s texture", r->origin,
                                    material_name(l->mesh, r->material), slot_names[r->slot]);
         }
+        sc_ctx_warn(ctx, "%s: material '%s': %s texture left out: %s", r->origin,
+                    material_name(l->mesh, r->material), slot_names[r->slot], j->err.message);
+        r->job = -1;
     }
     for (int k = 0; k < l->njobs; k++) {
         decode_job *j = &l->jobs[k];
         sc_buf_free(&j->bytes);
+        if (j->rc != SC_OK) continue;
         j->value = sc_value_new_image(j->image);
         j->image = NULL;
         if (!j->value) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -364,6 +371,20 @@ static int count_edges(const sc_mesh *m, edge_counts *out, sc_error *err) {
 }
 
 /* ---------------------------------------------------------------- the node */
+
+/* A model that cooks without colour, in whole or in part, says so. */
+static void warn_untextured(sc_ctx *ctx, const sc_atlas *atlas) {
+    const sc_mesh *mesh = atlas->mesh->as.mesh;
+    int32_t bare = 0, first = -1;
+    for (int32_t m = 0; m < mesh->nmat; m++)
+        if (sc_atlas_find_texture(atlas, m, "color") < 0 && bare++ == 0) first = m;
+    if (atlas->ntex == 0)
+        sc_ctx_warn(ctx, "no texture: the model names none, so it cooks untextured (an OBJ finds its "
+                         "textures through the MTL its mtllib line names)");
+    else if (bare > 0)
+        sc_ctx_warn(ctx, "%d of %d materials have no colour texture (the first: '%s'): their faces cook untextured",
+                    (int)bare, (int)mesh->nmat, material_name(mesh, first));
+}
 
 static bool has_extension(const char *path, const char *ext) {
     size_t n = strlen(path), e = strlen(ext);
@@ -422,7 +443,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         for (int s = 0; s < NSLOTS && rc == SC_OK; s++)
             for (int i = 0; i < l.nrefs && rc == SC_OK; i++) {
                 texref *r = &l.refs[i];
-                if (r->material != m || r->slot != s) continue;
+                if (r->material != m || r->slot != s || r->job < 0) continue;
                 sc_wrap wu = r->wrap_u, wv = r->wrap_v;
                 if (strcmp(wrap, "auto") != 0) {
                     wu = wv = strcmp(wrap, "clamp") == 0    ? SC_WRAP_CLAMP
@@ -436,6 +457,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
                 break;   /* one texture per (material, slot) */
             }
     int32_t ntex = atlas->ntex;
+    if (rc == SC_OK) warn_untextured(ctx, atlas);
     sc_value *value = rc == SC_OK ? sc_value_new_atlas(atlas) : NULL;
     if (rc != SC_OK) sc_atlas_free(atlas);
     int64_t degenerate = l.obj.degenerate_faces_dropped + l.gltf.degenerate_faces_dropped;

@@ -912,6 +912,9 @@ static int report_totals(sc_ctx *ctx, const mip_run *r, sc_error *err) {
     sc_ctx_metric(ctx, "erase_runs", r->counts.runs);
     sc_ctx_metric(ctx, "level0_passed", r->counts.passed);
     sc_ctx_metric(ctx, "levels_not_erased", r->counts.unerased);
+    if (r->counts.unerased > 0)
+        sc_ctx_warn(ctx, "%d map levels below erase_min_size are averaged but not erased: their seams stay "
+                         "(worst seam gap over all levels %.3g)", r->counts.unerased, r->worst_gap);
     sc_ctx_metric(ctx, "seam_energy", r->worst_energy);
     sc_ctx_metric(ctx, "max_seam_gap", r->worst_gap);
     if (sc_report_metric(r->report, "levels", r->nmip) || sc_report_metric(r->report, "seam_energy", r->worst_energy) ||

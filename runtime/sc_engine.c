@@ -665,10 +665,50 @@ static void fail_node(engine *e, int i, int rc, const sc_error *err) {
     set_terminal(e, i, ST_FAILED);
 }
 
+static void keep_warnings(sc_node_result *r, const sc_ctx *ctx) {
+    int n = sc_ctx_nwarnings(ctx);
+    if (n == 0 || !(r->warnings = calloc((size_t)n, sizeof(char *)))) return;
+    for (int k = 0; k < n; k++)
+        if ((r->warnings[r->nwarnings] = sc_strdup(sc_ctx_warning(ctx, k)))) r->nwarnings++;
+}
+
+/* What the cache's action record keeps as its metrics text:
+ * {"metrics": {...}, "warnings": ["...", ...]}. */
+static char *record_json(const sc_node_result *r) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON *m = cJSON_Parse(r->metrics_json);
+    cJSON *w = cJSON_AddArrayToObject(o, "warnings");
+    if (m) cJSON_AddItemToObject(o, "metrics", m);
+    for (int k = 0; w && k < r->nwarnings; k++) cJSON_AddItemToArray(w, cJSON_CreateString(r->warnings[k]));
+    char *s = m && w ? cJSON_PrintUnformatted(o) : NULL;
+    cJSON_Delete(o);
+    return s;
+}
+
+/* The other way: fills metrics_json and the warnings; false if the text is
+ * not such a record. */
+static bool read_record(sc_node_result *r, const char *text) {
+    cJSON *o = text ? cJSON_Parse(text) : NULL;
+    cJSON *m = cJSON_GetObjectItemCaseSensitive(o, "metrics");
+    cJSON *w = cJSON_GetObjectItemCaseSensitive(o, "warnings");
+    bool ok = cJSON_IsObject(m) && cJSON_IsArray(w) && (r->metrics_json = cJSON_PrintUnformatted(m));
+    int n = ok ? cJSON_GetArraySize(w) : 0;
+    if (n > 0 && (r->warnings = calloc((size_t)n, sizeof(char *)))) {
+        const cJSON *line;
+        cJSON_ArrayForEach(line, w)
+            if (cJSON_IsString(line) && (r->warnings[r->nwarnings] = sc_strdup(line->valuestring))) r->nwarnings++;
+    }
+    cJSON_Delete(o);
+    return ok;
+}
+
 /* Drop what a hit filled in, when it turns out not to be usable. */
 static void forget_result(sc_node_result *r) {
     free(r->metrics_json);
     r->metrics_json = NULL;
+    for (int k = 0; k < r->nwarnings; k++) free(r->warnings[k]);
+    free(r->warnings);
+    r->warnings = NULL, r->nwarnings = 0;
     for (int d = 0; d < r->ndeps; d++) free(r->deps[d]);
     free(r->deps), free(r->dep_digests);
     r->deps = NULL, r->dep_digests = NULL, r->ndeps = 0;
@@ -706,15 +746,16 @@ static void resolve(engine *e, int i) {
             else if (dep_digests)
                 dep_digests[d] = cur;   /* all zero for a file still missing */
         }
-        if (!miss && read_outputs(e, i, act.outputs) != 0) miss = "the cache entry is unreadable";
+        if (!miss && (read_outputs(e, i, act.outputs) != 0 || !read_record(r, act.metrics)))
+            miss = "the cache entry is unreadable";
         for (int k = 0; !miss && k < r->noutputs; k++)
             if (!sc_cache_has_blob(e->cache, &r->outputs[k].digest)) miss = "a cached output is missing";
     }
     uv_mutex_unlock(&e->cache_lock);
+    if (miss) forget_result(r);   /* the record's metrics and warnings, if read */
 
     if (rc == SC_OK && !miss) {
         r->cooked_seconds = act.seconds;
-        r->metrics_json = act.metrics ? sc_strdup(act.metrics) : sc_strdup("{}");
         r->deps = calloc((size_t)act.ndeps + 1, sizeof(char *));
         for (int d = 0; r->deps && d < act.ndeps; d++) r->deps[r->ndeps++] = sc_strdup(act.deps[d].path);
         remember(e, i, dep_digests);
@@ -863,6 +904,8 @@ static void run_done(uv_work_t *req, int status) {
             if (v->kind == SC_KIND_ATLAS) r->outputs[k].mesh = v->as.atlas->mesh->digest;
         }
         r->metrics_json = metrics_json(j->ctx);
+        keep_warnings(r, j->ctx);
+        char *record = r->metrics_json ? record_json(r) : NULL;
         int nd = sc_ctx_ndeps(j->ctx);
         r->deps = calloc((size_t)nd + 1, sizeof(char *));
         sc_digest *dep_digests = calloc((size_t)nd + 1, sizeof *dep_digests);
@@ -879,10 +922,10 @@ static void run_done(uv_work_t *req, int status) {
         cJSON_Delete(oj);
         sc_cache_action act = {
             .key = r->key, .node_type = (char *)n->desc->type, .outputs = outputs,
-            .metrics = r->metrics_json, .ndeps = nd, .deps = deps,
+            .metrics = record, .ndeps = nd, .deps = deps,
             .nblobs = j->stored.nblobs, .blobs = j->stored.blobs, .seconds = j->seconds,
         };
-        if (rc == SC_OK && (!outputs || !r->metrics_json || !r->deps || !deps || !dep_digests))
+        if (rc == SC_OK && (!outputs || !record || !r->deps || !deps || !dep_digests))
             rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
         if (rc == SC_OK) {
             uv_mutex_lock(&e->cache_lock);
@@ -898,7 +941,7 @@ static void run_done(uv_work_t *req, int status) {
             remember(e, i, dep_digests);
             rc = materialize(e, i, &j->err);
         }
-        free(outputs), free(deps);
+        free(outputs), free(deps), free(record);
         r->dep_digests = dep_digests;
         if (rc == SC_OK) {
             say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
@@ -1171,6 +1214,8 @@ void sc_run_free(sc_run *r) {
     for (int i = 0; r->results && i < r->graph->count; i++) {
         sc_node_result *x = &r->results[i];
         free(x->outputs), free(x->metrics_json), free(x->why), free(x->error);
+        for (int k = 0; k < x->nwarnings; k++) free(x->warnings[k]);
+        free(x->warnings);
         for (int f = 0; f < x->nfiles; f++) free(x->files[f]);
         for (int d = 0; d < x->ndeps; d++) free(x->deps[d]);
         free(x->files), free(x->file_digests), free(x->deps), free(x->dep_digests);

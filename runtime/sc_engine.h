@@ -20,7 +20,7 @@
 #include "sc_graph.h"
 
 /* Bumped whenever key derivation or stored formats change. */
-#define SC_ENGINE_FORMAT 1
+#define SC_ENGINE_FORMAT 2
 
 typedef enum sc_node_status {
     SC_STATUS_PENDING = 0,
@@ -56,6 +56,8 @@ typedef struct sc_node_result {
     int noutputs;
     sc_node_output *outputs;
     char *metrics_json;     /* {"name": number, ...} */
+    int nwarnings;
+    char **warnings;        /* the node's sc_ctx_warn lines, kept with its cooked result */
     char *why;              /* why it cooked (or would), NULL for hits */
     char *error;            /* the failure message */
     int nfiles;

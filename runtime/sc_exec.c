@@ -17,6 +17,7 @@
 #include "sc_exec.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,6 +34,8 @@ struct sc_ctx {
     sc_value **outputs;
     sc_metric *metrics;
     int nmetrics;
+    char **warnings;
+    int nwarnings;
     dep *deps;
     int ndeps;
     int threads;
@@ -109,6 +112,8 @@ void sc_ctx_free(sc_ctx *ctx) {
     if (ctx->outputs) drop_outputs(ctx);
     for (int i = 0; i < ctx->nmetrics; i++) free(ctx->metrics[i].name);
     for (int i = 0; i < ctx->ndeps; i++) free(ctx->deps[i].path);
+    for (int i = 0; i < ctx->nwarnings; i++) free(ctx->warnings[i]);
+    free(ctx->warnings);
     free(ctx->params), free(ctx->inputs), free(ctx->outputs);
     free(ctx->metrics), free(ctx->deps);
     free(ctx);
@@ -300,5 +305,20 @@ void sc_ctx_metric(sc_ctx *ctx, const char *name, double value) {
     m[ctx->nmetrics].value = value;
     if (m[ctx->nmetrics].name) ctx->nmetrics++;
 }
+
+void sc_ctx_warn(sc_ctx *ctx, const char *fmt, ...) {
+    char line[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    char **w = realloc(ctx->warnings, sizeof *w * (size_t)(ctx->nwarnings + 1));
+    if (!w) return;
+    ctx->warnings = w;
+    if ((w[ctx->nwarnings] = sc_strdup(line))) ctx->nwarnings++;
+}
+
+int sc_ctx_nwarnings(const sc_ctx *ctx) { return ctx->nwarnings; }
+const char *sc_ctx_warning(const sc_ctx *ctx, int i) { return ctx->warnings[i]; }
 
 int sc_ctx_threads(sc_ctx *ctx) { return ctx->threads; }

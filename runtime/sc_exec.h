@@ -36,6 +36,9 @@ int sc_ctx_nmetrics(const sc_ctx *ctx);
 const sc_metric *sc_ctx_metrics(const sc_ctx *ctx);
 /* The metric with this name, or NAN. */
 double sc_ctx_metric_value(const sc_ctx *ctx, const char *name);
+/* The lines run() gave sc_ctx_warn, in order. */
+int sc_ctx_nwarnings(const sc_ctx *ctx);
+const char *sc_ctx_warning(const sc_ctx *ctx, int i);
 int sc_ctx_ndeps(const sc_ctx *ctx);
 const char *sc_ctx_dep_path(const sc_ctx *ctx, int i);
 /* The digest of the bytes read; all zero for a file the node tried to read

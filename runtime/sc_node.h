@@ -120,6 +120,13 @@ void sc_ctx_set_output(sc_ctx *ctx, const char *port, sc_value *value);
 /* Record a metric for report.json (numbers only; NaN is written as null). */
 void sc_ctx_metric(sc_ctx *ctx, const char *name, double value);
 
+/* Say, in one line without a newline, where the result falls short of what
+ * was asked: a level that stops above its target, a texture missing or
+ * skipped, a map left unerased. The outputs still stand. The engine keeps
+ * the line with the cooked result, so a cache hit says it again; the command
+ * line prints it on stderr naming the node, and --strict makes it exit 1. */
+void sc_ctx_warn(sc_ctx *ctx, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
 /* Number of worker threads the node may use for its own parallel loops
  * (the engine's -j); results must not depend on it. */
 int sc_ctx_threads(sc_ctx *ctx);

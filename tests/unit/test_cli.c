@@ -916,6 +916,91 @@ SC_TEST(golden_images_and_metrics) {
     free(diff), free(src), free(dir);
 }
 
+/* The number of lines of text that contain what. */
+static int lines_with(const char *text, const char *what) {
+    int n = 0;
+    for (const char *line = text; line && *line;) {
+        const char *end = strchr(line, '\n');
+        size_t len = end ? (size_t)(end - line) : strlen(line);
+        char *copy = sc_strndup(line, len);
+        n += copy && strstr(copy, what) != NULL;
+        free(copy);
+        line = end ? end + 1 : NULL;
+    }
+    return n;
+}
+
+SC_TEST(shortfalls_warn_and_strict_fails) {
+    char *dir = sc_test_tempdir("cli");
+    write_obj_asset(dir, "an MTL naming a normal map that is not there");
+    write_png(dir, "32");
+    char *mtl = sc_strprintf("%s/tet.mtl", dir);
+    const char *m = "newmtl skin\nmap_Kd tet.png\nnorm tet_normal.png\n";
+    sc_error err;
+    SC_CHECK_INT(sc_write_file_atomic(mtl, m, strlen(m), &err), SC_OK);
+    char *g = data("obj_save.lua");
+
+    /* the job goes on without the optional map, says so once, and exits 0 */
+    char *a = sc_strprintf("run '%s' --set mesh=tet.obj --cache cache --out out -q", g);
+    SC_CHECK_INT(cook(dir, a), 0);
+    char *text = slurp(dir, "err.txt");
+    SC_CHECK_MSG(text && lines_with(text, "warning:") == 1 &&
+                     lines_with(text, "obj_save.lua:2: load: ") == 1 &&
+                     lines_with(text, "normal texture left out") == 1 && lines_with(text, "tet_normal.png") == 1,
+                 "stderr: %s", text ? text : "(nothing)");
+    free(text);
+    char *copy = sc_strprintf("%s/out/copy.obj", dir);
+    SC_CHECK_MSG(exists(copy), "the saved copy is missing");
+    char *json = slurp(dir, "out/report.json");
+    SC_CHECK_MSG(json && strstr(json, "\"warnings\"") && strstr(json, "normal texture left out"), "report.json");
+    free(json);
+
+    /* --strict: exit 1, also when the result comes from the cache */
+    char *strict = sc_strprintf("%s --strict", a);
+    for (int pass = 0; pass < 2; pass++) {
+        SC_CHECK_INT(cook(dir, strict), 1);
+        text = slurp(dir, "err.txt");
+        SC_CHECK_MSG(text && lines_with(text, "normal texture left out") == 1 &&
+                         strstr(text, "1 warning, and --strict"),
+                     "pass %d stderr: %s", pass, text ? text : "(nothing)");
+        free(text);
+    }
+    char *out = sc_path_join(dir, "out");
+    SC_CHECK_INT(report_counts(out).cached, 2);
+    free(out);
+
+    /* the map appears: no warning, --strict passes */
+    SC_CHECK_INT(sc_test_system("cd '%s' && cp tet.png tet_normal.png", dir), 0);
+    SC_CHECK_INT(cook(dir, strict), 0);
+    text = slurp(dir, "err.txt");
+    SC_CHECK_MSG(text && lines_with(text, "warning:") == 0, "stderr: %s", text);
+    free(text);
+
+    /* a level that stops short names its target and what blocked it */
+    char *lods = data("lods_save.lua");
+    char *b = sc_strprintf("run '%s' --cache cache --out lods -q", lods);
+    SC_CHECK_INT(cook(dir, b), 0);
+    text = slurp(dir, "err.txt");
+    SC_CHECK_MSG(text && lines_with(text, "warning:") == 0, "unbounded levels warned: %s", text);
+    free(text);
+    char *c = sc_strprintf("%s --set lods.max_error=1e-6 --strict", b);
+    SC_CHECK_INT(cook(dir, c), 1);
+    text = slurp(dir, "err.txt");
+    SC_CHECK_MSG(text && lines_with(text, "lods: lod0: ") == 1 && lines_with(text, "faces for a target of") == 3 &&
+                     lines_with(text, "blocked by ") == 3 && lines_with(text, " max_error") == 3,
+                 "stderr: %s", text ? text : "(nothing)");
+    free(text);
+
+    /* an OBJ without its MTL cooks untextured, and says so */
+    SC_CHECK_INT(sc_test_system("cd '%s' && grep -v mtllib tet.obj > bare.obj", dir), 0);
+    char *d = sc_strprintf("run '%s' --set mesh=bare.obj --cache cache --out bare -q", g);
+    SC_CHECK_INT(cook(dir, d), 0);
+    text = slurp(dir, "err.txt");
+    SC_CHECK_MSG(text && lines_with(text, "warning:") == 1 && lines_with(text, "no texture") == 1, "stderr: %s", text);
+    free(text);
+    free(mtl), free(g), free(a), free(copy), free(strict), free(lods), free(b), free(c), free(d), free(dir);
+}
+
 SC_TEST(report_html_shows_every_picture_in_chromium) {
     if (access("/usr/bin/chromium", X_OK) != 0) {
         printf("  chromium not installed: skipped\n");
