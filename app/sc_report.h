@@ -26,10 +26,12 @@ typedef struct sc_test_case {
  * a <failure> holding the message of each that failed. Caller frees. */
 char *sc_junit_xml(const sc_test_case *cases, int n);
 
-/* report.html: one self-contained page (no network) with every node's
- * status and metrics and, per level of detail, its renders side by side with
- * its metrics; pictures are the PNG files the run wrote, linked relative to
- * the page. Caller frees. */
+/* report.html: one self-contained page (no network). First the warnings,
+ * then per render node that checked levels of detail its reference's
+ * contact sheet above each level's with one row of numbers per level, then
+ * inline SVG plots (faces against Hausdorff distance, seam energy per mip
+ * level), then every node's status, metrics and pictures. Pictures are the
+ * PNG files the run wrote, linked relative to the page. Caller frees. */
 char *sc_run_report_html(const sc_run *r);
 
 #endif

@@ -94,7 +94,10 @@
  *    clamping keeps displaced geometry from being cut open by the near or far
  *    plane.
  *  - Output: a REPORT with one contact sheet render/lod<k>_sheet.png per LOD
- *    (rows: passes in order, columns: views), render/lod<k>_<pass>_<view>.png
+ *    (rows: passes in order, columns: views; each crack pixel marked with a
+ *    yellow and each fold pixel with a cyan 3x3 square, so one pixel shows at
+ *    thumbnail size), render/reference_sheet.png (the reference's textured
+ *    views, when one is given), render/lod<k>_<pass>_<view>.png
  *    for each view with crack pixels (every view with pictures = all),
  *    render/lod<k>_uv.png (the colour texture with the level's uv
  *    silhouettes over it: seams red, boundaries yellow, foldovers magenta;
@@ -1444,6 +1447,22 @@ static void sheet_put(sheet *s, int32_t row, int32_t col, const uint8_t *rgba, i
         }
 }
 
+/* Mark pixel `at` (an index into a bottom-up render of size^2) in cell
+ * (row, col) with a 3x3 square of colour rgb, so that a crack or fold of a
+ * single pixel still shows at thumbnail size. */
+static void sheet_mark(sheet *s, int32_t row, int32_t col, int32_t at, int32_t size, const uint8_t rgb[3]) {
+    int32_t x0 = SHEET_GAP + col * (s->thumb + SHEET_GAP), y0 = SHEET_GAP + row * (s->thumb + SHEET_GAP);
+    int32_t tx = (at % size) / s->factor, ty = (size - 1 - at / size) / s->factor;
+    for (int32_t dy = -1; dy <= 1; dy++)
+        for (int32_t dx = -1; dx <= 1; dx++) {
+            int32_t x = tx + dx, y = ty + dy;
+            if (x < 0 || y < 0 || x >= s->thumb || y >= s->thumb) continue;
+            memcpy(s->rgba + 4 * ((size_t)(y0 + y) * (size_t)s->width + (size_t)(x0 + x)), rgb, 3);
+        }
+}
+
+static const uint8_t crack_mark[3] = {255, 230, 0}, fold_mark[3] = {0, 200, 255};
+
 /* ---------------------------------------------------------------- the run */
 
 typedef struct job {
@@ -1561,6 +1580,7 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         sheet_put(sh, row, v, R->rgba, J->size);
         o->renders++;
         if (no_opening) {
+            for (int64_t c = 0; c < cracks; c++) sheet_mark(sh, row, v, R->cracks[c], J->size, fold_mark);
             folds += cracks;
             cracks = 0;
         } else if (cracks > 0 && weld_check) {
@@ -1575,10 +1595,15 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                 return sc_error_prefix(err, "%s, mode %s, view %s, welded", k->human, ps->name, J->views[v].name);
             }
             int64_t kept = 0;
-            for (int64_t c = 0; c < cracks; c++)
-                if (R->flags[R->cracks[c]] == 2) folds++;
+            for (int64_t c = 0; c < cracks; c++) {
+                bool fold = R->flags[R->cracks[c]] == 2;
+                sheet_mark(sh, row, v, R->cracks[c], J->size, fold ? fold_mark : crack_mark);
+                if (fold) folds++;
                 else kept++;
+            }
             cracks = kept;
+        } else {
+            for (int64_t c = 0; c < cracks; c++) sheet_mark(sh, row, v, R->cracks[c], J->size, crack_mark);
         }
         if (held && cracks > 0) rc = add_png(o, R, path, held, J->size, J->size, false, err);
         free(held);
@@ -1610,7 +1635,9 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     return SC_OK;
 }
 
-/* Render the reference from every view: masks of back faces, dilated. */
+/* Render the reference from every view: masks of back faces, dilated, and
+ * its contact sheet (render/reference_sheet.png), which the report shows
+ * beside each level's. */
 static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o, sc_error *err) {
     level_gl L;
     int rc = level_upload(R, ref, "reference", &L, err);
@@ -1621,7 +1648,8 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
     size_t n = (size_t)J->size * (size_t)J->size;
     J->reference_topology = L.topo;
     J->reference = calloc((size_t)J->nviews, n);
-    if (!J->reference) {
+    sheet sh = {0};
+    if (!J->reference || sheet_init(&sh, J->size, J->nviews, 1, err) != SC_OK) {
         level_free(&L);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
@@ -1636,6 +1664,7 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
         if (rc != SC_OK) break;
         uint8_t *mask = J->reference + n * (size_t)v;
         int32_t s = J->size;
+        sheet_put(&sh, 0, v, R->rgba, s);
         for (int32_t y = 0; y < s; y++)
             for (int32_t x = 0; x < s; x++) {
                 if (R->flags[(size_t)y * s + x] != 2) continue;
@@ -1654,7 +1683,15 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
         }
     }
     level_free(&L);
-    if (rc != SC_OK) return sc_error_prefix(err, "reference, view %s", J->views[v].name);
+    if (rc != SC_OK) {
+        free(sh.rgba);
+        return sc_error_prefix(err, "reference, view %s", J->views[v].name);
+    }
+    char path[200];
+    snprintf(path, sizeof path, "%s/reference_sheet.png", o->folder);
+    rc = add_png(o, R, path, sh.rgba, sh.width, sh.height, true, err);
+    free(sh.rgba);
+    if (rc != SC_OK) return rc;
     if (metric(o, "reference.back_pixels", (double)back)) return sc_fail(err, SC_ENOMEM, "out of memory");
     return SC_OK;
 }
@@ -1817,11 +1854,13 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
     }
     sheet sh = {0};
     rc = sheet_init(&sh, J->size, J->nviews, npasses > 0 ? npasses : 1, err);
-    double tess_cracks = 0, tess_gap = 0, tess_vgap = 0;
+    double tess_cracks = 0, tess_gap = 0, tess_vgap = 0, level_gap = 0;
+    const double cracks_before = o->crack_total, folds_before = o->fold_total;
     for (int p = 0; p < npasses && rc == SC_OK; p++) {
         double before = o->crack_total;
         gap_result gap = {0, 0, -1, 0};
         rc = run_pass(R, &L, k, &passes[p], J, o, &sh, p, &gap, err);
+        level_gap = fmax(level_gap, gap.gap);
         if (rc == SC_OK && passes[p].level > 0) {
             tess_cracks += o->crack_total - before;
             tess_gap = fmax(tess_gap, gap.gap);
@@ -1834,6 +1873,12 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
             metricf(o, tess_vgap, "%s.tessellated.max_vertex_gap", k->metric))
             rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
+    /* the level's totals over its passes, the report's one row per level */
+    if (rc == SC_OK && npasses > 0 &&
+        (metricf(o, o->crack_total - cracks_before, "%s.crack_pixels", k->metric) ||
+         metricf(o, o->fold_total - folds_before, "%s.fold_pixels", k->metric) ||
+         metricf(o, level_gap, "%s.max_seam_gap", k->metric)))
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK && npasses > 0) {
         char path[200];
         snprintf(path, sizeof path, "%s/%s_sheet.png", o->folder, k->file);
@@ -2068,7 +2113,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 11,
+    .version = 12,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -211,6 +211,29 @@ static bool has_file(const run_result *r, const char *path) {
     return false;
 }
 
+/* Pixels of colour rgb in a PNG file of the run's report (-1 if absent). */
+static int64_t pixels_of_colour(const run_result *r, const char *path, const uint8_t rgb[3]) {
+    const sc_report *rep = report_of(r);
+    for (int i = 0; rep && i < rep->nfiles; i++) {
+        if (strcmp(rep->files[i].path, path) != 0) continue;
+        const sc_bytes *b = rep->files[i].bytes->as.bytes;
+        sc_image_data *im = NULL;
+        sc_error e = {0};
+        if (sc_image_decode(path, b->data, b->size, &im, &e) != SC_OK) return -1;
+        int64_t n = 0;
+        for (int64_t k = 0; k < (int64_t)im->width * im->height; k++) {
+            const uint8_t *px = (const uint8_t *)im->pixels + (size_t)k * (size_t)im->channels;
+            n += px[0] == rgb[0] && px[1] == rgb[1] && px[2] == rgb[2];
+        }
+        sc_image_free(im);
+        return n;
+    }
+    return -1;
+}
+
+/* The marks render puts on its contact sheets. */
+static const uint8_t yellow[3] = {255, 230, 0}, cyan[3] = {0, 200, 255};
+
 /* ---------------------------------------------------------------- tests */
 
 static const char *const small[] = {"size", "128", "views", "10", "tess_levels", "1,2,4,8", NULL};
@@ -436,6 +459,12 @@ SC_TEST(split_mesh_shows_cracks) {
     /* split along a boundary: no longer closed */
     SC_CHECK(M(&r, "lod0.closed") == 0);
     double alone = M(&r, "lod0.textured.crack_pixels");
+    /* the contact sheet marks them (yellow), and marks no folds */
+    SC_CHECK_MSG(pixels_of_colour(&r, "render/lod0_sheet.png", yellow) > 20 &&
+                     pixels_of_colour(&r, "render/lod0_sheet.png", cyan) == 0,
+                 "yellow %lld, cyan %lld", (long long)pixels_of_colour(&r, "render/lod0_sheet.png", yellow),
+                 (long long)pixels_of_colour(&r, "render/lod0_sheet.png", cyan));
+    SC_CHECK_INT(M(&r, "lod0.crack_pixels"), alone);
     sc_ctx_free(r.ctx);
 
     /* against the unsplit cube: a boundary the reference lacks, so the
@@ -483,6 +512,11 @@ SC_TEST(fold_with_the_references_topology_is_not_a_crack) {
     SC_CHECK(M(&r, "lod0.same_topology") == 1);
     SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
     SC_CHECK_MSG(M(&r, "lod0.textured.fold_pixels") == alone, "%g", M(&r, "lod0.textured.fold_pixels"));
+    /* the sheet marks folds (cyan), no cracks; the reference has its own sheet */
+    SC_CHECK(pixels_of_colour(&r, "render/lod0_sheet.png", cyan) > 20);
+    SC_CHECK(pixels_of_colour(&r, "render/lod0_sheet.png", yellow) == 0);
+    SC_CHECK(pixels_of_colour(&r, "render/reference_sheet.png", cyan) == 0);
+    SC_CHECK_INT(M(&r, "lod0.fold_pixels"), alone);
     sc_ctx_free(r.ctx);
 
     /* the same fold in an open cube, against the open cube */
