@@ -113,8 +113,17 @@
  *    count. Timings are node metrics only (seconds_*), never part of the
  *    value.
  *  - Limits: max_crack_pixels bounds lod<k>.<pass>.crack_pixels (the sum over
- *    views) and max_seam_gap bounds lod<k>.<pass>.max_seam_gap; the first
- *    pass over a limit fails the node with the LOD, the mode and the view.
+ *    views), max_fold_pixels lod<k>.textured.fold_pixels, the folds of the
+ *    level's own vertices, which decimation makes (by default, with a
+ *    reference, fold_allowance = 2 times the reference's own back-face
+ *    pixels: a decimated cloth collapsed through itself shows thousands, an
+ *    open reference some of its own), max_map_fold_pixels those of the
+ *    passes whose positions come from maps (a geometry image's bilinear
+ *    cells fold where the map is too coarse for a thin part: another
+ *    defect, so another gate, off by default) and max_seam_gap
+ *    lod<k>.<pass>.max_seam_gap; the first pass over a limit fails the node
+ *    with the LOD, the mode (and for cracks the view). Folds and cracks are
+ *    separate gates: one never passes for the other.
  *  - Texture seams: lod<k>.seam_energy.<slot> and lod<k>.seam_gap.<slot> are
  *    every texture's exact seam energy (eq. 9) and sampled gap on the level's
  *    own seams (sc_seam_energy), so a colour seam that pictures only show is
@@ -1471,6 +1480,10 @@ typedef struct job {
     int32_t size;
     int seam_points;
     double max_cracks, max_gap;
+    double max_folds;         /* fold pixels a LOD may show at its own vertices (textured); -1: no limit */
+    double max_map_folds;     /* the same for the modes that take positions from maps; -1: no limit */
+    double fold_allowance;    /* max_fold_pixels = -1: this times the reference's back-face pixels */
+    bool max_folds_from_reference;
     double pixels_per_unit;   /* view scale: size / (2 radius) */
     bool all_pictures;        /* every view's picture; else contact sheets and views with crack candidates */
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
@@ -1623,6 +1636,18 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
         metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name))
         return sc_fail(err, SC_ENOMEM, "out of memory");
+    /* folds at the level's own vertices are decimation's; those of the
+     * positions maps give (geometry image, displacement) are the maps' */
+    double max_folds = ps->pos == POS_BASE ? J->max_folds : J->max_map_folds;
+    if (max_folds >= 0 && (double)folds > max_folds)
+        return sc_fail(err, SC_EINPUT,
+                       "%s: %s, mode %s: %lld fold pixels (back faces that no opening explains) over the limit "
+                       "%.17g%s",
+                       ps->pos == POS_BASE ? "max_fold_pixels" : "max_map_fold_pixels", k->human, ps->name,
+                       (long long)folds, max_folds,
+                       ps->pos == POS_BASE && J->reference && J->max_folds_from_reference
+                           ? " (fold_allowance times the reference's back-face pixels)"
+                           : "");
     if (J->max_cracks >= 0 && (double)total > J->max_cracks)
         return sc_fail(err, SC_EINPUT,
                        "max_crack_pixels: %s, mode %s, view %s: %lld crack pixels in this mode (%lld in view "
@@ -1693,6 +1718,10 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
     free(sh.rgba);
     if (rc != SC_OK) return rc;
     if (metric(o, "reference.back_pixels", (double)back)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (J->max_folds < 0) {
+        J->max_folds = J->fold_allowance * (double)back;
+        J->max_folds_from_reference = true;
+    }
     return SC_OK;
 }
 
@@ -1959,6 +1988,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
     J.size = (int32_t)sc_ctx_integer(ctx, "size");
     J.seam_points = (int)sc_ctx_integer(ctx, "seam_points");
     J.max_cracks = sc_ctx_number(ctx, "max_crack_pixels");
+    J.max_folds = sc_ctx_number(ctx, "max_fold_pixels");   /* -1 and a reference: set with it */
+    J.fold_allowance = sc_ctx_number(ctx, "fold_allowance");
+    J.max_map_folds = sc_ctx_number(ctx, "max_map_fold_pixels");
     J.max_gap = sc_ctx_number(ctx, "max_seam_gap");
     J.all_pictures = strcmp(sc_ctx_string(ctx, "pictures"), "all") == 0;
     if (check_folder(sc_ctx_string(ctx, "folder"), err) != SC_OK) return sc_error_prefix(err, "folder");
@@ -2091,6 +2123,16 @@ static const sc_param_desc params[] = {
      .check_text = check_folder},
     {.name = "max_crack_pixels", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
      .doc = "fail when a LOD and mode shows more crack pixels (summed over views); -1: no limit"},
+    {.name = "max_fold_pixels", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
+     .doc = "fail when a LOD drawn at its own vertices (textured) shows more fold pixels (back faces no "
+            "opening explains, summed over views): what decimation folds over; -1: fold_allowance times the "
+            "reference's back-face pixels when a reference is connected, else no limit"},
+    {.name = "max_map_fold_pixels", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
+     .doc = "the same for the modes whose positions come from maps (geometry_image, displaced, tessellated): "
+            "folds of the maps' reconstruction; -1: no limit"},
+    {.name = "fold_allowance", .type = SC_PARAM_NUMBER, .def = 2, .min = 0, .max = 1e15,
+     .doc = "with max_fold_pixels = -1: the fold pixels a LOD and mode may show, as a multiple of the "
+            "reference's back-face pixels (0: none at all)"},
     {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e15,
      .doc = "fail when a LOD and mode has a larger GPU seam gap (fraction of the bounding-box diagonal); "
             "-1: no limit"},
@@ -2113,7 +2155,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 12,
+    .version = 13,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

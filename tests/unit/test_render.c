@@ -422,6 +422,18 @@ SC_TEST(fold_is_not_a_crack) {
     SC_CHECK(M(&r, "crack_pixels") == 0);
     SC_CHECK(M(&r, "fold_pixels") > 30);
     sc_ctx_free(r.ctx);
+    /* the maps' folds have their own gate: max_map_fold_pixels catches them,
+     * max_fold_pixels (the level's own vertices, none folded) does not */
+    const char *const gates[2] = {"max_fold_pixels", "max_map_fold_pixels"};
+    for (int gate = 0; gate < 2; gate++) {
+        r = render(NULL, cube, NULL,
+                   (const char *const[]){"size", "128", "views", "10", "modes", "textured,geometry_image",
+                                         gates[gate], "0", NULL});
+        SC_CHECK_MSG(gate == 0 ? r.rc == SC_OK
+                               : r.rc != SC_OK && strstr(r.err.message, "max_map_fold_pixels: lod 0, mode geometry_image"),
+                     "%s: %s", gates[gate], r.err.message);
+        sc_ctx_free(r.ctx);
+    }
     sc_value_release(cube);
     cube_textures_free(&tex);
 }
@@ -496,7 +508,7 @@ SC_TEST(fold_with_the_references_topology_is_not_a_crack) {
     cube_textures tex = cube_textures_make(0);
     sc_value *closed = cube_atlas(4, CUBE_NO_POSITIONS, &tex);
     sc_value *folded = cube_atlas(4, CUBE_NO_POSITIONS | CUBE_FOLD, &tex);
-    const char *const p[] = {"size", "128", NULL};
+    const char *const p[] = {"size", "128", "max_fold_pixels", "1e9", NULL};
 
     /* alone, its back faces count */
     run_result r = render(NULL, folded, NULL, p);
@@ -519,6 +531,23 @@ SC_TEST(fold_with_the_references_topology_is_not_a_crack) {
     SC_CHECK_INT(M(&r, "lod0.fold_pixels"), alone);
     sc_ctx_free(r.ctx);
 
+    /* the fold gate: by default a level may show twice the reference's own
+     * back-face pixels (here none), so the fold fails the node, naming it;
+     * the crack gate does not fire, and a fold allowance lets it pass */
+    r = render(NULL, folded, closed, (const char *const[]){"size", "128", "max_crack_pixels", "0", NULL});
+    SC_CHECK(r.rc != SC_OK);
+    SC_CHECK_MSG(strstr(r.err.message, "max_fold_pixels: lod 0, mode textured") != NULL, "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    char limit[32];
+    snprintf(limit, sizeof limit, "%.0f", alone);
+    r = render(NULL, folded, closed, (const char *const[]){"size", "128", "max_fold_pixels", limit, "max_crack_pixels", "0", NULL});
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    snprintf(limit, sizeof limit, "%.0f", alone - 1);
+    r = render(NULL, folded, closed, (const char *const[]){"size", "128", "max_fold_pixels", limit, NULL});
+    SC_CHECK(r.rc != SC_OK && strstr(r.err.message, "max_fold_pixels") != NULL);
+    sc_ctx_free(r.ctx);
+
     /* the same fold in an open cube, against the open cube */
     sc_value *open = cube_atlas(4, CUBE_NO_POSITIONS | CUBE_OPEN, &tex);
     sc_value *open_folded = cube_atlas(4, CUBE_NO_POSITIONS | CUBE_OPEN | CUBE_FOLD, &tex);
@@ -527,7 +556,17 @@ SC_TEST(fold_with_the_references_topology_is_not_a_crack) {
     SC_CHECK(M(&r, "lod0.closed") == 0 && M(&r, "lod0.same_topology") == 1);
     SC_CHECK(M(&r, "lod0.textured.crack_pixels") == 0);
     SC_CHECK_MSG(M(&r, "lod0.textured.fold_pixels") > 10, "%g", M(&r, "lod0.textured.fold_pixels"));
+    double open_folds = M(&r, "lod0.textured.fold_pixels"), open_back = M(&r, "reference.back_pixels");
     sc_ctx_free(r.ctx);
+    /* by default it may show twice the reference's back-face pixels: passes
+     * with an allowance just above its folds, fails just below */
+    for (int above = 0; above < 2; above++) {
+        char allowance[32];
+        snprintf(allowance, sizeof allowance, "%.17g", (open_folds + (above ? 0.5 : -0.5)) / open_back);
+        r = render(NULL, open_folded, open, (const char *const[]){"size", "128", "fold_allowance", allowance, NULL});
+        SC_CHECK_MSG(above ? r.rc == SC_OK : r.rc != SC_OK, "allowance %s: %s", allowance, r.err.message);
+        sc_ctx_free(r.ctx);
+    }
 
     /* against a reference of another topology (the open cube has a hole the
      * folded closed one lacks) the rule does not apply */
