@@ -261,6 +261,10 @@ static int measure_file(saver *s, const seam_place *at, const sc_image_data *im,
     sc_image_data *decoded = NULL;
     double e_file = 0, g_file = 0, e_mem = 0, g_mem = 0;
     int rc = sc_image_decode(file, bytes->data, bytes->len, &decoded, err);
+    /* a PNG does not say whether it holds colour or data: the material slot
+     * does, and a renderer reads a data map (a normal map) as stored, not as
+     * the sRGB colour an 8-bit PNG is otherwise decoded as */
+    if (rc == SC_OK && im->colorspace == SC_COLOR_DATA) decoded->colorspace = SC_COLOR_DATA;
     if (rc == SC_OK) rc = seen_seams(at, at->seams, decoded, &e_file, &g_file, err);
     if (rc == SC_OK) rc = seen_seams(at, at->seams, im, &e_mem, &g_mem, err);
     sc_image_free(decoded);
@@ -543,7 +547,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, 
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 5,
+    .version = 6,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

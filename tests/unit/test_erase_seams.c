@@ -1574,6 +1574,27 @@ SC_TEST(save_measures_the_files_it_writes) {
     sc_value_release(atlas);
 }
 
+/* An 8-bit normal map is data: its PNG, read back as the material slot says
+ * (not as the sRGB colour an 8-bit PNG would otherwise be taken for), holds
+ * the very seams of the image, so the save's gate at 1e-6 passes. */
+SC_TEST(saved_normal_map_keeps_its_seams) {
+    sc_image_data *im = noise_image(64, 64, 3, SC_PIXEL_U8, -1);
+    im->colorspace = SC_COLOR_DATA;
+    sc_value *img = sc_value_new_image(im);
+    const char *slot = "normal";
+    sc_value *atlas = atlas_of(cube_mesh(17, false), &img, &slot, 1, SC_WRAP_REPEAT);
+    sc_error err = {0};
+    sc_ctx *ctx = run_save(atlas, "png", "1e-6", &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        double gap = sc_ctx_metric_value(ctx, "asset_cube_normal.png.max_seam_gap");
+        SC_CHECK_MSG(sc_ctx_metric_value(ctx, "asset_cube_normal.png.seam_gap_added") == 0 && gap > 0.01,
+                     "added %g, gap %g", sc_ctx_metric_value(ctx, "asset_cube_normal.png.seam_gap_added"), gap);
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+}
+
 SC_TEST(node_controls) {
     sc_error err = {0};
     /* no seams: the very same atlas comes out */
