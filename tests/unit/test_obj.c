@@ -46,6 +46,14 @@ static int parse_data_file(const char *name, sc_obj *obj, sc_error *err) {
     return rc;
 }
 
+/* Whether one of the node's warnings contains text. */
+static bool warning_has(const sc_ctx *ctx, const char *text) {
+    for (int i = 0; ctx && i < sc_ctx_nwarnings(ctx); i++)
+        if (strstr(sc_ctx_warning(ctx, i), text)) return true;
+    fprintf(stderr, "  no warning contains: %s\n", text);
+    return false;
+}
+
 static bool message_has(const sc_error *err, const char *text) {
     bool ok = strstr(err->message, text) != NULL;
     if (!ok) fprintf(stderr, "  message was: %s\n  expected it to contain: %s\n", err->message, text);
@@ -364,16 +372,26 @@ SC_TEST(load_atlas_obj_node) {
     SC_CHECK(sc_ctx_set_param(ctx, "slots", "color,bogus", &err) != SC_OK &&
              message_has(&err, "load_atlas:slots: unknown slot 'bogus'"));
     sc_ctx_free(ctx);
-    /* a missing texture names the MTL (and line) and the texture */
+    /* a missing optional map is left out with a warning naming the MTL (and
+     * line) and the texture; the colour maps stay */
     sc_test_system("rm -f '%s/blue_normal.png'", dir);
     ctx = run_load(path, &err, NULL);
-    SC_CHECK(ctx == NULL);
-    SC_CHECK(message_has(&err, "square.mtl:11: material 'blue': normal texture"));
-    SC_CHECK(message_has(&err, "blue_normal.png"));
-    /* a corrupt texture */
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    SC_CHECK(warning_has(ctx, "square.mtl:11: material 'blue': normal texture left out") &&
+             warning_has(ctx, "blue_normal.png"));
+    if (ctx) SC_CHECK_INT(sc_ctx_output(ctx, 0)->as.atlas->ntex, 2);
+    sc_ctx_free(ctx);
+    /* a corrupt one too */
     write_text(dir, "blue_normal.png", "\x89PNG\r\n\x1a\nnot really");
     ctx = run_load(path, &err, NULL);
-    SC_CHECK(ctx == NULL && message_has(&err, "blue_normal.png: corrupt or truncated png"));
+    SC_CHECK(ctx != NULL && warning_has(ctx, "blue_normal.png: corrupt or truncated png"));
+    sc_ctx_free(ctx);
+    /* a colour map that cannot be read still fails, naming it */
+    sc_test_system("cd '%s' && mv textures/blue.png textures/blue.gone", dir);
+    ctx = run_load(path, &err, NULL);
+    SC_CHECK(ctx == NULL && message_has(&err, "square.mtl:10: material 'blue': color texture") &&
+             message_has(&err, "blue.png: cannot open"));
+    sc_test_system("cd '%s' && mv textures/blue.gone textures/blue.png", dir);
     /* a missing MTL */
     sc_test_system("rm -f '%s/square.mtl'", dir);
     ctx = run_load(path, &err, NULL);
