@@ -90,8 +90,7 @@ int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_d
 }
 
 int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
-    const sc_imageio_codecs *c = get_codecs(err);
-    return c ? c->encode_png(im, bits, out, err) : SC_EIO;
+    return sc_imageio_png_encode(im, bits, out, err);
 }
 
 int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
@@ -99,10 +98,6 @@ int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_e
     return c ? c->encode_jpeg(im, quality, out, err) : SC_EIO;
 }
 
-int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
-    const sc_imageio_codecs *c = get_codecs(err);
-    return c ? c->encode_exr(im, out, err) : SC_EIO;
-}
 
 int sc_image_decode_levels(const char *name, const void *bytes, size_t size, sc_image_data ***levels,
                            int *nlevels, sc_error *err) {

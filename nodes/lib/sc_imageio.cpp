@@ -50,10 +50,6 @@ uint32_t quantize(float x, uint32_t max) {
     return (uint32_t)std::floor((double)x * max + 0.5);
 }
 
-size_t sample_count(const sc_image_data *im) {
-    return (size_t)im->width * (size_t)im->height * (size_t)im->channels;
-}
-
 bool check_image(const sc_image_data *im, const char *what, sc_error *err) {
     if (!im || !im->pixels || im->width < 1 || im->height < 1 || im->channels < 1 ||
         im->channels > 4 ||
@@ -185,21 +181,6 @@ int decode(const char *name, const void *bytes, size_t size, sc_image_data **out
     return SC_OK;
 }
 
-int encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
-    if (!check_image(im, "PNG", err)) return err ? err->code : SC_EINPUT;
-    if (bits == 0) bits = im->pixel == SC_PIXEL_U8 ? 8 : 16;
-    if (bits != 8 && bits != 16) return sc_fail(err, SC_EINPUT, "PNG: %d bits per channel; 8 or 16", bits);
-    ImageSpec spec(im->width, im->height, im->channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-    spec.attribute("png:compressionLevel", 6);
-    if (bits == 8) {
-        std::vector<uint8_t> px = to_integers<uint8_t>(im, im->channels, 255);
-        return write_with_oiio("png", spec, px.data(), out, err);
-    }
-    std::vector<uint16_t> px = to_integers<uint16_t>(im, im->channels, 65535);
-    return write_with_oiio("png", spec, px.data(), out, err);
-}
-
 int encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
     if (!check_image(im, "JPEG", err)) return err ? err->code : SC_EINPUT;
     if (quality < 1 || quality > 100) return sc_fail(err, SC_EINPUT, "JPEG: quality %d is not in 1..100", quality);
@@ -208,46 +189,6 @@ int encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err
     spec.attribute("Compression", "jpeg:" + std::to_string(quality));
     std::vector<uint8_t> px = to_integers<uint8_t>(im, channels, 255);
     return write_with_oiio("jpg", spec, px.data(), out, err);
-}
-
-/* Float samples of one level, top-down, as encode_exr writes them. */
-std::vector<float> exr_pixels(const sc_image_data *im) {
-    const size_t w = (size_t)im->width, h = (size_t)im->height, c = (size_t)im->channels;
-    std::vector<float> px(sample_count(im));
-    const bool linearise = im->colorspace == SC_COLOR_SRGB;
-    for (size_t y = 0; y < h; y++) {
-        const size_t src_row = (h - 1 - y) * w * c;
-        for (size_t k = 0; k < w * c; k++) {
-            float f;
-            if (im->pixel == SC_PIXEL_U8) f = ((const uint8_t *)im->pixels)[src_row + k] * (1.0f / 255.0f);
-            else if (im->pixel == SC_PIXEL_U16) f = ((const uint16_t *)im->pixels)[src_row + k] * (1.0f / 65535.0f);
-            else f = ((const float *)im->pixels)[src_row + k];
-            size_t ch = k % c;
-            if (linearise && !sc_channel_is_alpha((int32_t)c, (int32_t)ch)) f = sc_srgb_to_linear(f);
-            px[y * w * c + k] = f;
-        }
-    }
-    return px;
-}
-
-ImageSpec exr_spec(const sc_image_data *im) {
-    const size_t c = (size_t)im->channels;
-    ImageSpec spec(im->width, im->height, im->channels, TypeDesc::FLOAT);
-    static const char *const names[4][4] = {
-        {"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
-    spec.channelnames.clear();
-    for (size_t k = 0; k < c; k++) spec.channelnames.push_back(names[c - 1][k]);
-    spec.alpha_channel = (c == 2 || c == 4) ? (int)c - 1 : -1;
-    spec.attribute("compression", "zip");
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-    spec.attribute("DateTime", "");   /* else the writer stamps the time (capDate) */
-    return spec;
-}
-
-int encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
-    if (!check_image(im, "EXR", err)) return err ? err->code : SC_EINPUT;
-    std::vector<float> px = exr_pixels(im);
-    return write_with_oiio("exr", exr_spec(im), px.data(), out, err);
 }
 
 /* Every mip level of an EXR (or of any OIIO-readable file), as f32 images. */
@@ -321,18 +262,6 @@ static int module_decode(const char *name, const void *bytes, size_t size, sc_im
     }
 }
 
-static int module_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
-    try {
-        return encode_png(im, bits, out, err);
-    } catch (const std::bad_alloc &) {
-        return sc_fail(err, SC_ENOMEM, "PNG: out of memory");
-    } catch (const std::exception &e) {
-        return sc_fail(err, SC_EIO, "PNG: %s", e.what());
-    } catch (...) {
-        return sc_fail(err, SC_EIO, "PNG: cannot encode (unknown exception)");
-    }
-}
-
 static int module_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {
     try {
         return encode_jpeg(im, quality, out, err);
@@ -342,18 +271,6 @@ static int module_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out,
         return sc_fail(err, SC_EIO, "JPEG: %s", e.what());
     } catch (...) {
         return sc_fail(err, SC_EIO, "JPEG: cannot encode (unknown exception)");
-    }
-}
-
-static int module_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
-    try {
-        return encode_exr(im, out, err);
-    } catch (const std::bad_alloc &) {
-        return sc_fail(err, SC_ENOMEM, "EXR: out of memory");
-    } catch (const std::exception &e) {
-        return sc_fail(err, SC_EIO, "EXR: %s", e.what());
-    } catch (...) {
-        return sc_fail(err, SC_EIO, "EXR: cannot encode (unknown exception)");
     }
 }
 
@@ -372,7 +289,7 @@ static int module_decode_levels(const char *name, const void *bytes, size_t size
 
 /* The module's one exported symbol: the table sc_imageio.c loads on first use. */
 static const sc_imageio_codecs codecs = {
-    SC_IMAGEIO_ABI, module_decode, module_encode_png, module_encode_jpeg, module_encode_exr,
+    SC_IMAGEIO_ABI, module_decode, module_encode_jpeg,
     module_decode_levels,
 };
 

@@ -18,21 +18,23 @@
 extern "C" {
 #endif
 
-#define SC_IMAGEIO_ABI 3
+#define SC_IMAGEIO_ABI 4
 #define SC_IMAGEIO_MODULE "libseamcook_imageio.so"
 #define SC_IMAGEIO_ENTRY "sc_imageio_codecs_get"
 
 typedef struct sc_imageio_codecs {
     int abi;   /* SC_IMAGEIO_ABI */
     int (*decode)(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err);
-    int (*encode_png)(const sc_image_data *im, int bits, sc_buf *out, sc_error *err);
     int (*encode_jpeg)(const sc_image_data *im, int quality, sc_buf *out, sc_error *err);
-    int (*encode_exr)(const sc_image_data *im, sc_buf *out, sc_error *err);
     /* ABI 2: reading every level of a mip-mapped EXR (ABI 3: writing one is
-     * sc_imageio_exr.c's, in C) */
+     * sc_imageio_exr.c's, in C; ABI 4: so is writing a one-level EXR, and
+     * PNG files are written by sc_imageio_png.c, in C) */
     int (*decode_levels)(const char *name, const void *bytes, size_t size, sc_image_data ***out, int *nout,
                          sc_error *err);
 } sc_imageio_codecs;
+
+/* PNG writing, in C (sc_imageio_png.c): sc_image_encode_png's work. */
+int sc_imageio_png_encode(const sc_image_data *im, int bits, sc_buf *out, sc_error *err);
 
 /* The format the first bytes announce; shared by the module and the loader. */
 static inline const char *sc_imageio_sniff(const void *bytes, size_t size) {

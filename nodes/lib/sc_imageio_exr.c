@@ -1,9 +1,9 @@
-/* sc_imageio_exr.c - tiled, mip-mapped OpenEXR files (sc_image_encode_exr_mip)
+/* sc_imageio_exr.c - OpenEXR files (sc_image_encode_exr, sc_image_encode_exr_mip)
  * through the OpenEXR C API, their tiles deflated by libdeflate.
  *
  * Design note.
- *  - The file. One tiled part, 64 x 64 tiles, MIPMAP_LEVELS with OpenEXR's
- *    ROUND_DOWN sizes, float channels named as sc_image_encode_exr names them
+ *  - The file. One tiled part, 64 x 64 tiles: ONE_LEVEL for one image,
+ *    MIPMAP_LEVELS with OpenEXR's ROUND_DOWN sizes for a chain, float channels named as sc_image_encode_exr names them
  *    (Y / Y,A / R,G,B / R,G,B,A; the header lists them sorted by name and
  *    the tiles hold them in that order), ZIP compression, increasing-y chunk
  *    order. The OpenEXR C API writes the header, the chunk table and each
@@ -202,8 +202,15 @@ static void channel_names(int channels, const char *names[4], int order[4]) {
         }
 }
 
-static int check_levels(const sc_image_data *const *levels, int nlevels, sc_error *err) {
+static int check_levels(const sc_image_data *const *levels, int nlevels, bool mipmap, sc_error *err) {
     if (nlevels < 1 || !levels) return sc_fail(err, SC_EINPUT, "mip-mapped EXR: no levels");
+    if (!mipmap) {
+        const sc_image_data *im = levels[0];
+        if (nlevels != 1 || !im || !im->pixels || im->width < 1 || im->height < 1 || im->channels < 1 ||
+            im->channels > 4)
+            return sc_fail(err, SC_EINPUT, "EXR: not an image of 1 to 4 channels");
+        return SC_OK;
+    }
     for (int k = 0; k < nlevels; k++) {
         const sc_image_data *im = levels[k];
         if (!im || !im->pixels || im->width < 1 || im->height < 1 || im->channels < 1 || im->channels > 4)
@@ -228,9 +235,11 @@ static int check_levels(const sc_image_data *const *levels, int nlevels, sc_erro
     return SC_OK;
 }
 
-int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlevels, int threads, sc_buf *out,
-                                    sc_error *err) {
-    int rc = check_levels(levels, nlevels, err);
+/* levels[0 .. nlevels) as a tiled file: MIPMAP_LEVELS, or ONE_LEVEL for one
+ * image with mipmap false. */
+static int write_tiled(const sc_image_data *const *levels, int nlevels, bool mipmap, int threads, sc_buf *out,
+                       sc_error *err) {
+    int rc = check_levels(levels, nlevels, mipmap, err);
     if (rc) return rc;
     const int C = levels[0]->channels;
     const char *names[4];
@@ -250,7 +259,8 @@ int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlev
     if ((rv = exr_add_part(ctx, "", EXR_STORAGE_TILED, &part)) == EXR_ERR_SUCCESS &&
         (rv = exr_initialize_required_attr_simple(ctx, part, levels[0]->width, levels[0]->height,
                                                   EXR_COMPRESSION_ZIP)) == EXR_ERR_SUCCESS &&
-        (rv = exr_set_tile_descriptor(ctx, part, TILE, TILE, EXR_TILE_MIPMAP_LEVELS, EXR_TILE_ROUND_DOWN)) ==
+        (rv = exr_set_tile_descriptor(ctx, part, TILE, TILE, mipmap ? EXR_TILE_MIPMAP_LEVELS : EXR_TILE_ONE_LEVEL,
+                                      EXR_TILE_ROUND_DOWN)) ==
             EXR_ERR_SUCCESS) {
         for (int k = 0; k < C && rv == EXR_ERR_SUCCESS; k++)
             rv = exr_add_channel(ctx, part, names[order[k]], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1, 1);
@@ -293,6 +303,15 @@ int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlev
     return SC_OK;
 }
 
+int sc_image_encode_exr_mip_threads(const sc_image_data *const *levels, int nlevels, int threads, sc_buf *out,
+                                    sc_error *err) {
+    return write_tiled(levels, nlevels, true, threads, out, err);
+}
+
 int sc_image_encode_exr_mip(const sc_image_data *const *levels, int nlevels, sc_buf *out, sc_error *err) {
-    return sc_image_encode_exr_mip_threads(levels, nlevels, 1, out, err);
+    return write_tiled(levels, nlevels, true, 1, out, err);
+}
+
+int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err) {
+    return write_tiled(&im, 1, false, 1, out, err);
 }

@@ -143,6 +143,18 @@ SC_TEST(png_round_trip_u8_u16) {
         sc_image_data *back = NULL;
         SC_CHECK_MSG(sc_image_decode("rt.png", b.data, b.len, &back, &err) == SC_OK, "%s", err.message);
         SC_CHECK_MSG(back && same_pixels(im, back), "u8 round trip, %d channels", c);
+        /* the same samples at 16 bits: u x 257 */
+        sc_buf wide;
+        sc_buf_init(&wide);
+        sc_image_data *back16 = NULL;
+        SC_CHECK(sc_image_encode_png(im, 16, &wide, &err) == SC_OK &&
+                 sc_image_decode("rt16.png", wide.data, wide.len, &back16, &err) == SC_OK);
+        bool widened = back16 && back16->pixel == SC_PIXEL_U16;
+        for (size_t k = 0; widened && k < (size_t)im->width * im->height * c; k++)
+            widened = ((const uint16_t *)back16->pixels)[k] == 257u * ((const uint8_t *)im->pixels)[k];
+        SC_CHECK_MSG(widened, "u8 written at 16 bits, %d channels", c);
+        sc_image_free(back16);
+        sc_buf_free(&wide);
         /* deterministic bytes */
         sc_buf b2;
         sc_buf_init(&b2);
