@@ -59,6 +59,8 @@ enum { EXIT_OK = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
     "                           used first (default: $SEAMCOOK_CACHE_MAX_SIZE, else 10G)\n"          \
     "  --explain                say why each node cooks\n"                                          \
     "  --asset-root DIR         the folder every load_atlas may read below\n"                       \
+    "  --base-dir DIR           paths enter cache keys relative to DIR (default: the graph file's\n" \
+    "                           folder), so keys are the same for a checkout anywhere\n"           \
     "  --lua-timeout SECONDS    how long the graph file may take to build the graph (default 5)\n"  \
     "  -q, --quiet              no progress, no summary line\n"                                     \
     "  -h, --help               this text\n"
@@ -135,6 +137,7 @@ typedef struct options {
     int max_runs;               /* watch: stop after this many cooks (0: never) */
     double lua_timeout;         /* seconds a graph file may take to build its graph (0: the default) */
     const char *asset_root;     /* --asset-root: every load_atlas's asset_root */
+    const char *base_dir;       /* --base-dir: paths in keys are relative to it */
     const char *junit;          /* test --junit FILE */
 } options;
 
@@ -168,7 +171,7 @@ static int parse_size(const char *s, int64_t *out) {
 }
 
 enum {
-    OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_LUA_TIMEOUT,
+    OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_BASE_DIR, OPT_LUA_TIMEOUT,
     OPT_MAX_RUNS, OPT_JUNIT, OPT_DRY_RUN, OPT_EXPLAIN, OPT_CHECK, OPT_UPDATE_GOLDENS, OPT_DOT, OPT_QUIET,
     OPT_JSON, OPT_HELP, OPT_COUNT
 };
@@ -185,6 +188,7 @@ static const struct option_spec {
     [OPT_CACHE_MAX_SIZE] = {"--cache-max-size", NULL, true, "run watch test "},
     [OPT_MAX_SIZE] = {"--max-size", NULL, true, "cache "},
     [OPT_ASSET_ROOT] = {"--asset-root", NULL, true, "run watch test graph "},
+    [OPT_BASE_DIR] = {"--base-dir", NULL, true, "run watch test "},
     [OPT_LUA_TIMEOUT] = {"--lua-timeout", NULL, true, "run watch test graph "},
     [OPT_MAX_RUNS] = {"--max-runs", NULL, true, "watch "},
     [OPT_JUNIT] = {"--junit", NULL, true, "test "},
@@ -242,6 +246,12 @@ static int set_option(options *o, int id, const char *name, const char *v) {
     case OPT_OUT: o->out_dir = v; return EXIT_OK;
     case OPT_CACHE: o->cache_dir = v; return EXIT_OK;
     case OPT_ASSET_ROOT: o->asset_root = v; return EXIT_OK;
+    case OPT_BASE_DIR: {
+        struct stat st;
+        if (stat(v, &st) != 0 || !S_ISDIR(st.st_mode)) return usage("%s %s: not a folder", name, v);
+        o->base_dir = v;
+        return EXIT_OK;
+    }
     case OPT_JUNIT: o->junit = v; return EXIT_OK;
     case OPT_CACHE_MAX_SIZE:
     case OPT_MAX_SIZE:
@@ -472,7 +482,7 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
     const sc_graph *g = c->graph;
     sc_engine_options eo = {
         .jobs = o->jobs, .out_dir = out_dir, .dry_run = o->dry_run, .explain = o->explain,
-        .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2),
+        .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2), .base_dir = o->base_dir,
     };
     bool writes = out_dir && !o->dry_run;
     if (writes) sc_remove_stale_tmp(out_dir, NULL);   /* a killed run's half-written files */

@@ -52,7 +52,8 @@ char *sc_cache_blob_path(const sc_cache *c, const sc_digest *d);
 /* ---------------------------------------------------------------- actions */
 
 typedef struct sc_cache_dep {
-    char *path;            /* absolute path of a file the node read */
+    char *path;            /* a file the node read: relative to the base folder of
+                              the cook that recorded it (the engine's), or absolute */
     sc_digest digest;      /* its content digest at that time */
 } sc_cache_dep;
 

@@ -25,6 +25,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <sys/stat.h>
+
 #include <cjson/cJSON.h>
 #include <uv.h>
 
@@ -80,6 +82,7 @@ typedef struct engine {
     int done_count;
     double t0;
     char graph_path[PATH_MAX]; /* the graph file's real path */
+    char base_dir[PATH_MAX];   /* paths in keys and records are relative to it */
     claim *claims;             /* output file names taken so far */
     int nclaims, claim_cap;
 } engine;
@@ -274,6 +277,21 @@ static int kernel_closure(const sc_node_desc *d, const sc_kernel **out) {
     return n;
 }
 
+/* A PATH parameter in the key: relative to the base folder, and the content
+ * digest of the file it names (a folder, or a file not there, has none; a
+ * node that reads it fails or records what it read). */
+static bool path_key(void *ud, const char *path, char **shown, sc_digest *content) {
+    engine *e = ud;
+    *shown = sc_path_relative(e->base_dir, path);
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return false;
+    sc_error ignored;
+    uv_mutex_lock(&e->cache_lock);
+    int rc = sc_cache_file_digest(e->cache, path, content, &ignored);
+    uv_mutex_unlock(&e->cache_lock);
+    return rc == SC_OK;
+}
+
 /* The canonical action text: its SHA-256 is the key. */
 static char *canonical_action(engine *e, int i) {
     const sc_graph_node *n = gnode(e, i);
@@ -285,7 +303,9 @@ static char *canonical_action(engine *e, int i) {
     const sc_kernel *kernels[MAX_KERNELS];
     int nkernels = kernel_closure(n->desc, kernels);
     for (int k = 0; k < nkernels; k++) sc_buf_printf(&b, "kernel %s %d\n", kernels[k]->name, kernels[k]->version);
-    sc_graph_canonical_params(n, &params);
+    for (int k = 0; k < nkernels; k++)
+        if (kernels[k]->platform) sc_buf_printf(&b, "platform %s %s\n", kernels[k]->name, kernels[k]->platform());
+    sc_graph_canonical_params(n, path_key, e, &params);
     /* prefix each parameter line, so explain can tell lines apart */
     const char *p = params.data ? (const char *)params.data : "";
     while (*p) {
@@ -410,6 +430,18 @@ static const char *find_line(const char *text, const char *prefix, const char *n
     return NULL;
 }
 
+/* Whether two PATH parameter lines name the same path (their content
+ * digests, " sha256:...", aside). */
+static bool same_path(const char *a, size_t la, const char *b, size_t lb) {
+    const char *tag = " sha256:";
+    size_t tl = strlen(tag), pa = la, pb = lb;
+    for (size_t k = 0; k + tl <= la; k++)
+        if (strncmp(a + k, tag, tl) == 0) pa = k;
+    for (size_t k = 0; k + tl <= lb; k++)
+        if (strncmp(b + k, tag, tl) == 0) pb = k;
+    return pa == pb && (pa < la || pb < lb) && strncmp(a, b, pa) == 0;
+}
+
 /* Why the node with canonical text `now` cooks, given what it was last time. */
 static char *explain(engine *e, int i, const char *now, const char *before) {
     if (!before) return sc_strdup("no previous cook of this node");
@@ -431,11 +463,21 @@ static char *explain(engine *e, int i, const char *now, const char *before) {
         sc_buf_printf(&why, "kernel %s version %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
                       a ? a + skip : "(unset)", (int)(lb - skip), b + skip);
     }
+    for (int k = 0; k < nkernels; k++) {
+        const char *name = kernels[k]->name;
+        a = find_line(before, "platform", name, &la);
+        b = find_line(now, "platform", name, &lb);
+        if ((!a && !b) || (a && b && la == lb && strncmp(a, b, la) == 0)) continue;
+        size_t skip = 9 + strlen(name) + 1;
+        sc_buf_printf(&why, "kernel %s platform %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
+                      a ? a + skip : "(unset)", b ? (int)(lb - skip) : 7, b ? b + skip : "(unset)");
+    }
     for (int k = 0; k < n->desc->nparams; k++) {
         const char *name = n->desc->params[k].name;
         a = find_line(before, "param", name, &la);
         b = find_line(now, "param", name, &lb);
         if (a && b && la == lb && strncmp(a, b, la) == 0) continue;
+        if (a && b && same_path(a, la, b, lb)) continue;   /* the file changed: its dep line says so */
         size_t skip = 6 + strlen(name) + 1;
         sc_buf_printf(&why, "parameter %s: %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
                       a ? a + skip : "(unset)", b ? (int)(lb - skip) : 7, b ? b + skip : "(unset)");
@@ -700,6 +742,13 @@ static void resolve(engine *e, int i) {
         dep_digests = calloc((size_t)act.ndeps + 1, sizeof *dep_digests);
         for (int d = 0; d < act.ndeps && !miss; d++) {
             sc_digest cur;
+            char *abs = sc_path_resolve(e->base_dir, act.deps[d].path);   /* recorded relative to the base */
+            if (!abs) {
+                miss = "out of memory";
+                break;
+            }
+            free(act.deps[d].path);
+            act.deps[d].path = abs;
             if (sc_cache_file_changed(e->cache, act.deps[d].path, &act.deps[d].digest, &cur))
                 miss = sc_digest_is_zero(&act.deps[d].digest) ? "a file that was missing is there now"
                                                               : "a source file changed";
@@ -867,11 +916,13 @@ static void run_done(uv_work_t *req, int status) {
         r->deps = calloc((size_t)nd + 1, sizeof(char *));
         sc_digest *dep_digests = calloc((size_t)nd + 1, sizeof *dep_digests);
         sc_cache_dep *deps = calloc((size_t)nd + 1, sizeof *deps);
+        bool paths_ok = true;
         for (int d = 0; r->deps && dep_digests && deps && d < nd; d++) {
             r->deps[r->ndeps++] = sc_strdup(sc_ctx_dep_path(j->ctx, d));
             dep_digests[d] = *sc_ctx_dep_digest(j->ctx, d);
-            deps[d].path = (char *)sc_ctx_dep_path(j->ctx, d);
+            deps[d].path = sc_path_relative(e->base_dir, sc_ctx_dep_path(j->ctx, d));
             deps[d].digest = dep_digests[d];
+            paths_ok = paths_ok && deps[d].path;
         }
         int rc = files_from_values(e, i);
         cJSON *oj = outputs_json(e, i);
@@ -882,7 +933,7 @@ static void run_done(uv_work_t *req, int status) {
             .metrics = r->metrics_json, .ndeps = nd, .deps = deps,
             .nblobs = j->stored.nblobs, .blobs = j->stored.blobs, .seconds = j->seconds,
         };
-        if (rc == SC_OK && (!outputs || !r->metrics_json || !r->deps || !deps || !dep_digests))
+        if (rc == SC_OK && (!outputs || !r->metrics_json || !r->deps || !deps || !dep_digests || !paths_ok))
             rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
         if (rc == SC_OK) {
             uv_mutex_lock(&e->cache_lock);
@@ -898,6 +949,7 @@ static void run_done(uv_work_t *req, int status) {
             remember(e, i, dep_digests);
             rc = materialize(e, i, &j->err);
         }
+        for (int d = 0; deps && d < nd; d++) free(deps[d].path);
         free(outputs), free(deps);
         r->dep_digests = dep_digests;
         if (rc == SC_OK) {
@@ -1123,6 +1175,10 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
             if (g->nodes[i].input_node[port] >= 0) e.rt[g->nodes[i].input_node[port]].pending_consumers++;
     }
     if (!realpath(g->file, e.graph_path)) snprintf(e.graph_path, sizeof e.graph_path, "%s", g->file);
+    char *graph_dir = sc_path_dirname(e.graph_path);
+    if (!opt->base_dir || !realpath(opt->base_dir, e.base_dir))
+        snprintf(e.base_dir, sizeof e.base_dir, "%s", opt->base_dir ? opt->base_dir : graph_dir ? graph_dir : "/");
+    free(graph_dir);
     e.t0 = sc_now();
     uv_loop_init(&e.loop);
     uv_mutex_init(&e.cache_lock);

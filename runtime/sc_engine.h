@@ -1,9 +1,13 @@
 /* sc_engine.h - cooking a graph: keys, cache lookups, the scheduler, reports.
  *
  * For each node, in dependency order, the engine computes the action key
- * (SHA-256 over: the cooker's format, node type and version, the name and
- * version of every kernel the node reaches, canonical parameters, and the
- * digests of its inputs in port order). A recorded action
+ * (SHA-256 over: the cooker's format, node type and version, the name,
+ * version and platform text of every kernel the node reaches, canonical
+ * parameters, and the digests of its inputs in port order). A PATH
+ * parameter enters the key as its path relative to the base folder (the
+ * graph file's, or base_dir) and its file's content digest, and the files a
+ * node reads are recorded relative to it too: a key is the same for a
+ * checkout anywhere, under any HOME, TMPDIR, working folder or locale. A recorded action
  * whose source files are unchanged is a hit: the node's output digests are
  * known without loading any bytes. A node that must run gets its inputs
  * loaded (from memory, or from the blob store, verified), runs on libuv's
@@ -20,7 +24,7 @@
 #include "sc_graph.h"
 
 /* Bumped whenever key derivation or stored formats change. */
-#define SC_ENGINE_FORMAT 1
+#define SC_ENGINE_FORMAT 2
 
 typedef enum sc_node_status {
     SC_STATUS_PENDING = 0,
@@ -40,6 +44,7 @@ typedef struct sc_engine_options {
     bool explain;           /* --explain: print why each node cooks */
     FILE *log;              /* progress and messages (stderr); NULL: silent */
     bool live;              /* a live progress line (a terminal) rather than plain lines */
+    const char *base_dir;   /* paths enter keys relative to it; NULL: the graph file's folder */
 } sc_engine_options;
 
 typedef struct sc_node_output {
