@@ -26,6 +26,7 @@ enum {
     SC_EIO = 3,      /* the file system or the cache failed */
     SC_ENOMEM = 4,   /* out of memory, or a size beyond the limits */
     SC_EMISS = 5,    /* not found (a cache miss); not a failure in itself */
+    SC_EBUSY = 6,    /* another process holds it (a lease); not a failure in itself */
 };
 
 typedef struct sc_error {

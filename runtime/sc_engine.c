@@ -41,7 +41,15 @@ typedef enum node_state {
     ST_FAILED,
     ST_SKIPPED,
     ST_WOULD_RUN,
+    ST_LEASE_WAIT,   /* another process is cooking the same action */
 } node_state;
+
+/* Leases (one cook per action among processes sharing a cache): how often a
+ * waiting node looks again, how often held leases are renewed, and how old a
+ * heartbeat may be before its lease is taken over. */
+#define LEASE_POLL_MS 50
+#define LEASE_BEAT_SECONDS 1.0
+#define LEASE_STALE_SECONDS 10.0
 
 typedef struct report_file {
     char *path;
@@ -55,6 +63,8 @@ typedef struct node_rt {
     sc_value **values;         /* per output, when in memory */
     sc_value **meshes;         /* per ATLAS output: its mesh alone, when loaded */
     bool loading;
+    bool leased;               /* this process holds the action's lease */
+    bool waited;               /* it said once that it waits for another process */
     int pending_consumers;     /* consumer edges not yet finished */
     int nfiles;
     report_file *files;        /* report files of every REPORT output */
@@ -76,6 +86,9 @@ typedef struct engine {
     sc_run *run;
     int inflight;              /* cooking jobs */
     int loads;                 /* load jobs */
+    int lease_waits;           /* nodes waiting for another process's cook */
+    uv_timer_t tick;           /* polls waiting nodes, renews held leases */
+    double last_beat;
     bool stop;                 /* a node failed: start nothing new */
     int first_rc;
     sc_error first_err;
@@ -719,6 +732,65 @@ static void forget_result(sc_node_result *r) {
     r->files = NULL, r->file_digests = NULL, r->nfiles = 0;
 }
 
+/* Take the lease on node i's action. False when another live process holds
+ * it: the node then waits (ST_LEASE_WAIT) and is resolved again on the next
+ * tick, a hit once that process has recorded the result. A lease that cannot
+ * be taken for another reason (the index is read-only) does not stop the
+ * cook. */
+static bool take_lease(engine *e, int i) {
+    node_rt *rt = &e->rt[i];
+    sc_cache_lease_holder h;
+    sc_error err;
+    uv_mutex_lock(&e->cache_lock);
+    int rc = sc_cache_lease_take(e->cache, &e->run->results[i].key, LEASE_STALE_SECONDS, &h, &err);
+    uv_mutex_unlock(&e->cache_lock);
+    const sc_graph_node *n = gnode(e, i);
+    if (rc == SC_EBUSY) {
+        if (!rt->waited) say(e, "waiting for %s (%s): %s (pid %lld) is cooking it", n->name, n->desc->type, h.host,
+                             (long long)h.pid);
+        rt->waited = true;
+        free(rt->canon);
+        rt->canon = NULL;
+        rt->state = ST_LEASE_WAIT;
+        e->lease_waits++;
+        return false;
+    }
+    rt->leased = rc == SC_OK;
+    if (rc == SC_OK && h.taken_over)
+        say(e, "taking over %s (%s) from %s (pid %lld, gone)", n->name, n->desc->type, h.host, (long long)h.pid);
+    return true;
+}
+
+static void give_lease_back(engine *e, int i) {
+    if (!e->rt[i].leased) return;
+    sc_error ignored;
+    uv_mutex_lock(&e->cache_lock);
+    sc_cache_lease_release(e->cache, &e->run->results[i].key, &ignored);
+    uv_mutex_unlock(&e->cache_lock);
+    e->rt[i].leased = false;
+}
+
+/* Every LEASE_POLL_MS: renew this process's leases once a second, and look
+ * again at the nodes that wait for another process's cook. */
+static void tick(uv_timer_t *t) {
+    engine *e = t->data;
+    double now = sc_now();
+    if (now - e->last_beat >= LEASE_BEAT_SECONDS) {
+        sc_error ignored;
+        uv_mutex_lock(&e->cache_lock);
+        sc_cache_lease_renew(e->cache, &ignored);
+        uv_mutex_unlock(&e->cache_lock);
+        e->last_beat = now;
+    }
+    if (e->lease_waits == 0) return;
+    for (int i = 0; i < e->g->count; i++) {
+        if (e->rt[i].state != ST_LEASE_WAIT) continue;
+        e->rt[i].state = ST_WAITING;
+        e->lease_waits--;
+    }
+    pump(e);
+}
+
 /* Decide hit or miss for a node whose inputs' digests are all known. */
 static void resolve(engine *e, int i) {
     node_rt *rt = &e->rt[i];
@@ -789,7 +861,10 @@ static void resolve(engine *e, int i) {
     sc_cache_action_free(&act);
     forget_files(rt);
 
-    /* a miss: find out why, from what this node was last time */
+    /* a miss: one cook per action among the processes sharing the cache */
+    if (!e->opt->dry_run && !take_lease(e, i)) return;
+
+    /* find out why, from what this node was last time */
     if (e->opt->explain || e->opt->dry_run) {
         char *id = node_id(e, i), *before = NULL;
         uv_mutex_lock(&e->cache_lock);
@@ -952,6 +1027,7 @@ static void run_done(uv_work_t *req, int status) {
         for (int d = 0; deps && d < nd; d++) free(deps[d].path);
         free(outputs), free(deps);
         r->dep_digests = dep_digests;
+        give_lease_back(e, i);   /* after the record: a waiter finds the result */
         if (rc == SC_OK) {
             say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
             set_terminal(e, i, ST_DONE);
@@ -960,6 +1036,7 @@ static void run_done(uv_work_t *req, int status) {
         }
     } else {
         keep_deps_of_failure(r, j->ctx);
+        give_lease_back(e, i);
         fail_node(e, i, j->rc, &j->err);
     }
     free(j->stored.blobs);
@@ -1182,11 +1259,21 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
     e.t0 = sc_now();
     uv_loop_init(&e.loop);
     uv_mutex_init(&e.cache_lock);
+    uv_timer_init(&e.loop, &e.tick);
+    e.tick.data = &e;
+    e.last_beat = e.t0;
+    if (!opt->dry_run) uv_timer_start(&e.tick, tick, LEASE_POLL_MS, LEASE_POLL_MS);
     if (!e.stop) {
         pump(&e);
-        while (e.inflight > 0 || e.loads > 0) {
+        while (e.inflight > 0 || e.loads > 0 || e.lease_waits > 0) {
             uv_run(&e.loop, UV_RUN_ONCE);
         }
+    }
+    uv_timer_stop(&e.tick);
+    uv_close((uv_handle_t *)&e.tick, NULL);
+    if (!opt->dry_run) {
+        sc_error ignored;
+        sc_cache_lease_release(cache, NULL, &ignored);   /* any this run still holds */
     }
     /* anything left could not cook */
     for (int i = 0; i < g->count; i++)

@@ -9,14 +9,9 @@
 # third checkout cooks with a copy of the first one's cache: every node is a
 # hit (its recorded source files are found relative to the graph's folder),
 # and after one texture byte changes, the loader and what follows it cook.
-set -euo pipefail
-bin=$(realpath "$1")
-work=$2
-rm -rf "$work"
-mkdir -p "$work"
-work=$(realpath "$work")
+source "$(dirname "$0")/common.sh"
 
-"$bin" run "$(dirname "$0")/../data/graphs/proc_save.lua" --cache "$work/make-cache" --out "$work/made" -q
+"$bin" run "$data/graphs/proc_save.lua" --cache "$work/make-cache" --out "$work/made" -q
 for co in "$work/a/project" "$work/b/deeper/checkout/project"; do
   mkdir -p "$co/assets"
   cp "$work"/made/asset.obj "$work"/made/asset.mtl "$work"/made/asset_*.png "$co/assets/"
@@ -31,10 +26,6 @@ save{ name = "save", atlas = erased.atlas, file = "out" }
 LUA
 done
 
-# how many nodes cooked, from a report.json (or --json)
-ran_of() { sed -n 's/^[[:space:]]*"ran":[[:space:]]*\([0-9]*\).*/\1/p' "$1" | head -n 1; }
-# "name key" per node, from a report.json
-keys() { awk -F'"' '/^\t\t\t"name":/ {n=$4} /^\t\t\t"key":/ {print n, $4}' "$1"; }
 
 mkdir -p "$work/homeA" "$work/tmpA" "$work/homeB/x" "$work/tmpB/y" "$work/bin"
 (cd "$work/a/project" &&
@@ -44,8 +35,8 @@ mkdir -p "$work/homeA" "$work/tmpA" "$work/homeB/x" "$work/tmpB/y" "$work/bin"
   env -i HOME="$work/homeB/x" TMPDIR="$work/tmpB/y" PATH="$work/bin:/usr/local/bin:/usr/bin:/bin" LANG=C.UTF-8 LC_ALL=C.UTF-8 \
     "$bin" run checkout/project/graph.lua --set mesh=checkout/project/assets/asset.obj \
     --cache "$work/cache-b" --out "$work/out-b" -q -j1)
-keys "$work/out-a/report.json" > "$work/keys-a"
-keys "$work/out-b/report.json" > "$work/keys-b"
+keys_of "$work/out-a/report.json" > "$work/keys-a"
+keys_of "$work/out-b/report.json" > "$work/keys-b"
 n=$(wc -l < "$work/keys-a")
 [ "$n" -eq 6 ] || { echo "expected 6 node keys, found $n"; cat "$work/keys-a"; exit 1; }
 if ! diff "$work/keys-a" "$work/keys-b"; then
@@ -58,11 +49,11 @@ echo "6 node keys equal in both checkouts"
 cd "$work/b/deeper/checkout/project"
 "$bin" run "$work/b/deeper/checkout/project/graph.lua" --base-dir "$work/b/deeper/checkout/project" \
   --cache "$work/cache-b" --out "$work/out-b2" -q
-keys "$work/out-b2/report.json" | diff "$work/keys-a" - || { echo "FAIL: --base-dir changed the keys"; exit 1; }
+keys_of "$work/out-b2/report.json" | diff "$work/keys-a" - || { echo "FAIL: --base-dir changed the keys"; exit 1; }
 # another base folder moves the path in the loader's key
 cd "$work/b/deeper/checkout/project"
 "$bin" run "$work/b/deeper/checkout/project/graph.lua" --base-dir "$work/b" --cache "$work/cache-b" --out "$work/out-b3" -q
-[ "$(keys "$work/out-b3/report.json" | grep '^load ')" != "$(grep '^load ' "$work/keys-a")" ] ||
+[ "$(keys_of "$work/out-b3/report.json" | grep '^load ')" != "$(grep '^load ' "$work/keys-a")" ] ||
   { echo "FAIL: the loader's key ignores the base folder"; exit 1; }
 
 # a cache filled by checkout a serves a third checkout: nothing cooks
