@@ -10,7 +10,12 @@ jobs=$(nproc 2>/dev/null || echo 2)
 packages=(build-essential cmake pkg-config libuv1-dev libsqlite3-dev liblua5.4-dev
   libsuitesparse-dev libopenblas0-pthread libopenimageio-dev libopencv-core-dev
   libopenexr-dev libdeflate-dev libegl-dev libgles-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev
-  libssl-dev libcjson-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev chromium)
+  libssl-dev libcjson-dev libcurl4-openssl-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev chromium)
+
+# what the tests add: nginx (WebDAV) and protoc for the remote-cache test, openssl for its password file
+if [ "$mode" = test ]; then
+  packages+=(nginx-light protobuf-compiler openssl)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -31,6 +31,7 @@
 #include <uv.h>
 
 #include "sc_cache.h"
+#include "sc_config.h"
 #include "sc_engine.h"
 #include "sc_golden.h"
 #include "sc_lua.h"
@@ -62,6 +63,13 @@ enum { EXIT_OK = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
     "  --base-dir DIR           paths enter cache keys relative to DIR (default: the graph file's\n" \
     "                           folder), so keys are the same for a checkout anywhere\n"           \
     "  --lua-timeout SECONDS    how long the graph file may take to build the graph (default 5)\n"  \
+    "  --remote-cache URL       a remote cache (Bazel's HTTP protocol: /cas/, /ac/), asked on a local\n" \
+    "                           miss and given what cooks; \"\" for none (default:\n"                    \
+    "                           $SEAMCOOK_REMOTE_CACHE, else remote_cache in seamcook.conf)\n"           \
+    "  --remote-header 'NAME: VALUE'  a header for every remote request (may repeat)\n"             \
+    "  --remote-read-only       look up the remote cache, never upload\n"                           \
+    "  --remote-timeout SECONDS to connect, and a transfer may stall (default 10)\n"                \
+    "  --remote-retries N       tries after the first on a network error (default 2)\n"            \
     "  -q, --quiet              no progress, no summary line\n"                                     \
     "  -h, --help               this text\n"
 
@@ -139,6 +147,12 @@ typedef struct options {
     const char *asset_root;     /* --asset-root: every load_atlas's asset_root */
     const char *base_dir;       /* --base-dir: paths in keys are relative to it */
     const char *junit;          /* test --junit FILE */
+    const char *remote_cache;   /* --remote-cache URL ("" none; NULL not given) */
+    const char **remote_headers;/* --remote-header, each */
+    int nremote_headers;
+    bool remote_read_only;
+    double remote_timeout;      /* 0: not given */
+    int remote_retries;         /* -1: not given */
 } options;
 
 static int usage(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -173,7 +187,8 @@ static int parse_size(const char *s, int64_t *out) {
 enum {
     OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_BASE_DIR, OPT_LUA_TIMEOUT,
     OPT_MAX_RUNS, OPT_JUNIT, OPT_DRY_RUN, OPT_EXPLAIN, OPT_CHECK, OPT_UPDATE_GOLDENS, OPT_DOT, OPT_QUIET,
-    OPT_JSON, OPT_HELP, OPT_COUNT
+    OPT_JSON, OPT_HELP, OPT_REMOTE_CACHE, OPT_REMOTE_HEADER, OPT_REMOTE_READ_ONLY, OPT_REMOTE_TIMEOUT,
+    OPT_REMOTE_RETRIES, OPT_COUNT
 };
 
 static const struct option_spec {
@@ -200,6 +215,11 @@ static const struct option_spec {
     [OPT_QUIET] = {"--quiet", "-q", false, "run watch test "},
     [OPT_JSON] = {"--json", NULL, false, "run "},
     [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version "},
+    [OPT_REMOTE_CACHE] = {"--remote-cache", NULL, true, "run watch test "},
+    [OPT_REMOTE_HEADER] = {"--remote-header", NULL, true, "run watch test "},
+    [OPT_REMOTE_READ_ONLY] = {"--remote-read-only", NULL, false, "run watch test "},
+    [OPT_REMOTE_TIMEOUT] = {"--remote-timeout", NULL, true, "run watch test "},
+    [OPT_REMOTE_RETRIES] = {"--remote-retries", NULL, true, "run watch test "},
 };
 
 static bool takes(const char *commands, const char *command) {
@@ -276,6 +296,24 @@ static int set_option(options *o, int id, const char *name, const char *v) {
     case OPT_QUIET: o->quiet = true; return EXIT_OK;
     case OPT_JSON: o->json = true; return EXIT_OK;
     case OPT_HELP: o->help = true; return EXIT_OK;
+    case OPT_REMOTE_CACHE: o->remote_cache = v; return EXIT_OK;
+    case OPT_REMOTE_HEADER:
+        if (!strchr(v, ':') || v[0] == ':') return usage("%s %s: expected 'Name: value'", name, v);
+        o->remote_headers[o->nremote_headers++] = v;
+        return EXIT_OK;
+    case OPT_REMOTE_READ_ONLY: o->remote_read_only = true; return EXIT_OK;
+    case OPT_REMOTE_TIMEOUT: {
+        double t = strtod(v, &end);
+        if (end == v || *end || !(t > 0) || t > 3600) return usage("%s %s: expected seconds, more than 0", name, v);
+        o->remote_timeout = t;
+        return EXIT_OK;
+    }
+    case OPT_REMOTE_RETRIES: {
+        long n = strtol(v, &end, 10);
+        if (end == v || *end || n < 0 || n > 10) return usage("%s %s: expected a number from 0 to 10", name, v);
+        o->remote_retries = (int)n;
+        return EXIT_OK;
+    }
     }
     return usage("unknown option %s", name);
 }
@@ -286,7 +324,9 @@ static int parse_args(int argc, char **argv, options *o) {
     o->command = argv[1];
     o->files = calloc((size_t)argc, sizeof(char *));
     o->settings = calloc((size_t)argc, sizeof(sc_setting));
-    if (!o->files || !o->settings) return usage("%s", "out of memory");
+    o->remote_headers = calloc((size_t)argc, sizeof(char *));
+    o->remote_retries = -1;
+    if (!o->files || !o->settings || !o->remote_headers) return usage("%s", "out of memory");
     int i = 2;
     if (strcmp(o->command, "cache") == 0 && argc > 2 && argv[2][0] != '-') o->subcommand = argv[i++];
     for (; i < argc; i++) {
@@ -331,6 +371,7 @@ static void free_options(options *o) {
     for (int i = 0; i < o->nsettings; i++) free((char *)o->settings[i].name);
     free(o->settings);
     free(o->files);
+    free(o->remote_headers);
 }
 
 /* ---------------------------------------------------------------- the cache */
@@ -471,6 +512,88 @@ static void cooked_free(cooked *c) {
     memset(c, 0, sizeof *c);
 }
 
+/* ---------------------------------------------------------------- the remote cache */
+
+/* One remote setting: the command line's, else the environment's, else the
+ * project file's. */
+static const char *env_of(const char *name) {
+    const char *v = getenv(name);
+    return v && *v ? v : NULL;
+}
+
+/* The remote cache for a graph file, from --remote-* options, then
+ * SEAMCOOK_REMOTE_* variables, then seamcook.conf beside the graph file;
+ * *out stays NULL when none of them names one. */
+static int open_remote(const char *graph_file, const options *o, sc_cache *cache, sc_remote **out, sc_error *err) {
+    *out = NULL;
+    sc_config fc;
+    sc_config_init(&fc);
+    char *dir = sc_path_dirname(graph_file);
+    int rc = dir ? sc_config_load(dir, &fc, err) : sc_fail(err, SC_ENOMEM, "out of memory");
+    free(dir);
+    const char *url = o->remote_cache ? o->remote_cache : env_of("SEAMCOOK_REMOTE_CACHE") ? env_of("SEAMCOOK_REMOTE_CACHE")
+                                                                                          : fc.remote_cache;
+    sc_remote_config rc_cfg = {.url = url, .timeout = fc.timeout, .retries = fc.retries,
+                               .read_only = fc.read_only == 1, .log = o->quiet ? NULL : stderr};
+    const char *env_header = env_of("SEAMCOOK_REMOTE_HEADER");
+    char *env_headers = NULL;
+    const char **headers = NULL;
+    if (o->nremote_headers) {
+        rc_cfg.headers = o->remote_headers, rc_cfg.nheaders = o->nremote_headers;
+    } else if (env_header) {   /* several: one a line */
+        env_headers = sc_strdup(env_header);
+        headers = calloc(strlen(env_header) + 1, sizeof *headers);
+        int n = 0;
+        for (char *line = env_headers ? strtok(env_headers, "\n") : NULL; line && headers; line = strtok(NULL, "\n"))
+            headers[n++] = line;
+        rc_cfg.headers = headers, rc_cfg.nheaders = n;
+        if (rc == SC_OK && (!env_headers || !headers)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    } else {
+        rc_cfg.headers = (const char *const *)fc.headers, rc_cfg.nheaders = fc.nheaders;
+    }
+    const char *v;
+    bool b;
+    char *end;
+    if (o->remote_read_only) rc_cfg.read_only = true;
+    else if ((v = env_of("SEAMCOOK_REMOTE_READ_ONLY")) && rc == SC_OK) {
+        if (!sc_parse_bool(v, &b)) rc = sc_fail(err, SC_EUSAGE, "SEAMCOOK_REMOTE_READ_ONLY=%s: expected true or false", v);
+        rc_cfg.read_only = b;
+    }
+    if (o->remote_timeout > 0) rc_cfg.timeout = o->remote_timeout;
+    else if ((v = env_of("SEAMCOOK_REMOTE_TIMEOUT")) && rc == SC_OK) {
+        rc_cfg.timeout = strtod(v, &end);
+        if (end == v || *end || !(rc_cfg.timeout > 0) || rc_cfg.timeout > 3600)
+            rc = sc_fail(err, SC_EUSAGE, "SEAMCOOK_REMOTE_TIMEOUT=%s: expected seconds, more than 0", v);
+    }
+    if (o->remote_retries >= 0) rc_cfg.retries = o->remote_retries;
+    else if ((v = env_of("SEAMCOOK_REMOTE_RETRIES")) && rc == SC_OK) {
+        long n = strtol(v, &end, 10);
+        if (end == v || *end || n < 0 || n > 10)
+            rc = sc_fail(err, SC_EUSAGE, "SEAMCOOK_REMOTE_RETRIES=%s: expected a number from 0 to 10", v);
+        rc_cfg.retries = (int)n;
+    }
+    if (rc == SC_OK && url && *url) rc = sc_remote_open(&rc_cfg, cache, out, err);
+    free(headers);
+    free(env_headers);
+    sc_config_free(&fc);
+    return rc;
+}
+
+/* Finish the uploads and say what the remote did. */
+static void close_remote(sc_remote *remote, const options *o) {
+    if (!remote) return;
+    sc_remote_flush(remote);
+    sc_remote_stats st;
+    sc_remote_stats_get(remote, &st);
+    sc_remote_close(remote);
+    if (o->quiet) return;
+    fprintf(stderr, "remote cache: %lld of %lld lookups hit (%lld blobs, %.1f MB down); %lld actions uploaded "
+                    "(%lld blobs, %.1f MB up; %lld already there); %lld blobs with wrong bytes\n",
+            (long long)st.ac_hits, (long long)(st.ac_hits + st.ac_misses), (long long)st.blobs_downloaded,
+            st.bytes_downloaded / 1e6, (long long)st.actions_uploaded, (long long)st.blobs_uploaded,
+            st.bytes_uploaded / 1e6, (long long)st.blobs_present, (long long)st.bad_blobs);
+}
+
 /* Cook one graph file into out_dir; returns the exit status. */
 static int cook(const char *file, const options *o, sc_cache *cache, const char *out_dir, bool check, cooked *c) {
     memset(c, 0, sizeof *c);
@@ -480,9 +603,16 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
         return exit_status_of(rc);
     }
     const sc_graph *g = c->graph;
+    sc_remote *remote = NULL;
+    rc = o->dry_run ? SC_OK : open_remote(file, o, cache, &remote, &c->failure);
+    if (rc != SC_OK) {
+        fprintf(stderr, "seamcook: %s\n", c->failure.message);
+        return exit_status_of(rc);
+    }
     sc_engine_options eo = {
         .jobs = o->jobs, .out_dir = out_dir, .dry_run = o->dry_run, .explain = o->explain,
         .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2), .base_dir = o->base_dir,
+        .remote = remote,
     };
     bool writes = out_dir && !o->dry_run;
     if (writes) sc_remove_stale_tmp(out_dir, NULL);   /* a killed run's half-written files */
@@ -496,6 +626,7 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
             c->failure = err;
         }
     }
+    close_remote(remote, o);
     const sc_run *run = c->run;
     if (run && !o->quiet)
         fprintf(stderr, "%s: %d nodes, %d cooked, %d cached, %d failed, %d skipped in %.3f s%s%s\n",

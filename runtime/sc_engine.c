@@ -761,6 +761,9 @@ static bool take_lease(engine *e, int i) {
     return true;
 }
 
+static void lock_cache(void *ud) { uv_mutex_lock(&((engine *)ud)->cache_lock); }
+static void unlock_cache(void *ud) { uv_mutex_unlock(&((engine *)ud)->cache_lock); }
+
 static void give_lease_back(engine *e, int i) {
     if (!e->rt[i].leased) return;
     sc_error ignored;
@@ -810,6 +813,13 @@ static void resolve(engine *e, int i) {
     sc_digest *dep_digests = NULL;
     uv_mutex_lock(&e->cache_lock);
     int rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
+    if (rc == SC_EMISS && e->opt->remote && !e->opt->dry_run) {
+        /* the remote puts what it finds into the local cache, taking the lock itself */
+        uv_mutex_unlock(&e->cache_lock);
+        bool fetched = sc_remote_fetch(e->opt->remote, &r->key, &err) == SC_OK;
+        uv_mutex_lock(&e->cache_lock);
+        if (fetched) rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
+    }
     if (rc == SC_OK) {
         dep_digests = calloc((size_t)act.ndeps + 1, sizeof *dep_digests);
         for (int d = 0; d < act.ndeps && !miss; d++) {
@@ -1014,6 +1024,7 @@ static void run_done(uv_work_t *req, int status) {
             uv_mutex_lock(&e->cache_lock);
             rc = sc_cache_put_action(e->cache, &act, &j->err);
             uv_mutex_unlock(&e->cache_lock);
+            if (rc == SC_OK && e->opt->remote) rc = sc_remote_upload(e->opt->remote, &act, &j->err);
             /* a concurrent gc took a blob: the result stands, it is just not recorded */
             if (rc == SC_EMISS) {
                 say(e, "note: %s was cooked but not recorded: %s", n->name, j->err.message);
@@ -1259,6 +1270,7 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
     e.t0 = sc_now();
     uv_loop_init(&e.loop);
     uv_mutex_init(&e.cache_lock);
+    sc_remote_set_lock(opt->remote, lock_cache, unlock_cache, &e);
     uv_timer_init(&e.loop, &e.tick);
     e.tick.data = &e;
     e.last_beat = e.t0;
@@ -1271,6 +1283,7 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
     }
     uv_timer_stop(&e.tick);
     uv_close((uv_handle_t *)&e.tick, NULL);
+    sc_remote_set_lock(opt->remote, NULL, NULL, NULL);
     if (!opt->dry_run) {
         sc_error ignored;
         sc_cache_lease_release(cache, NULL, &ignored);   /* any this run still holds */

@@ -7,7 +7,10 @@
  * parameter enters the key as its path relative to the base folder (the
  * graph file's, or base_dir) and its file's content digest, and the files a
  * node reads are recorded relative to it too: a key is the same for a
- * checkout anywhere, under any HOME, TMPDIR, working folder or locale. A recorded action
+ * checkout anywhere, under any HOME, TMPDIR, working folder or locale.
+ * With a remote cache, a local miss asks the remote, whose answer enters the
+ * local cache (verified) before the lookup is made again; an action cooked
+ * here is queued for upload once it is recorded. A recorded action
  * whose source files are unchanged is a hit: the node's output digests are
  * known without loading any bytes. A node that must run gets its inputs
  * loaded (from memory, or from the blob store, verified), runs on libuv's
@@ -22,6 +25,7 @@
 
 #include "sc_cache.h"
 #include "sc_graph.h"
+#include "sc_remote.h"
 
 /* Bumped whenever key derivation or stored formats change. */
 #define SC_ENGINE_FORMAT 2
@@ -45,6 +49,7 @@ typedef struct sc_engine_options {
     FILE *log;              /* progress and messages (stderr); NULL: silent */
     bool live;              /* a live progress line (a terminal) rather than plain lines */
     const char *base_dir;   /* paths enter keys relative to it; NULL: the graph file's folder */
+    sc_remote *remote;      /* asked on a local miss, given what cooks; NULL: none */
 } sc_engine_options;
 
 typedef struct sc_node_output {

@@ -1246,7 +1246,6 @@ SC_TEST(gc_runs_on_a_full_disk) {
     remove_tree(dir);
 }
 
-int main(void) { return sc_test_main(); }
 
 /* Leases: one holder per action key. A live other process's lease is busy;
  * a dead one's is taken over; a released one is free. */
@@ -1301,3 +1300,5 @@ SC_TEST(leases_one_holder) {
     close(ready[0]), close(ready[1]), close(quit[0]), close(quit[1]);
     free(dir);
 }
+
+int main(void) { return sc_test_main(); }

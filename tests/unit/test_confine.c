@@ -181,7 +181,6 @@ SC_TEST(messages_quote_short_escaped_excerpts) {
     SC_CHECK(strcmp(sc_excerpt("\n", 3, false, excerpt, sizeof excerpt), "\\x0a") == 0);
 }
 
-int main(void) { return sc_test_main(); }
 
 /* Paths in action keys: relative to a base folder by their text alone, and
  * back again. */
@@ -205,3 +204,5 @@ SC_TEST(path_relative_and_back) {
     SC_CHECK_STR(kept, "/abs/x");
     free(kept);
 }
+
+int main(void) { return sc_test_main(); }
