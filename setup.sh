@@ -12,9 +12,10 @@ packages=(build-essential cmake pkg-config libuv1-dev libsqlite3-dev liblua5.4-d
   libopenexr-dev libdeflate-dev libegl-dev libgles-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev
   libssl-dev libcjson-dev libcurl4-openssl-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev chromium)
 
-# what the tests add: nginx (WebDAV) and protoc for the remote-cache test, openssl for its password file
+# what the tests add: nginx and lighttpd (WebDAV) and protoc for the remote-cache tests, openssl for
+# their password file
 if [ "$mode" = test ]; then
-  packages+=(nginx-light protobuf-compiler openssl)
+  packages+=(nginx-light lighttpd lighttpd-mod-webdav protobuf-compiler openssl)
 fi
 
 missing=()

@@ -2,7 +2,7 @@
  * without a server: the ActionResult protobuf written and read back (its
  * bytes checked against a hand-worked encoding), malformed protobufs and
  * records refused, and seamcook.conf's settings and errors. The remote
- * against a real server: tests/farm/remote_nginx.sh. */
+ * against a real server: tests/farm/remote_server.sh. */
 #include "sc_test.h"
 
 #include <stdlib.h>
