@@ -4,6 +4,7 @@
  *   seamcook watch GRAPH [options of run] [--max-runs N]
  *   seamcook test [FILES...] [--update-goldens] [--junit FILE] [options of run]
  *   seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]
+ *   seamcook farm submit GRAPH --assets LIST [options of run] | farm status [--out DIR]
  *   seamcook nodes
  *   seamcook graph GRAPH --dot [--set k=v]...
  *   seamcook version | --version;  seamcook [COMMAND] --help
@@ -33,6 +34,7 @@
 #include "sc_cache.h"
 #include "sc_config.h"
 #include "sc_engine.h"
+#include "sc_farm.h"
 #include "sc_golden.h"
 #include "sc_lua.h"
 #include "sc_manifest.h"
@@ -114,6 +116,18 @@ static const char graph_usage[] =
     "Prints the graph in Graphviz's DOT language.\n"
     "  --set NAME=VALUE, --set NODE.PARAM=VALUE, --asset-root DIR, --lua-timeout SECONDS: as for run\n";
 
+static const char farm_usage[] =
+    "usage: seamcook farm submit GRAPH --assets LIST [--asset-param NAME] [--out DIR] [options of run]\n"
+    "       seamcook farm status [--out DIR]\n"
+    "submit cooks GRAPH once per asset of LIST (a path a line, relative to the list's folder) as a\n"
+    "Slurm job array (sbatch): task i runs `seamcook run GRAPH --set NAME=ASSET_i --out DIR/<i>_<asset>`\n"
+    "with the options given here, in this folder. status says what each task did.\n"
+    "  --assets LIST            the asset list\n"
+    "  --asset-param NAME       the graph parameter an asset goes into (default mesh)\n"
+    "  -o, --out DIR            where the tasks' folders and the job's (.seamcook-farm) go (default out)\n"
+    "  --set, -j, --cache, --cache-max-size, --asset-root, --base-dir, --lua-timeout, --explain,\n"
+    "  --remote-*, -q           passed to every task's run\n";
+
 static const char version_usage[] =
     "usage: seamcook version (or seamcook --version)\n"
     "Prints the version.\n";
@@ -123,6 +137,7 @@ static const char general_usage[] =
     "       seamcook watch GRAPH [options of run] [--max-runs N]\n"
     "       seamcook test FILES... [options of run] [--update-goldens] [--junit FILE]\n"
     "       seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]\n"
+    "       seamcook farm submit GRAPH --assets LIST [options of run] | farm status [--out DIR]\n"
     "       seamcook nodes\n"
     "       seamcook graph GRAPH --dot [--set k=v]...\n"
     "       seamcook version\n"
@@ -153,6 +168,10 @@ typedef struct options {
     bool remote_read_only;
     double remote_timeout;      /* 0: not given */
     int remote_retries;         /* -1: not given */
+    const char *assets;         /* farm --assets LIST */
+    const char *asset_param;    /* farm --asset-param NAME */
+    const char **passed;        /* farm submit: the options each task's run gets, as given */
+    int npassed;
 } options;
 
 static int usage(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -188,7 +207,7 @@ enum {
     OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_BASE_DIR, OPT_LUA_TIMEOUT,
     OPT_MAX_RUNS, OPT_JUNIT, OPT_DRY_RUN, OPT_EXPLAIN, OPT_CHECK, OPT_UPDATE_GOLDENS, OPT_DOT, OPT_QUIET,
     OPT_JSON, OPT_HELP, OPT_REMOTE_CACHE, OPT_REMOTE_HEADER, OPT_REMOTE_READ_ONLY, OPT_REMOTE_TIMEOUT,
-    OPT_REMOTE_RETRIES, OPT_COUNT
+    OPT_REMOTE_RETRIES, OPT_ASSETS, OPT_ASSET_PARAM, OPT_COUNT
 };
 
 static const struct option_spec {
@@ -196,30 +215,32 @@ static const struct option_spec {
     bool value;                 /* takes the next argument */
     const char *commands;       /* the commands that take it, each followed by a space */
 } option_specs[OPT_COUNT] = {
-    [OPT_SET] = {"--set", "-s", true, "run watch test graph "},
-    [OPT_JOBS] = {"--jobs", "-j", true, "run watch test "},
-    [OPT_OUT] = {"--out", "-o", true, "run watch test "},
-    [OPT_CACHE] = {"--cache", NULL, true, "run watch test cache "},
-    [OPT_CACHE_MAX_SIZE] = {"--cache-max-size", NULL, true, "run watch test "},
+    [OPT_SET] = {"--set", "-s", true, "run watch test graph farm "},
+    [OPT_JOBS] = {"--jobs", "-j", true, "run watch test farm "},
+    [OPT_OUT] = {"--out", "-o", true, "run watch test farm "},
+    [OPT_CACHE] = {"--cache", NULL, true, "run watch test cache farm "},
+    [OPT_CACHE_MAX_SIZE] = {"--cache-max-size", NULL, true, "run watch test farm "},
     [OPT_MAX_SIZE] = {"--max-size", NULL, true, "cache "},
-    [OPT_ASSET_ROOT] = {"--asset-root", NULL, true, "run watch test graph "},
-    [OPT_BASE_DIR] = {"--base-dir", NULL, true, "run watch test "},
-    [OPT_LUA_TIMEOUT] = {"--lua-timeout", NULL, true, "run watch test graph "},
+    [OPT_ASSET_ROOT] = {"--asset-root", NULL, true, "run watch test graph farm "},
+    [OPT_BASE_DIR] = {"--base-dir", NULL, true, "run watch test farm "},
+    [OPT_LUA_TIMEOUT] = {"--lua-timeout", NULL, true, "run watch test graph farm "},
     [OPT_MAX_RUNS] = {"--max-runs", NULL, true, "watch "},
     [OPT_JUNIT] = {"--junit", NULL, true, "test "},
     [OPT_DRY_RUN] = {"--dry-run", "-n", false, "run "},
-    [OPT_EXPLAIN] = {"--explain", NULL, false, "run watch test "},
+    [OPT_EXPLAIN] = {"--explain", NULL, false, "run watch test farm "},
     [OPT_CHECK] = {"--check", NULL, false, "run watch "},
     [OPT_UPDATE_GOLDENS] = {"--update-goldens", NULL, false, "test "},
     [OPT_DOT] = {"--dot", NULL, false, "graph "},
-    [OPT_QUIET] = {"--quiet", "-q", false, "run watch test "},
+    [OPT_QUIET] = {"--quiet", "-q", false, "run watch test farm "},
     [OPT_JSON] = {"--json", NULL, false, "run "},
-    [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version "},
-    [OPT_REMOTE_CACHE] = {"--remote-cache", NULL, true, "run watch test "},
-    [OPT_REMOTE_HEADER] = {"--remote-header", NULL, true, "run watch test "},
-    [OPT_REMOTE_READ_ONLY] = {"--remote-read-only", NULL, false, "run watch test "},
-    [OPT_REMOTE_TIMEOUT] = {"--remote-timeout", NULL, true, "run watch test "},
-    [OPT_REMOTE_RETRIES] = {"--remote-retries", NULL, true, "run watch test "},
+    [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version farm "},
+    [OPT_REMOTE_CACHE] = {"--remote-cache", NULL, true, "run watch test farm "},
+    [OPT_REMOTE_HEADER] = {"--remote-header", NULL, true, "run watch test farm "},
+    [OPT_REMOTE_READ_ONLY] = {"--remote-read-only", NULL, false, "run watch test farm "},
+    [OPT_REMOTE_TIMEOUT] = {"--remote-timeout", NULL, true, "run watch test farm "},
+    [OPT_REMOTE_RETRIES] = {"--remote-retries", NULL, true, "run watch test farm "},
+    [OPT_ASSETS] = {"--assets", NULL, true, "farm "},
+    [OPT_ASSET_PARAM] = {"--asset-param", NULL, true, "farm "},
 };
 
 static bool takes(const char *commands, const char *command) {
@@ -302,6 +323,8 @@ static int set_option(options *o, int id, const char *name, const char *v) {
         o->remote_headers[o->nremote_headers++] = v;
         return EXIT_OK;
     case OPT_REMOTE_READ_ONLY: o->remote_read_only = true; return EXIT_OK;
+    case OPT_ASSETS: o->assets = v; return EXIT_OK;
+    case OPT_ASSET_PARAM: o->asset_param = v; return EXIT_OK;
     case OPT_REMOTE_TIMEOUT: {
         double t = strtod(v, &end);
         if (end == v || *end || !(t > 0) || t > 3600) return usage("%s %s: expected seconds, more than 0", name, v);
@@ -325,10 +348,12 @@ static int parse_args(int argc, char **argv, options *o) {
     o->files = calloc((size_t)argc, sizeof(char *));
     o->settings = calloc((size_t)argc, sizeof(sc_setting));
     o->remote_headers = calloc((size_t)argc, sizeof(char *));
+    o->passed = calloc((size_t)argc, sizeof(char *));
     o->remote_retries = -1;
-    if (!o->files || !o->settings || !o->remote_headers) return usage("%s", "out of memory");
+    if (!o->files || !o->settings || !o->remote_headers || !o->passed) return usage("%s", "out of memory");
     int i = 2;
-    if (strcmp(o->command, "cache") == 0 && argc > 2 && argv[2][0] != '-') o->subcommand = argv[i++];
+    if ((strcmp(o->command, "cache") == 0 || strcmp(o->command, "farm") == 0) && argc > 2 && argv[2][0] != '-')
+        o->subcommand = argv[i++];
     for (; i < argc; i++) {
         const char *a = argv[i];
         if (a[0] != '-' || !a[1]) {
@@ -346,12 +371,17 @@ static int parse_args(int argc, char **argv, options *o) {
         if (id < 0) return usage("unknown option %s", a);
         if (!takes(option_specs[id].commands, o->command))
             return usage("%s does not apply to seamcook %s", a, o->command);
+        bool joined = value != NULL;   /* -j8 */
         if (option_specs[id].value && !value) {
             if (i + 1 >= argc) return usage("%s needs a value", a);
             value = argv[++i];
         }
         int status = set_option(o, id, name, value);
         if (status != EXIT_OK) return status;
+        if (id != OPT_ASSETS && id != OPT_ASSET_PARAM && id != OPT_OUT && id != OPT_HELP) {   /* farm: for each task */
+            o->passed[o->npassed++] = a;
+            if (option_specs[id].value && !joined) o->passed[o->npassed++] = value;
+        }
         if (o->help) return EXIT_OK;   /* the rest does not matter */
     }
     if (o->jobs == 0) {
@@ -372,6 +402,7 @@ static void free_options(options *o) {
     free(o->settings);
     free(o->files);
     free(o->remote_headers);
+    free(o->passed);
 }
 
 /* ---------------------------------------------------------------- the cache */
@@ -1001,6 +1032,45 @@ static int cmd_version(const options *o) {
     return EXIT_OK;
 }
 
+/* ---------------------------------------------------------------- farm */
+
+static int cmd_farm(const options *o) {
+    if (!o->subcommand) return usage("%s", "farm needs submit or status");
+    sc_error err = {0};
+    const char *out_dir = o->out_dir ? o->out_dir : "out";
+    if (!strcmp(o->subcommand, "status")) {
+        if (o->nfiles) return usage("farm status: unexpected argument '%s'", o->files[0]);
+        int unfinished, failed;
+        int rc = sc_farm_status(out_dir, stdout, &unfinished, &failed, &err);
+        if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);
+        return rc != SC_OK ? exit_status_of(rc) : failed ? EXIT_FAIL : EXIT_OK;
+    }
+    if (strcmp(o->subcommand, "submit")) return usage("unknown farm command '%s'", o->subcommand);
+    if (o->nfiles != 1) return usage("%s", "farm submit needs exactly one graph file");
+    if (!o->assets) return usage("%s", "farm submit needs --assets LIST");
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0) return usage("%s", "farm submit: cannot find the seamcook command itself");
+    self[n] = 0;
+    char cwd[4096];
+    char *graph = getcwd(cwd, sizeof cwd) ? sc_path_resolve(cwd, o->files[0]) : NULL;
+    struct stat st;
+    if (!graph || stat(graph, &st) != 0 || !S_ISREG(st.st_mode)) {
+        free(graph);
+        return usage("farm submit: %s: not a file", o->files[0]);
+    }
+    sc_farm_job job = {.seamcook = self, .graph = graph, .assets = o->assets,
+                       .param = o->asset_param ? o->asset_param : "mesh", .out_dir = out_dir,
+                       .run_args = o->passed, .nrun_args = o->npassed};
+    char *id = NULL;
+    int rc = sc_farm_submit(&job, &id, &err);
+    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);
+    else printf("%s\n", id);
+    if (rc == SC_OK && !o->quiet) fprintf(stderr, "submitted job %s; seamcook farm status --out %s\n", id, out_dir);
+    free(id), free(graph);
+    return exit_status_of(rc);
+}
+
 static const struct command {
     const char *name;
     const char *usage;
@@ -1010,6 +1080,7 @@ static const struct command {
     {"watch", watch_usage, cmd_watch},
     {"test", test_usage, cmd_test},
     {"cache", cache_usage, cmd_cache},
+    {"farm", farm_usage, cmd_farm},
     {"nodes", nodes_usage, cmd_nodes},
     {"graph", graph_usage, cmd_graph},
     {"version", version_usage, cmd_version},

@@ -1,6 +1,8 @@
-/* fuzz_config.c - libFuzzer entry point for the project file (seamcook.conf)
- * and the remote cache's wire formats: the input is parsed as a project
- * file, as an ActionResult protobuf and as an action record. Each either
+/* fuzz_config.c - libFuzzer entry point for the project file (seamcook.conf),
+ * the farm's asset list and the remote cache's wire formats: the input is
+ * parsed as a project file, as an asset list (its paths are looked up
+ * below a folder that does not exist, so only its lines are exercised), as
+ * an ActionResult protobuf and as an action record. Each either
  * fails with a message or gives values that hold what the format promises
  * (every header has a colon; every output's path is a string without NUL).
  * Build with -DSC_FUZZ=ON (clang), run e.g.
@@ -11,6 +13,7 @@
 #include <string.h>
 
 #include "sc_config.h"
+#include "sc_farm.h"
 #include "sc_remote.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
@@ -22,6 +25,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         for (int i = 0; i < c.nheaders; i++)
             if (!strchr(c.headers[i], ':')) abort();
     sc_config_free(&c);
+
+    char **paths;
+    int count;
+    if (sc_farm_parse_assets((const char *)data, size, "fuzz.list", "/nonexistent-fuzz", &paths, &count, &err) == SC_OK)
+        sc_farm_paths_free(paths);
 
     sc_remote_output *outs;
     int n;
