@@ -3,7 +3,7 @@
  *   bench_remote [URL]
  *
  * Without a URL it starts nginx (WebDAV PUT) on a random loopback port with
- * a temporary prefix, as tests/farm/remote_nginx.sh does, and stops it at
+ * a temporary prefix, as tests/farm/remote_server.sh does, and stops it at
  * the end; nginx must be on PATH. Through sc_remote directly (no graph, no
  * node):
  *
