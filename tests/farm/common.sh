@@ -1,7 +1,9 @@
 # common.sh - sourced by the farm tests: `bin` (the seamcook command, absolute)
 # and `work` (a fresh folder, absolute) from the test's two arguments, and
 # helpers that read a run's report.
-set -euo pipefail
+set -eEuo pipefail
+# a command that fails outside a check says where
+trap 'echo "FAIL: ${BASH_SOURCE[0]##*/}:$LINENO: $BASH_COMMAND exited $?"' ERR
 bin=$(realpath "$1")
 work=$2
 rm -rf "$work"

@@ -11,8 +11,8 @@
 #  3. a blob changed on the server is caught, its action cooked again, and
 #     the blob uploaded again over the bad copy
 #  4. a blob removed from the server (evicted): its action cooks again
-#  5. (nginx) credentials: a header (--remote-header) and Basic
-#     (user:password in the URL); without them a clear 401, and a 403 for
+#  5. (nginx) credentials: a header (--remote-header), Basic (user:password
+#     in the URL) and ~/.netrc; without them a clear 401, and a 403 for
 #     uploads, the cook done
 #  6. the server down: the cook completes with exactly one warning
 #  7. two writers at once fill one prefix, then a fresh cache hits all
@@ -188,9 +188,14 @@ if [ "$kind" = nginx ]; then
   cook "$work/e" "$work/cache-e5" --remote-cache "http://farm:wrong@127.0.0.1:$port/basic" || fail "a 401 failed the cook"
   grep -q "401 Unauthorized" "$work/e/err" || fail "no clear 401 for a wrong password: $(cat "$work/e/err")"
   grep -q "farm:wrong" "$work/e/err" && fail "the password is shown in a message"
+  mkdir -p "$work/netrc-home"
+  printf 'machine 127.0.0.1 login farm password s3cret\n' > "$work/netrc-home/.netrc"
+  chmod 600 "$work/netrc-home/.netrc"
+  HOME=$work/netrc-home cook "$work/e" "$work/cache-e7" --remote-cache "$url/basic"
+  grep -q "3 of 3 lookups hit" "$work/e/err" || fail "~/.netrc did not authorise: $(cat "$work/e/err")"
   cook "$work/e" "$work/cache-e6" --remote-cache "$url/ro" || fail "a 403 failed the cook"
   grep -q "403 Forbidden" "$work/e/err" || fail "no clear 403: $(cat "$work/e/err")"
-  echo "$kind 5. a header and Basic authorise; without them one clear warning (401 Unauthorized, 403 Forbidden) and the cook completes"
+  echo "$kind 5. a header, Basic and ~/.netrc authorise; without them one clear warning (401 Unauthorized, 403 Forbidden) and the cook completes"
 fi
 
 # ------------------------------------------------------------------ 6. the server down
