@@ -151,6 +151,7 @@ static void sleep_ms(long ms) {
 /* ---------------------------------------------------------------- HTTP */
 
 typedef struct request {
+    CURL *h;
     const char *method;      /* GET, HEAD, PUT */
     const char *ns;          /* "cas" or "ac" */
     const sc_digest *name;
@@ -166,6 +167,9 @@ typedef struct request {
 static size_t on_body(char *p, size_t size, size_t n, void *ud) {
     request *q = ud;
     size_t bytes = size * n;
+    long status = 0;
+    curl_easy_getinfo(q->h, CURLINFO_RESPONSE_CODE, &status);
+    if (status < 200 || status >= 300) return bytes;   /* the server's page about a 404 or a 401 */
     if (q->body->len + bytes > q->max_body) {   /* the transfer fails */
         q->too_large = true;
         return 0;
@@ -197,6 +201,7 @@ static int http(sc_remote *r, CURL *h, request *q, long *status, sc_error *err) 
     if (!url) return sc_fail(err, SC_ENOMEM, "out of memory");
     long timeout_ms = (long)(r->cfg.timeout * 1000);
     int rc = SC_EIO;
+    q->h = h;
     for (int attempt = 0; attempt <= r->cfg.retries; attempt++) {
         if (attempt > 0) sleep_ms(100L << (attempt - 1 < 6 ? attempt - 1 : 6));
         curl_easy_reset(h);

@@ -89,6 +89,7 @@ typedef struct engine {
     int lease_waits;           /* nodes waiting for another process's cook */
     uv_timer_t tick;           /* polls waiting nodes, renews held leases */
     double last_beat;
+    bool batched;              /* pump holds one write transaction for its pass */
     bool stop;                 /* a node failed: start nothing new */
     int first_rc;
     sc_error first_err;
@@ -814,10 +815,15 @@ static void resolve(engine *e, int i) {
     uv_mutex_lock(&e->cache_lock);
     int rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
     if (rc == SC_EMISS && e->opt->remote && !e->opt->dry_run) {
-        /* the remote puts what it finds into the local cache, taking the lock itself */
+        /* the remote puts what it finds into the local cache, taking the lock itself;
+         * the pass's transaction is closed meanwhile, so that other processes
+         * sharing the cache do not wait on the network */
+        sc_error ignored;
+        if (e->batched) sc_cache_commit(e->cache, &ignored);
         uv_mutex_unlock(&e->cache_lock);
         bool fetched = sc_remote_fetch(e->opt->remote, &r->key, &err) == SC_OK;
         uv_mutex_lock(&e->cache_lock);
+        if (e->batched) e->batched = sc_cache_begin(e->cache, &ignored) == SC_OK;
         if (fetched) rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
     }
     if (rc == SC_OK) {
@@ -1171,7 +1177,7 @@ static void pump(engine *e) {
      * cached nodes then takes SQLite's locks once, not once per lookup */
     sc_error ignored;
     uv_mutex_lock(&e->cache_lock);
-    bool batched = !e->opt->dry_run && sc_cache_begin(e->cache, &ignored) == SC_OK;
+    e->batched = !e->opt->dry_run && sc_cache_begin(e->cache, &ignored) == SC_OK;
     uv_mutex_unlock(&e->cache_lock);
     bool progress = true;
     while (progress) {
@@ -1222,7 +1228,8 @@ static void pump(engine *e) {
             }
         }
     }
-    if (batched) {
+    if (e->batched) {
+        e->batched = false;
         uv_mutex_lock(&e->cache_lock);
         sc_cache_commit(e->cache, &ignored);
         uv_mutex_unlock(&e->cache_lock);
