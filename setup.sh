@@ -2,6 +2,8 @@
 # seamcook setup: installs what is missing (Debian 12, as root), builds, and then
 #   ./setup.sh          cooks graphs/lod_chain.lua on the procedural asset and says where the results are
 #   ./setup.sh test     runs the whole test suite (unit tests, graph tests, sanitizers, a short fuzz run)
+#   ./setup.sh farm-test  installs Slurm and munge and runs the farm tests (tests/farm) on a
+#                       single-node cluster that the Slurm test starts on localhost
 set -euo pipefail
 cd "$(dirname "$0")"
 mode=${1:-demo}
@@ -10,7 +12,16 @@ jobs=$(nproc 2>/dev/null || echo 2)
 packages=(build-essential cmake pkg-config libuv1-dev libsqlite3-dev liblua5.4-dev
   libsuitesparse-dev libopenblas0-pthread libopenimageio-dev libopencv-core-dev
   libopenexr-dev libdeflate-dev libegl-dev libgles-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev
-  libssl-dev libcjson-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev chromium)
+  libssl-dev libcjson-dev libcurl4-openssl-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev chromium)
+
+# what the tests add: nginx and lighttpd (WebDAV) and protoc for the remote-cache tests, openssl for
+# their password file
+if [ "$mode" = test ] || [ "$mode" = farm-test ]; then
+  packages+=(nginx-light lighttpd lighttpd-mod-webdav protobuf-compiler openssl)
+fi
+if [ "$mode" = farm-test ]; then
+  packages+=(slurm-wlm munge)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -82,8 +93,14 @@ test)
   fi
   echo "all tests passed"
   ;;
+farm-test)
+  # keys across checkouts, leases, the remote cache on nginx and lighttpd, and
+  # farm submit/status on a Slurm cluster of one node (started by the test)
+  ctest --test-dir build --output-on-failure -R '^farm_'
+  echo "farm tests passed"
+  ;;
 *)
-  echo "usage: ./setup.sh [test]" >&2
+  echo "usage: ./setup.sh [test|farm-test]" >&2
   exit 2
   ;;
 esac

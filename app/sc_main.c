@@ -4,6 +4,7 @@
  *   seamcook watch GRAPH [options of run] [--max-runs N]
  *   seamcook test [FILES...] [--update-goldens] [--junit FILE] [options of run]
  *   seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]
+ *   seamcook farm submit GRAPH --assets LIST [options of run] | farm status [--out DIR]
  *   seamcook nodes
  *   seamcook graph GRAPH --dot [--set k=v]...
  *   seamcook version | --version;  seamcook [COMMAND] --help
@@ -31,7 +32,9 @@
 #include <uv.h>
 
 #include "sc_cache.h"
+#include "sc_config.h"
 #include "sc_engine.h"
+#include "sc_farm.h"
 #include "sc_golden.h"
 #include "sc_lua.h"
 #include "sc_manifest.h"
@@ -59,7 +62,16 @@ enum { EXIT_OK = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
     "                           used first (default: $SEAMCOOK_CACHE_MAX_SIZE, else 10G)\n"          \
     "  --explain                say why each node cooks\n"                                          \
     "  --asset-root DIR         the folder every load_atlas may read below\n"                       \
+    "  --base-dir DIR           paths enter cache keys relative to DIR (default: the graph file's\n" \
+    "                           folder), so keys are the same for a checkout anywhere\n"           \
     "  --lua-timeout SECONDS    how long the graph file may take to build the graph (default 5)\n"  \
+    "  --remote-cache URL       a remote cache (Bazel's HTTP protocol: /cas/, /ac/), asked on a local\n" \
+    "                           miss and given what cooks; \"\" for none (default:\n"                    \
+    "                           $SEAMCOOK_REMOTE_CACHE, else remote_cache in seamcook.conf)\n"           \
+    "  --remote-header 'NAME: VALUE'  a header for every remote request (may repeat)\n"             \
+    "  --remote-read-only       look up the remote cache, never upload\n"                           \
+    "  --remote-timeout SECONDS to connect, and a transfer may stall (default 10)\n"                \
+    "  --remote-retries N       tries after the first on a network error (default 2)\n"            \
     "  -q, --quiet              no progress, no summary line (warnings are still printed)\n"         \
     "  --strict                 exit status 1 when a node warns of a shortfall (a level above its\n" \
     "                           target, a texture missing or skipped, a map left unerased)\n"       \
@@ -106,6 +118,18 @@ static const char graph_usage[] =
     "Prints the graph in Graphviz's DOT language.\n"
     "  --set NAME=VALUE, --set NODE.PARAM=VALUE, --asset-root DIR, --lua-timeout SECONDS: as for run\n";
 
+static const char farm_usage[] =
+    "usage: seamcook farm submit GRAPH --assets LIST [--asset-param NAME] [--out DIR] [options of run]\n"
+    "       seamcook farm status [--out DIR]\n"
+    "submit cooks GRAPH once per asset of LIST (a path a line, relative to the list's folder) as a\n"
+    "Slurm job array (sbatch): task i runs `seamcook run GRAPH --set NAME=ASSET_i --out DIR/<i>_<asset>`\n"
+    "with the options given here, in this folder. status says what each task did.\n"
+    "  --assets LIST            the asset list\n"
+    "  --asset-param NAME       the graph parameter an asset goes into (default mesh)\n"
+    "  -o, --out DIR            where the tasks' folders and the job's (.seamcook-farm) go (default out)\n"
+    "  --set, -j, --cache, --cache-max-size, --asset-root, --base-dir, --lua-timeout, --explain,\n"
+    "  --remote-*, -q           passed to every task's run\n";
+
 static const char version_usage[] =
     "usage: seamcook version (or seamcook --version)\n"
     "Prints the version.\n";
@@ -115,6 +139,7 @@ static const char general_usage[] =
     "       seamcook watch GRAPH [options of run] [--max-runs N]\n"
     "       seamcook test FILES... [options of run] [--update-goldens] [--junit FILE]\n"
     "       seamcook cache stats|verify|gc [--max-size N[K|M|G]] [--cache DIR]\n"
+    "       seamcook farm submit GRAPH --assets LIST [options of run] | farm status [--out DIR]\n"
     "       seamcook nodes\n"
     "       seamcook graph GRAPH --dot [--set k=v]...\n"
     "       seamcook version\n"
@@ -137,7 +162,18 @@ typedef struct options {
     int max_runs;               /* watch: stop after this many cooks (0: never) */
     double lua_timeout;         /* seconds a graph file may take to build its graph (0: the default) */
     const char *asset_root;     /* --asset-root: every load_atlas's asset_root */
+    const char *base_dir;       /* --base-dir: paths in keys are relative to it */
     const char *junit;          /* test --junit FILE */
+    const char *remote_cache;   /* --remote-cache URL ("" none; NULL not given) */
+    const char **remote_headers;/* --remote-header, each */
+    int nremote_headers;
+    bool remote_read_only;
+    double remote_timeout;      /* 0: not given */
+    int remote_retries;         /* -1: not given */
+    const char *assets;         /* farm --assets LIST */
+    const char *asset_param;    /* farm --asset-param NAME */
+    const char **passed;        /* farm submit: the options each task's run gets, as given */
+    int npassed;
 } options;
 
 static int usage(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -170,9 +206,10 @@ static int parse_size(const char *s, int64_t *out) {
 }
 
 enum {
-    OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_LUA_TIMEOUT,
+    OPT_SET, OPT_JOBS, OPT_OUT, OPT_CACHE, OPT_CACHE_MAX_SIZE, OPT_MAX_SIZE, OPT_ASSET_ROOT, OPT_BASE_DIR, OPT_LUA_TIMEOUT,
     OPT_MAX_RUNS, OPT_JUNIT, OPT_DRY_RUN, OPT_EXPLAIN, OPT_CHECK, OPT_UPDATE_GOLDENS, OPT_DOT, OPT_QUIET,
-    OPT_JSON, OPT_STRICT, OPT_HELP, OPT_COUNT
+    OPT_JSON, OPT_STRICT, OPT_HELP, OPT_REMOTE_CACHE, OPT_REMOTE_HEADER, OPT_REMOTE_READ_ONLY, OPT_REMOTE_TIMEOUT,
+    OPT_REMOTE_RETRIES, OPT_ASSETS, OPT_ASSET_PARAM, OPT_COUNT
 };
 
 static const struct option_spec {
@@ -180,25 +217,33 @@ static const struct option_spec {
     bool value;                 /* takes the next argument */
     const char *commands;       /* the commands that take it, each followed by a space */
 } option_specs[OPT_COUNT] = {
-    [OPT_SET] = {"--set", "-s", true, "run watch test graph "},
-    [OPT_JOBS] = {"--jobs", "-j", true, "run watch test "},
-    [OPT_OUT] = {"--out", "-o", true, "run watch test "},
-    [OPT_CACHE] = {"--cache", NULL, true, "run watch test cache "},
-    [OPT_CACHE_MAX_SIZE] = {"--cache-max-size", NULL, true, "run watch test "},
+    [OPT_SET] = {"--set", "-s", true, "run watch test graph farm "},
+    [OPT_JOBS] = {"--jobs", "-j", true, "run watch test farm "},
+    [OPT_OUT] = {"--out", "-o", true, "run watch test farm "},
+    [OPT_CACHE] = {"--cache", NULL, true, "run watch test cache farm "},
+    [OPT_CACHE_MAX_SIZE] = {"--cache-max-size", NULL, true, "run watch test farm "},
     [OPT_MAX_SIZE] = {"--max-size", NULL, true, "cache "},
-    [OPT_ASSET_ROOT] = {"--asset-root", NULL, true, "run watch test graph "},
-    [OPT_LUA_TIMEOUT] = {"--lua-timeout", NULL, true, "run watch test graph "},
+    [OPT_ASSET_ROOT] = {"--asset-root", NULL, true, "run watch test graph farm "},
+    [OPT_BASE_DIR] = {"--base-dir", NULL, true, "run watch test farm "},
+    [OPT_LUA_TIMEOUT] = {"--lua-timeout", NULL, true, "run watch test graph farm "},
     [OPT_MAX_RUNS] = {"--max-runs", NULL, true, "watch "},
     [OPT_JUNIT] = {"--junit", NULL, true, "test "},
     [OPT_DRY_RUN] = {"--dry-run", "-n", false, "run "},
-    [OPT_EXPLAIN] = {"--explain", NULL, false, "run watch test "},
+    [OPT_EXPLAIN] = {"--explain", NULL, false, "run watch test farm "},
     [OPT_CHECK] = {"--check", NULL, false, "run watch "},
     [OPT_UPDATE_GOLDENS] = {"--update-goldens", NULL, false, "test "},
     [OPT_DOT] = {"--dot", NULL, false, "graph "},
-    [OPT_QUIET] = {"--quiet", "-q", false, "run watch test "},
+    [OPT_QUIET] = {"--quiet", "-q", false, "run watch test farm "},
     [OPT_JSON] = {"--json", NULL, false, "run "},
     [OPT_STRICT] = {"--strict", NULL, false, "run watch test "},
-    [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version "},
+    [OPT_HELP] = {"--help", "-h", false, "run watch test cache nodes graph version farm "},
+    [OPT_REMOTE_CACHE] = {"--remote-cache", NULL, true, "run watch test farm "},
+    [OPT_REMOTE_HEADER] = {"--remote-header", NULL, true, "run watch test farm "},
+    [OPT_REMOTE_READ_ONLY] = {"--remote-read-only", NULL, false, "run watch test farm "},
+    [OPT_REMOTE_TIMEOUT] = {"--remote-timeout", NULL, true, "run watch test farm "},
+    [OPT_REMOTE_RETRIES] = {"--remote-retries", NULL, true, "run watch test farm "},
+    [OPT_ASSETS] = {"--assets", NULL, true, "farm "},
+    [OPT_ASSET_PARAM] = {"--asset-param", NULL, true, "farm "},
 };
 
 static bool takes(const char *commands, const char *command) {
@@ -245,6 +290,12 @@ static int set_option(options *o, int id, const char *name, const char *v) {
     case OPT_OUT: o->out_dir = v; return EXIT_OK;
     case OPT_CACHE: o->cache_dir = v; return EXIT_OK;
     case OPT_ASSET_ROOT: o->asset_root = v; return EXIT_OK;
+    case OPT_BASE_DIR: {
+        struct stat st;
+        if (stat(v, &st) != 0 || !S_ISDIR(st.st_mode)) return usage("%s %s: not a folder", name, v);
+        o->base_dir = v;
+        return EXIT_OK;
+    }
     case OPT_JUNIT: o->junit = v; return EXIT_OK;
     case OPT_CACHE_MAX_SIZE:
     case OPT_MAX_SIZE:
@@ -270,6 +321,26 @@ static int set_option(options *o, int id, const char *name, const char *v) {
     case OPT_JSON: o->json = true; return EXIT_OK;
     case OPT_STRICT: o->strict = true; return EXIT_OK;
     case OPT_HELP: o->help = true; return EXIT_OK;
+    case OPT_REMOTE_CACHE: o->remote_cache = v; return EXIT_OK;
+    case OPT_REMOTE_HEADER:
+        if (!strchr(v, ':') || v[0] == ':') return usage("%s %s: expected 'Name: value'", name, v);
+        o->remote_headers[o->nremote_headers++] = v;
+        return EXIT_OK;
+    case OPT_REMOTE_READ_ONLY: o->remote_read_only = true; return EXIT_OK;
+    case OPT_ASSETS: o->assets = v; return EXIT_OK;
+    case OPT_ASSET_PARAM: o->asset_param = v; return EXIT_OK;
+    case OPT_REMOTE_TIMEOUT: {
+        double t = strtod(v, &end);
+        if (end == v || *end || !(t > 0) || t > 3600) return usage("%s %s: expected seconds, more than 0", name, v);
+        o->remote_timeout = t;
+        return EXIT_OK;
+    }
+    case OPT_REMOTE_RETRIES: {
+        long n = strtol(v, &end, 10);
+        if (end == v || *end || n < 0 || n > 10) return usage("%s %s: expected a number from 0 to 10", name, v);
+        o->remote_retries = (int)n;
+        return EXIT_OK;
+    }
     }
     return usage("unknown option %s", name);
 }
@@ -280,9 +351,13 @@ static int parse_args(int argc, char **argv, options *o) {
     o->command = argv[1];
     o->files = calloc((size_t)argc, sizeof(char *));
     o->settings = calloc((size_t)argc, sizeof(sc_setting));
-    if (!o->files || !o->settings) return usage("%s", "out of memory");
+    o->remote_headers = calloc((size_t)argc, sizeof(char *));
+    o->passed = calloc((size_t)argc, sizeof(char *));
+    o->remote_retries = -1;
+    if (!o->files || !o->settings || !o->remote_headers || !o->passed) return usage("%s", "out of memory");
     int i = 2;
-    if (strcmp(o->command, "cache") == 0 && argc > 2 && argv[2][0] != '-') o->subcommand = argv[i++];
+    if ((strcmp(o->command, "cache") == 0 || strcmp(o->command, "farm") == 0) && argc > 2 && argv[2][0] != '-')
+        o->subcommand = argv[i++];
     for (; i < argc; i++) {
         const char *a = argv[i];
         if (a[0] != '-' || !a[1]) {
@@ -300,12 +375,17 @@ static int parse_args(int argc, char **argv, options *o) {
         if (id < 0) return usage("unknown option %s", a);
         if (!takes(option_specs[id].commands, o->command))
             return usage("%s does not apply to seamcook %s", a, o->command);
+        bool joined = value != NULL;   /* -j8 */
         if (option_specs[id].value && !value) {
             if (i + 1 >= argc) return usage("%s needs a value", a);
             value = argv[++i];
         }
         int status = set_option(o, id, name, value);
         if (status != EXIT_OK) return status;
+        if (id != OPT_ASSETS && id != OPT_ASSET_PARAM && id != OPT_OUT && id != OPT_HELP) {   /* farm: for each task */
+            o->passed[o->npassed++] = a;
+            if (option_specs[id].value && !joined) o->passed[o->npassed++] = value;
+        }
         if (o->help) return EXIT_OK;   /* the rest does not matter */
     }
     if (o->jobs == 0) {
@@ -325,6 +405,8 @@ static void free_options(options *o) {
     for (int i = 0; i < o->nsettings; i++) free((char *)o->settings[i].name);
     free(o->settings);
     free(o->files);
+    free(o->remote_headers);
+    free(o->passed);
 }
 
 /* ---------------------------------------------------------------- the cache */
@@ -476,6 +558,88 @@ static int print_warnings(const sc_run *run) {
     return count;
 }
 
+/* ---------------------------------------------------------------- the remote cache */
+
+/* One remote setting: the command line's, else the environment's, else the
+ * project file's. */
+static const char *env_of(const char *name) {
+    const char *v = getenv(name);
+    return v && *v ? v : NULL;
+}
+
+/* The remote cache for a graph file, from --remote-* options, then
+ * SEAMCOOK_REMOTE_* variables, then seamcook.conf beside the graph file;
+ * *out stays NULL when none of them names one. */
+static int open_remote(const char *graph_file, const options *o, sc_cache *cache, sc_remote **out, sc_error *err) {
+    *out = NULL;
+    sc_config fc;
+    sc_config_init(&fc);
+    char *dir = sc_path_dirname(graph_file);
+    int rc = dir ? sc_config_load(dir, &fc, err) : sc_fail(err, SC_ENOMEM, "out of memory");
+    free(dir);
+    const char *url = o->remote_cache ? o->remote_cache : env_of("SEAMCOOK_REMOTE_CACHE") ? env_of("SEAMCOOK_REMOTE_CACHE")
+                                                                                          : fc.remote_cache;
+    sc_remote_config rc_cfg = {.url = url, .timeout = fc.timeout, .retries = fc.retries,
+                               .read_only = fc.read_only == 1, .log = o->quiet ? NULL : stderr};
+    const char *env_header = env_of("SEAMCOOK_REMOTE_HEADER");
+    char *env_headers = NULL;
+    const char **headers = NULL;
+    if (o->nremote_headers) {
+        rc_cfg.headers = o->remote_headers, rc_cfg.nheaders = o->nremote_headers;
+    } else if (env_header) {   /* several: one a line */
+        env_headers = sc_strdup(env_header);
+        headers = calloc(strlen(env_header) + 1, sizeof *headers);
+        int n = 0;
+        for (char *line = env_headers ? strtok(env_headers, "\n") : NULL; line && headers; line = strtok(NULL, "\n"))
+            headers[n++] = line;
+        rc_cfg.headers = headers, rc_cfg.nheaders = n;
+        if (rc == SC_OK && (!env_headers || !headers)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    } else {
+        rc_cfg.headers = (const char *const *)fc.headers, rc_cfg.nheaders = fc.nheaders;
+    }
+    const char *v;
+    bool b;
+    char *end;
+    if (o->remote_read_only) rc_cfg.read_only = true;
+    else if ((v = env_of("SEAMCOOK_REMOTE_READ_ONLY")) && rc == SC_OK) {
+        if (!sc_parse_bool(v, &b)) rc = sc_fail(err, SC_EUSAGE, "SEAMCOOK_REMOTE_READ_ONLY=%s: expected true or false", v);
+        rc_cfg.read_only = b;
+    }
+    if (o->remote_timeout > 0) rc_cfg.timeout = o->remote_timeout;
+    else if ((v = env_of("SEAMCOOK_REMOTE_TIMEOUT")) && rc == SC_OK) {
+        rc_cfg.timeout = strtod(v, &end);
+        if (end == v || *end || !(rc_cfg.timeout > 0) || rc_cfg.timeout > 3600)
+            rc = sc_fail(err, SC_EUSAGE, "SEAMCOOK_REMOTE_TIMEOUT=%s: expected seconds, more than 0", v);
+    }
+    if (o->remote_retries >= 0) rc_cfg.retries = o->remote_retries;
+    else if ((v = env_of("SEAMCOOK_REMOTE_RETRIES")) && rc == SC_OK) {
+        long n = strtol(v, &end, 10);
+        if (end == v || *end || n < 0 || n > 10)
+            rc = sc_fail(err, SC_EUSAGE, "SEAMCOOK_REMOTE_RETRIES=%s: expected a number from 0 to 10", v);
+        rc_cfg.retries = (int)n;
+    }
+    if (rc == SC_OK && url && *url) rc = sc_remote_open(&rc_cfg, cache, out, err);
+    free(headers);
+    free(env_headers);
+    sc_config_free(&fc);
+    return rc;
+}
+
+/* Finish the uploads and say what the remote did. */
+static void close_remote(sc_remote *remote, const options *o) {
+    if (!remote) return;
+    sc_remote_flush(remote);
+    sc_remote_stats st;
+    sc_remote_stats_get(remote, &st);
+    sc_remote_close(remote);
+    if (o->quiet) return;
+    fprintf(stderr, "remote cache: %lld of %lld lookups hit (%lld blobs, %.1f MB down); %lld actions uploaded "
+                    "(%lld blobs, %.1f MB up; %lld already there); %lld blobs with wrong bytes\n",
+            (long long)st.ac_hits, (long long)(st.ac_hits + st.ac_misses), (long long)st.blobs_downloaded,
+            st.bytes_downloaded / 1e6, (long long)st.actions_uploaded, (long long)st.blobs_uploaded,
+            st.bytes_uploaded / 1e6, (long long)st.blobs_present, (long long)st.bad_blobs);
+}
+
 /* Cook one graph file into out_dir; returns the exit status. */
 static int cook(const char *file, const options *o, sc_cache *cache, const char *out_dir, bool check, cooked *c) {
     memset(c, 0, sizeof *c);
@@ -485,9 +649,16 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
         return exit_status_of(rc);
     }
     const sc_graph *g = c->graph;
+    sc_remote *remote = NULL;
+    rc = o->dry_run ? SC_OK : open_remote(file, o, cache, &remote, &c->failure);
+    if (rc != SC_OK) {
+        fprintf(stderr, "seamcook: %s\n", c->failure.message);
+        return exit_status_of(rc);
+    }
     sc_engine_options eo = {
         .jobs = o->jobs, .out_dir = out_dir, .dry_run = o->dry_run, .explain = o->explain,
-        .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2),
+        .log = o->quiet ? NULL : stderr, .live = !o->quiet && isatty(2), .base_dir = o->base_dir,
+        .remote = remote,
     };
     bool writes = out_dir && !o->dry_run;
     if (writes) sc_remove_stale_tmp(out_dir, NULL);   /* a killed run's half-written files */
@@ -501,6 +672,7 @@ static int cook(const char *file, const options *o, sc_cache *cache, const char 
             c->failure = err;
         }
     }
+    close_remote(remote, o);
     const sc_run *run = c->run;
     int warnings = run ? print_warnings(run) : 0;
     if (run && !o->quiet)
@@ -880,6 +1052,45 @@ static int cmd_version(const options *o) {
     return EXIT_OK;
 }
 
+/* ---------------------------------------------------------------- farm */
+
+static int cmd_farm(const options *o) {
+    if (!o->subcommand) return usage("%s", "farm needs submit or status");
+    sc_error err = {0};
+    const char *out_dir = o->out_dir ? o->out_dir : "out";
+    if (!strcmp(o->subcommand, "status")) {
+        if (o->nfiles) return usage("farm status: unexpected argument '%s'", o->files[0]);
+        int unfinished, failed;
+        int rc = sc_farm_status(out_dir, stdout, &unfinished, &failed, &err);
+        if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);
+        return rc != SC_OK ? exit_status_of(rc) : failed ? EXIT_FAIL : EXIT_OK;
+    }
+    if (strcmp(o->subcommand, "submit")) return usage("unknown farm command '%s'", o->subcommand);
+    if (o->nfiles != 1) return usage("%s", "farm submit needs exactly one graph file");
+    if (!o->assets) return usage("%s", "farm submit needs --assets LIST");
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0) return usage("%s", "farm submit: cannot find the seamcook command itself");
+    self[n] = 0;
+    char cwd[4096];
+    char *graph = getcwd(cwd, sizeof cwd) ? sc_path_resolve(cwd, o->files[0]) : NULL;
+    struct stat st;
+    if (!graph || stat(graph, &st) != 0 || !S_ISREG(st.st_mode)) {
+        free(graph);
+        return usage("farm submit: %s: not a file", o->files[0]);
+    }
+    sc_farm_job job = {.seamcook = self, .graph = graph, .assets = o->assets,
+                       .param = o->asset_param ? o->asset_param : "mesh", .out_dir = out_dir,
+                       .run_args = o->passed, .nrun_args = o->npassed};
+    char *id = NULL;
+    int rc = sc_farm_submit(&job, &id, &err);
+    if (rc != SC_OK) fprintf(stderr, "seamcook: %s\n", err.message);
+    else printf("%s\n", id);
+    if (rc == SC_OK && !o->quiet) fprintf(stderr, "submitted job %s; seamcook farm status --out %s\n", id, out_dir);
+    free(id), free(graph);
+    return exit_status_of(rc);
+}
+
 static const struct command {
     const char *name;
     const char *usage;
@@ -889,6 +1100,7 @@ static const struct command {
     {"watch", watch_usage, cmd_watch},
     {"test", test_usage, cmd_test},
     {"cache", cache_usage, cmd_cache},
+    {"farm", farm_usage, cmd_farm},
     {"nodes", nodes_usage, cmd_nodes},
     {"graph", graph_usage, cmd_graph},
     {"version", version_usage, cmd_version},

@@ -560,6 +560,38 @@ static void normalise_lexically(char *path) {
     *out = 0;
 }
 
+char *sc_path_relative(const char *dir, const char *path) {
+    /* the longest common prefix that ends at a segment boundary */
+    size_t common = 0;
+    for (size_t k = 0;; k++) {
+        bool dir_end = dir[k] == 0 || dir[k] == '/', path_end = path[k] == 0 || path[k] == '/';
+        if (dir_end && path_end) common = k;
+        if (!dir[k] || !path[k] || dir[k] != path[k]) break;
+    }
+    sc_buf b;
+    sc_buf_init(&b);
+    for (const char *s = dir + common; *s;) {   /* one ".." per segment of dir past the prefix */
+        while (*s == '/') s++;
+        if (!*s) break;
+        sc_buf_puts(&b, b.len ? "/.." : "..");
+        while (*s && *s != '/') s++;
+    }
+    const char *rest = path + common;
+    while (*rest == '/') rest++;
+    if (*rest) {
+        if (b.len) sc_buf_u8(&b, '/');
+        sc_buf_puts(&b, rest);
+    }
+    if (b.len == 0) sc_buf_u8(&b, '.');
+    return sc_buf_take_string(&b);
+}
+
+char *sc_path_resolve(const char *dir, const char *path) {
+    char *joined = sc_path_join(dir, path);
+    if (joined && joined[0] == '/') normalise_lexically(joined);
+    return joined;
+}
+
 /* The real path of `path`: symbolic links resolved in the longest part that
  * exists, the rest appended and normalised by its text. NULL when out of
  * memory or the working directory cannot be read. */

@@ -26,6 +26,7 @@ enum {
     SC_EIO = 3,      /* the file system or the cache failed */
     SC_ENOMEM = 4,   /* out of memory, or a size beyond the limits */
     SC_EMISS = 5,    /* not found (a cache miss); not a failure in itself */
+    SC_EBUSY = 6,    /* another process holds it (a lease); not a failure in itself */
 };
 
 typedef struct sc_error {
@@ -77,6 +78,11 @@ typedef struct sc_kernel {
     const char *name;
     int version;
     const struct sc_kernel *const *uses;
+    /* For a kernel whose results depend on system libraries as well as on its
+     * own code (the GL driver, the BLAS): a text naming what it runs on, which
+     * enters the action key of every node that reaches the kernel. NULL when
+     * the kernel's bytes depend on its inputs alone. */
+    const char *(*platform)(void);
 } sc_kernel;
 
 /* ---------------------------------------------------------------- buffer */
@@ -171,6 +177,14 @@ char *sc_path_dirname(const char *path);
 /* Whether path names something inside a folder by its text alone: relative,
  * not empty, no empty, "." or ".." segment. */
 bool sc_path_is_plain_relative(const char *path);
+/* path as seen from the folder dir, both absolute and free of "." and ".."
+ * segments: "a/b.obj", "../x/c.png", or "." for dir itself; a new string. The
+ * text alone decides (no file system access), so the answer moves with the
+ * tree: the same for a checkout anywhere. */
+char *sc_path_relative(const char *dir, const char *path);
+/* The inverse: path (relative, or absolute and kept) read from the absolute
+ * folder dir, with "." and ".." segments removed by the text; a new string. */
+char *sc_path_resolve(const char *dir, const char *path);
 
 /* A file that an asset names (`rel`, as written in an MTL, OBJ or glTF),
  * resolved against the folder `dir` that names it, when it stays inside the

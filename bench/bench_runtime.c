@@ -5,12 +5,16 @@
  * 1. A 500-node graph (250 procedural sources, 250 saves) cooked once into a
  *    fresh cache, then re-run with nothing changed: the no-op re-run time
  *    (best of 5 runs of the whole command) and the engine's per-node overhead.
- * 2. Loading blub and pizza from ../shared/corpus through the load_atlas node
+ * 2. Eight identical cooks started at once on one fresh cache, against one
+ *    cook alone: the CPU seconds they cost together (leases: each action
+ *    cooks once, the other processes wait and take the result).
+ * 3. Loading blub and pizza from ../shared/corpus through the load_atlas node
  *    (parse + texture decode), best of 3.
  */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cjson/cJSON.h>
@@ -84,6 +88,55 @@ static void bench_noop(const char *bin) {
     free(rm), free(report), free(cmd), free(graph);
 }
 
+/* CPU seconds (user + system) of the children waited for so far. */
+static double children_cpu(void) {
+    struct rusage ru;
+    getrusage(RUSAGE_CHILDREN, &ru);
+    return (double)ru.ru_utime.tv_sec + ru.ru_utime.tv_usec * 1e-6 + (double)ru.ru_stime.tv_sec +
+           ru.ru_stime.tv_usec * 1e-6;
+}
+
+static void bench_identical_cooks(const char *bin) {
+    char dir[] = "/tmp/sc-bench-XXXXXX";
+    if (!mkdtemp(dir)) return;
+    char *graph = sc_strprintf("%s/g.lua", dir);
+    FILE *f = fopen(graph, "w");
+    if (!f) return;
+    fprintf(f, "local a = procedural{ name = \"asset\", resolution = 48, texture_size = 1024 }\n"
+               "local e = erase_seams{ name = \"erased\", atlas = a }\n"
+               "local l = decimate{ name = \"lods\", mesh = e.atlas, ratio = {0.5, 0.1}, hausdorff_samples = 0 }\n"
+               "local c = share_textures{ name = \"chain\", lods = l, atlas = e.atlas }\n"
+               "save{ name = \"save\", atlas = e.atlas, lods = c, file = \"asset\" }\n");
+    fclose(f);
+    char *one = sc_strprintf("cd %s && '%s' run g.lua --cache cache1 --out out1 -q -j2", dir, bin);
+    double cpu0 = children_cpu(), t0 = sc_now();
+    run_cmd(one);
+    double cpu_one = children_cpu() - cpu0, wall_one = sc_now() - t0;
+    sc_buf b;
+    sc_buf_init(&b);
+    sc_buf_printf(&b, "cd %s && (", dir);
+    for (int k = 0; k < 8; k++) sc_buf_printf(&b, "'%s' run g.lua --cache cache8 --out out8_%d -q -j2 & ", bin, k);
+    sc_buf_puts(&b, "wait)");
+    char *eight = sc_buf_take_string(&b);
+    cpu0 = children_cpu(), t0 = sc_now();
+    run_cmd(eight);
+    double cpu_eight = children_cpu() - cpu0, wall_eight = sc_now() - t0;
+    int ran = 0;
+    for (int k = 0; k < 8; k++) {
+        char *report = sc_strprintf("%s/out8_%d/report.json", dir, k);
+        int r;
+        sum_node_seconds(report, &r);
+        ran += r;
+        free(report);
+    }
+    printf("one cook of a 5-node graph: %.2f s CPU, %.2f s wall\n", cpu_one, wall_one);
+    printf("eight identical cooks at once on one cache: %.2f s CPU (%.2fx one cook), %.2f s wall, %d actions cooked "
+           "in all (5 would be once each)\n", cpu_eight, cpu_eight / cpu_one, wall_eight, ran);
+    char *rm = sc_strprintf("rm -rf %s", dir);
+    run_cmd(rm);
+    free(rm), free(eight), free(one), free(graph);
+}
+
 static void bench_load(const char *corpus, const char *rel, const char *param, const char *value) {
     char *path = sc_strprintf("%s/%s", corpus, rel);
     double best = 1e9, parse = 0, decode = 0, faces = 0;
@@ -133,6 +186,7 @@ int main(int argc, char **argv) {
         free(dir);
     }
     bench_noop(bin);
+    bench_identical_cooks(bin);
     const char *corpus = getenv("SC_CORPUS") ? getenv("SC_CORPUS") : SC_SOURCE_DIR "/../shared/corpus";
     if (access(corpus, R_OK) != 0) {
         printf("corpus not found at %s: load timings skipped\n", corpus);

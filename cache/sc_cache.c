@@ -61,6 +61,7 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -112,6 +113,11 @@ enum {
     ST_HISTORY_PUT,
     ST_RUN_PUT,
     ST_STATS,
+    ST_LEASE_GET,
+    ST_LEASE_PUT,
+    ST_LEASE_RENEW,
+    ST_LEASE_DROP,
+    ST_LEASE_DROP_MINE,
     ST_COUNT
 };
 
@@ -165,6 +171,11 @@ static const char *const sql_text[ST_COUNT] = {
         "SELECT (SELECT COUNT(*) FROM blobs), (SELECT COALESCE(SUM(size), 0) FROM blobs), "
         "(SELECT COUNT(*) FROM actions), (SELECT COUNT(*) FROM stamps), "
         "(SELECT COUNT(*) FROM runs)",
+    [ST_LEASE_GET] = "SELECT host, pid, beat FROM leases WHERE key = ?1",
+    [ST_LEASE_PUT] = "INSERT OR REPLACE INTO leases(key, host, pid, beat) VALUES(?1, ?2, ?3, ?4)",
+    [ST_LEASE_RENEW] = "UPDATE leases SET beat = ?3 WHERE host = ?1 AND pid = ?2",
+    [ST_LEASE_DROP] = "DELETE FROM leases WHERE key = ?1 AND host = ?2 AND pid = ?3",
+    [ST_LEASE_DROP_MINE] = "DELETE FROM leases WHERE host = ?1 AND pid = ?2",
 };
 
 static const char schema_sql[] =
@@ -179,7 +190,9 @@ static const char schema_sql[] =
     "  inode INTEGER, digest TEXT) WITHOUT ROWID;"
     "CREATE TABLE IF NOT EXISTS history(node_id TEXT PRIMARY KEY, text TEXT);"
     "CREATE TABLE IF NOT EXISTS runs(id INTEGER PRIMARY KEY, graph TEXT, ran INTEGER, "
-    "  cached INTEGER, failed INTEGER, seconds REAL, at INTEGER);";
+    "  cached INTEGER, failed INTEGER, seconds REAL, at INTEGER);"
+    "CREATE TABLE IF NOT EXISTS leases(key TEXT PRIMARY KEY, host TEXT NOT NULL, "
+    "  pid INTEGER NOT NULL, beat INTEGER NOT NULL) WITHOUT ROWID;";
 
 /* ---------------------------------------------------------------- the struct */
 
@@ -1273,6 +1286,100 @@ int sc_cache_put_run(sc_cache *c, const char *graph, int ran, int cached, int fa
         rc = step_done(c, s, err, "cannot record a run");
     }
     return tx_end(c, rc, err);
+}
+
+/* ---------------------------------------------------------------- leases */
+
+/* This process: the host name and the pid. */
+static void lease_self(char host[256], int64_t *pid) {
+    if (gethostname(host, 255) != 0) strcpy(host, "localhost");
+    host[255] = 0;
+    *pid = (int64_t)getpid();
+}
+
+static int64_t wall_ms(void) { return wall_ns() / 1000000; }
+
+/* Whether a lease holder is gone: a process on this host that no longer
+ * exists, or a heartbeat older than stale_ms (another host, or a process
+ * that hangs). */
+static bool holder_gone(const char *host, int64_t pid, int64_t beat, int64_t stale_ms) {
+    char me[256];
+    int64_t my_pid;
+    lease_self(me, &my_pid);
+    if (strcmp(host, me) == 0 && pid > 0 && kill((pid_t)pid, 0) != 0 && errno == ESRCH) return true;
+    return wall_ms() - beat > stale_ms;
+}
+
+int sc_cache_lease_take(sc_cache *c, const sc_digest *key, double stale_seconds,
+                        sc_cache_lease_holder *holder, sc_error *err) {
+    char me[256];
+    int64_t my_pid;
+    lease_self(me, &my_pid);
+    if (holder) memset(holder, 0, sizeof *holder);
+    int rc = tx_begin(c, err);
+    if (rc) return rc;
+    sqlite3_stmt *s = stmt(c, ST_LEASE_GET, err);
+    if (!s) return tx_end(c, SC_EIO, err);
+    bind_hex(s, 1, key);
+    int step = sqlite3_step(s);
+    bool busy = false;
+    if (step == SQLITE_ROW) {
+        const char *host = (const char *)sqlite3_column_text(s, 0);
+        int64_t pid = sqlite3_column_int64(s, 1), beat = sqlite3_column_int64(s, 2);
+        bool mine = host && strcmp(host, me) == 0 && pid == my_pid;
+        if (!mine && holder) {
+            snprintf(holder->host, sizeof holder->host, "%s", host ? host : "");
+            holder->pid = pid;
+            holder->age_seconds = (double)(wall_ms() - beat) / 1000.0;
+        }
+        busy = !mine && !holder_gone(host ? host : "", pid, beat, (int64_t)(stale_seconds * 1000));
+        if (!mine && !busy && holder) holder->taken_over = true;
+    } else if (step != SQLITE_DONE) {
+        rc = db_fail(c, err, "cannot read a lease");
+    }
+    done(s);
+    if (rc == SC_OK && !busy) {
+        s = stmt(c, ST_LEASE_PUT, err);
+        if (!s) rc = SC_EIO;
+        else {
+            bind_hex(s, 1, key);
+            sqlite3_bind_text(s, 2, me, -1, SQLITE_TRANSIENT);
+            sqlite3_bind_int64(s, 3, my_pid);
+            sqlite3_bind_int64(s, 4, wall_ms());
+            rc = step_done(c, s, err, "cannot take a lease");
+        }
+    }
+    rc = tx_end(c, rc, err);
+    if (rc == SC_OK && busy)
+        return sc_fail(err, SC_EBUSY, "%s (pid %lld) is cooking it", holder ? holder->host : "another process",
+                       holder ? (long long)holder->pid : 0LL);
+    return rc;
+}
+
+/* Run a lease statement bound to (host, pid) at 1-2 and, for ST_LEASE_DROP,
+ * the key at 1 and (host, pid) at 2-3. */
+static int lease_write(sc_cache *c, int id, const sc_digest *key, sc_error *err, const char *what) {
+    char me[256];
+    int64_t my_pid;
+    lease_self(me, &my_pid);
+    int rc = tx_begin(c, err);
+    if (rc) return rc;
+    sqlite3_stmt *s = stmt(c, id, err);
+    if (!s) return tx_end(c, SC_EIO, err);
+    int at = 1;
+    if (key) bind_hex(s, at++, key);
+    sqlite3_bind_text(s, at++, me, -1, SQLITE_TRANSIENT);
+    sqlite3_bind_int64(s, at++, my_pid);
+    if (id == ST_LEASE_RENEW) sqlite3_bind_int64(s, at, wall_ms());
+    return tx_end(c, step_done(c, s, err, what), err);
+}
+
+int sc_cache_lease_renew(sc_cache *c, sc_error *err) {
+    return lease_write(c, ST_LEASE_RENEW, NULL, err, "cannot renew leases");
+}
+
+int sc_cache_lease_release(sc_cache *c, const sc_digest *key, sc_error *err) {
+    return lease_write(c, key ? ST_LEASE_DROP : ST_LEASE_DROP_MINE, key, err, "cannot release a lease");
 }
 
 /* ---------------------------------------------------------------- upkeep */

@@ -6,7 +6,7 @@
  *   tmp/                 temporary files of publishes in flight
  *   index.sqlite         WAL mode, busy timeout; every write transaction is
  *                        BEGIN IMMEDIATE. Tables: blobs, actions, stamps,
- *                        history, runs.
+ *                        history, runs, leases.
  *
  * The cache knows bytes and digests only: no node, no value type. Several
  * processes may share one cache directory at once. A blob whose bytes do not
@@ -52,7 +52,8 @@ char *sc_cache_blob_path(const sc_cache *c, const sc_digest *d);
 /* ---------------------------------------------------------------- actions */
 
 typedef struct sc_cache_dep {
-    char *path;            /* absolute path of a file the node read */
+    char *path;            /* a file the node read: relative to the base folder of
+                              the cook that recorded it (the engine's), or absolute */
     sc_digest digest;      /* its content digest at that time */
 } sc_cache_dep;
 
@@ -108,6 +109,30 @@ int sc_cache_put_run(sc_cache *c, const char *graph, int ran, int cached, int fa
  * otherwise commits by itself). Nested calls are counted. */
 int sc_cache_begin(sc_cache *c, sc_error *err);
 int sc_cache_commit(sc_cache *c, sc_error *err);
+
+/* ---------------------------------------------------------------- leases */
+
+/* One cook per action among the processes sharing a cache: a process that
+ * must cook an action first takes its lease (a row of the index naming its
+ * host and pid, with a heartbeat); the others wait for the recorded result.
+ * A lease whose holder is gone is taken over: a pid that no longer exists on
+ * this host, or a heartbeat older than stale_seconds. */
+typedef struct sc_cache_lease_holder {
+    char host[256];
+    int64_t pid;
+    double age_seconds;    /* since its last heartbeat */
+    bool taken_over;       /* the lease was this holder's, who is gone */
+} sc_cache_lease_holder;
+
+/* Take the lease on an action key for this process. SC_OK when taken (free,
+ * already this process's, or taken over: holder->taken_over), SC_EBUSY with
+ * *holder filled (may be NULL) when a live process holds it. */
+int sc_cache_lease_take(sc_cache *c, const sc_digest *key, double stale_seconds,
+                        sc_cache_lease_holder *holder, sc_error *err);
+/* The heartbeat: every lease this process holds is renewed. */
+int sc_cache_lease_renew(sc_cache *c, sc_error *err);
+/* Give a lease back (key NULL: every lease this process holds). */
+int sc_cache_lease_release(sc_cache *c, const sc_digest *key, sc_error *err);
 
 /* ---------------------------------------------------------------- upkeep */
 

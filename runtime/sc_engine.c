@@ -25,6 +25,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <sys/stat.h>
+
 #include <cjson/cJSON.h>
 #include <uv.h>
 
@@ -39,7 +41,15 @@ typedef enum node_state {
     ST_FAILED,
     ST_SKIPPED,
     ST_WOULD_RUN,
+    ST_LEASE_WAIT,   /* another process is cooking the same action */
 } node_state;
+
+/* Leases (one cook per action among processes sharing a cache): how often a
+ * waiting node looks again, how often held leases are renewed, and how old a
+ * heartbeat may be before its lease is taken over. */
+#define LEASE_POLL_MS 50
+#define LEASE_BEAT_SECONDS 1.0
+#define LEASE_STALE_SECONDS 10.0
 
 typedef struct report_file {
     char *path;
@@ -53,6 +63,8 @@ typedef struct node_rt {
     sc_value **values;         /* per output, when in memory */
     sc_value **meshes;         /* per ATLAS output: its mesh alone, when loaded */
     bool loading;
+    bool leased;               /* this process holds the action's lease */
+    bool waited;               /* it said once that it waits for another process */
     int pending_consumers;     /* consumer edges not yet finished */
     int nfiles;
     report_file *files;        /* report files of every REPORT output */
@@ -74,12 +86,17 @@ typedef struct engine {
     sc_run *run;
     int inflight;              /* cooking jobs */
     int loads;                 /* load jobs */
+    int lease_waits;           /* nodes waiting for another process's cook */
+    uv_timer_t tick;           /* polls waiting nodes, renews held leases */
+    double last_beat;
+    bool batched;              /* pump holds one write transaction for its pass */
     bool stop;                 /* a node failed: start nothing new */
     int first_rc;
     sc_error first_err;
     int done_count;
     double t0;
     char graph_path[PATH_MAX]; /* the graph file's real path */
+    char base_dir[PATH_MAX];   /* paths in keys and records are relative to it */
     claim *claims;             /* output file names taken so far */
     int nclaims, claim_cap;
 } engine;
@@ -274,6 +291,21 @@ static int kernel_closure(const sc_node_desc *d, const sc_kernel **out) {
     return n;
 }
 
+/* A PATH parameter in the key: relative to the base folder, and the content
+ * digest of the file it names (a folder, or a file not there, has none; a
+ * node that reads it fails or records what it read). */
+static bool path_key(void *ud, const char *path, char **shown, sc_digest *content) {
+    engine *e = ud;
+    *shown = sc_path_relative(e->base_dir, path);
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) return false;
+    sc_error ignored;
+    uv_mutex_lock(&e->cache_lock);
+    int rc = sc_cache_file_digest(e->cache, path, content, &ignored);
+    uv_mutex_unlock(&e->cache_lock);
+    return rc == SC_OK;
+}
+
 /* The canonical action text: its SHA-256 is the key. */
 static char *canonical_action(engine *e, int i) {
     const sc_graph_node *n = gnode(e, i);
@@ -285,7 +317,9 @@ static char *canonical_action(engine *e, int i) {
     const sc_kernel *kernels[MAX_KERNELS];
     int nkernels = kernel_closure(n->desc, kernels);
     for (int k = 0; k < nkernels; k++) sc_buf_printf(&b, "kernel %s %d\n", kernels[k]->name, kernels[k]->version);
-    sc_graph_canonical_params(n, &params);
+    for (int k = 0; k < nkernels; k++)
+        if (kernels[k]->platform) sc_buf_printf(&b, "platform %s %s\n", kernels[k]->name, kernels[k]->platform());
+    sc_graph_canonical_params(n, path_key, e, &params);
     /* prefix each parameter line, so explain can tell lines apart */
     const char *p = params.data ? (const char *)params.data : "";
     while (*p) {
@@ -410,6 +444,18 @@ static const char *find_line(const char *text, const char *prefix, const char *n
     return NULL;
 }
 
+/* Whether two PATH parameter lines name the same path (their content
+ * digests, " sha256:...", aside). */
+static bool same_path(const char *a, size_t la, const char *b, size_t lb) {
+    const char *tag = " sha256:";
+    size_t tl = strlen(tag), pa = la, pb = lb;
+    for (size_t k = 0; k + tl <= la; k++)
+        if (strncmp(a + k, tag, tl) == 0) pa = k;
+    for (size_t k = 0; k + tl <= lb; k++)
+        if (strncmp(b + k, tag, tl) == 0) pb = k;
+    return pa == pb && (pa < la || pb < lb) && strncmp(a, b, pa) == 0;
+}
+
 /* Why the node with canonical text `now` cooks, given what it was last time. */
 static char *explain(engine *e, int i, const char *now, const char *before) {
     if (!before) return sc_strdup("no previous cook of this node");
@@ -431,11 +477,21 @@ static char *explain(engine *e, int i, const char *now, const char *before) {
         sc_buf_printf(&why, "kernel %s version %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
                       a ? a + skip : "(unset)", (int)(lb - skip), b + skip);
     }
+    for (int k = 0; k < nkernels; k++) {
+        const char *name = kernels[k]->name;
+        a = find_line(before, "platform", name, &la);
+        b = find_line(now, "platform", name, &lb);
+        if ((!a && !b) || (a && b && la == lb && strncmp(a, b, la) == 0)) continue;
+        size_t skip = 9 + strlen(name) + 1;
+        sc_buf_printf(&why, "kernel %s platform %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
+                      a ? a + skip : "(unset)", b ? (int)(lb - skip) : 7, b ? b + skip : "(unset)");
+    }
     for (int k = 0; k < n->desc->nparams; k++) {
         const char *name = n->desc->params[k].name;
         a = find_line(before, "param", name, &la);
         b = find_line(now, "param", name, &lb);
         if (a && b && la == lb && strncmp(a, b, la) == 0) continue;
+        if (a && b && same_path(a, la, b, lb)) continue;   /* the file changed: its dep line says so */
         size_t skip = 6 + strlen(name) + 1;
         sc_buf_printf(&why, "parameter %s: %.*s -> %.*s; ", name, a ? (int)(la - skip) : 7,
                       a ? a + skip : "(unset)", b ? (int)(lb - skip) : 7, b ? b + skip : "(unset)");
@@ -717,6 +773,68 @@ static void forget_result(sc_node_result *r) {
     r->files = NULL, r->file_digests = NULL, r->nfiles = 0;
 }
 
+/* Take the lease on node i's action. False when another live process holds
+ * it: the node then waits (ST_LEASE_WAIT) and is resolved again on the next
+ * tick, a hit once that process has recorded the result. A lease that cannot
+ * be taken for another reason (the index is read-only) does not stop the
+ * cook. */
+static bool take_lease(engine *e, int i) {
+    node_rt *rt = &e->rt[i];
+    sc_cache_lease_holder h;
+    sc_error err;
+    uv_mutex_lock(&e->cache_lock);
+    int rc = sc_cache_lease_take(e->cache, &e->run->results[i].key, LEASE_STALE_SECONDS, &h, &err);
+    uv_mutex_unlock(&e->cache_lock);
+    const sc_graph_node *n = gnode(e, i);
+    if (rc == SC_EBUSY) {
+        if (!rt->waited) say(e, "waiting for %s (%s): %s (pid %lld) is cooking it", n->name, n->desc->type, h.host,
+                             (long long)h.pid);
+        rt->waited = true;
+        free(rt->canon);
+        rt->canon = NULL;
+        rt->state = ST_LEASE_WAIT;
+        e->lease_waits++;
+        return false;
+    }
+    rt->leased = rc == SC_OK;
+    if (rc == SC_OK && h.taken_over)
+        say(e, "taking over %s (%s) from %s (pid %lld, gone)", n->name, n->desc->type, h.host, (long long)h.pid);
+    return true;
+}
+
+static void lock_cache(void *ud) { uv_mutex_lock(&((engine *)ud)->cache_lock); }
+static void unlock_cache(void *ud) { uv_mutex_unlock(&((engine *)ud)->cache_lock); }
+
+static void give_lease_back(engine *e, int i) {
+    if (!e->rt[i].leased) return;
+    sc_error ignored;
+    uv_mutex_lock(&e->cache_lock);
+    sc_cache_lease_release(e->cache, &e->run->results[i].key, &ignored);
+    uv_mutex_unlock(&e->cache_lock);
+    e->rt[i].leased = false;
+}
+
+/* Every LEASE_POLL_MS: renew this process's leases once a second, and look
+ * again at the nodes that wait for another process's cook. */
+static void tick(uv_timer_t *t) {
+    engine *e = t->data;
+    double now = sc_now();
+    if (now - e->last_beat >= LEASE_BEAT_SECONDS) {
+        sc_error ignored;
+        uv_mutex_lock(&e->cache_lock);
+        sc_cache_lease_renew(e->cache, &ignored);
+        uv_mutex_unlock(&e->cache_lock);
+        e->last_beat = now;
+    }
+    if (e->lease_waits == 0) return;
+    for (int i = 0; i < e->g->count; i++) {
+        if (e->rt[i].state != ST_LEASE_WAIT) continue;
+        e->rt[i].state = ST_WAITING;
+        e->lease_waits--;
+    }
+    pump(e);
+}
+
 /* Decide hit or miss for a node whose inputs' digests are all known. */
 static void resolve(engine *e, int i) {
     node_rt *rt = &e->rt[i];
@@ -736,10 +854,29 @@ static void resolve(engine *e, int i) {
     sc_digest *dep_digests = NULL;
     uv_mutex_lock(&e->cache_lock);
     int rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
+    if (rc == SC_EMISS && e->opt->remote && !e->opt->dry_run) {
+        /* the remote puts what it finds into the local cache, taking the lock itself;
+         * the pass's transaction is closed meanwhile, so that other processes
+         * sharing the cache do not wait on the network */
+        sc_error ignored;
+        if (e->batched) sc_cache_commit(e->cache, &ignored);
+        uv_mutex_unlock(&e->cache_lock);
+        bool fetched = sc_remote_fetch(e->opt->remote, &r->key, &err) == SC_OK;
+        uv_mutex_lock(&e->cache_lock);
+        if (e->batched) e->batched = sc_cache_begin(e->cache, &ignored) == SC_OK;
+        if (fetched) rc = sc_cache_get_action(e->cache, &r->key, &act, &err);
+    }
     if (rc == SC_OK) {
         dep_digests = calloc((size_t)act.ndeps + 1, sizeof *dep_digests);
         for (int d = 0; d < act.ndeps && !miss; d++) {
             sc_digest cur;
+            char *abs = sc_path_resolve(e->base_dir, act.deps[d].path);   /* recorded relative to the base */
+            if (!abs) {
+                miss = "out of memory";
+                break;
+            }
+            free(act.deps[d].path);
+            act.deps[d].path = abs;
             if (sc_cache_file_changed(e->cache, act.deps[d].path, &act.deps[d].digest, &cur))
                 miss = sc_digest_is_zero(&act.deps[d].digest) ? "a file that was missing is there now"
                                                               : "a source file changed";
@@ -781,7 +918,10 @@ static void resolve(engine *e, int i) {
     sc_cache_action_free(&act);
     forget_files(rt);
 
-    /* a miss: find out why, from what this node was last time */
+    /* a miss: one cook per action among the processes sharing the cache */
+    if (!e->opt->dry_run && !take_lease(e, i)) return;
+
+    /* find out why, from what this node was last time */
     if (e->opt->explain || e->opt->dry_run) {
         char *id = node_id(e, i), *before = NULL;
         uv_mutex_lock(&e->cache_lock);
@@ -910,11 +1050,13 @@ static void run_done(uv_work_t *req, int status) {
         r->deps = calloc((size_t)nd + 1, sizeof(char *));
         sc_digest *dep_digests = calloc((size_t)nd + 1, sizeof *dep_digests);
         sc_cache_dep *deps = calloc((size_t)nd + 1, sizeof *deps);
+        bool paths_ok = true;
         for (int d = 0; r->deps && dep_digests && deps && d < nd; d++) {
             r->deps[r->ndeps++] = sc_strdup(sc_ctx_dep_path(j->ctx, d));
             dep_digests[d] = *sc_ctx_dep_digest(j->ctx, d);
-            deps[d].path = (char *)sc_ctx_dep_path(j->ctx, d);
+            deps[d].path = sc_path_relative(e->base_dir, sc_ctx_dep_path(j->ctx, d));
             deps[d].digest = dep_digests[d];
+            paths_ok = paths_ok && deps[d].path;
         }
         int rc = files_from_values(e, i);
         cJSON *oj = outputs_json(e, i);
@@ -925,12 +1067,13 @@ static void run_done(uv_work_t *req, int status) {
             .metrics = record, .ndeps = nd, .deps = deps,
             .nblobs = j->stored.nblobs, .blobs = j->stored.blobs, .seconds = j->seconds,
         };
-        if (rc == SC_OK && (!outputs || !record || !r->deps || !deps || !dep_digests))
+        if (rc == SC_OK && (!outputs || !record || !r->deps || !deps || !dep_digests || !paths_ok))
             rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
         if (rc == SC_OK) {
             uv_mutex_lock(&e->cache_lock);
             rc = sc_cache_put_action(e->cache, &act, &j->err);
             uv_mutex_unlock(&e->cache_lock);
+            if (rc == SC_OK && e->opt->remote) rc = sc_remote_upload(e->opt->remote, &act, &j->err);
             /* a concurrent gc took a blob: the result stands, it is just not recorded */
             if (rc == SC_EMISS) {
                 say(e, "note: %s was cooked but not recorded: %s", n->name, j->err.message);
@@ -941,8 +1084,10 @@ static void run_done(uv_work_t *req, int status) {
             remember(e, i, dep_digests);
             rc = materialize(e, i, &j->err);
         }
+        for (int d = 0; deps && d < nd; d++) free(deps[d].path);
         free(outputs), free(deps), free(record);
         r->dep_digests = dep_digests;
+        give_lease_back(e, i);   /* after the record: a waiter finds the result */
         if (rc == SC_OK) {
             say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
             set_terminal(e, i, ST_DONE);
@@ -951,6 +1096,7 @@ static void run_done(uv_work_t *req, int status) {
         }
     } else {
         keep_deps_of_failure(r, j->ctx);
+        give_lease_back(e, i);
         fail_node(e, i, j->rc, &j->err);
     }
     free(j->stored.blobs);
@@ -1074,7 +1220,7 @@ static void pump(engine *e) {
      * cached nodes then takes SQLite's locks once, not once per lookup */
     sc_error ignored;
     uv_mutex_lock(&e->cache_lock);
-    bool batched = !e->opt->dry_run && sc_cache_begin(e->cache, &ignored) == SC_OK;
+    e->batched = !e->opt->dry_run && sc_cache_begin(e->cache, &ignored) == SC_OK;
     uv_mutex_unlock(&e->cache_lock);
     bool progress = true;
     while (progress) {
@@ -1125,7 +1271,8 @@ static void pump(engine *e) {
             }
         }
     }
-    if (batched) {
+    if (e->batched) {
+        e->batched = false;
         uv_mutex_lock(&e->cache_lock);
         sc_cache_commit(e->cache, &ignored);
         uv_mutex_unlock(&e->cache_lock);
@@ -1166,14 +1313,30 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
             if (g->nodes[i].input_node[port] >= 0) e.rt[g->nodes[i].input_node[port]].pending_consumers++;
     }
     if (!realpath(g->file, e.graph_path)) snprintf(e.graph_path, sizeof e.graph_path, "%s", g->file);
+    char *graph_dir = sc_path_dirname(e.graph_path);
+    if (!opt->base_dir || !realpath(opt->base_dir, e.base_dir))
+        snprintf(e.base_dir, sizeof e.base_dir, "%s", opt->base_dir ? opt->base_dir : graph_dir ? graph_dir : "/");
+    free(graph_dir);
     e.t0 = sc_now();
     uv_loop_init(&e.loop);
     uv_mutex_init(&e.cache_lock);
+    sc_remote_set_lock(opt->remote, lock_cache, unlock_cache, &e);
+    uv_timer_init(&e.loop, &e.tick);
+    e.tick.data = &e;
+    e.last_beat = e.t0;
+    if (!opt->dry_run) uv_timer_start(&e.tick, tick, LEASE_POLL_MS, LEASE_POLL_MS);
     if (!e.stop) {
         pump(&e);
-        while (e.inflight > 0 || e.loads > 0) {
+        while (e.inflight > 0 || e.loads > 0 || e.lease_waits > 0) {
             uv_run(&e.loop, UV_RUN_ONCE);
         }
+    }
+    uv_timer_stop(&e.tick);
+    uv_close((uv_handle_t *)&e.tick, NULL);
+    sc_remote_set_lock(opt->remote, NULL, NULL, NULL);
+    if (!opt->dry_run) {
+        sc_error ignored;
+        sc_cache_lease_release(cache, NULL, &ignored);   /* any this run still holds */
     }
     /* anything left could not cook */
     for (int i = 0; i < g->count; i++)

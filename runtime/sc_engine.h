@@ -1,9 +1,16 @@
 /* sc_engine.h - cooking a graph: keys, cache lookups, the scheduler, reports.
  *
  * For each node, in dependency order, the engine computes the action key
- * (SHA-256 over: the cooker's format, node type and version, the name and
- * version of every kernel the node reaches, canonical parameters, and the
- * digests of its inputs in port order). A recorded action
+ * (SHA-256 over: the cooker's format, node type and version, the name,
+ * version and platform text of every kernel the node reaches, canonical
+ * parameters, and the digests of its inputs in port order). A PATH
+ * parameter enters the key as its path relative to the base folder (the
+ * graph file's, or base_dir) and its file's content digest, and the files a
+ * node reads are recorded relative to it too: a key is the same for a
+ * checkout anywhere, under any HOME, TMPDIR, working folder or locale.
+ * With a remote cache, a local miss asks the remote, whose answer enters the
+ * local cache (verified) before the lookup is made again; an action cooked
+ * here is queued for upload once it is recorded. A recorded action
  * whose source files are unchanged is a hit: the node's output digests are
  * known without loading any bytes. A node that must run gets its inputs
  * loaded (from memory, or from the blob store, verified), runs on libuv's
@@ -18,6 +25,7 @@
 
 #include "sc_cache.h"
 #include "sc_graph.h"
+#include "sc_remote.h"
 
 /* Bumped whenever key derivation or stored formats change. */
 #define SC_ENGINE_FORMAT 2
@@ -40,6 +48,8 @@ typedef struct sc_engine_options {
     bool explain;           /* --explain: print why each node cooks */
     FILE *log;              /* progress and messages (stderr); NULL: silent */
     bool live;              /* a live progress line (a terminal) rather than plain lines */
+    const char *base_dir;   /* paths enter keys relative to it; NULL: the graph file's folder */
+    sc_remote *remote;      /* asked on a local miss, given what cooks; NULL: none */
 } sc_engine_options;
 
 typedef struct sc_node_output {

@@ -24,7 +24,10 @@
  *
  * The canonical parameter text is what the cache key hashes, so it depends on
  * values only: names sorted bytewise, numbers as the shortest text that reads
- * back exactly (1 and 1.0 print alike), strings quoted with C escapes.
+ * back exactly (1 and 1.0 print alike), strings quoted with C escapes. A path
+ * is absolute in the graph (the Lua binding resolves it) but enters the text
+ * as the caller shows it, with its file's content digest (sc_path_key_fn): the
+ * engine shows it relative to a base folder, so keys move with the tree.
  */
 #include "sc_graph.h"
 
@@ -548,7 +551,25 @@ static void put_number(sc_buf *out, double v) {
     sc_buf_puts(out, text);
 }
 
-void sc_graph_canonical_params(const sc_graph_node *n, sc_buf *out) {
+/* A PATH parameter's value, through path_key when given. */
+static void put_path(sc_buf *out, const char *path, sc_path_key_fn path_key, void *ud) {
+    char *shown = NULL;
+    sc_digest content;
+    bool has_content = path && *path && path_key && path_key(ud, path, &shown, &content);
+    if (path && *path && path_key && !shown) {
+        out->failed = true;
+        return;
+    }
+    put_quoted(out, shown ? shown : path);
+    free(shown);
+    if (has_content) {
+        char hex[65];
+        sc_digest_hex(&content, hex);
+        sc_buf_printf(out, " sha256:%s", hex);
+    }
+}
+
+void sc_graph_canonical_params(const sc_graph_node *n, sc_path_key_fn path_key, void *ud, sc_buf *out) {
     const sc_node_desc *d = n->desc;
     if (!d || d->nparams <= 0) return;
     int *order = sc_alloc_array((size_t)d->nparams, sizeof *order);
@@ -575,8 +596,8 @@ void sc_graph_canonical_params(const sc_graph_node *n, sc_buf *out) {
         case SC_PARAM_INTEGER: put_number(out, v->number); break;
         case SC_PARAM_BOOL: sc_buf_puts(out, v->number != 0 ? "true" : "false"); break;
         case SC_PARAM_STRING:
-        case SC_PARAM_ENUM:
-        case SC_PARAM_PATH: put_quoted(out, v->string); break;
+        case SC_PARAM_ENUM: put_quoted(out, v->string); break;
+        case SC_PARAM_PATH: put_path(out, v->string, path_key, ud); break;
         case SC_PARAM_NUMBERS:
             sc_buf_u8(out, '[');
             for (int i = 0; i < v->count; i++) {

@@ -95,9 +95,17 @@ int sc_parse_numbers(const char *text, double **out, int *count, sc_error *err);
  * given. Messages carry "file:line: node: ...". */
 int sc_graph_validate(const sc_graph *g, sc_error *err);
 
+/* How a PATH parameter enters the canonical text: *shown receives the text
+ * that stands for the path (a new string; the engine's: the path relative to
+ * its base folder), and the function returns true with *content set when the
+ * path names a file (its content digest is then written too). */
+typedef bool (*sc_path_key_fn)(void *ud, const char *path, char **shown, sc_digest *content);
+
 /* Canonical text of a node's parameters: one "name=value\n" per parameter,
  * sorted by name; numbers as shortest exact round-trip text; strings quoted
- * with escapes. The same parameters always give the same bytes. */
-void sc_graph_canonical_params(const sc_graph_node *n, sc_buf *out);
+ * with escapes. The same parameters always give the same bytes. A PATH is
+ * written as given when path_key is NULL, else as `"SHOWN"` followed by
+ * ` sha256:HEX` when path_key finds its content. */
+void sc_graph_canonical_params(const sc_graph_node *n, sc_path_key_fn path_key, void *ud, sc_buf *out);
 
 #endif

@@ -31,12 +31,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-const sc_kernel sc_kernel_gl = {"gl", SC_GL_VERSION, NULL};
+static const char *gl_platform(void);
+const sc_kernel sc_kernel_gl = {"gl", SC_GL_VERSION, NULL, gl_platform};
 
 struct sc_gl {
     EGLDisplay display;
     EGLContext context;
     char renderer[256];
+    char version[128];
 };
 
 static pthread_mutex_t display_lock = PTHREAD_MUTEX_INITIALIZER;
@@ -154,7 +156,9 @@ static int create_context(sc_gl *gl, sc_error *err) {
     if (!eglMakeCurrent(gl->display, EGL_NO_SURFACE, EGL_NO_SURFACE, gl->context))
         return sc_fail(err, SC_EIO, "EGL: eglMakeCurrent failed (%s)", egl_error_name(eglGetError()));
     const char *renderer = (const char *)glGetString(GL_RENDERER);
+    const char *version = (const char *)glGetString(GL_VERSION);
     snprintf(gl->renderer, sizeof gl->renderer, "%s", renderer ? renderer : "unknown");
+    snprintf(gl->version, sizeof gl->version, "%s", version ? version : "unknown");
     return SC_OK;
 }
 
@@ -186,6 +190,30 @@ void sc_gl_close(sc_gl *gl) {
 }
 
 const char *sc_gl_renderer(const sc_gl *gl) { return gl ? gl->renderer : ""; }
+
+/* The kernel's platform text: GL_RENDERER and GL_VERSION of a context made
+ * once per process ("llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile)
+ * Mesa 22.3.6"): the driver's version and the rasteriser's vector width
+ * decide the pictures' bits. Without a display it says so, and render then
+ * fails on its own with the reason. */
+static char platform_text[400];
+
+static void platform_find(void) {
+    sc_gl *gl;
+    sc_error err;
+    if (sc_gl_open(&gl, &err) != SC_OK) {
+        snprintf(platform_text, sizeof platform_text, "no display");
+        return;
+    }
+    snprintf(platform_text, sizeof platform_text, "%s; %s", gl->renderer, gl->version);
+    sc_gl_close(gl);
+}
+
+static const char *gl_platform(void) {
+    static pthread_once_t once = PTHREAD_ONCE_INIT;
+    pthread_once(&once, platform_find);
+    return platform_text;
+}
 
 static const char *gl_error_name(GLenum e) {
     switch (e) {

@@ -25,6 +25,13 @@
  * Solves with a simplicial L L^T factor can also run on two threads, its
  * elimination tree split in fixed halves (tree_split).
  *
+ * Factorisations and solves are bit-reproducible for one CHOLMOD and one
+ * BLAS on one kind of processor, not across them: OpenBLAS picks its inner
+ * kernels by the processor it finds (DYNAMIC_ARCH), and their order of
+ * summation differs. The kernel's platform text (sparse_platform) names the
+ * CHOLMOD version and the BLAS's build and core, so a result is shared only
+ * between machines that would compute the same bits.
+ *
  * CHOLMOD is driven with one cholmod_common per factorisation (so several
  * nodes may factor at once on different threads), printing switched off, and
  * its status turned into sc_error messages. Our CSC arrays are handed to
@@ -36,10 +43,28 @@
 #include <dlfcn.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-const sc_kernel sc_kernel_sparse = {"sparse", SC_SPARSE_VERSION, NULL};
+static char platform_text[320];
+
+static void platform_find(void) {
+    char *(*config)(void) = NULL, *(*core)(void) = NULL;
+    *(void **)&config = dlsym(RTLD_DEFAULT, "openblas_get_config");
+    *(void **)&core = dlsym(RTLD_DEFAULT, "openblas_get_corename");
+    snprintf(platform_text, sizeof platform_text, "cholmod %d.%d.%d; blas %s; core %s",
+             CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION, CHOLMOD_SUBSUB_VERSION,
+             config ? config() : "reference", core ? core() : "any");
+}
+
+static const char *sparse_platform(void) {
+    static pthread_once_t once = PTHREAD_ONCE_INIT;
+    pthread_once(&once, platform_find);
+    return platform_text;
+}
+
+const sc_kernel sc_kernel_sparse = {"sparse", SC_SPARSE_VERSION, NULL, sparse_platform};
 
 /* ---------------------------------------------------------------- triplets */
 

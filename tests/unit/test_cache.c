@@ -1246,4 +1246,59 @@ SC_TEST(gc_runs_on_a_full_disk) {
     remove_tree(dir);
 }
 
+
+/* Leases: one holder per action key. A live other process's lease is busy;
+ * a dead one's is taken over; a released one is free. */
+SC_TEST(leases_one_holder) {
+    char *dir = sc_test_tempdir("cache");
+    sc_digest k1 = dig_str("action one"), k2 = dig_str("action two");
+    int ready[2], quit[2];
+    SC_CHECK(pipe(ready) == 0 && pipe(quit) == 0);
+    pid_t live = fork();
+    if (live == 0) {   /* holds k1 until told to quit */
+        sc_cache *c = NULL;
+        sc_error err;
+        int rc = sc_cache_open(dir, &c, &err) == SC_OK ? sc_cache_lease_take(c, &k1, 10, NULL, &err) : 1;
+        char byte = rc == SC_OK ? 'y' : 'n';
+        (void)!write(ready[1], &byte, 1);
+        (void)!read(quit[0], &byte, 1);
+        _exit(0);
+    }
+    char byte = 0;
+    SC_CHECK(read(ready[0], &byte, 1) == 1 && byte == 'y');
+    pid_t dead = fork();
+    if (dead == 0) {   /* takes k2 and dies without giving it back */
+        sc_cache *c = NULL;
+        sc_error err;
+        _exit(sc_cache_open(dir, &c, &err) == SC_OK && sc_cache_lease_take(c, &k2, 10, NULL, &err) == SC_OK ? 0 : 1);
+    }
+    int status = 0;
+    waitpid(dead, &status, 0);
+    SC_CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+
+    sc_cache *c = open_cache(dir);
+    sc_error err = {0};
+    sc_cache_lease_holder h;
+    SC_CHECK_INT(sc_cache_lease_take(c, &k1, 10, &h, &err), SC_EBUSY);
+    SC_CHECK_INT(h.pid, live);
+    SC_CHECK(strstr(err.message, "is cooking it") != NULL);
+    SC_CHECK_INT(sc_cache_lease_take(c, &k2, 10, &h, &err), SC_OK);   /* its holder is gone */
+    SC_CHECK(h.taken_over);
+    SC_CHECK_INT(h.pid, dead);
+    SC_CHECK_INT(sc_cache_lease_take(c, &k2, 10, &h, &err), SC_OK);   /* ours already */
+    SC_CHECK(!h.taken_over);
+    SC_CHECK_INT(sc_cache_lease_renew(c, &err), SC_OK);
+    (void)!write(quit[1], "q", 1);   /* the live holder exits without giving k1 back */
+    waitpid(live, &status, 0);
+    SC_CHECK_INT(sc_cache_lease_take(c, &k1, 10, &h, &err), SC_OK);
+    SC_CHECK(h.taken_over);
+    SC_CHECK_INT(sc_cache_lease_release(c, &k1, &err), SC_OK);
+    SC_CHECK_INT(sc_cache_lease_take(c, &k1, 10, &h, &err), SC_OK);   /* free again */
+    SC_CHECK(!h.taken_over && h.pid == 0);
+    SC_CHECK_INT(sc_cache_lease_release(c, NULL, &err), SC_OK);
+    sc_cache_close(c);
+    close(ready[0]), close(ready[1]), close(quit[0]), close(quit[1]);
+    free(dir);
+}
+
 int main(void) { return sc_test_main(); }

@@ -1061,4 +1061,40 @@ SC_TEST(report_html_shows_pictures_first_in_chromium) {
     free(title), free(out), free(a), free(g), free(dir);
 }
 
+/* The farm's options: a bad one is a usage error (2) naming it, before
+ * anything cooks or any server is asked. */
+SC_TEST(farm_options_checked) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("proc_save.lua");
+    static const char *const cases[][2] = {
+        {"--base-dir no-such-folder", "--base-dir no-such-folder: not a folder"},
+        {"--remote-cache ftp://x/", "expected an http:// or https:// URL"},
+        {"--remote-header NoColon", "--remote-header NoColon: expected 'Name: value'"},
+        {"--remote-timeout 0", "--remote-timeout 0: expected seconds"},
+        {"--remote-retries 11", "--remote-retries 11: expected a number from 0 to 10"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char *a = sc_strprintf("run '%s' --cache cache --out out %s", g, cases[k][0]);
+        SC_CHECK_INT(cook(dir, a), 2);
+        char *err = slurp(dir, "err.txt");
+        SC_CHECK_MSG(err && strstr(err, cases[k][1]), "%s: stderr: %s", cases[k][0], err ? err : "(nothing)");
+        free(err), free(a);
+    }
+    SC_CHECK_INT(sc_test_system("cd '%s' && SEAMCOOK_REMOTE_RETRIES=x '%s' run '%s' --cache cache --out out "
+                                "--remote-cache http://127.0.0.1:1/ >out.txt 2>err.txt", dir, bin(), g), 2);
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "SEAMCOOK_REMOTE_RETRIES=x"), "stderr: %s", err ? err : "(nothing)");
+    free(err);
+    SC_CHECK_INT(cook(dir, "farm"), 2);
+    SC_CHECK_INT(cook(dir, "farm launch"), 2);
+    SC_CHECK_INT(cook(dir, "farm submit"), 2);
+    char *a = sc_strprintf("farm submit '%s'", g);
+    SC_CHECK_INT(cook(dir, a), 2);   /* no --assets */
+    free(a);
+    SC_CHECK_INT(cook(dir, "farm status --out nowhere"), 2);
+    err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "no farm job here"), "stderr: %s", err ? err : "(nothing)");
+    free(err), free(g), free(dir);
+}
+
 int main(void) { return sc_test_main(); }

@@ -181,4 +181,28 @@ SC_TEST(messages_quote_short_escaped_excerpts) {
     SC_CHECK(strcmp(sc_excerpt("\n", 3, false, excerpt, sizeof excerpt), "\\x0a") == 0);
 }
 
+
+/* Paths in action keys: relative to a base folder by their text alone, and
+ * back again. */
+SC_TEST(path_relative_and_back) {
+    static const char *const cases[][3] = {
+        {"/w/project", "/w/project/assets/a.obj", "assets/a.obj"},
+        {"/w/project", "/w/project", "."},
+        {"/w/project", "/w/projects/a.obj", "../projects/a.obj"},
+        {"/w/project/graphs", "/w/assets/b.png", "../../assets/b.png"},
+        {"/", "/etc/x", "etc/x"},
+        {"/a/b", "/", "../.."},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char *rel = sc_path_relative(cases[k][0], cases[k][1]);
+        SC_CHECK_STR(rel, cases[k][2]);
+        char *back = rel ? sc_path_resolve(cases[k][0], rel) : NULL;
+        SC_CHECK_STR(back, cases[k][1]);
+        free(rel), free(back);
+    }
+    char *kept = sc_path_resolve("/w", "/abs/x");
+    SC_CHECK_STR(kept, "/abs/x");
+    free(kept);
+}
+
 int main(void) { return sc_test_main(); }

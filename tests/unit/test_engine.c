@@ -126,6 +126,36 @@ SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
     free(dir);
 }
 
+/* A kernel's platform text enters the keys of exactly the nodes that reach
+ * it: another platform (a Mesa or BLAS release) re-cooks them, and the same
+ * platform again finds their first cooks. */
+static const char *platform_now = "driver 1";
+static const char *test_platform(void) { return platform_now; }
+
+SC_TEST(a_platform_text_keys_the_nodes_that_reach_it) {
+    char *dir = sc_test_tempdir("kernels");
+    sc_cache *cache = NULL;
+    sc_error err = {0};
+    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    if (!cache) return;
+    int ran[4];
+    kernel_base.version = 1, kernel_top.version = 1;
+    kernel_base.platform = test_platform;
+    platform_now = "driver 1";
+    cook(cache, ran);
+    CHECK_RAN(ran, 1, 1, 1, 1);
+    platform_now = "driver 2";   /* test_base's: with_base, and with_top through test_top */
+    cook(cache, ran);
+    CHECK_RAN(ran, 0, 0, 1, 1);
+    platform_now = "driver 1";
+    cook(cache, ran);
+    CHECK_RAN(ran, 0, 0, 0, 0);
+    kernel_base.platform = NULL;
+    sc_cache_close(cache);
+    sc_test_system("rm -rf '%s'", dir);
+    free(dir);
+}
+
 /* The kernels d reaches, breadth first, repeats kept (at most 64). */
 static int reach(const sc_node_desc *d, const sc_kernel *seen[64]) {
     int n = 0;

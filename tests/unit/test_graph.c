@@ -67,7 +67,7 @@ static const sc_node_desc need = {
 static char *canonical(const sc_graph_node *n) {
     sc_buf b;
     sc_buf_init(&b);
-    sc_graph_canonical_params(n, &b);
+    sc_graph_canonical_params(n, NULL, NULL, &b);
     return sc_buf_take_string(&b);
 }
 

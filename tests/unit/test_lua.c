@@ -136,7 +136,7 @@ static void check_fails_at(const char *file, int at, const char *name, int line,
 static char *canonical(const sc_graph_node *n) {
     sc_buf b;
     sc_buf_init(&b);
-    sc_graph_canonical_params(n, &b);
+    sc_graph_canonical_params(n, NULL, NULL, &b);
     return sc_buf_take_string(&b);
 }
 
