@@ -47,7 +47,7 @@ void sc_gradient_defaults(sc_gradient_options *o, sc_gradient_op op) {
         .op = op,
         .gradient_scale = op == SC_GRADIENT_SHARPEN ? 2.0 : 0.0,
         .screening = op == SC_GRADIENT_STITCH ? 1e2 : 1e4,
-        .time_step = 0,
+        .time_step = 1e-3,
         .sources = "",
         .solver = SC_GRADIENT_MULTIGRID,
         .levels = 4,
@@ -284,6 +284,26 @@ static int clip_line(const gd_pv *in, int n, gd_pv *out, int axis, double c, boo
     return k;
 }
 
+/* Merge vertices closer than 1e-9 texel (a corner or a crossing on a
+ * clipping line comes out twice): a near-zero edge would make an element
+ * whose huge gradients drown the stiffness in rounding. The merged vertex
+ * keeps a face corner's identity. */
+static int drop_repeats(gd_pv *p, int n) {
+    int k = 0;
+    for (int i = 0; i < n; i++) {
+        if (k > 0 && fabs(p[i].x - p[k - 1].x) < 1e-9 && fabs(p[i].y - p[k - 1].y) < 1e-9) {
+            if (p[i].corner >= 0) p[k - 1] = p[i];
+            continue;
+        }
+        p[k++] = p[i];
+    }
+    while (k > 1 && fabs(p[0].x - p[k - 1].x) < 1e-9 && fabs(p[0].y - p[k - 1].y) < 1e-9) {
+        if (p[k - 1].corner >= 0) p[0] = p[k - 1];
+        k--;
+    }
+    return k;
+}
+
 /* the seam parameter of point p on face edge k of f, snapped to the
  * seam's crossing list when within rounding of an entry */
 static double seam_gamma(const gd_walk *w, int32_t f, int k, const double P[3][2], double x, double y) {
@@ -352,6 +372,7 @@ static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
                 n = clip_line(B, n, A, 0, cx + 1, false);
                 n = clip_line(A, n, B, 1, cy, true);
                 n = clip_line(B, n, A, 1, cy + 1, false);
+                n = drop_repeats(A, n);
                 if (n < 3) continue;
                 double area2 = 0;
                 for (int i = 0; i < n; i++) area2 += A[i].x * A[(i + 1) % n].y - A[(i + 1) % n].x * A[i].y;
@@ -1247,9 +1268,11 @@ static int run_geodesic(const sc_mesh *mesh, int32_t material, gd_walk *w, const
             int32_t i = y->unknown[src[s].id[k]];
             if (i >= 0 && src[s].w[k] != 0) delta[i] += src[s].w[k];
         }
-    /* (M + t S) u = M delta, t in unit-area units scaled to the surface */
-    double t = (o->time_step > 0 ? o->time_step : 1.0 / (double)(y->n > 0 ? y->n : 1)) * y->area;
-    metric(ml, "%s_time_step", "heat", t / y->area);
+    /* (M + t S) u = M delta, t in unit-area units scaled to the surface.
+     * u decays like exp(-d / sqrt(t)): with t much below the paper's 1e-3,
+     * far texels fall under what a V-cycle's residual resolves and the
+     * direction of du there is noise (docs/notes/gradient_domain.md). */
+    double t = o->time_step * y->area;
     if (symv_channels(&y->mat[0], 1, delta, b, 1.0, false)) goto oom;
     if ((rc = sc_sparse_add(&y->mat[0], 1.0, &y->mat[1], t, &A, err)) != SC_OK) goto done;
     if ((rc = solve(&A, y, o, 1, b, u, "heat", ml, vcycles, err)) != SC_OK) goto done;
@@ -1332,6 +1355,8 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
     }
     if (!(o->screening > 0) && o->op != SC_GRADIENT_GEODESIC)
         return sc_fail(err, SC_EINPUT, "screening must be positive");
+    if (!(o->time_step > 0) && o->op == SC_GRADIENT_GEODESIC)
+        return sc_fail(err, SC_EINPUT, "time_step must be positive");
     sc_gradient_result r = {0};
     sc_seam_grid g = {image->width, image->height, tex->wrap_u, tex->wrap_v};
     gd_walk w;

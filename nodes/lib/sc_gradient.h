@@ -65,7 +65,7 @@ typedef struct sc_gradient_options {
     /* w, the screening weight, for a surface scaled to unit area (the
      * paper's convention; 1e4 smoothing, 1e2 stitching) */
     double screening;
-    /* geodesic: the heat step t in unit-area units; 0: the area of one texel */
+    /* geodesic: the heat step t in unit-area units (the paper's 1e-3) */
     double time_step;
     /* geodesic: the sources, ';'-separated: "x y z" (the mesh vertex nearest
      * a surface point) or "texel i j" (borrowed) */
@@ -80,7 +80,7 @@ typedef struct sc_gradient_options {
 } sc_gradient_options;
 
 /* The paper's settings for op: beta 0 (smooth) or 2 (sharpen), w 1e4 (1e2
- * for stitch), t = one texel's area, 4 levels, 3 sweeps, tolerance 1e-8 in
+ * for stitch), t = 1e-3, 4 levels, 3 sweeps, tolerance 1e-8 in
  * at most 30 V-cycles. */
 void sc_gradient_defaults(sc_gradient_options *o, sc_gradient_op op);
 

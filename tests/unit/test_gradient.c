@@ -69,14 +69,18 @@ static const double *near_point(const double *pos, int W, int H, int i, int j) {
 
 typedef double (*field_fn)(const double p[3], int c);
 
+/* the side of a plane through the sphere, at a slant to the cube's faces */
+static bool upper_half(const double p[3]) { return p[0] + 0.37 * p[1] + 0.21 * p[2] > 0.05; }
+
 static double smooth_field(const double p[3], int c) {
     return 0.5 + 0.3 * sin(3 * p[0] + c) * cos(2 * p[1]) + 0.1 * p[2] + 0.05 * sin(17 * p[2] + 3 * p[0]);
 }
 
 /* The atlas with its colour texture replaced by an f32 data texture of
  * `channels` channels painted from fn at the surface point of each texel
- * (outside the charts: the nearest covered texel's point, else 0). */
-static sc_value *painted(const sc_value *atlas, int channels, field_fn fn, double offset_x_positive) {
+ * (outside the charts: the nearest covered texel's point, else 0), plus
+ * `offset` on the upper half. */
+static sc_value *painted(const sc_value *atlas, int channels, field_fn fn, double offset) {
     const sc_atlas *a = atlas->as.atlas;
     const sc_image_data *t = a->textures[0].image->as.image;
     int W = t->width, H = t->height;
@@ -89,7 +93,7 @@ static sc_value *painted(const sc_value *atlas, int channels, field_fn fn, doubl
             const double *p = near_point(pos, W, H, i, j);
             for (int c = 0; c < channels; c++)
                 px[((size_t)j * W + i) * channels + c] =
-                    p ? (float)(fn(p, c) + (p[0] > 0 ? offset_x_positive : 0)) : 0.0f;
+                    p ? (float)(fn(p, c) + (upper_half(p) ? offset : 0)) : 0.0f;
         }
     free(pos);
     sc_atlas *o = sc_atlas_new(sc_value_retain(a->mesh));
@@ -142,6 +146,178 @@ SC_TEST(smooth_multigrid_matches_direct) {
     }
     sc_ctx_free(cd), sc_ctx_free(cm);
     sc_value_release(d), sc_value_release(m), sc_value_release(atlas), sc_value_release(sphere);
+}
+
+static double mesh_area(const sc_mesh *m) {
+    double a = 0;
+    for (int f = 0; f < m->nf; f++) {
+        const double *p = &m->V[3 * m->FV[3 * f]], *q = &m->V[3 * m->FV[3 * f + 1]], *r = &m->V[3 * m->FV[3 * f + 2]];
+        double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, v[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+        double c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        a += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    }
+    return a;
+}
+
+static double constant_field(const double p[3], int c) {
+    (void)p;
+    return 0.25 + 0.25 * c;
+}
+
+/* The mass matrix integrates to the surface's area, and constants are
+ * kept by smoothing and sharpening: the texel functions are a partition
+ * of unity whose stiffness annihilates constants, seams included. */
+SC_TEST(metric_area_and_constants) {
+    sc_value *sphere = sphere_atlas(10, 96);
+    if (!sphere) return;
+    double area = mesh_area(sphere->as.atlas->mesh->as.mesh);
+    sc_value *atlas = painted(sphere, 2, constant_field, 0);
+    const char *ops[] = {"smooth", "sharpen"};
+    for (int k = 0; k < 2; k++) {
+        const char *p[] = {"operation", ops[k], "solver", "direct", NULL};
+        sc_ctx *ctx;
+        sc_value *out = run_gradient(atlas, NULL, p, &ctx);
+        if (!out) continue;
+        double a = sc_ctx_metric_value(ctx, "surface_area");
+        SC_CHECK_NEAR(a, area, 1e-10 * area);
+        double d = max_diff(out->as.image, atlas->as.atlas->textures[0].image->as.image);
+        printf("  %s: constants kept to %.3g, area %.12f (mesh %.12f)\n", ops[k], d, a, area);
+        SC_CHECK(d < 1e-6);
+        sc_ctx_free(ctx);
+        sc_value_release(out);
+    }
+    sc_value_release(atlas), sc_value_release(sphere);
+}
+
+/* The seam energy (the erase kernel's measure, eq. 9 of Liu et al.) of a
+ * smoothed texture against its input's, with no erase_seams. */
+SC_TEST(smooth_seam_energy) {
+    sc_value *sphere = sphere_atlas(12, 128);
+    if (!sphere) return;
+    sc_value *atlas = painted(sphere, 1, smooth_field, 0);
+    const char *ws[] = {"1e4", "1e3", "1e2"};
+    for (int k = 0; k < 3; k++) {
+        const char *p[] = {"operation", "smooth", "screening", ws[k], NULL};
+        sc_ctx *ctx;
+        sc_value *out = run_gradient(atlas, NULL, p, &ctx);
+        if (!out) continue;
+        double ratio = sc_ctx_metric_value(ctx, "seam_energy_ratio");
+        printf("  screening %s: seam energy %.3g -> %.3g (ratio %.3g), largest gap %.3g -> %.3g\n", ws[k],
+               sc_ctx_metric_value(ctx, "seam_energy_in"), sc_ctx_metric_value(ctx, "seam_energy_out"), ratio,
+               sc_ctx_metric_value(ctx, "seam_max_gap_in"), sc_ctx_metric_value(ctx, "seam_max_gap_out"));
+        SC_CHECK(ratio < 1e-2);
+        sc_ctx_free(ctx);
+        sc_value_release(out);
+    }
+    sc_value_release(atlas), sc_value_release(sphere);
+}
+
+/* Heat-method distance from the pole (0, 0, 1) against great-circle
+ * distance on the unit sphere, at three resolutions. */
+SC_TEST(geodesic_unit_sphere) {
+    const int sizes[] = {48, 96, 192};
+    double err[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++) {
+        sc_value *sphere = sphere_atlas(sizes[k] / 4, sizes[k]);
+        if (!sphere) return;
+        const sc_mesh *m = sphere->as.atlas->mesh->as.mesh;
+        const char *p[] = {"operation", "geodesic", "sources", "0 0 1", NULL};
+        sc_ctx *ctx;
+        sc_value *out = run_gradient(sphere, NULL, p, &ctx);
+        if (out) {
+            const sc_image_data *im = out->as.image;
+            double *pos = texel_points(m, im->width, im->height);
+            double sum = 0, worst = 0;
+            long n = 0;
+            for (long t = 0; t < (long)im->width * im->height; t++) {
+                const double *q = &pos[3 * t];
+                if (isnan(q[0])) continue;
+                double r = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+                double gc = acos(fmax(-1.0, fmin(1.0, q[2] / r)));
+                double e = fabs(((const float *)im->pixels)[t] - gc);
+                sum += e, n++, worst = fmax(worst, e);
+            }
+            err[k] = sum / n;
+            printf("  %d^2: mean error %.4g, largest %.4g (of pi), V-cycles %g + %g\n", sizes[k], err[k], worst,
+                   sc_ctx_metric_value(ctx, "heat_vcycles"), sc_ctx_metric_value(ctx, "distance_vcycles"));
+            free(pos);
+            sc_ctx_free(ctx);
+        }
+        sc_value_release(out), sc_value_release(sphere);
+    }
+    SC_CHECK(err[0] < 0.2);
+    SC_CHECK(err[1] < err[0]);
+    SC_CHECK(err[2] < err[1]);
+}
+
+/* Two halves of the sphere (x < 0, x > 0) painted from the same field, the
+ * second 0.3 brighter, labelled 0 and 1: stitching takes the offset out at
+ * the label boundary and keeps the field's own differences elsewhere. The
+ * differences of neighbouring texels (both inside charts) are compared. */
+SC_TEST(stitch_two_halves) {
+    sc_value *sphere = sphere_atlas(12, 128);
+    if (!sphere) return;
+    sc_value *atlas = painted(sphere, 1, smooth_field, 0.3), *clean = painted(sphere, 1, smooth_field, 0);
+    int W = 128, H = 128;
+    double *pos = texel_points(sphere->as.atlas->mesh->as.mesh, W, H);
+    sc_image_data *lab = sc_image_alloc(W, H, 1, SC_PIXEL_U8);
+    lab->colorspace = SC_COLOR_DATA;
+    for (int j = 0; j < H; j++)
+        for (int i = 0; i < W; i++) {
+            const double *q = near_point(pos, W, H, i, j);
+            ((uint8_t *)lab->pixels)[j * W + i] = q && upper_half(q);
+        }
+    sc_value *labels = sc_value_new_image(lab);
+    const char *p[] = {"operation", "stitch", NULL};
+    sc_ctx *ctx;
+    sc_value *out = run_gradient(atlas, labels, p, &ctx);
+    if (out) {
+        const float *o = out->as.image->pixels, *f = clean->as.atlas->textures[0].image->as.image->pixels,
+                    *c = atlas->as.atlas->textures[0].image->as.image->pixels;
+        double cross_out = 0, cross_in = 0, same_out = 0, same_f = 0;
+        long ncross = 0, nsame = 0;
+        for (int j = 0; j + 1 < H; j++)
+            for (int i = 0; i + 1 < W; i++)
+                for (int dir = 0; dir < 2; dir++) {
+                long a = (long)j * W + i, b = a + (dir ? W : 1);
+                if (isnan(pos[3 * a]) || isnan(pos[3 * b])) continue;
+                double df = f[b] - f[a];
+                const double *pa = &pos[3 * a];
+                if (upper_half(pa) != upper_half(&pos[3 * b])) {
+                    cross_out += fabs(o[b] - o[a] - df), cross_in += fabs(c[b] - c[a] - df), ncross++;
+                } else if (fabs(pa[0] + 0.37 * pa[1] + 0.21 * pa[2] - 0.05) > 0.8) {
+                    same_out += fabs(o[b] - o[a] - df), same_f += fabs(df), nsame++;
+                }
+            }
+        printf("  across the labels: difference off the field's by %.4g (composite %.4g), %ld pairs\n", cross_out / ncross,
+               cross_in / ncross, ncross);
+        printf("  0.8 from the plane: differences off by %.4g against the field's own %.4g, %ld pairs\n", same_out / nsame,
+               same_f / nsame, nsame);
+        SC_CHECK(ncross > 20 && nsame > 1000);
+        SC_CHECK(cross_in / ncross > 0.25);
+        SC_CHECK(cross_out / ncross < 0.1 * cross_in / ncross);
+        SC_CHECK(same_out / nsame < 0.1 * same_f / nsame);
+        sc_ctx_free(ctx);
+    }
+    free(pos);
+    sc_value_release(out), sc_value_release(labels), sc_value_release(atlas), sc_value_release(clean), sc_value_release(sphere);
+}
+
+/* lic is not built: the node fails with a message, and so do a stitch
+ * without labels and a geodesic without sources. */
+SC_TEST(unbuilt_and_missing_inputs_fail) {
+    sc_value *sphere = sphere_atlas(4, 64);
+    if (!sphere) return;
+    const char *lic[] = {"operation", "lic", NULL}, *st[] = {"operation", "stitch", NULL}, *ge[] = {"operation", "geodesic", NULL};
+    const char *const *cases[] = {lic, st, ge};
+    const char *says[] = {"not built", "labels", "sources"};
+    for (int k = 0; k < 3; k++) {
+        sc_test_run r = sc_test_run_node(&sc_node_gradient_domain, cases[k], "atlas", sphere, NULL, NULL);
+        SC_CHECK(r.rc == SC_EINPUT);
+        SC_CHECK_MSG(strstr(r.err.message, says[k]) != NULL, "%s", r.err.message);
+        sc_ctx_free(r.ctx);
+    }
+    sc_value_release(sphere);
 }
 
 int main(void) { return sc_test_main(); }
