@@ -28,7 +28,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (w >= 0) o.screening = w;
     o.time_step = sc_ctx_number(ctx, "time_step");
     o.sources = sc_ctx_string(ctx, "sources");
-    o.solver = strcmp(sc_ctx_string(ctx, "solver"), "direct") == 0 ? SC_GRADIENT_DIRECT : SC_GRADIENT_MULTIGRID;
+    const char *solver = sc_ctx_string(ctx, "solver");
+    o.solver = strcmp(solver, "direct") == 0    ? SC_GRADIENT_DIRECT
+               : strcmp(solver, "vcycles") == 0 ? SC_GRADIENT_VCYCLES
+                                                : SC_GRADIENT_MULTIGRID;
     o.levels = (int32_t)sc_ctx_integer(ctx, "levels");
     o.relaxations = (int32_t)sc_ctx_integer(ctx, "relaxations");
     o.max_vcycles = (int32_t)sc_ctx_integer(ctx, "max_vcycles");
@@ -68,7 +71,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 /* ---------------------------------------------------------------- descriptor */
 
 static const char *const operation_choices[] = {"smooth", "sharpen", "stitch", "geodesic", "lic", NULL};
-static const char *const solver_choices[] = {"multigrid", "direct", NULL};
+static const char *const solver_choices[] = {"multigrid", "vcycles", "direct", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "operation", .type = SC_PARAM_ENUM, .def_string = "smooth", .choices = operation_choices,
@@ -84,7 +87,9 @@ static const sc_param_desc params[] = {
     {.name = "sources", .type = SC_PARAM_STRING, .def_string = "",
      .doc = "geodesic: ';'-separated sources, \"x y z\" (nearest mesh vertex) or \"texel i j\""},
     {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "multigrid", .choices = solver_choices,
-     .doc = "multigrid (V-cycles, boundary texels solved directly) or direct (one CHOLMOD factorisation)"},
+     .doc = "multigrid: conjugate gradients preconditioned by one V-cycle per iteration (interior texels "
+            "relaxed, boundary texels solved by CHOLMOD); vcycles: V-cycles alone, as the paper; direct: one "
+            "CHOLMOD factorisation"},
     {.name = "levels", .type = SC_PARAM_INTEGER, .def = 4, .min = 1, .max = 16, .doc = "multigrid levels"},
     {.name = "relaxations", .type = SC_PARAM_INTEGER, .def = 3, .min = 0, .max = 100,
      .doc = "Gauss-Seidel sweeps on each level, before and after the coarse correction"},

@@ -74,6 +74,8 @@ typedef struct gd_piece {
     int32_t m;
     double (*pos)[2];      /* m + 1 corner positions in texel space (centroid last) */
     gd_node *node;         /* 3m + 1: corners, centroid, boundary midpoints, spoke midpoints */
+    bool full;             /* the piece is the whole cell, inside one face, no seam */
+    int32_t cell[4];       /* then its corner texels: (cx, cy), (cx+1, cy), (cx, cy+1), (cx+1, cy+1) */
     double sqrtdet;        /* sqrt(det g) of the face */
     double ginv[3];        /* g^-1: xx, xy, yy (texel-space covectors) */
 } gd_piece;
@@ -439,6 +441,14 @@ static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
                     node_at(&w->node[2 * mb + 1 + i], g, 0.5 * (w->pos[i][0] + ccx), 0.5 * (w->pos[i][1] + ccy));
                 }
                 pc.m = mb, pc.pos = w->pos, pc.node = w->node;
+                pc.full = mb == 4 && fabs(0.5 * fabs(area2) - 1) < 1e-12;
+                for (int32_t i = 0; i < mb && pc.full; i++) pc.full = w->bseam[i] < 0 && w->bv[i].corner < 0;
+                if (pc.full) {
+                    double tw[4];
+                    sc_seam_taps(g, (ccx + 0.5) / g->width, (ccy + 0.5) / g->height, pc.cell, tw);
+                    for (int i = 0; i < 4; i++)
+                        for (int j = 0; j < i; j++) pc.full &= pc.cell[i] != pc.cell[j];
+                }
                 int rc = visit(ud, &pc, err);
                 if (rc != SC_OK) return rc;
             }
@@ -526,7 +536,9 @@ typedef struct gd_asm {
     sc_triplets extra[GD_NMAT];
     const sc_image_data *labels;
     int nmat;
-    /* local scratch */
+    /* local scratch; the whole-cell matrices of face cell_face */
+    int32_t cell_face;
+    double cellm[2][4][4];
     int32_t cap, *tid;
     double *loc;               /* GD_NMAT x cap x cap */
 } gd_asm;
@@ -555,8 +567,43 @@ static void asm_add(gd_asm *s, int k, int32_t a, int32_t b, double v) {
 
 static double label_of(const sc_image_data *l, int32_t id) { return sc_seam_texel(l, id, 0); }
 
+/* Mass and stiffness of a whole cell inside one face over its four corner
+ * texels (order of gd_piece.cell): the same for every such cell of a face. */
+static void cell_matrices(double sqrtdet, const double gi[3], double out[2][4][4]) {
+    static const double q[5][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5, 0.5}};
+    memset(out, 0, 2 * 16 * sizeof(double));
+    for (int e = 0; e < 4; e++) {
+        double c[3][2] = {{q[e][0], q[e][1]}, {q[(e + 1) % 4][0], q[(e + 1) % 4][1]}, {q[4][0], q[4][1]}};
+        double M[6][6], S[6][6], E[6][4];
+        if (!p2_local(c, sqrtdet, gi, M, S)) continue;
+        for (int a = 0; a < 6; a++) {
+            int i = a < 3 ? a : a - 3, j = a < 3 ? a : (a - 2) % 3;
+            double x = 0.5 * (c[i][0] + c[j][0]), y = 0.5 * (c[i][1] + c[j][1]);
+            E[a][0] = (1 - x) * (1 - y), E[a][1] = x * (1 - y), E[a][2] = (1 - x) * y, E[a][3] = x * y;
+        }
+        for (int a = 0; a < 6; a++)
+            for (int b = 0; b < 6; b++)
+                for (int k = 0; k < 4; k++)
+                    for (int l = 0; l < 4; l++) {
+                        out[0][k][l] += E[a][k] * M[a][b] * E[b][l];
+                        out[1][k][l] += E[a][k] * S[a][b] * E[b][l];
+                    }
+    }
+}
+
 static int asm_visit(void *ud, const gd_piece *p, sc_error *err) {
     gd_asm *s = ud;
+    if (p->full) {
+        if (s->cell_face != p->face) cell_matrices(p->sqrtdet, p->ginv, s->cellm), s->cell_face = p->face;
+        bool same = s->labels != NULL;
+        for (int k = 1; k < 4 && same; k++) same = label_of(s->labels, p->cell[k]) == label_of(s->labels, p->cell[0]);
+        for (int k = 0; k < s->nmat; k++) {
+            if (k == 2 && !same) break;
+            for (int i = 0; i < 4; i++)
+                for (int j = i; j < 4; j++) asm_add(s, k, p->cell[i], p->cell[j], s->cellm[k ? 1 : 0][i][j]);
+        }
+        return SC_OK;
+    }
     /* the piece's texels */
     int32_t K = 0;
     for (int32_t i = 0; i < 3 * p->m + 1; i++) {
@@ -636,7 +683,7 @@ static int system_build(gd_walk *w, const sc_image_data *labels, gd_system *y, s
     memset(y, 0, sizeof *y);
     y->g = w->g;
     size_t np = (size_t)w->g.width * (size_t)w->g.height;
-    gd_asm s = {.g = &w->g, .labels = labels, .nmat = labels ? 3 : 2, .cap = 64};
+    gd_asm s = {.g = &w->g, .labels = labels, .nmat = labels ? 3 : 2, .cap = 64, .cell_face = -1};
     int rc = SC_ENOMEM;
     for (int k = 0; k < GD_NMAT; k++) sc_triplets_init(&s.extra[k], (int32_t)np);
     for (int k = 0; k < s.nmat; k++)
@@ -967,10 +1014,12 @@ fail:
     return rc;
 }
 
-static void relax(gd_level *v, int32_t C, int32_t sweeps) {
+/* Gauss-Seidel on the interior unknowns, forwards or (after the coarse
+ * correction, which keeps the V-cycle symmetric) backwards */
+static void relax(gd_level *v, int32_t C, int32_t sweeps, bool backwards) {
     for (int32_t s = 0; s < sweeps; s++)
-        for (int32_t k = 0; k < v->ni; k++) {
-            int32_t i = v->ilist[k];
+        for (int32_t kk = 0; kk < v->ni; kk++) {
+            int32_t i = v->ilist[backwards ? v->ni - 1 - kk : kk];
             double acc[4] = {0, 0, 0, 0}, diag = 0;
             for (int32_t c = 0; c < C; c++) acc[c] = v->bv[(size_t)i * C + c];
             for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++) {
@@ -1026,12 +1075,13 @@ static void csr_apply(const gd_csr *M, int32_t C, const double *x, double *y, bo
 }
 
 /* Fig. 8: relax the interior, solve the boundary, restrict the residual,
- * recurse, prolong the correction, solve the boundary, relax the interior */
+ * recurse, prolong the correction, solve the boundary, relax the interior
+ * (in the reverse order: the cycle is a symmetric operator) */
 static int vcycle(gd_mg *mg, int32_t l, int32_t sweeps, sc_error *err) {
     gd_level *v = &mg->lv[l];
     int32_t C = mg->C;
     if (l == mg->nl - 1) return boundary_solve(v, C, err);
-    relax(v, C, sweeps);
+    relax(v, C, sweeps, false);
     int rc = boundary_solve(v, C, err);
     if (rc != SC_OK) return rc;
     residual(&v->A, C, v->bv, v->xv, v->rv);
@@ -1043,7 +1093,7 @@ static int vcycle(gd_mg *mg, int32_t l, int32_t sweeps, sc_error *err) {
     csr_apply(&v->P, C, c->xv, v->xv, true);
     rc = boundary_solve(v, C, err);
     if (rc != SC_OK) return rc;
-    relax(v, C, sweeps);
+    relax(v, C, sweeps, true);
     return SC_OK;
 }
 
@@ -1059,6 +1109,29 @@ static void metric(sc_metric_list *ml, const char *fmt, const char *name, double
     char key[96];
     snprintf(key, sizeof key, fmt, name);
     sc_metric_list_add(ml, key, value);
+}
+
+static void vcycle_metric(sc_metric_list *ml, const char *name, int32_t k, double rel) {
+    char key[96];
+    snprintf(key, sizeof key, "%s_vcycle_%d_residual", name, (int)k);
+    sc_metric_list_add(ml, key, rel);
+}
+
+/* z = one V-cycle applied to r from a zero guess */
+static int precondition(gd_mg *mg, int32_t sweeps, const double *r, double *z, sc_error *err) {
+    gd_level *v = &mg->lv[0];
+    size_t nn = (size_t)v->n * (size_t)mg->C;
+    memcpy(v->bv, r, nn * sizeof *r);
+    memset(v->xv, 0, nn * sizeof *z);
+    int rc = vcycle(mg, 0, sweeps, err);
+    memcpy(z, v->xv, nn * sizeof *z);
+    return rc;
+}
+
+static void dot_channels(int32_t C, int32_t n, const double *a, const double *b, double out[4]) {
+    for (int32_t c = 0; c < C; c++) out[c] = 0;
+    for (int32_t i = 0; i < n; i++)
+        for (int32_t c = 0; c < C; c++) out[c] += a[(size_t)i * C + c] * b[(size_t)i * C + c];
 }
 
 /* A x = b for C interleaved channels; x holds the initial guess (multigrid) */
@@ -1085,25 +1158,56 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
     int rc = mg_build(A, y, o->levels, C, &mg, err);
     if (rc != SC_OK) return rc;
     gd_level *v = &mg.lv[0];
-    memcpy(v->bv, b, nn * sizeof *b);
-    memcpy(v->xv, x, nn * sizeof *x);
     double bn = norm2(b, nn), rel = 1;
     int32_t k = 0;
     metric(ml, "%s_levels", name, mg.nl);
     metric(ml, "%s_boundary_texels", name, v->nb);
-    if (bn == 0) memset(v->xv, 0, nn * sizeof *x), rel = 0;
-    while (rel > o->tolerance && k < o->max_vcycles) {
-        rc = vcycle(&mg, 0, o->relaxations, err);
-        if (rc != SC_OK) break;
-        residual(&v->A, C, v->bv, v->xv, v->rv);
-        rel = norm2(v->rv, nn) / bn;
-        k++;
-        char key[96];
-        snprintf(key, sizeof key, "%s_vcycle_%d_residual", name, (int)k);
-        sc_metric_list_add(ml, key, rel);
-    }
-    if (rc == SC_OK) {
+    double *r = NULL, *z = NULL, *p = NULL, *q = NULL;
+    if (bn == 0) {
+        memset(x, 0, nn * sizeof *x);
+        rel = 0;
+    } else if (o->solver == SC_GRADIENT_VCYCLES) {
+        memcpy(v->bv, b, nn * sizeof *b);
+        memcpy(v->xv, x, nn * sizeof *x);
+        while (rel > o->tolerance && k < o->max_vcycles && rc == SC_OK) {
+            rc = vcycle(&mg, 0, o->relaxations, err);
+            residual(&v->A, C, v->bv, v->xv, v->rv);
+            rel = norm2(v->rv, nn) / bn;
+            vcycle_metric(ml, name, ++k, rel);
+        }
         memcpy(x, v->xv, nn * sizeof *x);
+    } else {
+        /* conjugate gradients, one V-cycle (a symmetric operator) as the preconditioner */
+        r = sc_alloc_array(nn, sizeof *r), z = sc_alloc_array(nn, sizeof *z);
+        p = sc_alloc_array(nn, sizeof *p), q = sc_alloc_array(nn, sizeof *q);
+        if (!r || !z || !p || !q) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        double rz[4] = {0, 0, 0, 0};
+        if (rc == SC_OK) {
+            residual(&v->A, C, b, x, r);
+            rel = norm2(r, nn) / bn;
+            rc = precondition(&mg, o->relaxations, r, z, err);
+            memcpy(p, z, nn * sizeof *z);
+            dot_channels(C, y->n, r, z, rz);
+        }
+        while (rc == SC_OK && rel > o->tolerance && k < o->max_vcycles) {
+            double pq[4] = {0, 0, 0, 0}, rz1[4] = {0, 0, 0, 0};
+            csr_apply(&v->A, C, p, q, false);
+            dot_channels(C, y->n, p, q, pq);
+            for (size_t i = 0; i < nn; i++) {
+                double alpha = pq[i % C] > 0 ? rz[i % C] / pq[i % C] : 0;
+                x[i] += alpha * p[i], r[i] -= alpha * q[i];
+            }
+            rel = norm2(r, nn) / bn;
+            vcycle_metric(ml, name, ++k, rel);
+            if (rel <= o->tolerance || k == o->max_vcycles) break;
+            rc = precondition(&mg, o->relaxations, r, z, err);
+            dot_channels(C, y->n, r, z, rz1);
+            for (size_t i = 0; i < nn; i++) p[i] = z[i] + (rz[i % C] > 0 ? rz1[i % C] / rz[i % C] : 0) * p[i];
+            memcpy(rz, rz1, sizeof rz);
+        }
+    }
+    free(r), free(z), free(p), free(q);
+    if (rc == SC_OK) {
         metric(ml, "%s_vcycles", name, k);
         metric(ml, "%s_residual", name, rel);
         if (*vcycles < k) *vcycles = k;

@@ -54,8 +54,9 @@ typedef enum sc_gradient_op {
 int sc_gradient_op_named(const char *name);
 
 typedef enum sc_gradient_solver {
-    SC_GRADIENT_MULTIGRID = 0,
-    SC_GRADIENT_DIRECT = 1,   /* one CHOLMOD factorisation of the whole system */
+    SC_GRADIENT_MULTIGRID = 0, /* conjugate gradients, one V-cycle per iteration as the preconditioner */
+    SC_GRADIENT_DIRECT = 1,    /* one CHOLMOD factorisation of the whole system */
+    SC_GRADIENT_VCYCLES = 2,   /* V-cycles alone, as the paper runs them */
 } sc_gradient_solver;
 
 typedef struct sc_gradient_options {
