@@ -6,7 +6,9 @@
  * screening takes the operation's default: smooth beta 0, sharpen beta 2,
  * screening 1e4, stitch 1e2), processes the texture of slot `texture`, and
  * outputs the result as an f32 image (`image`: geodesic gives the distance,
- * one channel) and the atlas with that slot's image replaced (`atlas`). The
+ * one channel), the atlas with that slot's image replaced (`atlas`), and the
+ * same with the result rounded once to the input's pixel type and encoding
+ * (`atlas_native`, what the main job carries on). The
  * kernel's metrics (residual after every V-cycle, seam energies before and
  * after) pass on as they come. `lic` is not built: it fails with a message.
  */
@@ -14,6 +16,22 @@
 
 #include "sc_gradient.h"
 #include "sc_nodes.h"
+
+/* the atlas with texture k's image replaced (a new reference, NULL when out of memory) */
+static sc_value *with_slot(const sc_value *atlas, int32_t k, sc_value *img) {
+    const sc_atlas *a = atlas->as.atlas;
+    sc_atlas *out = sc_atlas_new(sc_value_retain(a->mesh));
+    if (!out) return NULL;
+    for (int32_t i = 0; i < a->ntex; i++) {
+        const sc_texture *s = &a->textures[i];
+        if (sc_atlas_add_texture(out, s->name, s->material, s->wrap_u, s->wrap_v, s->source,
+                                 sc_value_retain(i == k ? img : s->image)) != SC_OK) {
+            sc_atlas_free(out);
+            return NULL;
+        }
+    }
+    return sc_value_new_atlas(out);
+}
 
 static int run(sc_ctx *ctx, sc_error *err) {
     const sc_value *in = sc_ctx_input(ctx, "atlas");
@@ -47,24 +65,24 @@ static int run(sc_ctx *ctx, sc_error *err) {
     int rc = sc_gradient_apply(a->mesh->as.mesh, t, t->image->as.image, &o, sc_ctx_threads(ctx), &r, err);
     if (rc != SC_OK) return rc;
     for (int32_t i = 0; i < r.metrics.count; i++) sc_ctx_metric(ctx, r.metrics.items[i].name, r.metrics.items[i].value);
+    const sc_image_data *src = t->image->as.image;
+    sc_image_data *nat = op == SC_GRADIENT_GEODESIC || src->pixel == SC_PIXEL_F32
+                             ? NULL
+                             : sc_image_quantize(r.image, src->pixel, src->colorspace);
+    bool want_native = op != SC_GRADIENT_GEODESIC && src->pixel != SC_PIXEL_F32;
     sc_value *img = sc_value_new_image(r.image);
     r.image = NULL;
     sc_gradient_result_free(&r);
-    sc_atlas *out = img ? sc_atlas_new(sc_value_retain(a->mesh)) : NULL;
-    bool ok = out != NULL;
-    for (int32_t i = 0; ok && i < a->ntex; i++) {
-        const sc_texture *s = &a->textures[i];
-        ok = sc_atlas_add_texture(out, s->name, s->material, s->wrap_u, s->wrap_v, s->source,
-                                  sc_value_retain(i == k ? img : s->image)) == SC_OK;
-    }
-    sc_value *av = ok ? sc_value_new_atlas(out) : NULL;
-    if (!ok && out) sc_atlas_free(out);
-    if (!av) {
-        sc_value_release(img);
+    sc_value *native = want_native ? (nat ? sc_value_new_image(nat) : NULL) : sc_value_retain(img);
+    sc_value *av = img ? with_slot(in, k, img) : NULL, *nv = native ? with_slot(in, k, native) : NULL;
+    sc_value_release(img), sc_value_release(native);
+    if (!av || !nv) {
+        sc_value_release(av), sc_value_release(nv);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
-    sc_ctx_set_output(ctx, "image", img);
     sc_ctx_set_output(ctx, "atlas", av);
+    sc_ctx_set_output(ctx, "image", sc_value_retain(av->as.atlas->textures[k].image));
+    sc_ctx_set_output(ctx, "atlas_native", nv);
     return SC_OK;
 }
 
@@ -109,6 +127,9 @@ static const sc_port_desc outputs[] = {
     {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the atlas with the processed slot's image replaced by `image`"},
     {.name = "image", .kind = SC_KIND_IMAGE,
      .doc = "the result as f32 (sRGB colour as linear light); geodesic: the distance, one channel"},
+    {.name = "atlas_native", .kind = SC_KIND_ATLAS,
+     .doc = "the same with the result in the input's pixel type and encoding (8/16-bit rounded once; "
+            "geodesic: as atlas)"},
 };
 
 static const sc_kernel *const kernels[] = {&sc_kernel_gradient, NULL};
