@@ -1372,6 +1372,12 @@ static int run_geodesic(const sc_mesh *mesh, int32_t material, gd_walk *w, const
             int32_t i = y->unknown[src[s].id[k]];
             if (i >= 0 && src[s].w[k] != 0) delta[i] += src[s].w[k];
         }
+    double total = 0;
+    for (size_t i = 0; i < n; i++) total += delta[i];
+    if (!(total > 0)) {
+        rc = sc_fail(err, SC_EINPUT, "sources: none lies on a texel of the charts");
+        goto done;
+    }
     /* (M + t S) u = M delta, t in unit-area units scaled to the surface.
      * u decays like exp(-d / sqrt(t)): with t much below the paper's 1e-3,
      * far texels fall under what a V-cycle's residual resolves and the
@@ -1512,7 +1518,7 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
     rc = seam_energy(mesh, &w.seams, &g, r.image, threads, "out", &r.metrics, &e_out, err);
     if (rc != SC_OK) goto done;
     if (o->op != SC_GRADIENT_GEODESIC && e_in > 0) sc_metric_list_add(&r.metrics, "seam_energy_ratio", e_out / e_in);
-    rc = SC_OK;
+    rc = r.metrics.failed ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
 done:
     free(x0), free(x);
     sc_image_free(in);

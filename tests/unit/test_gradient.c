@@ -309,14 +309,17 @@ SC_TEST(stitch_two_halves) {
 }
 
 /* lic is not built: the node fails with a message, and so do a stitch
- * without labels and a geodesic without sources. */
+ * without labels and a geodesic without sources, with a source off the
+ * charts or one it cannot read. */
 SC_TEST(unbuilt_and_missing_inputs_fail) {
     sc_value *sphere = sphere_atlas(4, 64);
     if (!sphere) return;
     const char *lic[] = {"operation", "lic", NULL}, *st[] = {"operation", "stitch", NULL}, *ge[] = {"operation", "geodesic", NULL};
-    const char *const *cases[] = {lic, st, ge};
-    const char *says[] = {"not built", "labels", "sources"};
-    for (int k = 0; k < 3; k++) {
+    const char *off[] = {"operation", "geodesic", "sources", "texel 0 0", NULL}; /* in the padding */
+    const char *bad[] = {"operation", "geodesic", "sources", "0 0", NULL};
+    const char *const *cases[] = {lic, st, ge, off, bad};
+    const char *says[] = {"not built", "labels", "no sources", "none lies on a texel", "neither"};
+    for (int k = 0; k < 5; k++) {
         sc_test_run r = sc_test_run_node(&sc_node_gradient_domain, cases[k], "atlas", sphere, NULL, NULL);
         SC_CHECK(r.rc == SC_EINPUT);
         SC_CHECK_MSG(strstr(r.err.message, says[k]) != NULL, "%s", r.err.message);
