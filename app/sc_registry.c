@@ -10,6 +10,7 @@ static const sc_node_desc *const registry[] = {
     &sc_node_bake_displacement,
     &sc_node_decimate,
     &sc_node_erase_seams,
+    &sc_node_gradient_domain,
     &sc_node_quad_chartify,
     &sc_node_load_atlas,
     &sc_node_mipmap,

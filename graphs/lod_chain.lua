@@ -8,8 +8,9 @@
 --   seamcook run graphs/lod_chain.lua --set lods.normal_turn=45 (any node's parameter, by the node's name)
 --
 --   seamcook run graphs/lod_chain.lua --set chartify=always   (auto|always|never: a quad atlas first)
+--   seamcook run graphs/lod_chain.lua --set smooth=0.5        (colour smoothed first; 2: sharpened)
 --
--- load -> quad_chartify -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
+-- load -> quad_chartify -> [gradient_domain] -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
 --      -> bake_displacement (geometry image, displacement per LOD) -> mipmap -> render (every LOD x mip)
 local mesh = param("mesh", "")
 local asset
@@ -35,6 +36,18 @@ for _, r in ipairs(ratios) do min_ratio = math.min(min_ratio, r) end
 local chartified = quad_chartify{ name = "chartify", atlas = asset, mode = param("chartify", "auto"),
                                   texture_size = param("chart_texture_size", 0), min_ratio = min_ratio }
 asset = chartified.atlas
+
+-- Gradient-domain filtering (Prada et al. 2018), off by default: smooth=BETA
+-- scales the gradients of one texture (smooth_texture, colour by default):
+-- 0 <= BETA < 1 smooths, BETA > 1 sharpens, held to the input by
+-- smooth_screening (the paper's 1e4 on a surface of unit area). It runs
+-- before erase_seams: the filter blurs the seams but does not close them.
+local smooth = param("smooth", -1)
+if smooth >= 0 then
+  asset = gradient_domain{ name = "smooth", atlas = asset, operation = smooth > 1 and "sharpen" or "smooth",
+                           gradient_scale = smooth, screening = param("smooth_screening", 1e4),
+                           texture = param("smooth_texture", "color") }.atlas_native
+end
 
 -- Seam-free textures: float for the chain, and in the input's own format.
 -- filter_space: sRGB colour is erased, straightened and mip-mapped in linear

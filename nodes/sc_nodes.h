@@ -16,5 +16,6 @@ extern const sc_node_desc sc_node_bake_displacement; /* nodes/bake_displacement.
 extern const sc_node_desc sc_node_mipmap;        /* nodes/mipmap.c */
 extern const sc_node_desc sc_node_straighten;    /* nodes/straighten.c */
 extern const sc_node_desc sc_node_quad_chartify; /* nodes/quad_chartify.c */
+extern const sc_node_desc sc_node_gradient_domain; /* nodes/gradient_domain.c */
 
 #endif

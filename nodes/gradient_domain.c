@@ -1,0 +1,149 @@
+/* gradient_domain.c - the node `gradient_domain`: Prada, Kazhdan, Chuang,
+ * Hoppe 2018, gradient-domain processing within a texture atlas.
+ *
+ * A thin node over the gradient kernel (nodes/lib/sc_gradient.h): it reads
+ * the parameters into sc_gradient_options (a negative gradient_scale or
+ * screening takes the operation's default: smooth beta 0, sharpen beta 2,
+ * screening 1e4, stitch 1e2), processes the texture of slot `texture`, and
+ * outputs the result as an f32 image (`image`: geodesic gives the distance,
+ * one channel), the atlas with that slot's image replaced (`atlas`), and the
+ * same with the result rounded once to the input's pixel type and encoding
+ * (`atlas_native`, what the main job carries on). The
+ * kernel's metrics (residual after every V-cycle, seam energies before and
+ * after) pass on as they come. `lic` is not built: it fails with a message.
+ */
+#include <string.h>
+
+#include "sc_gradient.h"
+#include "sc_nodes.h"
+
+/* the atlas with texture k's image replaced (a new reference, NULL when out of memory) */
+static sc_value *with_slot(const sc_value *atlas, int32_t k, sc_value *img) {
+    const sc_atlas *a = atlas->as.atlas;
+    sc_atlas *out = sc_atlas_new(sc_value_retain(a->mesh));
+    if (!out) return NULL;
+    for (int32_t i = 0; i < a->ntex; i++) {
+        const sc_texture *s = &a->textures[i];
+        if (sc_atlas_add_texture(out, s->name, s->material, s->wrap_u, s->wrap_v, s->source,
+                                 sc_value_retain(i == k ? img : s->image)) != SC_OK) {
+            sc_atlas_free(out);
+            return NULL;
+        }
+    }
+    return sc_value_new_atlas(out);
+}
+
+static int run(sc_ctx *ctx, sc_error *err) {
+    const sc_value *in = sc_ctx_input(ctx, "atlas");
+    if (!in || in->kind != SC_KIND_ATLAS) return sc_fail(err, SC_EINPUT, "atlas: no atlas given");
+    const sc_atlas *a = in->as.atlas;
+    int op = sc_gradient_op_named(sc_ctx_string(ctx, "operation"));
+    if (op < 0) return sc_fail(err, SC_EINPUT, "operation: unknown");
+    sc_gradient_options o;
+    sc_gradient_defaults(&o, (sc_gradient_op)op);
+    double beta = sc_ctx_number(ctx, "gradient_scale"), w = sc_ctx_number(ctx, "screening");
+    if (beta >= 0) o.gradient_scale = beta;
+    if (w >= 0) o.screening = w;
+    o.time_step = sc_ctx_number(ctx, "time_step");
+    o.sources = sc_ctx_string(ctx, "sources");
+    const char *solver = sc_ctx_string(ctx, "solver");
+    o.solver = strcmp(solver, "direct") == 0    ? SC_GRADIENT_DIRECT
+               : strcmp(solver, "vcycles") == 0 ? SC_GRADIENT_VCYCLES
+                                                : SC_GRADIENT_MULTIGRID;
+    o.levels = (int32_t)sc_ctx_integer(ctx, "levels");
+    o.relaxations = (int32_t)sc_ctx_integer(ctx, "relaxations");
+    o.max_vcycles = (int32_t)sc_ctx_integer(ctx, "max_vcycles");
+    o.tolerance = sc_ctx_number(ctx, "tolerance");
+    const sc_value *labels = sc_ctx_input(ctx, "labels");
+    if (labels) o.labels = labels->as.image;
+    const char *slot = sc_ctx_string(ctx, "texture");
+    int32_t k = 0;
+    while (k < a->ntex && strcmp(a->textures[k].name, slot) != 0) k++;
+    if (k == a->ntex) return sc_fail(err, SC_EINPUT, "texture: the atlas has no texture in slot '%s'", slot);
+    const sc_texture *t = &a->textures[k];
+    sc_gradient_result r;
+    int rc = sc_gradient_apply(a->mesh->as.mesh, t, t->image->as.image, &o, sc_ctx_threads(ctx), &r, err);
+    if (rc != SC_OK) return rc;
+    for (int32_t i = 0; i < r.metrics.count; i++) sc_ctx_metric(ctx, r.metrics.items[i].name, r.metrics.items[i].value);
+    const sc_image_data *src = t->image->as.image;
+    sc_image_data *nat = op == SC_GRADIENT_GEODESIC || src->pixel == SC_PIXEL_F32
+                             ? NULL
+                             : sc_image_quantize(r.image, src->pixel, src->colorspace);
+    bool want_native = op != SC_GRADIENT_GEODESIC && src->pixel != SC_PIXEL_F32;
+    sc_value *img = sc_value_new_image(r.image);
+    r.image = NULL;
+    sc_gradient_result_free(&r);
+    sc_value *native = want_native ? (nat ? sc_value_new_image(nat) : NULL) : sc_value_retain(img);
+    sc_value *av = img ? with_slot(in, k, img) : NULL, *nv = native ? with_slot(in, k, native) : NULL;
+    sc_value_release(img), sc_value_release(native);
+    if (!av || !nv) {
+        sc_value_release(av), sc_value_release(nv);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    sc_ctx_set_output(ctx, "atlas", av);
+    sc_ctx_set_output(ctx, "image", sc_value_retain(av->as.atlas->textures[k].image));
+    sc_ctx_set_output(ctx, "atlas_native", nv);
+    return SC_OK;
+}
+
+/* ---------------------------------------------------------------- descriptor */
+
+static const char *const operation_choices[] = {"smooth", "sharpen", "stitch", "geodesic", "lic", NULL};
+static const char *const solver_choices[] = {"multigrid", "vcycles", "direct", NULL};
+
+static const sc_param_desc params[] = {
+    {.name = "operation", .type = SC_PARAM_ENUM, .def_string = "smooth", .choices = operation_choices,
+     .doc = "smooth, sharpen (gradients scaled by gradient_scale), stitch (gradients kept inside each label of "
+            "the labels image), geodesic (heat-method distance to sources), lic (not built: fails)"},
+    {.name = "texture", .type = SC_PARAM_STRING, .def_string = "color", .doc = "the texture slot processed"},
+    {.name = "gradient_scale", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e6,
+     .doc = "beta, the factor of the gradients kept (smooth < 1 < sharpen); negative: 0 smooth, 2 sharpen"},
+    {.name = "screening", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e30,
+     .doc = "w, the screening weight on a surface scaled to unit area; negative: 1e4 (smooth, sharpen), 1e2 (stitch)"},
+    {.name = "time_step", .type = SC_PARAM_NUMBER, .def = 1e-3, .min = 1e-12, .max = 1e6,
+     .doc = "geodesic: the heat step t, on a surface scaled to unit area (the paper's 1e-3)"},
+    {.name = "sources", .type = SC_PARAM_STRING, .def_string = "",
+     .doc = "geodesic: ';'-separated sources, \"x y z\" (nearest mesh vertex) or \"texel i j\""},
+    {.name = "solver", .type = SC_PARAM_ENUM, .def_string = "multigrid", .choices = solver_choices,
+     .doc = "multigrid: conjugate gradients preconditioned by one V-cycle per iteration (interior texels "
+            "relaxed, boundary texels solved by CHOLMOD); vcycles: V-cycles alone, as the paper; direct: one "
+            "CHOLMOD factorisation"},
+    {.name = "levels", .type = SC_PARAM_INTEGER, .def = 4, .min = 1, .max = 16, .doc = "multigrid levels"},
+    {.name = "relaxations", .type = SC_PARAM_INTEGER, .def = 3, .min = 0, .max = 100,
+     .doc = "Gauss-Seidel sweeps on each level, before and after the coarse correction"},
+    {.name = "max_vcycles", .type = SC_PARAM_INTEGER, .def = 30, .min = 1, .max = 10000,
+     .doc = "the most V-cycles per solve"},
+    {.name = "tolerance", .type = SC_PARAM_NUMBER, .def = 1e-8, .min = 0, .max = 1,
+     .doc = "V-cycles stop once the relative residual is below this"},
+};
+
+static const sc_port_desc inputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the textured mesh"},
+    {.name = "labels", .kind = SC_KIND_IMAGE, .optional = true,
+     .doc = "stitch: the source of every texel as an index image (channel 0), the texture's size"},
+};
+
+static const sc_port_desc outputs[] = {
+    {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the atlas with the processed slot's image replaced by `image`"},
+    {.name = "image", .kind = SC_KIND_IMAGE,
+     .doc = "the result as f32 (sRGB colour as linear light); geodesic: the distance, one channel"},
+    {.name = "atlas_native", .kind = SC_KIND_ATLAS,
+     .doc = "the same with the result in the input's pixel type and encoding (8/16-bit rounded once; "
+            "geodesic: as atlas)"},
+};
+
+static const sc_kernel *const kernels[] = {&sc_kernel_gradient, NULL};
+
+const sc_node_desc sc_node_gradient_domain = {
+    .type = "gradient_domain",
+    .version = 1,
+    .summary = "gradient-domain processing in the texture atlas (Prada et al. 2018): smooth, sharpen, stitch, geodesic",
+    .inputs = inputs,
+    .ninputs = SC_COUNT(inputs),
+    .outputs = outputs,
+    .noutputs = SC_COUNT(outputs),
+    .params = params,
+    .nparams = SC_COUNT(params),
+    .run = run,
+    .kernels = kernels,
+};
