@@ -15,9 +15,9 @@ packages=(build-essential cmake pkg-config libuv1-dev libsqlite3-dev liblua5.4-d
   libssl-dev libcjson-dev libcurl4-openssl-dev libmeshoptimizer-dev openimageio-tools clang libclang-rt-14-dev chromium)
 
 # what the tests add: nginx and lighttpd (WebDAV) and protoc for the remote-cache tests, openssl for
-# their password file
+# their password file; Blender (with numpy, its glTF importer's) to import the main job's .glb
 if [ "$mode" = test ] || [ "$mode" = farm-test ]; then
-  packages+=(nginx-light lighttpd lighttpd-mod-webdav protobuf-compiler openssl)
+  packages+=(nginx-light lighttpd lighttpd-mod-webdav protobuf-compiler openssl blender python3-numpy)
 fi
 if [ "$mode" = farm-test ]; then
   packages+=(slurm-wlm munge)

@@ -17,7 +17,9 @@
  *   image   N.<ext>
  *   glb     N.glb (glb = true, with an atlas or lods): glTF 2.0 holding the
  *           atlas's mesh and every level as MSFT_lod levels of one node, the
- *           texture set's PNG/JPEG files embedded (sc_gltf_write_glb)
+ *           texture set's PNG/JPEG files embedded (sc_gltf_write_glb); with
+ *           gltf_form = gltf, N.gltf and N.bin instead, the JSON naming the
+ *           texture files beside it (sc_gltf_write_gltf)
  * The MTL names colour maps with map_Kd, normal maps with map_Bump (what
  * Blender and most OBJ readers take for a normal map; load_atlas reads norm,
  * map_Bump and bump), emissive maps with map_Ke; other slots have no MTL
@@ -428,18 +430,23 @@ static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_err
                 const sc_bytes *b = s->report->files[f].bytes->as.bytes;
                 s->glb_tex[i].bytes = b->data, s->glb_tex[i].size = b->size;
             }
-    sc_buf b;
-    sc_buf_init(&b);
-    int rc = sc_gltf_write_glb(levels, n, s->glb_tex, s->nglb, &b, err);
-    char *file = rc == SC_OK ? sc_strprintf("%s.glb", s->name) : NULL;
-    if (rc == SC_OK && !file) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int i = 0; i < s->nglb; i++) s->glb_tex[i].uri = s->glb_path[i];
+    bool separate = strcmp(sc_ctx_string(s->ctx, "gltf_form"), "gltf") == 0;
+    sc_buf b, bin;
+    sc_buf_init(&b), sc_buf_init(&bin);
+    char *file = sc_strprintf("%s.%s", s->name, separate ? "gltf" : "glb");
+    char *bin_file = separate ? sc_strprintf("%s.bin", s->name) : NULL;
+    int rc = !file || (separate && !bin_file) ? sc_fail(err, SC_ENOMEM, "out of memory")
+             : separate ? sc_gltf_write_gltf(levels, n, s->glb_tex, s->nglb, bin_file, &b, &bin, err)
+                        : sc_gltf_write_glb(levels, n, s->glb_tex, s->nglb, &b, err);
     if (rc == SC_OK) {
-        s->bytes += (int64_t)b.len;
+        s->bytes += (int64_t)(b.len + bin.len);
         rc = add_file(s->report, file, &b, err);
     }
-    if (rc) sc_error_prefix(err, "%s.glb", s->name);
-    free(file), free(levels);
-    sc_buf_free(&b);
+    if (rc == SC_OK && separate) rc = add_file(s->report, bin_file, &bin, err);
+    if (rc) sc_error_prefix(err, "%s.%s", s->name, separate ? "gltf" : "glb");
+    free(file), free(bin_file), free(levels);
+    sc_buf_free(&b), sc_buf_free(&bin);
     return rc;
 }
 
@@ -516,6 +523,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 }
 
 static const char *const format_choices[] = {"auto", "png", "jpg", "exr", NULL};
+static const char *const gltf_form_choices[] = {"glb", "gltf", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "file", .type = SC_PARAM_STRING, .def_string = "asset",
@@ -527,6 +535,9 @@ static const sc_param_desc params[] = {
      .doc = "also write every texture as float EXR"},
     {.name = "glb", .type = SC_PARAM_BOOL, .def = 1,
      .doc = "also write <file>.glb: glTF 2.0 with every level (MSFT_lod) and the PNG/JPEG textures embedded"},
+    {.name = "gltf_form", .type = SC_PARAM_ENUM, .def_string = "glb", .choices = gltf_form_choices,
+     .doc = "glb: one binary file, textures embedded; gltf: <file>.gltf and <file>.bin, naming the texture "
+            "files beside them"},
     {.name = "max_seam_gap", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e30,
      .doc = "fail when a texture file, decoded and filtered as a renderer does (sRGB colour in linear light), "
             "has seams wider than its image's by more than this; -1: measure only"},
@@ -547,7 +558,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, 
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 6,
+    .version = 7,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

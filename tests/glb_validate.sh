@@ -1,7 +1,7 @@
 #!/bin/bash
 # glb_validate.sh VALIDATOR_DIR [--corpus] FILE... - the Khronos
 # glTF-Validator (npm gltf-validator, installed under VALIDATOR_DIR by
-# `setup.sh test` where npm is present) on every .glb given: 0 errors and 0
+# `setup.sh test` where npm is present) on every .glb or .gltf given: 0 errors and 0
 # warnings, or the test fails. Without node or the validator it is skipped
 # (exit status 77). A missing .glb fails, except with --corpus, where the
 # main jobs that write them skip without the corpus (then so does this).

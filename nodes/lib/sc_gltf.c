@@ -513,6 +513,85 @@ static void normal_matrix(const mat4 m, double n[3][3]) {
         for (int j = 0; j < 3; j++) n[i][j] = sign * c[i][j];
 }
 
+/* ---------------------------------------------------------------- texture transforms */
+
+/* KHR_texture_transform as an affine map of glTF uv (top-left origin):
+ * u' = m[0] u + m[1] v + m[2], v' = m[3] u + m[4] v + m[5], the extension's
+ * translation x rotation x scale: u' = sx u cos r + sy v sin r + ox,
+ * v' = sy v cos r - sx u sin r + oy. */
+typedef struct uv_transform {
+    double m[6];
+} uv_transform;
+
+static const uv_transform uv_identity = {{1, 0, 0, 0, 1, 0}};
+
+/* A textureInfo's transform (identity when it has none) and the uv set it
+ * samples (the extension's texCoord overrides the textureInfo's). */
+static int texture_transform(reader *r, const char *ctx, const char *slot, const cJSON *info, uv_transform *out,
+                             int64_t *texcoord) {
+    char tctx[96];
+    snprintf(tctx, sizeof tctx, "%s: the %s texture", ctx, slot);
+    int rc = get_int(r, tctx, info, "texCoord", 0, 0, 1 << 20, texcoord);
+    const cJSON *x = field(field(info, "extensions"), "KHR_texture_transform");
+    *out = uv_identity;
+    if (rc || !x) return rc;
+    snprintf(tctx, sizeof tctx, "%s: the %s texture's KHR_texture_transform", ctx, slot);
+    if (!cJSON_IsObject(x)) return fail(r, SC_EINPUT, "%s is not an object", tctx);
+    double offset[2] = {0, 0}, scale[2] = {1, 1}, rotation = 0;
+    const cJSON *rot = field(x, "rotation");
+    if (rot && !(cJSON_IsNumber(rot) && isfinite(rot->valuedouble)))
+        return fail(r, SC_EINPUT, "%s: 'rotation' is not a finite number", tctx);
+    if (rot) rotation = rot->valuedouble;
+    if ((rc = get_numbers(r, tctx, x, "offset", 2, offset, NULL)) ||
+        (rc = get_numbers(r, tctx, x, "scale", 2, scale, NULL)) ||
+        (rc = get_int(r, tctx, x, "texCoord", *texcoord, 0, 1 << 20, texcoord)))
+        return rc;
+    double c = cos(rotation), s = sin(rotation);
+    *out = (uv_transform){{scale[0] * c, scale[1] * s, offset[0], -scale[0] * s, scale[1] * c, offset[1]}};
+    return SC_OK;
+}
+
+/* The one transform every texture of material gm that samples TEXCOORD_0
+ * applies: the uv are transformed as they are read, so the atlas holds the
+ * uv each texture is really sampled at. Textures of one material that
+ * transform TEXCOORD_0 differently would need uv sets of their own: an
+ * error naming them. */
+static int material_transform(reader *r, int64_t gm, uv_transform *out) {
+    *out = uv_identity;
+    if (gm < 0) return SC_OK;
+    char ctx[64];
+    snprintf(ctx, sizeof ctx, "material %lld", (long long)gm);
+    const cJSON *m = r->materials.items[gm], *pbr = field(m, "pbrMetallicRoughness");
+    const cJSON *color = field(pbr, "baseColorTexture");
+    if (!color)
+        color = field(field(field(m, "extensions"), "KHR_materials_pbrSpecularGlossiness"), "diffuseTexture");
+    const struct {
+        const char *slot;
+        const cJSON *info;
+    } slots[] = {{"color", color},
+                 {"normal", field(m, "normalTexture")},
+                 {"emissive", field(m, "emissiveTexture")},
+                 {"occlusion", field(m, "occlusionTexture")},
+                 {"metallic_roughness", field(pbr, "metallicRoughnessTexture")}};
+    const char *first = NULL;
+    for (size_t i = 0; i < sizeof slots / sizeof slots[0]; i++) {
+        if (!cJSON_IsObject(slots[i].info)) continue;
+        uv_transform t;
+        int64_t texcoord = 0;
+        int rc = texture_transform(r, ctx, slots[i].slot, slots[i].info, &t, &texcoord);
+        if (rc) return rc;
+        if (texcoord != 0) continue;
+        if (!first) {
+            *out = t, first = slots[i].slot;
+        } else if (memcmp(out->m, t.m, sizeof t.m) != 0) {
+            return fail(r, SC_EINPUT, "%s: the %s and %s textures transform TEXCOORD_0 differently "
+                        "(KHR_texture_transform); seamcook bakes one transform per material into the uv",
+                        ctx, first, slots[i].slot);
+        }
+    }
+    return SC_OK;
+}
+
 static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *prim, const mat4 m) {
     char ctx[96];
     snprintf(ctx, sizeof ctx, "mesh %lld primitive %lld", (long long)mesh, (long long)index);
@@ -538,6 +617,8 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
         (rc = get_ref(r, ctx, prim, "indices", &r->accessors, "accessor", false, &idx_i)) ||
         (rc = get_ref(r, ctx, prim, "material", &r->materials, "material", false, &material)))
         return rc;
+    uv_transform ut;
+    if ((rc = material_transform(r, material, &ut))) return rc;
     accessor pos, uv, nrm, idx;
     if ((rc = open_accessor(r, pos_i, 3, "POSITION", &pos)) ||
         (rc = open_accessor(r, uv_i, 2, "TEXCOORD_0", &uv)))
@@ -582,8 +663,12 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
             return fail(r, SC_EINPUT, "%s: POSITION %lld is not finite after the node transform", ctx,
                         (long long)i);
-        r->UV[2 * (base + i)] = u;
-        r->UV[2 * (base + i) + 1] = 1.0 - v;
+        double tu = ut.m[0] * u + ut.m[1] * v + ut.m[2], tv = ut.m[3] * u + ut.m[4] * v + ut.m[5];
+        if (!isfinite(tu) || !isfinite(tv))
+            return fail(r, SC_EINPUT, "%s: TEXCOORD_0 %lld is not finite after the material's texture transform", ctx,
+                        (long long)i);
+        r->UV[2 * (base + i)] = tu;
+        r->UV[2 * (base + i) + 1] = 1.0 - tv;
         if (r->all_normals) {
             double a = accessor_get(&nrm, i, 0), b = accessor_get(&nrm, i, 1), c = accessor_get(&nrm, i, 2);
             if (!isfinite(a) || !isfinite(b) || !isfinite(c))
@@ -839,16 +924,14 @@ static int add_texture(reader *r, const char *mctx, const cJSON *info, const cha
     if (!cJSON_IsObject(info)) return fail(r, SC_EINPUT, "%s: the %s texture is not an object", mctx, slot);
     int64_t tex = -1, texcoord = 0, source = -1, sampler = -1;
     int rc;
+    uv_transform unused;
     if ((rc = get_ref(r, mctx, info, "index", &r->textures, "texture", true, &tex)) ||
-        (rc = get_int(r, mctx, info, "texCoord", 0, 0, 1 << 20, &texcoord)))
+        (rc = texture_transform(r, mctx, slot, info, &unused, &texcoord)))
         return rc;
     if (texcoord != 0) {
         out->textures_skipped++;
         return SC_OK;
     }
-    if (field(field(info, "extensions"), "KHR_texture_transform"))
-        return fail(r, SC_EINPUT, "%s: the %s texture uses KHR_texture_transform, which seamcook does not apply",
-                    mctx, slot);
     char ctx[64];
     snprintf(ctx, sizeof ctx, "texture %lld", (long long)tex);
     const cJSON *t = r->textures.items[tex];

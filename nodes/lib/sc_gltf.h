@@ -30,8 +30,11 @@
  * normalTexture -> "normal", emissiveTexture -> "emissive", occlusionTexture ->
  * "occlusion", metallicRoughnessTexture -> "metallic_roughness"; wrap from the
  * texture's sampler (default repeat). A texture that uses a uv set other than
- * TEXCOORD_0 is skipped and counted; one with KHR_texture_transform is an
- * error (its uvs would be wrong).
+ * TEXCOORD_0 (or whose KHR_texture_transform names another) is skipped and
+ * counted. KHR_texture_transform is applied to the uv as they are read, so
+ * the atlas and every file written from it need no transform: the textures of
+ * one material that sample TEXCOORD_0 must share one transform, else the file
+ * is refused naming the material and both textures.
  *
  * Errors name the file and the element: "Duck.gltf: accessor 3: count 506 with
  * stride 12 needs 6072 bytes, bufferView 2 has 6000". Every index, offset,
@@ -48,7 +51,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 1
+#define SC_GLTF_VERSION 2
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */
@@ -92,8 +95,9 @@ void sc_gltf_free(sc_gltf *g);
 
 /* ---------------------------------------------------------------- writing (sc_gltf_write.c) */
 
-/* A texture to embed: its material and slot (the reader's slot names), its
- * wrap modes, and its file's bytes (PNG or JPEG; borrowed). */
+/* A texture: its material and slot (the reader's slot names), its wrap
+ * modes, and its file: the bytes to embed in a .glb (PNG or JPEG; borrowed),
+ * or the uri a .gltf names it by (the file beside it). */
 typedef struct sc_gltf_out_texture {
     int32_t material;
     const char *slot;
@@ -101,6 +105,7 @@ typedef struct sc_gltf_out_texture {
     const uint8_t *bytes;
     size_t size;
     const char *mime;   /* "image/png" or "image/jpeg" */
+    const char *uri;    /* for sc_gltf_write_gltf */
 } sc_gltf_out_texture;
 
 /* One .glb holding every level of detail: node 0 draws levels[0] and names
@@ -111,5 +116,11 @@ typedef struct sc_gltf_out_texture {
  * modes. Positions, uvs (v stored as 1 - v) and normals are float32. */
 int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
                       int32_t ntextures, sc_buf *out, sc_error *err);
+
+/* The same document as a .gltf: its JSON text appended to *json, the binary
+ * buffer (the .glb's chunk without the images) to *bin, which the JSON names
+ * bin_uri; images by their textures' uri. */
+int sc_gltf_write_gltf(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
+                       int32_t ntextures, const char *bin_uri, sc_buf *json, sc_buf *bin, sc_error *err);
 
 #endif

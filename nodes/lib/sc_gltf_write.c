@@ -1,5 +1,5 @@
-/* sc_gltf_write.c - a glTF 2.0 binary (.glb) with every level of detail
- * (sc_gltf.h). The JSON is printed by hand in a fixed order, numbers as the
+/* sc_gltf_write.c - glTF 2.0 with every level of detail, as one binary
+ * .glb or as a .gltf with its .bin and images beside it (sc_gltf.h). The JSON is printed by hand in a fixed order, numbers as the
  * shortest text that reads back to the same float, so the bytes depend on
  * the inputs alone. Levels go on node 0 through MSFT_lod; a level's corners
  * become glTF vertices by their (position, uv, normal) indices, so a vertex
@@ -170,14 +170,16 @@ static int texture_of(const sc_gltf_out_texture *t, int32_t n, int32_t mat, cons
     return -1;
 }
 
-int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
-                      int32_t ntextures, sc_buf *out, sc_error *err) {
+/* The document: its JSON in g->json and its buffer in g->bin. bin_uri NULL
+ * makes a .glb's (images in the buffer, buffer 0 the binary chunk); else a
+ * .gltf's (images by their textures' uri, buffer 0 the file bin_uri). */
+static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlevels,
+                          const sc_gltf_out_texture *textures, int32_t ntextures, const char *bin_uri, sc_error *err) {
     if (nlevels < 1) return sc_fail(err, SC_EINPUT, "glb: no levels");
     const sc_mesh *m0 = levels[0];
     for (int32_t l = 1; l < nlevels; l++)
         if (levels[l]->nmat != m0->nmat) return sc_fail(err, SC_EINPUT, "glb: level %d has other materials", (int)l);
-    glb g = {0};
-    sc_buf_init(&g.json), sc_buf_init(&g.bin), sc_buf_init(&g.views), sc_buf_init(&g.accessors);
+    glb g = *g_out;
     sc_buf meshes, images, texs, samplers, materials;
     sc_buf_init(&meshes), sc_buf_init(&images), sc_buf_init(&texs), sc_buf_init(&samplers), sc_buf_init(&materials);
     int rc = SC_OK;
@@ -194,8 +196,14 @@ int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gl
     }
     /* images, samplers (one per texture: its wrap modes), textures */
     for (int32_t i = 0; i < ntextures && rc == SC_OK; i++) {
-        int32_t view = add_view(&g, textures[i].bytes, textures[i].size, 0);
-        sc_buf_printf(&images, "%s{\"bufferView\":%d,\"mimeType\":\"%s\"}", i ? "," : "", view, textures[i].mime);
+        if (bin_uri) {
+            sc_buf_puts(&images, i ? ",{\"uri\":" : "{\"uri\":");
+            put_string(&images, textures[i].uri ? textures[i].uri : "");
+            sc_buf_puts(&images, "}");
+        } else {
+            int32_t view = add_view(&g, textures[i].bytes, textures[i].size, 0);
+            sc_buf_printf(&images, "%s{\"bufferView\":%d,\"mimeType\":\"%s\"}", i ? "," : "", view, textures[i].mime);
+        }
         sc_buf_printf(&samplers, "%s{\"magFilter\":9729,\"minFilter\":9987,\"wrapS\":%d,\"wrapT\":%d}", i ? "," : "",
                       gl_wrap(textures[i].wrap_u), gl_wrap(textures[i].wrap_v));
         sc_buf_printf(&texs, "%s{\"sampler\":%d,\"source\":%d}", i ? "," : "", (int)i, (int)i);
@@ -248,11 +256,29 @@ int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gl
     sc_buf_append(j, g.accessors.data, g.accessors.len);
     sc_buf_puts(j, "],\"bufferViews\":[");
     sc_buf_append(j, g.views.data, g.views.len);
-    sc_buf_printf(j, "],\"buffers\":[{\"byteLength\":%zu}]}", g.bin.len);
-    while (j->len % 4) sc_buf_u8(j, ' ');
+    sc_buf_puts(j, "],\"buffers\":[{");
+    if (bin_uri) {
+        sc_buf_puts(j, "\"uri\":");
+        put_string(j, bin_uri);
+        sc_buf_puts(j, ",");
+    }
+    sc_buf_printf(j, "\"byteLength\":%zu}]}", g.bin.len);
     bool failed = g.json.failed || g.bin.failed || g.views.failed || g.accessors.failed || meshes.failed ||
                   images.failed || texs.failed || samplers.failed || materials.failed;
     if (rc == SC_OK && failed) rc = sc_fail(err, SC_ENOMEM, "glb: out of memory");
+    sc_buf_free(&g.views), sc_buf_free(&g.accessors);
+    sc_buf_free(&meshes), sc_buf_free(&images), sc_buf_free(&texs), sc_buf_free(&samplers), sc_buf_free(&materials);
+    *g_out = g;
+    return rc;
+}
+
+int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
+                      int32_t ntextures, sc_buf *out, sc_error *err) {
+    glb g = {0};
+    sc_buf_init(&g.json), sc_buf_init(&g.bin), sc_buf_init(&g.views), sc_buf_init(&g.accessors);
+    int rc = write_document(&g, levels, nlevels, textures, ntextures, NULL, err);
+    sc_buf *j = &g.json;
+    while (j->len % 4) sc_buf_u8(j, ' ');
     if (rc == SC_OK && 12 + 8 + j->len + 8 + g.bin.len > UINT32_MAX) rc = sc_fail(err, SC_EINPUT, "glb: over 4 GB");
     if (rc == SC_OK) {
         sc_buf_u32(out, 0x46546C67u);   /* "glTF" */
@@ -266,7 +292,20 @@ int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gl
         sc_buf_append(out, g.bin.data, g.bin.len);
         if (out->failed) rc = sc_fail(err, SC_ENOMEM, "glb: out of memory");
     }
-    sc_buf_free(&g.json), sc_buf_free(&g.bin), sc_buf_free(&g.views), sc_buf_free(&g.accessors);
-    sc_buf_free(&meshes), sc_buf_free(&images), sc_buf_free(&texs), sc_buf_free(&samplers), sc_buf_free(&materials);
+    sc_buf_free(&g.json), sc_buf_free(&g.bin);
+    return rc;
+}
+
+int sc_gltf_write_gltf(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
+                       int32_t ntextures, const char *bin_uri, sc_buf *json, sc_buf *bin, sc_error *err) {
+    glb g = {0};
+    sc_buf_init(&g.json), sc_buf_init(&g.bin), sc_buf_init(&g.views), sc_buf_init(&g.accessors);
+    int rc = write_document(&g, levels, nlevels, textures, ntextures, bin_uri, err);
+    if (rc == SC_OK) {
+        sc_buf_append(json, g.json.data, g.json.len);
+        sc_buf_append(bin, g.bin.data, g.bin.len);
+        if (json->failed || bin->failed) rc = sc_fail(err, SC_ENOMEM, "gltf: out of memory");
+    }
+    sc_buf_free(&g.json), sc_buf_free(&g.bin);
     return rc;
 }

@@ -28,11 +28,15 @@ done
 
 
 mkdir -p "$work/homeA" "$work/tmpA" "$work/homeB/x" "$work/tmpB/y" "$work/bin"
+# OpenBLAS's variables stay: OPENBLAS_CORETYPE picks the BLAS kernels, which
+# the keys rightly follow (the sparse kernel's platform text), and the runs
+# below outside `env -i` see them too
+mapfile -t blas_env < <(env | grep '^OPENBLAS_' || true)
 (cd "$work/a/project" &&
-  env -i HOME="$work/homeA" TMPDIR="$work/tmpA" PATH=/usr/bin:/bin LC_ALL=C \
+  env -i "${blas_env[@]}" HOME="$work/homeA" TMPDIR="$work/tmpA" PATH=/usr/bin:/bin LC_ALL=C \
     "$bin" run graph.lua --cache "$work/cache-a" --out "$work/out-a" -q -j2)
 (cd "$work/b/deeper" &&
-  env -i HOME="$work/homeB/x" TMPDIR="$work/tmpB/y" PATH="$work/bin:/usr/local/bin:/usr/bin:/bin" LANG=C.UTF-8 LC_ALL=C.UTF-8 \
+  env -i "${blas_env[@]}" HOME="$work/homeB/x" TMPDIR="$work/tmpB/y" PATH="$work/bin:/usr/local/bin:/usr/bin:/bin" LANG=C.UTF-8 LC_ALL=C.UTF-8 \
     "$bin" run checkout/project/graph.lua --set mesh=checkout/project/assets/asset.obj \
     --cache "$work/cache-b" --out "$work/out-b" -q -j1)
 keys_of "$work/out-a/report.json" > "$work/keys-a"

@@ -6,6 +6,7 @@
  * and an occlusion texture on TEXCOORD_1 (skipped). The .glb variants and all
  * the broken files are made from it here, with cJSON.
  */
+#include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
 
@@ -205,6 +206,65 @@ SC_TEST(parses_gltf_with_transforms_and_seams) {
     cJSON_Delete(j);
 }
 
+/* KHR_texture_transform, written out by hand: u' = sx u cos r + sy v sin r + ox,
+ * v' = sy v cos r - sx u sin r + oy in glTF's uv (v down), the atlas's v = 1 - v' */
+static void add_transform(cJSON *info, double ox, double oy, double r, double sx, double sy, int texcoord) {
+    cJSON *x = cJSON_AddObjectToObject(cJSON_AddObjectToObject(info, "extensions"), "KHR_texture_transform");
+    double offset[2] = {ox, oy}, scale[2] = {sx, sy};
+    cJSON_AddItemToObject(x, "offset", cJSON_CreateDoubleArray(offset, 2));
+    cJSON_AddNumberToObject(x, "rotation", r);
+    cJSON_AddItemToObject(x, "scale", cJSON_CreateDoubleArray(scale, 2));
+    if (texcoord >= 0) cJSON_AddNumberToObject(x, "texCoord", texcoord);
+}
+
+SC_TEST(texture_transform_is_baked_into_the_uv) {
+    cJSON *plain = load_quad(), *moved = load_quad();
+    if (!plain || !moved) return;
+    cJSON *m = at(moved, "materials", 0);
+    const double ox = 0.25, oy = -0.5, r = 0.3, sx = 2, sy = 0.5;
+    add_transform(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(m, "pbrMetallicRoughness"),
+                                                   "baseColorTexture"), ox, oy, r, sx, sy, -1);
+    add_transform(cJSON_GetObjectItemCaseSensitive(m, "normalTexture"), ox, oy, r, sx, sy, -1);
+    /* the occlusion texture samples TEXCOORD_1: its own transform does not enter */
+    add_transform(cJSON_GetObjectItemCaseSensitive(m, "occlusionTexture"), 0, 0, 1.0, 3, 3, -1);
+    sc_gltf a, b;
+    sc_error err = {0};
+    SC_CHECK(parse_json("quad.gltf", plain, &a, &err) == SC_OK);
+    SC_CHECK_MSG(parse_json("quad.gltf", moved, &b, &err) == SC_OK, "%s", err.message);
+    if (a.mesh && b.mesh) {
+        SC_CHECK_INT(b.mesh->nu, a.mesh->nu);
+        SC_CHECK_INT(b.textures_skipped, 1);
+        double worst = 0;
+        for (int32_t k = 0; k < a.mesh->nu && k < b.mesh->nu; k++) {
+            double u = a.mesh->U[2 * k], v = 1 - a.mesh->U[2 * k + 1];
+            double tu = sx * u * cos(r) + sy * v * sin(r) + ox, tv = sy * v * cos(r) - sx * u * sin(r) + oy;
+            worst = fmax(worst, fmax(fabs(b.mesh->U[2 * k] - tu), fabs(b.mesh->U[2 * k + 1] - (1 - tv))));
+        }
+        SC_CHECK_MSG(worst < 1e-12, "uv off the hand-applied transform by %g", worst);
+        for (int32_t f = 0; f < 3 * a.mesh->nf; f++) SC_CHECK_INT(b.mesh->FU[f], a.mesh->FU[f]);
+    }
+    sc_gltf_free(&a), sc_gltf_free(&b);
+    /* texCoord 1 in the extension takes the normal texture off TEXCOORD_0: it is skipped, and the
+     * colour's transform alone moves the uv */
+    cJSON *other = load_quad();
+    m = at(other, "materials", 0);
+    add_transform(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(m, "pbrMetallicRoughness"),
+                                                   "baseColorTexture"), 0.5, 0, 0, 1, 1, -1);
+    add_transform(cJSON_GetObjectItemCaseSensitive(m, "normalTexture"), 0, 0, 0.7, 1, 1, 1);
+    SC_CHECK(parse_json("quad.gltf", plain, &a, &err) == SC_OK);
+    SC_CHECK_MSG(parse_json("quad.gltf", other, &b, &err) == SC_OK, "%s", err.message);
+    if (a.mesh && b.mesh) {
+        SC_CHECK_INT(b.textures_skipped, 2);
+        SC_CHECK_INT(b.mesh->nu, a.mesh->nu);
+        for (int32_t k = 0; k < a.mesh->nu && k < b.mesh->nu; k++) {
+            SC_CHECK(b.mesh->U[2 * k] == a.mesh->U[2 * k] + 0.5);
+            SC_CHECK(b.mesh->U[2 * k + 1] == a.mesh->U[2 * k + 1]);
+        }
+    }
+    sc_gltf_free(&a), sc_gltf_free(&b);
+    cJSON_Delete(plain), cJSON_Delete(moved), cJSON_Delete(other);
+}
+
 SC_TEST(parses_glb_with_embedded_image) {
     cJSON *j = load_quad();
     if (!j) return;
@@ -292,9 +352,16 @@ static void draco(cJSON *j, sc_buf *bin) {
 }
 static void no_triangles(cJSON *j, sc_buf *bin) { set_number(at(at(j, "meshes", 0), "primitives", 0), "mode", 0); }
 static void bad_wrap(cJSON *j, sc_buf *bin) { set_number(at(j, "samplers", 0), "wrapS", 1234); }
+/* a transform on the normal texture alone: color and normal sample TEXCOORD_0 differently */
 static void texture_transform(cJSON *j, sc_buf *bin) {
     cJSON *info = cJSON_GetObjectItemCaseSensitive(at(j, "materials", 0), "normalTexture");
-    cJSON_AddObjectToObject(cJSON_AddObjectToObject(info, "extensions"), "KHR_texture_transform");
+    cJSON *x = cJSON_AddObjectToObject(cJSON_AddObjectToObject(info, "extensions"), "KHR_texture_transform");
+    cJSON_AddNumberToObject(x, "rotation", 0.5);
+}
+static void bad_transform_scale(cJSON *j, sc_buf *bin) {
+    cJSON *info = cJSON_GetObjectItemCaseSensitive(at(j, "materials", 0), "normalTexture");
+    cJSON *x = cJSON_AddObjectToObject(cJSON_AddObjectToObject(info, "extensions"), "KHR_texture_transform");
+    cJSON_AddStringToObject(x, "scale", "big");
 }
 static void huge_scale(cJSON *j, sc_buf *bin) {
     cJSON_ReplaceItemInArray(cJSON_GetObjectItemCaseSensitive(at(j, "nodes", 0), "scale"), 0, cJSON_CreateNumber(1e308));
@@ -328,7 +395,8 @@ SC_TEST(bad_glb_inputs_name_file_and_element) {
         {draco, "bad.glb: requires extension KHR_draco_mesh_compression"},
         {no_triangles, "bad.glb: the scene has no triangles"},
         {bad_wrap, "bad.glb: sampler 0: wrapS 1234 is not a glTF wrap mode"},
-        {texture_transform, "bad.glb: material 0: the normal texture uses KHR_texture_transform"},
+        {texture_transform, "bad.glb: material 0: the color and normal textures transform TEXCOORD_0 differently"},
+        {bad_transform_scale, "bad.glb: material 0: the normal texture's KHR_texture_transform: 'scale' must be an array of 2 numbers"},
         {huge_scale, "bad.glb: mesh 0 primitive 0: POSITION 1 is not finite after the node transform"},
         {no_view, "bad.glb: accessor 2: has no bufferView (all-zero accessors are not supported)"},
     };

@@ -482,13 +482,22 @@ static const sc_bytes *report_file(const sc_report *r, const char *path) {
  * for face (material by material, in face order), positions and uvs the
  * float32 of the source (v stored as 1 - v), its levels named in MSFT_lod,
  * and the embedded images the very bytes of the texture files. */
-static void check_glb_round_trip(const sc_report *r, const sc_atlas *atlas) {
-    const sc_bytes *glb = report_file(r, "thing.glb");
-    SC_CHECK(glb != NULL);
+/* The .gltf's buffer, from the files the save wrote. */
+static int read_saved(void *ud, const char *path, sc_buf *out, sc_error *err) {
+    const sc_bytes *b = report_file(ud, path);
+    if (!b) return sc_fail(err, SC_EINPUT, "%s: not written", path);
+    sc_buf_append(out, b->data, b->size);
+    return SC_OK;
+}
+
+static void check_glb_round_trip(const sc_report *r, const sc_atlas *atlas, bool separate) {
+    const char *name = separate ? "thing.gltf" : "thing.glb";
+    const sc_bytes *glb = report_file(r, name);
+    SC_CHECK_MSG(glb != NULL, "%s not written", name);
     if (!glb) return;
     sc_gltf g;
     sc_error err = {0};
-    int rc = sc_gltf_parse("thing.glb", glb->data, glb->size, NULL, NULL, &g, &err);
+    int rc = sc_gltf_parse(name, glb->data, glb->size, read_saved, (void *)r, &g, &err);
     SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
     if (rc != SC_OK) return;
     const sc_mesh *a = atlas->mesh->as.mesh, *b = g.mesh;
@@ -507,15 +516,20 @@ static void check_glb_round_trip(const sc_report *r, const sc_atlas *atlas) {
         }
     SC_CHECK_INT(bad_pos, 0);
     SC_CHECK_INT(bad_uv, 0);
-    const char *json = (const char *)glb->data + 20;
-    SC_CHECK(strstr(json, "\"MSFT_lod\":{\"ids\":[1,2]}") != NULL);
+    char *json = sc_strndup((const char *)glb->data + (separate ? 0 : 20), glb->size - (separate ? 0 : 20));
+    SC_CHECK(json && strstr(json, "\"MSFT_lod\":{\"ids\":[1,2]}") != NULL);
+    SC_CHECK(!separate || (json && strstr(json, "\"buffers\":[{\"uri\":\"thing.bin\",")));
+    free(json);
     SC_CHECK_INT(g.ntextures, 3);   /* colour on both materials, normal on one */
     for (int32_t t = 0; t < g.ntextures; t++) {
         const sc_gltf_image *im = &g.images[g.textures[t].image];
         const char *file = strcmp(g.textures[t].slot, "normal") == 0 ? "thing_skin_one_normal.png"
                                                                        : "thing_skin_one_color.png";
         const sc_bytes *png = report_file(r, file);
-        SC_CHECK(png && im->data && im->size == png->size && memcmp(im->data, png->data, png->size) == 0);
+        if (separate)   /* named, not embedded: the very file written beside it */
+            SC_CHECK(png && im->path && !im->data && strcmp(im->path, file) == 0);
+        else
+            SC_CHECK(png && im->data && im->size == png->size && memcmp(im->data, png->data, png->size) == 0);
     }
     sc_gltf_free(&g);
 }
@@ -551,8 +565,22 @@ SC_TEST(save_then_load_is_exact) {
             SC_CHECK(strstr(text, "newmtl eyes\nKd 1 1 1\nmap_Kd thing_skin_one_color.png\n"));
             free(text);
         }
-        check_glb_round_trip(r, atlas->as.atlas);
+        check_glb_round_trip(r, atlas->as.atlas, false);
         write_report(r, dir);
+    }
+    sc_ctx_free(ctx);
+    /* .gltf + .bin in place of the .glb: the same document, its buffer beside it and the
+     * textures by name; the buffer is the .glb's chunk less the embedded images */
+    ctx = sc_ctx_new(&sc_node_save, NULL, inputs);
+    SC_CHECK(sc_ctx_set_param(ctx, "file", "thing", &err) == SC_OK);
+    SC_CHECK(sc_ctx_set_param(ctx, "gltf_form", "gltf", &err) == SC_OK);
+    rc = sc_ctx_run(ctx, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        const sc_report *r = sc_ctx_output(ctx, 0)->as.report;
+        SC_CHECK_INT(r->nfiles, 8);   /* obj, mtl, 2 lods, 2 png, gltf, bin */
+        SC_CHECK(report_file(r, "thing.bin") && !report_file(r, "thing.glb"));
+        check_glb_round_trip(r, atlas->as.atlas, true);
     }
     sc_ctx_free(ctx);
     const char *files[] = {"thing.obj", "thing_lod1.obj"};
