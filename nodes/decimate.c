@@ -76,7 +76,12 @@
  * current one) or in 3D, where a face's normal may also turn by at most
  * normal_turn degrees (30) per collapse: at extreme ratios this keeps
  * collapses from folding thin features; it is reported as its own blocking
- * reason. An edge that fails is dropped and its endpoints are marked; any
+ * reason. With refuse_crossings no face around the collapse may pass through
+ * another face it shares no vertex with, unless it passed through it before
+ * (the input's own crossings stay): two parts close together, decimated
+ * apart, push through each other and show back faces (a bottle's cap ring
+ * through its body). Faces live in a uniform grid of cells about twice the
+ * mean edge long, built again whenever the faces fall to a quarter. An edge that fails is dropped and its endpoints are marked; any
  * later collapse next to a marked vertex queues its edges again.
  *
  * Queue. A 4-ary heap of (cost bits, a << 32 | b, version a, version b):
@@ -259,6 +264,7 @@ typedef enum block_reason {
     BLOCK_SEAM_ERROR,           /* with map_size: an input seam point would leave the level by more than seam_error */
     BLOCK_TEXEL_CREASE,         /* with map_size: a crease inside a chart would be too sharp for the map's texels */
     BLOCK_WIDE_FAN,             /* an endpoint with more than MAX_FAN faces */
+    BLOCK_CROSSING,             /* a face would pass through another (refuse_crossings) */
     BLOCK_COUNT
 } block_reason;
 
@@ -266,7 +272,7 @@ static const char *const block_names[BLOCK_COUNT] = {
     "none", "nonmanifold_vertex", "silhouette_endpoints", "seam_corner", "seam_not_collinear",
     "seam_length_ratio", "boundary_corner", "boundary_not_collinear", "fixed_silhouette", "placement",
     "link_surface", "link_uv", "valence", "surface_flip", "normal_turn", "uv_flip", "max_error",
-    "texel_stretch", "seam_error", "texel_crease", "wide_fan",
+    "texel_stretch", "seam_error", "texel_crease", "wide_fan", "crossing",
 };
 
 enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8 };
@@ -304,6 +310,26 @@ typedef struct collapse_plan {
     block_reason reason;
 } collapse_plan;
 
+/* Live faces by the cells of a uniform grid their bounding boxes overlap
+ * (refuse_crossings). */
+typedef struct face_grid {
+    double lo[3], inv_cell;
+    int32_t n[3];
+    int32_t **items, *len, *cap;   /* per cell */
+    int32_t built_faces;           /* live faces when built */
+    double *box;                   /* per face: its bounding box when put in (lo, hi) */
+    uint32_t *seen, stamp;         /* per face: the last query that met it */
+    struct fan_entry *fan;         /* scratch: the new fan of a query */
+    int32_t fan_cap;
+} face_grid;
+
+/* A face of a collapse's new fan: its corners, vertices and box. */
+typedef struct fan_entry {
+    const double *P[3];
+    int32_t v[3];
+    double lo[3], hi[3];
+} fan_entry;
+
 typedef struct state {
     /* parameters */
     int mode, weights;
@@ -313,6 +339,8 @@ typedef struct state {
     int uv_mantissa;             /* else binary: 23 (float32) or 52 (double) mantissa bits */
     double uv_step_given;        /* the uv_precision parameter when >= 0 */
     double normal_cos;           /* a face's normal may turn by less than this angle's cosine */
+    bool refuse_crossings;
+    face_grid grid;              /* with refuse_crossings */
     /* surface vertices */
     int32_t nv;
     double *pos;                 /* centred on the input's bounding box */
@@ -1220,6 +1248,246 @@ static bool creases_ok(state *st, const collapse_plan *p) {
     return true;
 }
 
+/* ---------------------------------------------------------------- crossings */
+
+/* Whether triangles A and B cross: each meets the other's plane, and the
+ * segments where they meet the line of the two planes overlap by more than
+ * a billionth of their size. Triangles in one plane, or that only touch,
+ * do not cross. */
+/* The signed distances d of T's corners from the plane through o with
+ * normal n of length len, those within eps set to 0; how many lie above and
+ * below. */
+static void plane_sides(const double *const T[3], const double *o, const double *n, double len, double eps,
+                        double d[3], int *above, int *below) {
+    *above = *below = 0;
+    for (int k = 0; k < 3; k++) {
+        double x[3];
+        sc_sub3(T[k], o, x);
+        d[k] = sc_dot3(n, x) / len;
+        if (fabs(d[k]) <= eps) d[k] = 0;
+        *above += d[k] > 0, *below += d[k] < 0;
+    }
+}
+
+static bool triangles_cross(const double *const A[3], const double *const B[3]) {
+    double na[3], nb[3], da[3], db[3], scale = 0;
+    sc_triangle_normal(A[0], A[1], A[2], na);
+    sc_triangle_normal(B[0], B[1], B[2], nb);
+    for (int k = 0; k < 3; k++) scale = fmax(scale, fmax(sc_dist3(A[k], A[(k + 1) % 3]), sc_dist3(B[k], B[(k + 1) % 3])));
+    double la = sc_norm3(na), lb = sc_norm3(nb), eps = 1e-9 * scale;
+    if (!(la > 0 && lb > 0)) return false;
+    int above, below;
+    plane_sides(A, B[0], nb, lb, eps, da, &above, &below);
+    if (above == 3 || below == 3 || (above == 0 && below == 0)) return false;
+    plane_sides(B, A[0], na, la, eps, db, &above, &below);
+    if (above == 3 || below == 3) return false;
+    /* both meet the line of the planes; compare their segments on its longest axis */
+    double line[3];
+    sc_cross3(na, nb, line);
+    int axis = fabs(line[0]) > fabs(line[1]) ? (fabs(line[0]) > fabs(line[2]) ? 0 : 2) : (fabs(line[1]) > fabs(line[2]) ? 1 : 2);
+    double seg[2][2];
+    for (int t = 0; t < 2; t++) {
+        const double *const *T = t ? B : A;
+        const double *d = t ? db : da;
+        double lo = INFINITY, hi = -INFINITY;
+        for (int k = 0; k < 3; k++) {
+            int j = (k + 1) % 3;
+            if (d[k] == 0) lo = fmin(lo, T[k][axis]), hi = fmax(hi, T[k][axis]);
+            if ((d[k] > 0 && d[j] < 0) || (d[k] < 0 && d[j] > 0)) {
+                double x = T[k][axis] + (T[j][axis] - T[k][axis]) * d[k] / (d[k] - d[j]);
+                lo = fmin(lo, x), hi = fmax(hi, x);
+            }
+        }
+        seg[t][0] = lo, seg[t][1] = hi;
+    }
+    return fmin(seg[0][1], seg[1][1]) - fmax(seg[0][0], seg[1][0]) > eps;
+}
+
+static void grid_free(face_grid *g) {
+    int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
+    for (int64_t c = 0; g->items && c < cells; c++) free(g->items[c]);
+    free(g->items), free(g->len), free(g->cap), free(g->box), free(g->seen), free(g->fan);
+    memset(g, 0, sizeof *g);
+}
+
+/* The cell range [c0, c1] of a bounding box, clamped to the grid. */
+static void grid_range(const face_grid *g, const double lo[3], const double hi[3], int32_t c0[3], int32_t c1[3]) {
+    for (int k = 0; k < 3; k++) {
+        double a = floor((lo[k] - g->lo[k]) * g->inv_cell), b = floor((hi[k] - g->lo[k]) * g->inv_cell);
+        c0[k] = a < 0 ? 0 : a >= g->n[k] ? g->n[k] - 1 : (int32_t)a;
+        c1[k] = b < 0 ? 0 : b >= g->n[k] ? g->n[k] - 1 : (int32_t)b;
+    }
+}
+
+static inline double min2(double a, double b) { return a < b ? a : b; }
+static inline double max2(double a, double b) { return a > b ? a : b; }
+
+static void triangle_box(const double *const P[3], double lo[3], double hi[3]) {
+    for (int k = 0; k < 3; k++) {
+        lo[k] = min2(P[0][k], min2(P[1][k], P[2][k]));
+        hi[k] = max2(P[0][k], max2(P[1][k], P[2][k]));
+    }
+}
+
+static bool boxes_meet(const double *alo, const double *ahi, const double *blo, const double *bhi) {
+    return !(blo[0] > ahi[0] || bhi[0] < alo[0] || blo[1] > ahi[1] || bhi[1] < alo[1] || blo[2] > ahi[2] ||
+             bhi[2] < alo[2]);
+}
+
+static void face_points(const state *st, int32_t f, const double *P[3]) {
+    for (int k = 0; k < 3; k++) P[k] = st->pos + 3 * st->fv[3 * f + k];
+}
+
+/* Add (add) or take out face f at its current positions; false when out of memory. */
+static bool grid_put(state *st, int32_t f, bool add) {
+    face_grid *g = &st->grid;
+    if (!g->items) return true;
+    const double *P[3];
+    double lo[3], hi[3];
+    int32_t c0[3], c1[3];
+    face_points(st, f, P);
+    triangle_box(P, lo, hi);
+    if (add) memcpy(g->box + 6 * (size_t)f, lo, sizeof lo), memcpy(g->box + 6 * (size_t)f + 3, hi, sizeof hi);
+    grid_range(g, lo, hi, c0, c1);
+    for (int32_t i = c0[0]; i <= c1[0]; i++)
+        for (int32_t j = c0[1]; j <= c1[1]; j++)
+            for (int32_t k = c0[2]; k <= c1[2]; k++) {
+                int64_t c = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
+                if (add) {
+                    if (g->len[c] == g->cap[c]) {
+                        int32_t cap = g->cap[c] ? 2 * g->cap[c] : 4;
+                        int32_t *items = realloc(g->items[c], (size_t)cap * sizeof *items);
+                        if (!items) return false;
+                        g->items[c] = items, g->cap[c] = cap;
+                    }
+                    g->items[c][g->len[c]++] = f;
+                } else {
+                    for (int32_t x = 0; x < g->len[c]; x++)
+                        if (g->items[c][x] == f) {
+                            g->items[c][x] = g->items[c][--g->len[c]];
+                            break;
+                        }
+                }
+            }
+    return true;
+}
+
+/* The grid over the live faces: cells twice their mean edge long, at most
+ * about four cells per face. */
+static bool grid_build(state *st) {
+    face_grid *g = &st->grid;
+    grid_free(g);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, edges = 0;
+    int64_t nedges = 0;
+    for (int32_t f = 0; f < st->nf; f++) {
+        if (!st->falive[f]) continue;
+        const double *P[3];
+        face_points(st, f, P);
+        for (int k = 0; k < 3; k++) {
+            for (int d = 0; d < 3; d++) lo[d] = fmin(lo[d], P[k][d]), hi[d] = fmax(hi[d], P[k][d]);
+            edges += sc_dist3(P[k], P[(k + 1) % 3]), nedges++;
+        }
+    }
+    if (nedges == 0) return true;
+    double cell = 2 * edges / (double)nedges, volume = 1;
+    for (int d = 0; d < 3; d++) volume *= fmax(hi[d] - lo[d], cell);
+    double most = 4.0 * st->nf_alive + 64;
+    if (volume / (cell * cell * cell) > most) cell = cbrt(volume / most);
+    if (!(cell > 0)) cell = 1;
+    for (int d = 0; d < 3; d++) {
+        g->lo[d] = lo[d];
+        g->n[d] = (int32_t)fmin(fmax(ceil((hi[d] - lo[d]) / cell), 1), 1 << 20);
+    }
+    g->inv_cell = 1 / cell;
+    int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
+    g->items = calloc((size_t)cells, sizeof *g->items);
+    g->len = calloc((size_t)cells, sizeof *g->len);
+    g->cap = calloc((size_t)cells, sizeof *g->cap);
+    g->box = malloc((size_t)st->nf * 6 * sizeof *g->box);
+    g->seen = calloc((size_t)st->nf, sizeof *g->seen);
+    if (!g->items || !g->len || !g->cap || !g->box || !g->seen) return false;
+    g->built_faces = st->nf_alive;
+    for (int32_t f = 0; f < st->nf; f++)
+        if (st->falive[f] && !grid_put(st, f, true)) return false;
+    return true;
+}
+
+static bool shares_vertex(const int32_t *a, const int32_t *b) {
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (a[i] == b[j]) return true;
+    return false;
+}
+
+/* Whether face g (outside the fan) crosses a face around keep or gone now. */
+static bool crossed_before(const state *st, const collapse_plan *p, int32_t g) {
+    const double *Q[3], *P[3];
+    face_points(st, g, Q);
+    for (int side = 0; side < 2; side++) {
+        int32_t n;
+        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
+        for (int32_t i = 0; i < n; i++) {
+            int32_t f = list[i];
+            if (!st->falive[f] || shares_vertex(st->fv + 3 * f, st->fv + 3 * g)) continue;
+            face_points(st, f, P);
+            if (triangles_cross(P, Q)) return true;
+        }
+    }
+    return false;
+}
+
+/* No face around the collapse passes through a face it shares no vertex
+ * with, after plan p, unless it did before. The grid is walked once over the
+ * box of the new fan; each face met is tested against the fan's faces whose
+ * boxes it meets. */
+static bool crossings_ok(state *st, const collapse_plan *p) {
+    face_grid *grid = &st->grid;
+    if (!grid->items) return true;
+    int32_t need = st->vf_len[p->keep] + st->vf_len[p->gone];
+    if (need > grid->fan_cap) {
+        fan_entry *fan = realloc(grid->fan, (size_t)need * sizeof *fan);
+        if (!fan) {
+            st->out_of_memory = true;
+            return false;
+        }
+        grid->fan = fan, grid->fan_cap = need;
+    }
+    double all_lo[3] = {INFINITY, INFINITY, INFINITY}, all_hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    int32_t nfan = 0;
+    fan_walk walk = {0};
+    for (int32_t f; (f = fan_next(st, p, &walk)) >= 0 && nfan < need; nfan++) {
+        fan_entry *e = &grid->fan[nfan];
+        const double *W[3];
+        planned_face(st, p, f, e->P, W);
+        for (int k = 0; k < 3; k++) e->v[k] = st->fv[3 * f + k] == p->gone ? p->keep : st->fv[3 * f + k];
+        triangle_box(e->P, e->lo, e->hi);
+        for (int k = 0; k < 3; k++) all_lo[k] = min2(all_lo[k], e->lo[k]), all_hi[k] = max2(all_hi[k], e->hi[k]);
+    }
+    if (++grid->stamp == 0) memset(grid->seen, 0, (size_t)st->nf * sizeof *grid->seen), grid->stamp = 1;
+    int32_t c0[3], c1[3];
+    grid_range(grid, all_lo, all_hi, c0, c1);
+    for (int32_t i = c0[0]; i <= c1[0]; i++)
+        for (int32_t j = c0[1]; j <= c1[1]; j++)
+            for (int32_t k = c0[2]; k <= c1[2]; k++) {
+                int64_t c = ((int64_t)k * grid->n[1] + j) * grid->n[0] + i;
+                for (int32_t x = 0; x < grid->len[c]; x++) {
+                    int32_t g = grid->items[c][x];
+                    if (grid->seen[g] == grid->stamp) continue;
+                    grid->seen[g] = grid->stamp;
+                    const double *glo = grid->box + 6 * (size_t)g, *ghi = glo + 3;
+                    if (!boxes_meet(all_lo, all_hi, glo, ghi) || in_fan(st, p, g)) continue;
+                    const double *Q[3];
+                    face_points(st, g, Q);
+                    for (int32_t a = 0; a < nfan; a++) {
+                        const fan_entry *e = &grid->fan[a];
+                        if (!boxes_meet(e->lo, e->hi, glo, ghi) || shares_vertex(e->v, st->fv + 3 * g)) continue;
+                        if (triangles_cross(e->P, Q) && !crossed_before(st, p, g)) return false;
+                    }
+                }
+            }
+    return true;
+}
+
 static block_reason check_plan(state *st, const collapse_plan *p) {
     if (!link_surface_ok(st, p)) return BLOCK_LINK_SURFACE;
     for (int i = 0; i < p->nhalf; i++)
@@ -1229,6 +1497,7 @@ static block_reason check_plan(state *st, const collapse_plan *p) {
     block_reason r = flips_ok(st, p);
     if (r == BLOCK_NONE && st->crease_limit > 0 && !creases_ok(st, p)) r = BLOCK_TEXEL_CREASE;
     if (r == BLOCK_NONE && st->seam_error2 > 0 && !seam_kept(st, p)) r = BLOCK_SEAM_ERROR;
+    if (r == BLOCK_NONE && st->refuse_crossings && !crossings_ok(st, p)) r = BLOCK_CROSSING;
     return r;
 }
 
@@ -1324,6 +1593,13 @@ static bool merge_lists(state *st, int32_t keep, int32_t gone) {
 
 static bool apply_plan(state *st, const collapse_plan *p) {
     int32_t keep = p->keep, gone = p->gone;
+    if (st->refuse_crossings)   /* the fans' faces move (or go): out of the grid at their old places */
+        for (int side = 0; side < 2; side++) {
+            int32_t n;
+            const int32_t *list = vfaces(st, side ? gone : keep, &n);
+            for (int32_t i = 0; i < n; i++)
+                if (st->falive[list[i]]) grid_put(st, list[i], false);
+        }
     for (int i = 0; i < p->nfaces; i++) {
         int32_t f = p->faces[i];
         st->falive[f] = 0;
@@ -1372,6 +1648,11 @@ static bool apply_plan(state *st, const collapse_plan *p) {
         st->fz[3 * f + k] = z;
     }
     if (!merge_lists(st, keep, gone)) return false;
+    if (st->refuse_crossings) {
+        list = vfaces(st, keep, &n);
+        for (int32_t i = 0; i < n; i++)
+            if (st->falive[list[i]] && !grid_put(st, list[i], true)) return false;
+    }
     st->vflags[keep] |= st->vflags[gone] & V_BOUNDARY;
     st->vflags[gone] = 0;
     st->collapses++;
@@ -1628,6 +1909,7 @@ static void state_free(state *st) {
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
     free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
     free(st->importance), free(st->stretch), free(st->input_z_first), free(st->input_z_next), free(st->input_zuv);
+    grid_free(&st->grid);
 }
 
 /* Classify the fan of n faces around a centre; face i's two spokes (the ids
@@ -2038,6 +2320,7 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     build_vertex_faces(st);
     measure_uv_scale(st, uv_weight);
     if ((rc = classify_fans(st, err)) != SC_OK || (rc = add_quadrics(st, err)) != SC_OK) return rc;
+    if (st->refuse_crossings && !grid_build(st)) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     return start_error_tracking(st, err);
 }
 
@@ -2596,6 +2879,10 @@ static bool decimate_to(state *st, int64_t target) {
          * one cost more than dropping them in bulk) */
         int64_t edge_bound = (3 * (int64_t)st->nf_alive + st->border_edges) / 2;
         if (st->heap_len > edge_bound * 5 / 4 + 1024) heap_compact(st);
+        if (st->refuse_crossings && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
+            st->out_of_memory = true;
+            break;
+        }
         heap_entry e;
         if (!heap_pop(st, &e)) {
             if (requeued_since_collapse) return false;
@@ -2623,13 +2910,16 @@ static bool decimate_to(state *st, int64_t target) {
          * one waits with its full cost (lazy evaluation: the order is the
          * order of the full costs). */
         double popped = entry_cost(&e);
-        bool complete = true, tracked = tracking_now(st);
+        bool complete = true, tracked = tracking_now(st), checked = false;
         int32_t seed = -1;
-        if (tracked && e.full && check_plan(st, &p) != BLOCK_NONE) {
-            /* it was measured and is at the front, but cannot collapse: the
-             * test below would drop it; no need to measure it again first */
-            reject_edge(st, a, b);
-            continue;
+        if (tracked && e.full) {
+            if (check_plan(st, &p) != BLOCK_NONE) {
+                /* it was measured and is at the front, but cannot collapse: the
+                 * test below would drop it; no need to measure it again first */
+                reject_edge(st, a, b);
+                continue;
+            }
+            checked = true;   /* the plan does not change before the test below */
         }
         if (tracked) {
             heap_drop_stale_top(st);
@@ -2655,7 +2945,7 @@ static bool decimate_to(state *st, int64_t target) {
                 continue;
             }
         }
-        block_reason r = check_plan(st, &p);
+        block_reason r = checked ? BLOCK_NONE : check_plan(st, &p);
         if (r != BLOCK_NONE) {
             reject_edge(st, a, b);
             continue;
@@ -2686,6 +2976,7 @@ static int decimate_levels(sc_ctx *ctx, const sc_mesh *in, const int64_t *target
     st.collinear_tol = sc_ctx_number(ctx, "collinear_tolerance");
     st.ratio_tol = sc_ctx_number(ctx, "ratio_tolerance");
     st.normal_cos = cos(sc_ctx_number(ctx, "normal_turn") * M_PI / 180.0);
+    st.refuse_crossings = sc_ctx_bool(ctx, "refuse_crossings");
     st.uv_step_given = sc_ctx_number(ctx, "uv_precision");
     detect_uv_storage(&st, in);
     st.error_weight = sc_ctx_number(ctx, "error_weight");
@@ -2936,6 +3227,9 @@ static const sc_param_desc params[] = {
             "rounds off; 0: no bound"},
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
+    {.name = "refuse_crossings", .type = SC_PARAM_BOOL, .def = 1,
+     .doc = "refuse collapses that push a face through another it shares no vertex with (parts decimated "
+            "through each other show back faces); crossings of the input stay"},
     {.name = "hausdorff_samples", .type = SC_PARAM_INTEGER, .def = 100000, .min = 0, .max = 1e8,
      .doc = "surface samples per mesh for the Hausdorff metric (0: skip the metric)"},
 };
@@ -2953,7 +3247,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quad
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 6,
+    .version = 7,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
