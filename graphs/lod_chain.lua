@@ -9,6 +9,7 @@
 --
 --   seamcook run graphs/lod_chain.lua --set chartify=always   (auto|always|never: a quad atlas first)
 --   seamcook run graphs/lod_chain.lua --set smooth=0.5        (colour smoothed first; 2: sharpened)
+--   seamcook run graphs/lod_chain.lua --set erased_exr=1      (the float erasure as EXR files too)
 --
 -- load -> quad_chartify -> [gradient_domain] -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
 --      -> bake_displacement (geometry image, displacement per LOD) -> mipmap -> render (every LOD x mip)
@@ -60,8 +61,12 @@ local erased = erase_seams{ name = "erased", atlas = asset, preset = param("pres
 -- it, and fails when the file's seams open wider than the image's by more
 -- than max_file_seam_gap (a lossy format or a conversion).
 local max_file_seam_gap = param("max_file_seam_gap", 1e-6)
-save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr", glb = false,
-      max_seam_gap = max_file_seam_gap }
+-- erased_exr=1: also the float erasure itself as EXR files (asset_erased_*),
+-- before straightening; off by default, as --out holds the assets.
+if param("erased_exr", 0) ~= 0 then
+  save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr", glb = false,
+        max_seam_gap = max_file_seam_gap }
+end
 
 -- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
 -- them; straighten re-renders the textures into the new uv and erases their

@@ -94,6 +94,8 @@
  *    clamping keeps displaced geometry from being cut open by the near or far
  *    plane.
  *  - Output: a REPORT with one contact sheet render/lod<k>_sheet.png per LOD
+ *    (of a mip chain, lod<k>_mip0_sheet.png, and lod<k>_mip<m>_sheet.png
+ *    only for a level that shows cracks or folds, or with pictures = all)
  *    (rows: passes in order, columns: views; each crack pixel marked with a
  *    yellow and each fold pixel with a cyan 3x3 square, so one pixel shows at
  *    thumbnail size), render/reference_sheet.png (the reference's textured
@@ -264,6 +266,7 @@ typedef struct outcome {
  * names; `human` goes into messages. */
 typedef struct level_label {
     char metric[32], file[32], human[64];
+    int mip;   /* the mip level of a chain's level, else 0 */
 } level_label;
 
 /* ---------------------------------------------------------------- small helpers */
@@ -1908,12 +1911,16 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
          metricf(o, o->fold_total - folds_before, "%s.fold_pixels", k->metric) ||
          metricf(o, level_gap, "%s.max_seam_gap", k->metric)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    if (rc == SC_OK && npasses > 0) {
+    /* one contact sheet per LOD: a mip level past the first has its sheet
+     * and uv pictures only when it shows cracks or folds (or pictures = all) */
+    bool pictures = J->all_pictures || k->mip == 0 || o->crack_total > cracks_before || o->fold_total > folds_before;
+    if (rc == SC_OK && npasses > 0 && pictures) {
         char path[200];
         snprintf(path, sizeof path, "%s/%s_sheet.png", o->folder, k->file);
         rc = add_png(o, R, path, sh.rgba, sh.width, sh.height, true, err);
     }
-    for (int32_t g = 0; g < L.ngroups && rc == SC_OK; g++) rc = uv_picture(R, &L, k, L.groups[g].material, o, err);
+    for (int32_t g = 0; g < L.ngroups && rc == SC_OK && pictures; g++)
+        rc = uv_picture(R, &L, k, L.groups[g].material, o, err);
     free(sh.rgba);
     level_free(&L);
     return rc;
@@ -2044,7 +2051,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (k > 0 && is_mip_of(a, lods->levels[k - 1]->as.atlas)) mip++;
         else lod++, mip = 0;
         bool has_mips = mip > 0 || (k + 1 < nlevels && is_mip_of(lods->levels[k + 1]->as.atlas, a));
-        level_label label;
+        level_label label = {.mip = has_mips ? mip : 0};
         if (has_mips) {
             snprintf(label.metric, sizeof label.metric, "lod%d.mip%d", lod, mip);
             snprintf(label.file, sizeof label.file, "lod%d_mip%d", lod, mip);
@@ -2108,8 +2115,9 @@ static const sc_param_desc params[] = {
             "displaced (needs displacement), tessellated (needs either)",
      .check_text = check_modes},
     {.name = "pictures", .type = SC_PARAM_ENUM, .def_string = "sheets", .choices = picture_choices,
-     .doc = "sheets: one contact sheet per LOD (and its uv picture), plus the picture of every view with crack "
-            "candidates; all: every view's picture and the reference's too"},
+     .doc = "sheets: one contact sheet per LOD (and its uv picture; for a mip chain, its first level's, and "
+            "another level's only where it shows cracks or folds), plus the picture of every view with crack "
+            "candidates; all: every view's picture, every level's sheet and the reference's too"},
     {.name = "views", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 64,
      .doc = "views per LOD and mode: 6 axis views, then oblique ones"},
     {.name = "size", .type = SC_PARAM_INTEGER, .def = 512, .min = 16, .max = 4096,
@@ -2155,7 +2163,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 13,
+    .version = 14,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -153,6 +153,29 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
     SC_CHECK(cracks == 0 && gap <= 1e-5);
     sc_value_release(disp_only);
 
+    /* the render's pictures of a chain: one contact sheet and uv picture per
+     * LOD, its first mip level's (no level here shows a crack or fold); every
+     * level's with pictures = all */
+    for (int all = 0; all < 2; all++) {
+        const char *pp[] = {"modes", "geometry_image", "views", "1", "size", "32", "pictures", all ? "all" : "sheets",
+                            NULL};
+        sc_test_run pr = sc_test_run_node(&sc_node_render, pp, "lods", levels, "reference", atlas);
+        SC_CHECK_MSG(pr.rc == SC_OK, "render: %s", pr.err.message);
+        if (pr.rc == SC_OK) {
+            const sc_report *pics = sc_ctx_output(pr.ctx, 0)->as.report;
+            int sheets = 0, uv = 0;
+            for (int i = 0; i < pics->nfiles; i++) {
+                sheets += strstr(pics->files[i].path, "_mip") && strstr(pics->files[i].path, "_sheet.png");
+                uv += strstr(pics->files[i].path, "_mip") && strstr(pics->files[i].path, "_uv.png");
+            }
+            SC_CHECK_MSG(sheets == (all ? nlod * nmip : nlod) && uv == sheets, "pictures = %s: %d sheets, %d uv",
+                         all ? "all" : "sheets", sheets, uv);
+            SC_CHECK(find_file(pics, "render/lod0_mip0_sheet.png") != NULL);
+            SC_CHECK((find_file(pics, "render/lod0_mip1_sheet.png") != NULL) == (all == 1));
+        }
+        sc_ctx_free(pr.ctx);
+    }
+
     /* files: one mip-mapped EXR per float chain, a PNG per level for 8-bit */
     const sc_report *rep = report->as.report;
     const sc_report_file *gi = find_file(rep, "mip/sphere_geometry_image.exr");
