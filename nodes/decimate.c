@@ -81,7 +81,11 @@
  * (the input's own crossings stay): two parts close together, decimated
  * apart, push through each other and show back faces (a bottle's cap ring
  * through its body). Faces live in a uniform grid of cells about twice the
- * mean edge long, built again whenever the faces fall to a quarter. An edge that fails is dropped and its endpoints are marked; any
+ * mean edge long, built again whenever the faces fall to a quarter. With
+ * contact_distance, an open part's border vertices within that distance of
+ * another connected part, and that part's vertices there, never collapse
+ * (blocked as "contact"): decimated apart, the two would open a gap that
+ * shows the open part's inside. An edge that fails is dropped and its endpoints are marked; any
  * later collapse next to a marked vertex queues its edges again.
  *
  * Queue. A 4-ary heap of (cost bits, a << 32 | b, version a, version b):
@@ -265,6 +269,7 @@ typedef enum block_reason {
     BLOCK_TEXEL_CREASE,         /* with map_size: a crease inside a chart would be too sharp for the map's texels */
     BLOCK_WIDE_FAN,             /* an endpoint with more than MAX_FAN faces */
     BLOCK_CROSSING,             /* a face would pass through another (refuse_crossings) */
+    BLOCK_CONTACT,              /* an endpoint where an open part meets another (contact_distance) */
     BLOCK_COUNT
 } block_reason;
 
@@ -272,10 +277,10 @@ static const char *const block_names[BLOCK_COUNT] = {
     "none", "nonmanifold_vertex", "silhouette_endpoints", "seam_corner", "seam_not_collinear",
     "seam_length_ratio", "boundary_corner", "boundary_not_collinear", "fixed_silhouette", "placement",
     "link_surface", "link_uv", "valence", "surface_flip", "normal_turn", "uv_flip", "max_error",
-    "texel_stretch", "seam_error", "texel_crease", "wide_fan", "crossing",
+    "texel_stretch", "seam_error", "texel_crease", "wide_fan", "crossing", "contact",
 };
 
-enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8 };
+enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8, V_CONTACT = 16 };
 enum { Z_SILHOUETTE = 1, Z_PINNED = 2 };
 enum { EDGE_INTERIOR = 0, EDGE_SEAM = 1, EDGE_BOUNDARY = 2 };
 enum { UV_FREE = 0, UV_FIXED = 1, UV_SLIDE = 2 };
@@ -341,6 +346,8 @@ typedef struct state {
     double normal_cos;           /* a face's normal may turn by less than this angle's cosine */
     bool refuse_crossings;
     face_grid grid;              /* with refuse_crossings */
+    double contact_distance;     /* model units (mark_contacts); 0: off */
+    int64_t contact_vertices;    /* vertices mark_contacts keeps */
     /* surface vertices */
     int32_t nv;
     double *pos;                 /* centred on the input's bounding box */
@@ -627,6 +634,10 @@ static void plan_edge(state *st, int32_t a, int32_t b, collapse_plan *p) {
     p->cost = INFINITY;
     if ((st->vflags[a] | st->vflags[b]) & V_LOCKED) {
         p->reason = BLOCK_NONMANIFOLD;
+        return;
+    }
+    if ((st->vflags[a] | st->vflags[b]) & V_CONTACT) {
+        p->reason = BLOCK_CONTACT;
         return;
     }
     if (st->vf_len[a] > MAX_FAN || st->vf_len[b] > MAX_FAN) {
@@ -1488,6 +1499,61 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
     return true;
 }
 
+static int32_t find_root(int32_t *parent, int32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+}
+
+/* Where an open part's border lies within contact_distance of another
+ * connected part (a sleeve's rim on a bottle, a seed's rim in the fruit's
+ * cut), the border vertex and the other part's vertices of the faces that
+ * near are kept as they are: decimated apart, the two leave a gap that shows
+ * the open part's inside. Returns false when out of memory. */
+static bool mark_contacts(state *st, int64_t *marked) {
+    *marked = 0;
+    bool own_grid = !st->grid.items;
+    if (own_grid && !grid_build(st)) return false;
+    int32_t *part = malloc((size_t)st->nv * sizeof *part);
+    if (!part) return false;
+    for (int32_t v = 0; v < st->nv; v++) part[v] = v;
+    for (int32_t f = 0; f < st->nf; f++) {
+        const int32_t *c = st->fv + 3 * f;
+        for (int k = 0; k < 2; k++) {
+            int32_t x = find_root(part, c[k]), y = find_root(part, c[k + 1]);
+            if (x != y) part[x] = y;
+        }
+    }
+    for (int32_t v = 0; v < st->nv; v++) part[v] = find_root(part, v);
+    const face_grid *g = &st->grid;
+    const double d = st->contact_distance;
+    for (int32_t v = 0; v < st->nv; v++) {
+        if (!(st->vflags[v] & V_BOUNDARY)) continue;
+        const double *x = st->pos + 3 * v;
+        double lo[3] = {x[0] - d, x[1] - d, x[2] - d}, hi[3] = {x[0] + d, x[1] + d, x[2] + d};
+        int32_t c0[3], c1[3];
+        grid_range(g, lo, hi, c0, c1);
+        for (int32_t i = c0[0]; i <= c1[0]; i++)
+            for (int32_t j = c0[1]; j <= c1[1]; j++)
+                for (int32_t k = c0[2]; k <= c1[2]; k++) {
+                    int64_t cell = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
+                    for (int32_t n = 0; n < g->len[cell]; n++) {
+                        int32_t f = g->items[cell][n];
+                        const int32_t *c = st->fv + 3 * f;
+                        if (part[c[0]] == part[v]) continue;
+                        double q[3];
+                        sc_hausdorff_closest_on_triangle(x, st->pos + 3 * c[0], st->pos + 3 * c[1], st->pos + 3 * c[2], q);
+                        if (sc_dist3(x, q) > d) continue;
+                        st->vflags[v] |= V_CONTACT;
+                        for (int e = 0; e < 3; e++) st->vflags[c[e]] |= V_CONTACT;
+                    }
+                }
+    }
+    for (int32_t v = 0; v < st->nv; v++) *marked += (st->vflags[v] & V_CONTACT) != 0;
+    free(part);
+    if (own_grid) grid_free(&st->grid);
+    return true;
+}
+
 static block_reason check_plan(state *st, const collapse_plan *p) {
     if (!link_surface_ok(st, p)) return BLOCK_LINK_SURFACE;
     for (int i = 0; i < p->nhalf; i++)
@@ -2321,6 +2387,8 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     measure_uv_scale(st, uv_weight);
     if ((rc = classify_fans(st, err)) != SC_OK || (rc = add_quadrics(st, err)) != SC_OK) return rc;
     if (st->refuse_crossings && !grid_build(st)) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    if (st->contact_distance > 0 && !mark_contacts(st, &st->contact_vertices))
+        return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     return start_error_tracking(st, err);
 }
 
@@ -2994,6 +3062,7 @@ static int decimate_levels(sc_ctx *ctx, const sc_mesh *in, const int64_t *target
     const double diagonal = sc_bbox_diagonal(in->V, in->nv, in->FV, in->nf);
     const double bound = bound_scale * max_error;
     if (bound > 0 && diagonal > 0) st.max_error2 = (diagonal * bound) * (diagonal * bound);
+    st.contact_distance = sc_ctx_number(ctx, "contact_distance") * diagonal;
     st.map_texel_length = sc_ctx_number(ctx, "map_texel") * diagonal * (double)sc_ctx_integer(ctx, "map_size");
     const double seam_error = sc_ctx_number(ctx, "seam_error") * diagonal;
     if (st.map_texel_length > 0) {
@@ -3017,6 +3086,7 @@ static int decimate_levels(sc_ctx *ctx, const sc_mesh *in, const int64_t *target
         total(o, "uv_scale", st.uv_scale);
         total(o, "uv_precision", st.uv_precision);
         total(o, "locked_vertices", (double)locked);
+        total(o, "contact_vertices", (double)st.contact_vertices);
         queue_all_edges(&st, st.threads);
         lods = sc_lods_new();
         if (!lods) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
@@ -3227,6 +3297,11 @@ static const sc_param_desc params[] = {
             "rounds off; 0: no bound"},
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
+    {.name = "contact_distance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
+     .doc = "keep where an open part's border lies within this fraction of the bounding-box diagonal of another "
+            "part (a rim on a body), with the other part's vertices there: decimated apart they leave a gap that "
+            "shows the open part's inside (0.01 keeps Avocado's, WaterBottle's and BoomBox's levels free of "
+            "folds, at many more faces); 0: off"},
     {.name = "refuse_crossings", .type = SC_PARAM_BOOL, .def = 1,
      .doc = "refuse collapses that push a face through another it shares no vertex with (parts decimated "
             "through each other show back faces); crossings of the input stay"},

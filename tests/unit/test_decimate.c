@@ -1151,6 +1151,62 @@ SC_TEST(refused_crossings_keep_nested_parts_apart) {
     sc_value_release(both), sc_value_release(outer), sc_value_release(inner);
 }
 
+/* The first nf faces of m, with only the vertices and uv they use. */
+static sc_value *first_faces(const sc_mesh *m, int nf) {
+    int *vmap = malloc(sizeof(int) * (size_t)m->nv), *umap = malloc(sizeof(int) * (size_t)m->nu), nv = 0, nu = 0;
+    for (int i = 0; i < m->nv; i++) vmap[i] = -1;
+    for (int i = 0; i < m->nu; i++) umap[i] = -1;
+    for (int c = 0; c < 3 * nf; c++) {
+        if (vmap[m->FV[c]] < 0) vmap[m->FV[c]] = nv++;
+        if (umap[m->FU[c]] < 0) umap[m->FU[c]] = nu++;
+    }
+    sc_mesh *o = sc_mesh_alloc(nv, nu, 0, nf, 1);
+    for (int i = 0; i < m->nv; i++)
+        if (vmap[i] >= 0) memcpy(o->V + 3 * vmap[i], m->V + 3 * i, sizeof(double) * 3);
+    for (int i = 0; i < m->nu; i++)
+        if (umap[i] >= 0) memcpy(o->U + 2 * umap[i], m->U + 2 * i, sizeof(double) * 2);
+    for (int c = 0; c < 3 * nf; c++) o->FV[c] = vmap[m->FV[c]], o->FU[c] = umap[m->FU[c]];
+    free(vmap), free(umap);
+    return mesh_value(o);
+}
+
+/* An open cap (a thicker lens's top) whose rim lies on a closed lens's rim:
+ * with contact_distance its 32 rim vertices stay where they are at every
+ * level (found at their input positions, to 1e-12); without, decimation
+ * moves or removes them. */
+SC_TEST(contact_distance_keeps_an_open_rim_on_its_body) {
+    sc_value *body = thin_lens(8, 32, 0.05), *thick = thin_lens(8, 32, 0.08);
+    if (!body || !thick) return;
+    sc_value *cap = first_faces(thick->as.mesh, thick->as.mesh->nf / 2);
+    sc_value *both = two_parts(body->as.mesh, cap->as.mesh);
+    const sc_mesh *in = both->as.mesh;
+    int kept[2] = {0, 0};
+    for (int on = 0; on < 2; on++) {
+        const char *params[] = {"faces", "100", "seam_mode", "free", "hausdorff_samples", "0", "max_error", "0",
+                                "contact_distance", on ? "0.01" : "0", NULL};
+        node_run r = run_node(&sc_node_decimate, params, "mesh", both);
+        SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
+        if (r.rc == SC_OK) {
+            const sc_mesh *lvl = level_mesh(r.out, 0);
+            /* the cap's rim: its vertices at radius 1 (y = 0) */
+            for (int v = body->as.mesh->nv; v < in->nv; v++) {
+                const double *p = in->V + 3 * v;
+                if (fabs(p[0] * p[0] + p[2] * p[2] - 1) > 1e-9) continue;
+                bool found = false;
+                for (int w = 0; w < lvl->nv && !found; w++)   /* to the rounding of decimate's centring */
+                    found = fabs(lvl->V[3 * w] - p[0]) + fabs(lvl->V[3 * w + 1] - p[1]) + fabs(lvl->V[3 * w + 2] - p[2]) < 1e-12;
+                kept[on] += found;
+            }
+            printf("     cap on a lens at %d faces, contact_distance %s: %d of 32 rim vertices in place, %g contact "
+                   "vertices\n", lvl->nf, on ? "0.01" : "0", kept[on], metric_of(&r, "contact_vertices"));
+        }
+        run_free(&r);
+    }
+    SC_CHECK_INT(kept[1], 32);
+    SC_CHECK_MSG(kept[0] < 32, "without contact_distance the rim stayed (%d): the test shows nothing", kept[0]);
+    sc_value_release(both), sc_value_release(cap), sc_value_release(body), sc_value_release(thick);
+}
+
 /* max_error bounds every collapse: the lens taken far below what its rim
  * allows stops short of the target, within the bound (measured here by
  * brute force), where the unbounded run goes to the target far off. */
