@@ -19,6 +19,10 @@
 #  8. the project file (seamcook.conf) and SEAMCOOK_REMOTE_CACHE name the
 #     remote; --remote-read-only uploads nothing
 #  9. a 200 MB blob goes up and comes down whole
+# 10. a client killed -9 while a 50 MB blob is part way onto the server
+#     leaves nothing that serves: the entries finished before stay whole,
+#     the cut action has none, and a fresh cache hits only those, cooks the
+#     rest and gets the killed client's outputs
 kind=${3:-nginx}
 source "$(dirname "$0")/common.sh"
 for tool in "$kind" protoc openssl sha256sum; do
@@ -28,7 +32,7 @@ proto=$data/reapi/action_result.proto
 
 # ------------------------------------------------------------------ the server
 srv=$work/server
-prefixes="open token basic ro shared conf readonly big"
+prefixes="open token basic ro shared conf readonly big kill1 kill2 kill3"
 for p in $prefixes; do mkdir -p "$srv/store/$p/cas" "$srv/store/$p/ac"; done   # lighttpd makes no folders on PUT
 mkdir -p "$srv/body"
 printf 'farm:%s\n' "$(openssl passwd -apr1 s3cret)" > "$srv/htpasswd"
@@ -101,7 +105,7 @@ start_server() {
   echo "FAIL: $kind did not start"; cat "$srv/error.log"; exit 1
 }
 start_server
-trap 'kill $server_pid 2>/dev/null || true' EXIT
+trap 'kill -CONT $server_pid 2>/dev/null; kill $server_pid 2>/dev/null || true' EXIT   # case 10 stops it
 url=http://127.0.0.1:$port
 
 fail() { echo "FAIL: $*"; exit 1; }
@@ -135,21 +139,28 @@ cmp "$work/a/out/asset.obj" "$work/b/deeper/out/asset.obj" || fail "the saved fi
 echo "$kind 1. a fresh local cache: 3 of 3 lookups hit the remote another checkout filled, 0 cooked"
 
 # ------------------------------------------------------------------ 2. ActionResult, decoded by protoc
-n=0
-for ac in "$srv"/store/open/ac/*; do
-  protoc -I "$(dirname "$proto")" --decode=build.bazel.remote.execution.v2.ActionResult "$(basename "$proto")" \
-    < "$ac" > "$work/decoded" || fail "protoc cannot decode $ac"
-  grep -q 'path: "seamcook/action.json"' "$work/decoded" || fail "no record in $(cat "$work/decoded")"
-  # every output file: on the server, with that hash and size
-  while read -r hash size; do
-    f=$srv/store/open/cas/$hash
-    [ -f "$f" ] || fail "output $hash is not on the server"
-    [ "$(sha256sum < "$f" | cut -d' ' -f1)" = "$hash" ] || fail "output $hash has other bytes"
-    [ "$(stat -c %s "$f")" = "$size" ] || fail "output $hash: size_bytes $size, file $(stat -c %s "$f")"
-  done < <(awk '/hash:/ {h=$2} /size_bytes:/ {gsub(/"/, "", h); print h, $2}' "$work/decoded")
-  n=$((n + 1))
-done
-[ "$n" = 3 ] || fail "expected 3 action-cache entries, found $n"
+# entries_whole PREFIX: every action-cache entry under PREFIX decodes as an
+# ActionResult naming a record, and every output file it names is on the
+# server with its digest and size; sets `entries` to how many there are
+entries_whole() {
+  local ac hash size f
+  entries=0
+  for ac in "$srv/store/$1/ac"/*; do
+    [ -e "$ac" ] || continue
+    protoc -I "$(dirname "$proto")" --decode=build.bazel.remote.execution.v2.ActionResult "$(basename "$proto")" \
+      < "$ac" > "$work/decoded" || fail "protoc cannot decode $ac"
+    grep -q 'path: "seamcook/action.json"' "$work/decoded" || fail "no record in $(cat "$work/decoded")"
+    while read -r hash size; do
+      f=$srv/store/$1/cas/$hash
+      [ -f "$f" ] || fail "$1/ac/$(basename "$ac") names output $hash, which is not on the server"
+      [ "$(sha256sum < "$f" | cut -d' ' -f1)" = "$hash" ] || fail "output $hash has other bytes"
+      [ "$(stat -c %s "$f")" = "$size" ] || fail "output $hash: size_bytes $size, file $(stat -c %s "$f")"
+    done < <(awk '/hash:/ {h=$2} /size_bytes:/ {gsub(/"/, "", h); print h, $2}' "$work/decoded")
+    entries=$((entries + 1))
+  done
+}
+entries_whole open
+[ "$entries" = 3 ] || fail "expected 3 action-cache entries, found $entries"
 echo "$kind 2. 3 action-cache entries decode as build.bazel.remote.execution.v2.ActionResult; every output file is on the server with its digest and size"
 
 # ------------------------------------------------------------------ 3. a tampered blob
@@ -249,3 +260,99 @@ size=$(ls -S -l "$srv/store/big/cas" | awk 'NR == 2 {print $5}')
 cook "$work/big2" "$work/cache-big2" --remote-cache "$url/big"
 grep -q "1 of 1 lookups hit" "$work/big2/err" || fail "the 200 MB blob did not come down: $(cat "$work/big2/err")"
 echo "$kind 9. a $((size / 1000000)) MB blob up and down: $(hits_line "$work/big2")"
+
+# ------------------------------------------------------------------ 10. a client killed mid-upload
+# The client cooks with -j1 in creation order: small and save (whole on the
+# server a few seconds later) and then big, a 4096^2 texture (a 50 MB blob).
+# Its uploads go in that order, per action blobs first, then the record,
+# then the ActionResult. The kill lands at the worst moment for a partial
+# entry: the server, throttled by SIGSTOP and SIGCONT, is caught stopped
+# while it writes a request body of more than 1 MB, so big's texture is in
+# flight and part of it on the server; then the client is killed -9 and the
+# server resumed. What serves
+# afterwards must be whole: the two finished entries, and nothing of big.
+# (Were the ActionResult put before the blobs, big's entry would name a blob
+# the server lacks, and entries_whole fails.) An upload that runs whole
+# between two looks tries again on a fresh prefix, three times at most.
+kill_graph() {
+  mkdir -p "$1"
+  cat > "$1/graph.lua" <<'LUA'
+local small = procedural{ name = "small", resolution = 8, texture_size = 128 }
+save{ name = "save", atlas = small, file = "small" }
+procedural{ name = "big", resolution = 16, texture_size = 4096 }
+LUA
+}
+# in_flight: the size of a request body over 1 MB that the server is writing
+# for prefix $p: nginx's file under client_body_temp_path, or lighttpd's
+# unnamed file in the target folder (linked in when the body is whole). The
+# server keeps other files open (lighttpd: blobs it served), hence the names.
+in_flight() {
+  local fd
+  # (fds come and go while find reads them: its complaints are ignored)
+  for fd in $(find -L "/proc/$server_pid/fd" -type f -size +1M 2>/dev/null || true); do
+    case $(readlink "$fd" || true) in
+      "$srv/body/"* | "$srv/store/$p/"*" (deleted)") stat -L -c %s "$fd" 2>/dev/null && return 0 ;;
+    esac
+  done
+  return 0
+}
+caught=
+for try in 1 2 3; do
+  p=kill$try
+  kill_graph "$work/k$try"
+  "$bin" run "$work/k$try/graph.lua" --cache "$work/cache-k$try" --out "$work/k$try/out" -j1 \
+    --remote-cache "$url/$p" 2> "$work/k$try/err" & client=$!
+  # the server throttled while the client runs: 10 ms running, then stopped
+  # while we look (and 30 ms more), so a 50 MB body takes a good part of a
+  # second and is seen in flight; a look at a stopped server is a snapshot
+  partial=
+  while kill -0 $client 2>/dev/null; do
+    sleep 0.01
+    kill -STOP $server_pid
+    partial=$(in_flight)
+    [ -n "$partial" ] && break
+    sleep 0.03
+    kill -CONT $server_pid
+  done
+  if [ -n "$partial" ]; then
+    kill -9 $client
+    wait $client 2>/dev/null || true
+    kill -CONT $server_pid
+    caught=$try
+    break
+  fi
+  wait $client || fail "the client failed: $(cat "$work/k$try/err")"
+  echo "$kind 10. try $try: big's upload ran whole between two looks; again on a fresh prefix"
+done
+[ -n "$caught" ] || fail "three tries and the kill never landed mid-upload"
+for _ in $(seq 50); do [ -z "$(in_flight)" ] && break; sleep 0.1; done
+[ -z "$(in_flight)" ] || fail "the server still holds the killed upload's body open"
+p=kill$caught
+entries_whole "$p"
+[ "$entries" = 2 ] || fail "expected the 2 entries finished before the kill, found $entries"
+for f in "$srv/store/$p/cas"/*; do
+  [ "$(sha256sum < "$f" | cut -d' ' -f1)" = "$(basename "$f")" ] || fail "$p/cas holds a partial blob $(basename "$f")"
+done
+# a fresh checkout with an empty local cache: hits the two whole entries,
+# never follows an entry to a blob the server lacks, and cooks big
+kill_graph "$work/k-fresh"
+[ "$kind" = nginx ] && : > "$srv/access.log"
+cook "$work/k-fresh" "$work/cache-k-fresh" --remote-cache "$url/$p"
+grep -q "2 of 3 lookups hit" "$work/k-fresh/err" || fail "after the kill: $(hits_line "$work/k-fresh")"
+[ "$(ran_of "$work/k-fresh/out/report.json")" = 1 ] || fail "after the kill, expected big alone to cook"
+if [ "$kind" = nginx ] && grep -q "GET /$p/cas/[0-9a-f]* [^ ]* 404" "$srv/access.log"; then
+  fail "a lookup followed an entry to a missing blob: $(grep " 404 " "$srv/access.log")"
+fi
+# correct results: the outputs the killed client had cooked (read back from
+# its local cache, no remote), digest for digest
+"$bin" run "$work/k$caught/graph.lua" --cache "$work/cache-k$caught" --out "$work/k$caught/again" -j1 2> /dev/null
+[ "$(ran_of "$work/k$caught/again/report.json")" = 0 ] || fail "the killed client's local cache lost its results"
+digests_of() { grep -o '"digest":[[:space:]]*"[0-9a-f]*"' "$1" | tr -d '[:space:]'; }
+[ "$(digests_of "$work/k-fresh/out/report.json")" = "$(digests_of "$work/k$caught/again/report.json")" ] ||
+  fail "the outputs after the kill differ from the killed client's"
+cmp "$work/k-fresh/out/small.obj" "$work/k$caught/again/small.obj" || fail "the saved files differ"
+entries_whole "$p"
+[ "$entries" = 3 ] || fail "after the fresh cook's upload, expected 3 whole entries, found $entries"
+whole=$(ls -S -l "$srv/store/$p/cas" | awk 'NR == 2 {print $5}')
+[ "$partial" -lt "$whole" ] || fail "the stopped body ($partial bytes) was not partial (the blob: $whole bytes)"
+echo "$kind 10. a client killed -9 with $((partial / 1000000)) of $((whole / 1000000)) MB of a blob on the server (try $caught): 2 whole entries serve, nothing of the third; a fresh cache: $(hits_line "$work/k-fresh" | cut -d';' -f1), big cooked, outputs equal the killed client's"
