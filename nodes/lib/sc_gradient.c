@@ -770,43 +770,48 @@ static void sort_row(int32_t *col, double *val, int32_t n) {
     }
 }
 
-/* C = A B */
-static int csr_mul(const gd_csr *a, const gd_csr *b, gd_csr *c) {
+/* C = PT A P in one pass over the coarse rows (PT = P^T), without the
+ * intermediate A P: coarse row I gathers PT(I,i) A(i,j) P(j,J) */
+static int csr_galerkin(const gd_csr *pt, const gd_csr *a, const gd_csr *p, gd_csr *c) {
     memset(c, 0, sizeof *c);
-    c->rows = a->rows, c->cols = b->cols;
-    size_t cap = (size_t)a->ptr[a->rows] * 2 + 16, nnz = 0;
-    int32_t *mark = sc_alloc_array((size_t)b->cols + 1, sizeof *mark), *pos = sc_alloc_array((size_t)b->cols + 1, sizeof *pos);
-    c->ptr = sc_calloc_array((size_t)a->rows + 1, sizeof *c->ptr);
+    c->rows = pt->rows, c->cols = p->cols;
+    size_t cap = (size_t)pt->rows * 12 + 16, nnz = 0;
+    int32_t *mark = sc_alloc_array((size_t)p->cols + 1, sizeof *mark), *pos = sc_alloc_array((size_t)p->cols + 1, sizeof *pos);
+    c->ptr = sc_calloc_array((size_t)pt->rows + 1, sizeof *c->ptr);
     c->col = sc_alloc_array(cap, sizeof *c->col);
     c->val = sc_alloc_array(cap, sizeof *c->val);
     if (!mark || !pos || !c->ptr || !c->col || !c->val) goto oom;
-    for (int32_t j = 0; j < b->cols; j++) mark[j] = -1;
-    for (int32_t i = 0; i < a->rows; i++) {
+    for (int32_t j = 0; j < p->cols; j++) mark[j] = -1;
+    for (int32_t I = 0; I < pt->rows; I++) {
         size_t start = nnz;
-        for (int32_t ea = a->ptr[i]; ea < a->ptr[i + 1]; ea++) {
-            int32_t k = a->col[ea];
-            double va = a->val[ea];
-            for (int32_t eb = b->ptr[k]; eb < b->ptr[k + 1]; eb++) {
-                int32_t j = b->col[eb];
-                if (mark[j] == i) {
-                    c->val[pos[j]] += va * b->val[eb];
-                    continue;
+        for (int32_t et = pt->ptr[I]; et < pt->ptr[I + 1]; et++) {
+            int32_t i = pt->col[et];
+            double vt = pt->val[et];
+            for (int32_t ea = a->ptr[i]; ea < a->ptr[i + 1]; ea++) {
+                int32_t j = a->col[ea];
+                double va = vt * a->val[ea];
+                for (int32_t ep = p->ptr[j]; ep < p->ptr[j + 1]; ep++) {
+                    int32_t J = p->col[ep];
+                    if (mark[J] == I) {
+                        c->val[pos[J]] += va * p->val[ep];
+                        continue;
+                    }
+                    if (nnz == cap) {
+                        cap *= 2;
+                        int32_t *nc = sc_realloc_array(c->col, cap, sizeof *nc);
+                        if (nc) c->col = nc;
+                        double *nv = sc_realloc_array(c->val, cap, sizeof *nv);
+                        if (nv) c->val = nv;
+                        if (!nc || !nv) goto oom;
+                    }
+                    mark[J] = I, pos[J] = (int32_t)nnz;
+                    c->col[nnz] = J, c->val[nnz] = va * p->val[ep], nnz++;
                 }
-                if (nnz == cap) {
-                    cap *= 2;
-                    int32_t *nc = sc_realloc_array(c->col, cap, sizeof *nc);
-                    if (nc) c->col = nc;
-                    double *nv = sc_realloc_array(c->val, cap, sizeof *nv);
-                    if (nv) c->val = nv;
-                    if (!nc || !nv) goto oom;
-                }
-                mark[j] = i, pos[j] = (int32_t)nnz;
-                c->col[nnz] = j, c->val[nnz] = va * b->val[eb], nnz++;
             }
         }
         sort_row(c->col + start, c->val + start, (int32_t)(nnz - start));
         if (nnz > INT32_MAX) goto oom;
-        c->ptr[i + 1] = (int32_t)nnz;
+        c->ptr[I + 1] = (int32_t)nnz;
     }
     free(mark), free(pos);
     return 0;
@@ -965,18 +970,19 @@ static int level_coarsen(gd_level *v, gd_level *c, sc_error *err) {
         P->ptr[i + 1] = nnz;
     }
     free(cmap);
-    gd_csr AP;
-    if (csr_transpose(P, &v->PT) || csr_mul(&v->A, P, &AP)) return sc_fail(err, SC_ENOMEM, "out of memory");
-    int bad = csr_mul(&v->PT, &AP, &c->A);
-    csr_free(&AP);
-    return bad ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
+    if (csr_transpose(P, &v->PT) || csr_galerkin(&v->PT, &v->A, P, &c->A)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    return SC_OK;
 }
 
-static int mg_build(const sc_sparse *A, const gd_system *y, int32_t levels, int32_t C, gd_mg *mg, sc_error *err) {
+/* the hierarchy for A (consumed: freed once its full copy is made, also on failure) */
+static int mg_build(sc_sparse *A, const gd_system *y, int32_t levels, int32_t C, gd_mg *mg, sc_error *err) {
     memset(mg, 0, sizeof *mg);
     if (levels < 1) levels = 1;
     mg->lv = sc_calloc_array((size_t)levels, sizeof *mg->lv);
-    if (!mg->lv) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (!mg->lv) {
+        sc_sparse_free(A);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
     mg->C = C;
     gd_level *v = &mg->lv[0];
     mg->nl = 1;
@@ -985,6 +991,7 @@ static int mg_build(const sc_sparse *A, const gd_system *y, int32_t levels, int3
     v->y = sc_alloc_array((size_t)v->n + 1, sizeof *v->y);
     sc_sparse full;
     int rc = sc_sparse_full(A, &full, err);
+    sc_sparse_free(A);
     if (rc != SC_OK) goto fail;
     v->A = (gd_csr){.rows = full.n, .cols = full.n, .ptr = full.colptr, .col = full.rowind, .val = full.val};
     rc = SC_ENOMEM;
@@ -1117,15 +1124,12 @@ static void vcycle_metric(sc_metric_list *ml, const char *name, int32_t k, doubl
     sc_metric_list_add(ml, key, rel);
 }
 
-/* z = one V-cycle applied to r from a zero guess */
-static int precondition(gd_mg *mg, int32_t sweeps, const double *r, double *z, sc_error *err) {
+/* the finest level's xv = one V-cycle applied to its bv from a zero guess
+ * (a V-cycle reads the finest bv and leaves it as it is) */
+static int precondition(gd_mg *mg, int32_t sweeps, sc_error *err) {
     gd_level *v = &mg->lv[0];
-    size_t nn = (size_t)v->n * (size_t)mg->C;
-    memcpy(v->bv, r, nn * sizeof *r);
-    memset(v->xv, 0, nn * sizeof *z);
-    int rc = vcycle(mg, 0, sweeps, err);
-    memcpy(z, v->xv, nn * sizeof *z);
-    return rc;
+    memset(v->xv, 0, (size_t)v->n * (size_t)mg->C * sizeof *v->xv);
+    return vcycle(mg, 0, sweeps, err);
 }
 
 static void dot_channels(int32_t C, int32_t n, const double *a, const double *b, double out[4]) {
@@ -1134,8 +1138,9 @@ static void dot_channels(int32_t C, int32_t n, const double *a, const double *b,
         for (int32_t c = 0; c < C; c++) out[c] += a[(size_t)i * C + c] * b[(size_t)i * C + c];
 }
 
-/* A x = b for C interleaved channels; x holds the initial guess (multigrid) */
-static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_options *o, int32_t C, const double *b,
+/* A x = b for C interleaved channels; x holds the initial guess (multigrid).
+ * A is consumed (freed as soon as the factor or the hierarchy holds it). */
+static int solve(sc_sparse *A, const gd_system *y, const sc_gradient_options *o, int32_t C, const double *b,
                  double *x, const char *name, sc_metric_list *ml, int32_t *vcycles, sc_error *err) {
     size_t nn = (size_t)y->n * (size_t)C;
     if (o->solver == SC_GRADIENT_DIRECT) {
@@ -1143,6 +1148,7 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
         double *cm = sc_alloc_array(nn + 1, sizeof *cm);
         if (!cm) return sc_fail(err, SC_ENOMEM, "out of memory");
         int rc = sc_sparse_chol_factor(A, NULL, &f, err);
+        sc_sparse_free(A);
         if (rc == SC_OK) {
             for (int32_t i = 0; i < y->n; i++)
                 for (int32_t c = 0; c < C; c++) cm[(size_t)c * y->n + i] = b[(size_t)i * C + c];
@@ -1162,7 +1168,7 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
     int32_t k = 0;
     metric(ml, "%s_levels", name, mg.nl);
     metric(ml, "%s_boundary_texels", name, v->nb);
-    double *r = NULL, *z = NULL, *p = NULL, *q = NULL;
+    double *p = NULL, *q = NULL;
     if (bn == 0) {
         memset(x, 0, nn * sizeof *x);
         rel = 0;
@@ -1177,15 +1183,17 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
         }
         memcpy(x, v->xv, nn * sizeof *x);
     } else {
-        /* conjugate gradients, one V-cycle (a symmetric operator) as the preconditioner */
-        r = sc_alloc_array(nn, sizeof *r), z = sc_alloc_array(nn, sizeof *z);
+        /* conjugate gradients, one V-cycle (a symmetric operator) as the
+         * preconditioner; the residual r lives in the finest level's bv and
+         * the preconditioned z in its xv, which the V-cycle reads and writes */
+        double *r = v->bv, *z = v->xv;
         p = sc_alloc_array(nn, sizeof *p), q = sc_alloc_array(nn, sizeof *q);
-        if (!r || !z || !p || !q) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (!p || !q) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         double rz[4] = {0, 0, 0, 0};
         if (rc == SC_OK) {
             residual(&v->A, C, b, x, r);
             rel = norm2(r, nn) / bn;
-            rc = precondition(&mg, o->relaxations, r, z, err);
+            rc = precondition(&mg, o->relaxations, err);
             memcpy(p, z, nn * sizeof *z);
             dot_channels(C, y->n, r, z, rz);
         }
@@ -1200,13 +1208,13 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
             rel = norm2(r, nn) / bn;
             vcycle_metric(ml, name, ++k, rel);
             if (rel <= o->tolerance || k == o->max_vcycles) break;
-            rc = precondition(&mg, o->relaxations, r, z, err);
+            rc = precondition(&mg, o->relaxations, err);
             dot_channels(C, y->n, r, z, rz1);
             for (size_t i = 0; i < nn; i++) p[i] = z[i] + (rz[i % C] > 0 ? rz1[i % C] / rz[i % C] : 0) * p[i];
             memcpy(rz, rz1, sizeof rz);
         }
     }
-    free(r), free(z), free(p), free(q);
+    free(p), free(q);
     if (rc == SC_OK) {
         metric(ml, "%s_vcycles", name, k);
         metric(ml, "%s_residual", name, rel);
@@ -1415,8 +1423,11 @@ done:
     return rc;
 }
 
-/* smooth, sharpen, stitch: (a M + S) x = a M x0 + beta S x0 (stitch: + S_same x0) */
-static int run_filter(const gd_system *y, const sc_gradient_options *o, int32_t C, const double *x0, double *x,
+/* smooth, sharpen, stitch: (a M + S) x = a M x0 + beta S x0 (stitch: + S_same x0).
+ * Once the right-hand side and the system matrix are formed, y's mass and
+ * stiffness matrices are freed: nothing after the solve reads them, and the
+ * hierarchy is built next, at the run's peak. */
+static int run_filter(gd_system *y, const sc_gradient_options *o, int32_t C, const double *x0, double *x,
                       sc_metric_list *ml, int32_t *vcycles, sc_error *err) {
     double a = o->screening / y->area;
     size_t nn = (size_t)y->n * (size_t)C;
@@ -1428,6 +1439,7 @@ static int run_filter(const gd_system *y, const sc_gradient_options *o, int32_t 
     else if (ok && o->gradient_scale != 0) ok = !symv_channels(&y->mat[1], C, x0, b, o->gradient_scale, true);
     if (!ok) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     else if ((rc = sc_sparse_add(&y->mat[0], a, &y->mat[1], 1.0, &A, err)) == SC_OK) {
+        for (int k = 0; k < GD_NMAT; k++) sc_sparse_free(&y->mat[k]);
         memcpy(x, x0, nn * sizeof *x);
         rc = solve(&A, y, o, C, b, x, op_names[o->op], ml, vcycles, err);
     }
