@@ -23,7 +23,9 @@
  * gradient_scale= and screening=, else 0 and 1e4; N from --peer-vcycles,
  * else the peer's default 6). Its wall time and peak resident memory
  * (wait4's rusage) are measured, its output compared as with --peer, and one
- * table prints both side by side. The peer's wall time includes decoding the
+ * table prints both side by side. Beside a peer (--peer or --peer-bin) the
+ * node runs with seamless=false, the system the peer solves, unless --set
+ * seamless= is given. The peer's wall time includes decoding the
  * PNG and writing its result; seamcook's "load + node" column includes
  * decoding the PNG, not encoding the result. What the peer measured at is
  * in docs/notes/gradient_domain.md.
@@ -203,6 +205,11 @@ static int run_once(void *ud, int out) {
     sc_value *inputs[] = {atlas, NULL}; /* atlas, labels */
     sc_ctx *ctx = sc_ctx_new(&sc_node_gradient_domain, NULL, inputs);
     sc_ctx_set_threads(ctx, 2);
+    /* beside the peer: the same system, so the paper's raw result (the peer
+     * does not erase seams) unless --set seamless= says otherwise */
+    bool set_seamless = false;
+    for (int i = 0; i < ra->nsets; i++) set_seamless |= !strncmp(ra->sets[i], "seamless=", 9);
+    if ((peer_file || ra->pr) && !set_seamless) rc = sc_ctx_set_param(ctx, "seamless", "false", &err);
     for (int i = 0; i < ra->nsets && rc == SC_OK; i++) {
         char *eq = strchr(ra->sets[i], '=');
         if (!eq) continue;

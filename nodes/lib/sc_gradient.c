@@ -671,6 +671,7 @@ typedef struct gd_system {
     int32_t *unknown;          /* W * H: unknown of each texel, or -1 */
     sc_sparse mat[GD_NMAT];    /* mass, stiffness, labelled stiffness (upper CSC) */
     double area;               /* surface area of the material's faces */
+    int threads;               /* the solver's parallel loops */
 } gd_system;
 
 static void system_free(gd_system *y) {
@@ -868,19 +869,29 @@ static int csr_upper(const gd_csr *a, const int32_t *keep, int32_t count, sc_spa
     return SC_OK;
 }
 
+/* Gauss-Seidel runs by strips of GD_STRIP rows: the even strips first, each
+ * on a thread of its own (an interior texel's row reaches only the rows next
+ * to it, so strips of one parity never read each other's texels), then the
+ * odd ones; backwards, the reverse. The order is fixed by the grid, not by
+ * the thread count, so the results are the same on any number of threads. */
+#define GD_STRIP 32
+#define GD_ROWS_CHUNK 16384   /* rows per chunk of a parallel matrix-vector product */
+
 typedef struct gd_level {
     int32_t n, W, H;
     int32_t *x, *y;            /* grid coordinates of each unknown */
     gd_csr A;                  /* full symmetric */
     gd_csr P, PT;              /* prolongation from the next level, and its transpose */
     int32_t nb, *blist, *bidx; /* boundary unknowns, and each unknown's place among them (-1: interior) */
-    int32_t ni, *ilist;        /* interior unknowns, relaxed */
+    int32_t ni, *ilist;        /* interior unknowns, relaxed (in row order) */
+    int32_t nstrips, *istart;  /* strips of GD_STRIP rows: ilist[istart[s] .. istart[s + 1]) */
     sc_sparse_chol *f;         /* boundary block (the whole matrix on the coarsest level) */
     double *xv, *bv, *rv, *tmp;
 } gd_level;
 
 typedef struct gd_mg {
     int32_t nl, C;
+    int threads;
     gd_level *lv;
 } gd_mg;
 
@@ -888,7 +899,7 @@ static void mg_free(gd_mg *mg) {
     for (int32_t l = 0; l < mg->nl; l++) {
         gd_level *v = &mg->lv[l];
         free(v->x), free(v->y), csr_free(&v->A), csr_free(&v->P), csr_free(&v->PT);
-        free(v->blist), free(v->bidx), free(v->ilist), sc_sparse_chol_free(v->f);
+        free(v->blist), free(v->bidx), free(v->ilist), free(v->istart), sc_sparse_chol_free(v->f);
         free(v->xv), free(v->bv), free(v->rv), free(v->tmp);
     }
     free(mg->lv);
@@ -924,6 +935,14 @@ static int level_split(gd_level *v, bool coarsest, sc_error *err) {
         else v->bidx[i] = v->nb, v->blist[v->nb++] = i;
     }
     free(map);
+    /* the interior by strips of rows (unknowns are numbered row by row) */
+    v->nstrips = (v->H + GD_STRIP - 1) / GD_STRIP;
+    v->istart = sc_alloc_array((size_t)v->nstrips + 1, sizeof *v->istart);
+    if (!v->istart) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t st = 0, k = 0; st <= v->nstrips; st++) {
+        while (k < v->ni && v->y[v->ilist[k]] < st * GD_STRIP) k++;
+        v->istart[st] = st == v->nstrips ? v->ni : k;
+    }
     if (v->nb == 0) return SC_OK;
     sc_sparse up;
     int rc = csr_upper(&v->A, v->bidx, v->nb, &up, err);
@@ -984,6 +1003,7 @@ static int mg_build(sc_sparse *A, const gd_system *y, int32_t levels, int32_t C,
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     mg->C = C;
+    mg->threads = y->threads;
     gd_level *v = &mg->lv[0];
     mg->nl = 1;
     v->n = y->n, v->W = y->g.width, v->H = y->g.height;
@@ -1021,23 +1041,51 @@ fail:
     return rc;
 }
 
-/* Gauss-Seidel on the interior unknowns, forwards or (after the coarse
- * correction, which keeps the V-cycle symmetric) backwards */
-static void relax(gd_level *v, int32_t C, int32_t sweeps, bool backwards) {
-    for (int32_t s = 0; s < sweeps; s++)
-        for (int32_t kk = 0; kk < v->ni; kk++) {
-            int32_t i = v->ilist[backwards ? v->ni - 1 - kk : kk];
-            double acc[4] = {0, 0, 0, 0}, diag = 0;
-            for (int32_t c = 0; c < C; c++) acc[c] = v->bv[(size_t)i * C + c];
-            for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++) {
-                int32_t j = v->A.col[e];
-                if (j == i) {
-                    diag = v->A.val[e];
-                    continue;
-                }
-                for (int32_t c = 0; c < C; c++) acc[c] -= v->A.val[e] * v->xv[(size_t)j * C + c];
+/* fn(ud, chunk) for chunk in [0, n) on `threads` threads; in order on this
+ * one when no thread (nor the bookkeeping) can be had: every chunk's work is
+ * independent of the others and of the thread that runs it */
+static void gd_for(int threads, int32_t n, int (*fn)(void *ud, int32_t chunk), void *ud) {
+    if (threads > 1 && n > 1 && sc_parallel(threads, n, fn, ud) == SC_OK) return;
+    for (int32_t c = 0; c < n; c++) fn(ud, c);
+}
+
+typedef struct gd_relax_job {
+    gd_level *v;
+    int32_t C, parity;
+    bool backwards;
+} gd_relax_job;
+
+/* Gauss-Seidel over strip 2 * chunk + parity of the interior unknowns,
+ * forwards or (after the coarse correction, which keeps the V-cycle
+ * symmetric) backwards */
+static int relax_strip(void *ud, int32_t chunk) {
+    const gd_relax_job *j = ud;
+    gd_level *v = j->v;
+    int32_t C = j->C, st = 2 * chunk + j->parity;
+    if (st >= v->nstrips) return SC_OK;
+    int32_t k0 = v->istart[st], k1 = v->istart[st + 1];
+    for (int32_t kk = 0; kk < k1 - k0; kk++) {
+        int32_t i = v->ilist[j->backwards ? k1 - 1 - kk : k0 + kk];
+        double acc[4] = {0, 0, 0, 0}, diag = 0;
+        for (int32_t c = 0; c < C; c++) acc[c] = v->bv[(size_t)i * C + c];
+        for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++) {
+            int32_t jj = v->A.col[e];
+            if (jj == i) {
+                diag = v->A.val[e];
+                continue;
             }
-            for (int32_t c = 0; c < C; c++) v->xv[(size_t)i * C + c] = acc[c] / diag;
+            for (int32_t c = 0; c < C; c++) acc[c] -= v->A.val[e] * v->xv[(size_t)jj * C + c];
+        }
+        for (int32_t c = 0; c < C; c++) v->xv[(size_t)i * C + c] = acc[c] / diag;
+    }
+    return SC_OK;
+}
+
+static void relax(gd_level *v, int32_t C, int32_t sweeps, bool backwards, int threads) {
+    for (int32_t s = 0; s < sweeps; s++)
+        for (int pass = 0; pass < 2; pass++) {
+            gd_relax_job j = {v, C, backwards ? 1 - pass : pass, backwards};
+            gd_for(threads, (v->nstrips + 1) / 2, relax_strip, &j);
         }
 }
 
@@ -1062,23 +1110,40 @@ static int boundary_solve(gd_level *v, int32_t C, sc_error *err) {
     return SC_OK;
 }
 
-static void residual(const gd_csr *A, int32_t C, const double *b, const double *x, double *r) {
-    for (int32_t i = 0; i < A->rows; i++)
+typedef struct gd_rows_job {
+    const gd_csr *M;
+    int32_t C;
+    const double *b, *x;  /* residual: r = b - M x; product: y = M x (+ y when add) */
+    double *out;
+    bool residual, add;
+} gd_rows_job;
+
+static int rows_chunk(void *ud, int32_t chunk) {
+    const gd_rows_job *j = ud;
+    const gd_csr *M = j->M;
+    int32_t C = j->C, i0 = chunk * GD_ROWS_CHUNK, i1 = i0 + GD_ROWS_CHUNK < M->rows ? i0 + GD_ROWS_CHUNK : M->rows;
+    for (int32_t i = i0; i < i1; i++)
         for (int32_t c = 0; c < C; c++) {
-            double s = b[(size_t)i * C + c];
-            for (int32_t e = A->ptr[i]; e < A->ptr[i + 1]; e++) s -= A->val[e] * x[(size_t)A->col[e] * C + c];
-            r[(size_t)i * C + c] = s;
+            size_t at = (size_t)i * C + c;
+            double acc = 0;
+            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++) acc += M->val[e] * j->x[(size_t)M->col[e] * C + c];
+            j->out[at] = j->residual ? j->b[at] - acc : j->add ? j->out[at] + acc : acc;
         }
+    return SC_OK;
+}
+
+static int32_t row_chunks(const gd_csr *M) { return (M->rows + GD_ROWS_CHUNK - 1) / GD_ROWS_CHUNK; }
+
+/* r = b - A x for C interleaved channels */
+static void residual(const gd_csr *A, int32_t C, const double *b, const double *x, double *r, int threads) {
+    gd_rows_job j = {A, C, b, x, r, true, false};
+    gd_for(threads, row_chunks(A), rows_chunk, &j);
 }
 
 /* y = M x for a row matrix and C interleaved channels (add: y += M x) */
-static void csr_apply(const gd_csr *M, int32_t C, const double *x, double *y, bool add) {
-    for (int32_t i = 0; i < M->rows; i++)
-        for (int32_t c = 0; c < C; c++) {
-            double s = add ? y[(size_t)i * C + c] : 0;
-            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++) s += M->val[e] * x[(size_t)M->col[e] * C + c];
-            y[(size_t)i * C + c] = s;
-        }
+static void csr_apply(const gd_csr *M, int32_t C, const double *x, double *y, bool add, int threads) {
+    gd_rows_job j = {M, C, NULL, x, y, false, add};
+    gd_for(threads, row_chunks(M), rows_chunk, &j);
 }
 
 /* Fig. 8: relax the interior, solve the boundary, restrict the residual,
@@ -1088,19 +1153,19 @@ static int vcycle(gd_mg *mg, int32_t l, int32_t sweeps, sc_error *err) {
     gd_level *v = &mg->lv[l];
     int32_t C = mg->C;
     if (l == mg->nl - 1) return boundary_solve(v, C, err);
-    relax(v, C, sweeps, false);
+    relax(v, C, sweeps, false, mg->threads);
     int rc = boundary_solve(v, C, err);
     if (rc != SC_OK) return rc;
-    residual(&v->A, C, v->bv, v->xv, v->rv);
+    residual(&v->A, C, v->bv, v->xv, v->rv, mg->threads);
     gd_level *c = &mg->lv[l + 1];
-    csr_apply(&v->PT, C, v->rv, c->bv, false);
+    csr_apply(&v->PT, C, v->rv, c->bv, false, mg->threads);
     memset(c->xv, 0, (size_t)c->n * C * sizeof(double));
     rc = vcycle(mg, l + 1, sweeps, err);
     if (rc != SC_OK) return rc;
-    csr_apply(&v->P, C, c->xv, v->xv, true);
+    csr_apply(&v->P, C, c->xv, v->xv, true, mg->threads);
     rc = boundary_solve(v, C, err);
     if (rc != SC_OK) return rc;
-    relax(v, C, sweeps, true);
+    relax(v, C, sweeps, true, mg->threads);
     return SC_OK;
 }
 
@@ -1177,7 +1242,7 @@ static int solve(sc_sparse *A, const gd_system *y, const sc_gradient_options *o,
         memcpy(v->xv, x, nn * sizeof *x);
         while (rel > o->tolerance && k < o->max_vcycles && rc == SC_OK) {
             rc = vcycle(&mg, 0, o->relaxations, err);
-            residual(&v->A, C, v->bv, v->xv, v->rv);
+            residual(&v->A, C, v->bv, v->xv, v->rv, mg.threads);
             rel = norm2(v->rv, nn) / bn;
             vcycle_metric(ml, name, ++k, rel);
         }
@@ -1191,7 +1256,7 @@ static int solve(sc_sparse *A, const gd_system *y, const sc_gradient_options *o,
         if (!p || !q) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         double rz[4] = {0, 0, 0, 0};
         if (rc == SC_OK) {
-            residual(&v->A, C, b, x, r);
+            residual(&v->A, C, b, x, r, mg.threads);
             rel = norm2(r, nn) / bn;
             rc = precondition(&mg, o->relaxations, err);
             memcpy(p, z, nn * sizeof *z);
@@ -1199,7 +1264,7 @@ static int solve(sc_sparse *A, const gd_system *y, const sc_gradient_options *o,
         }
         while (rc == SC_OK && rel > o->tolerance && k < o->max_vcycles) {
             double pq[4] = {0, 0, 0, 0}, rz1[4] = {0, 0, 0, 0};
-            csr_apply(&v->A, C, p, q, false);
+            csr_apply(&v->A, C, p, q, false, mg.threads);
             dot_channels(C, y->n, p, q, pq);
             for (size_t i = 0; i < nn; i++) {
                 double alpha = pq[i % C] > 0 ? rz[i % C] / pq[i % C] : 0;
@@ -1493,6 +1558,7 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
     }
     rc = system_build(&w, o->op == SC_GRADIENT_STITCH ? o->labels : NULL, &y, err);
     if (rc != SC_OK) goto done;
+    y.threads = threads;
     r.unknowns = y.n;
     sc_metric_list_add(&r.metrics, "unknowns", y.n);
     sc_metric_list_add(&r.metrics, "surface_area", y.area);

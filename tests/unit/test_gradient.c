@@ -336,6 +336,32 @@ SC_TEST(seamless_output) {
     sc_value_release(s), sc_value_release(r), sc_value_release(atlas), sc_value_release(sphere);
 }
 
+/* The multigrid relaxes strips of rows in parallel in an order fixed by the
+ * grid: one thread and two give the same bytes. */
+SC_TEST(threads_give_the_same_bytes) {
+    sc_value *sphere = sphere_atlas(12, 128);
+    if (!sphere) return;
+    sc_value *atlas = painted(sphere, 3, smooth_field, 0);
+    sc_value *out[2] = {NULL, NULL};
+    for (int k = 0; k < 2; k++) {
+        sc_value *inputs[] = {atlas, NULL};
+        sc_ctx *ctx = sc_ctx_new(&sc_node_gradient_domain, NULL, inputs);
+        sc_ctx_set_threads(ctx, k + 1);
+        sc_error err = {0};
+        int rc = sc_ctx_set_param(ctx, "seamless", "false", &err);
+        if (rc == SC_OK) rc = sc_ctx_run(ctx, &err);
+        SC_CHECK_MSG(rc == SC_OK, "gradient_domain on %d threads: %s", k + 1, err.message);
+        if (rc == SC_OK) out[k] = sc_value_retain(sc_ctx_output(ctx, 1));
+        sc_ctx_free(ctx);
+    }
+    if (out[0] && out[1]) {
+        const sc_image_data *a = out[0]->as.image, *b = out[1]->as.image;
+        size_t bytes = (size_t)a->width * a->height * a->channels * sizeof(float);
+        SC_CHECK(memcmp(a->pixels, b->pixels, bytes) == 0);
+    }
+    sc_value_release(out[0]), sc_value_release(out[1]), sc_value_release(atlas), sc_value_release(sphere);
+}
+
 /* Heat-method distance from the pole (0, 0, 1) against great-circle
  * distance on the unit sphere, at three resolutions. */
 SC_TEST(geodesic_unit_sphere) {
