@@ -2,6 +2,7 @@
  *
  *   bench_gradient [-r RUNS] [ASSET] [--set name=value]... [--peer FILE.png]
  *                  [--peer-bin PATH] [--peer-vcycles N]
+ *   bench_gradient --geodesic SIZE... [--set name=value]...
  *
  * Loads the asset (blub by default: 14k faces, a 2048 x 2048 texture; from
  * ../shared/corpus or $SC_CORPUS), then runs gradient_domain (smooth, the
@@ -29,6 +30,17 @@
  * PNG and writing its result; seamcook's "load + node" column includes
  * decoding the PNG, not encoding the result. What the peer measured at is
  * in docs/notes/gradient_domain.md.
+ *
+ * `--geodesic SIZE...`: the heat-method distance from the pole (0, 0, 1) on
+ * the procedural unit sphere (six charts, mesh resolution SIZE x 200 / 1024:
+ * the procedural node's largest at 1024^2, the same ratio below; a
+ * SIZE x SIZE texture, no bumps), against great-circle distance at every
+ * texel centre inside a chart (its surface point found here by
+ * point-in-triangle in uv): the mean and largest error, the V-cycles of
+ * both solves, seconds and peak memory; also the mean signed error (a
+ * constant offset, set by where the source falls among the texels) and the
+ * mean error once it is taken out; one child process per size. The
+ * unit test runs 48^2 to 192^2; this states the error at 1024^2.
  */
 #include <math.h>
 #include <stdio.h>
@@ -266,19 +278,139 @@ static int run_once(void *ud, int out) {
     return rc != SC_OK;
 }
 
+/* ---------------------------------------------------------------- geodesics on the unit sphere */
+
+/* The surface point at every texel centre inside a uv triangle (NAN
+ * elsewhere): pos[3 * (j * W + i)]; NULL when out of memory. */
+static double *texel_points(const sc_mesh *m, int W, int H) {
+    double *pos = malloc(sizeof(double) * 3 * (size_t)W * H);
+    if (!pos) return NULL;
+    for (size_t k = 0; k < 3 * (size_t)W * H; k++) pos[k] = NAN;
+    for (int f = 0; f < m->nf; f++) {
+        double x[3], y[3];
+        for (int k = 0; k < 3; k++) x[k] = m->U[2 * m->FU[3 * f + k]] * W - 0.5, y[k] = m->U[2 * m->FU[3 * f + k] + 1] * H - 0.5;
+        double det = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        int i0 = (int)floor(fmin(x[0], fmin(x[1], x[2]))), i1 = (int)ceil(fmax(x[0], fmax(x[1], x[2])));
+        int j0 = (int)floor(fmin(y[0], fmin(y[1], y[2]))), j1 = (int)ceil(fmax(y[0], fmax(y[1], y[2])));
+        for (int j = j0 < 0 ? 0 : j0; j <= j1 && j < H; j++)
+            for (int i = i0 < 0 ? 0 : i0; i <= i1 && i < W; i++) {
+                double b1 = ((i - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (j - y[0])) / det;
+                double b2 = ((x[1] - x[0]) * (j - y[0]) - (i - x[0]) * (y[1] - y[0])) / det, b0 = 1 - b1 - b2;
+                if (b0 < -1e-12 || b1 < -1e-12 || b2 < -1e-12) continue;
+                for (int c = 0; c < 3; c++)
+                    pos[3 * ((size_t)j * W + i) + c] = b0 * m->V[3 * m->FV[3 * f] + c] + b1 * m->V[3 * m->FV[3 * f + 1] + c] +
+                                                       b2 * m->V[3 * m->FV[3 * f + 2] + c];
+            }
+    }
+    return pos;
+}
+
+typedef struct geo_args {
+    int size, nsets;
+    char **sets;
+} geo_args;
+
+static int run_geodesic(void *ud, int out) {
+    const geo_args *ga = ud;
+    char res[16], sz[16];
+    /* 200 (the procedural node's largest) at 1024^2, the same ratio below */
+    int resolution = (int)lround(ga->size * 200.0 / 1024.0);
+    if (resolution < 1) resolution = 1;
+    if (resolution > 200) resolution = 200;
+    snprintf(res, sizeof res, "%d", resolution);
+    snprintf(sz, sizeof sz, "%d", ga->size);
+    sc_error err = {0};
+    sc_ctx *pc = sc_ctx_new(&sc_node_procedural, NULL, NULL);
+    sc_ctx_set_threads(pc, 2);
+    int rc = sc_ctx_set_param(pc, "resolution", res, &err);
+    if (rc == SC_OK) rc = sc_ctx_set_param(pc, "texture_size", sz, &err);
+    if (rc == SC_OK) rc = sc_ctx_set_param(pc, "bumpiness", "0", &err);
+    if (rc == SC_OK) rc = sc_ctx_set_param(pc, "chart_tint", "0", &err);
+    if (rc == SC_OK) rc = sc_ctx_run(pc, &err);
+    if (rc != SC_OK) {
+        printf("procedural failed: %s\n", err.message);
+        sc_ctx_free(pc);
+        return 1;
+    }
+    sc_value *sphere = sc_value_retain(sc_ctx_output(pc, 0));
+    sc_ctx_free(pc);
+    sc_value *inputs[] = {sphere, NULL};
+    sc_ctx *ctx = sc_ctx_new(&sc_node_gradient_domain, NULL, inputs);
+    sc_ctx_set_threads(ctx, 2);
+    rc = sc_ctx_set_param(ctx, "operation", "geodesic", &err);
+    if (rc == SC_OK) rc = sc_ctx_set_param(ctx, "sources", "0 0 1", &err);
+    for (int i = 0; i < ga->nsets && rc == SC_OK; i++) {
+        char *eq = strchr(ga->sets[i], '=');
+        if (!eq) continue;
+        *eq = 0;
+        rc = sc_ctx_set_param(ctx, ga->sets[i], eq + 1, &err);
+        *eq = '=';
+    }
+    double rss0 = bench_resident_mb();
+    bench_reset_peak();
+    double t0 = sc_now();
+    if (rc == SC_OK) rc = sc_ctx_run(ctx, &err);
+    double secs = sc_now() - t0, peak = bench_peak_mb();
+    if (rc != SC_OK) {
+        printf("gradient_domain failed: %s\n", err.message);
+    } else {
+        const sc_image_data *im = sc_ctx_output(ctx, 1)->as.image;
+        double *pos = texel_points(sphere->as.atlas->mesh->as.mesh, im->width, im->height);
+        double sum = 0, worst = 0, bias = 0, centred = 0;
+        long n = 0;
+        for (int pass = 0; pass < 2; pass++) {
+            for (long t = 0; pos && t < (long)im->width * im->height; t++) {
+                const double *q = &pos[3 * t];
+                if (isnan(q[0])) continue;
+                double r = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+                double gc = acos(fmax(-1.0, fmin(1.0, q[2] / r)));
+                double d = ((const float *)im->pixels)[t] - gc;
+                if (pass == 0) sum += fabs(d), bias += d, n++, worst = fmax(worst, fabs(d));
+                else centred += fabs(d - bias);
+            }
+            if (pass == 0 && n) bias /= (double)n;
+        }
+        free(pos);
+        printf("%d^2 (mesh resolution %d, %.0f unknowns): mean |distance - great circle| %.4g, largest %.4g over %ld "
+               "texels (mean signed %.4g; without it %.4g); V-cycles %.0f + %.0f; %.2f s, peak %.0f MB (+%.0f MB "
+               "during the run)\n",
+               ga->size, resolution, sc_ctx_metric_value(ctx, "unknowns"), n ? sum / (double)n : NAN, worst, n, bias,
+               n ? centred / (double)n : NAN,
+               sc_ctx_metric_value(ctx, "heat_vcycles"), sc_ctx_metric_value(ctx, "distance_vcycles"), secs, peak,
+               peak - rss0);
+        if (!n || bench_report_seconds(out, secs) != 0) rc = SC_EINPUT;
+    }
+    fflush(stdout);
+    sc_ctx_free(ctx);
+    sc_value_release(sphere);
+    return rc != SC_OK;
+}
+
 int main(int argc, char **argv) {
     sc_tune_allocator();
     int runs = 1, nsets = 0;
     char *sets[64];
     const char *name = "blub", *peer = NULL, *peer_bin = getenv("SC_PEER_TSP");
-    int peer_vcycles = 6;
+    int peer_vcycles = 6, geo[16], ngeo = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "-r") && i + 1 < argc) runs = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--peer") && i + 1 < argc) peer = argv[++i];
         else if (!strcmp(argv[i], "--peer-bin") && i + 1 < argc) peer_bin = argv[++i];
         else if (!strcmp(argv[i], "--peer-vcycles") && i + 1 < argc) peer_vcycles = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--geodesic")) {
+            while (i + 1 < argc && atoi(argv[i + 1]) > 0 && ngeo < 16) geo[ngeo++] = atoi(argv[++i]);
+        }
         else if (!strcmp(argv[i], "--set") && i + 1 < argc && nsets < 64) sets[nsets++] = argv[++i];
         else name = argv[i];
+    }
+    if (ngeo > 0) {
+        int failed = 0;
+        for (int k = 0; k < ngeo; k++) {
+            geo_args ga = {geo[k], nsets, sets};
+            double secs;
+            failed += bench_in_child(run_geodesic, &ga, &secs) != 0;
+        }
+        return failed ? 1 : 0;
     }
     const char *env = getenv("SC_CORPUS");
     char *corpus = env && *env ? sc_strdup(env) : sc_path_join(SC_SOURCE_DIR, "../shared/corpus");
