@@ -887,6 +887,7 @@ typedef struct gd_level {
     int32_t nstrips, *istart;  /* strips of GD_STRIP rows: ilist[istart[s] .. istart[s + 1]) */
     sc_sparse_chol *f;         /* boundary block (the whole matrix on the coarsest level) */
     double *xv, *bv, *rv, *tmp;
+    double *dinv;              /* 1 / the diagonal of A, per unknown */
 } gd_level;
 
 typedef struct gd_mg {
@@ -900,7 +901,7 @@ static void mg_free(gd_mg *mg) {
         gd_level *v = &mg->lv[l];
         free(v->x), free(v->y), csr_free(&v->A), csr_free(&v->P), csr_free(&v->PT);
         free(v->blist), free(v->bidx), free(v->ilist), free(v->istart), sc_sparse_chol_free(v->f);
-        free(v->xv), free(v->bv), free(v->rv), free(v->tmp);
+        free(v->xv), free(v->bv), free(v->rv), free(v->tmp), free(v->dinv);
     }
     free(mg->lv);
     memset(mg, 0, sizeof *mg);
@@ -935,6 +936,13 @@ static int level_split(gd_level *v, bool coarsest, sc_error *err) {
         else v->bidx[i] = v->nb, v->blist[v->nb++] = i;
     }
     free(map);
+    v->dinv = sc_alloc_array((size_t)v->n + 1, sizeof *v->dinv);
+    if (!v->dinv) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t i = 0; i < v->n; i++) {
+        v->dinv[i] = 0;
+        for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++)
+            if (v->A.col[e] == i && v->A.val[e] != 0) v->dinv[i] = 1 / v->A.val[e];
+    }
     /* the interior by strips of rows (unknowns are numbered row by row) */
     v->nstrips = (v->H + GD_STRIP - 1) / GD_STRIP;
     v->istart = sc_alloc_array((size_t)v->nstrips + 1, sizeof *v->istart);
@@ -1057,26 +1065,34 @@ typedef struct gd_relax_job {
 
 /* Gauss-Seidel over strip 2 * chunk + parity of the interior unknowns,
  * forwards or (after the coarse correction, which keeps the V-cycle
- * symmetric) backwards */
+ * symmetric) backwards: x_i += (b_i - A_i x) / a_ii. Three channels (colour)
+ * have a loop of their own, the same arithmetic unrolled. */
 static int relax_strip(void *ud, int32_t chunk) {
     const gd_relax_job *j = ud;
     gd_level *v = j->v;
     int32_t C = j->C, st = 2 * chunk + j->parity;
     if (st >= v->nstrips) return SC_OK;
     int32_t k0 = v->istart[st], k1 = v->istart[st + 1];
+    const int32_t *ptr = v->A.ptr, *col = v->A.col;
+    const double *val = v->A.val, *b = v->bv, *dinv = v->dinv;
+    double *x = v->xv;
     for (int32_t kk = 0; kk < k1 - k0; kk++) {
         int32_t i = v->ilist[j->backwards ? k1 - 1 - kk : k0 + kk];
-        double acc[4] = {0, 0, 0, 0}, diag = 0;
-        for (int32_t c = 0; c < C; c++) acc[c] = v->bv[(size_t)i * C + c];
-        for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++) {
-            int32_t jj = v->A.col[e];
-            if (jj == i) {
-                diag = v->A.val[e];
-                continue;
+        if (C == 3) {
+            double s0 = b[3 * (size_t)i], s1 = b[3 * (size_t)i + 1], s2 = b[3 * (size_t)i + 2];
+            for (int32_t e = ptr[i]; e < ptr[i + 1]; e++) {
+                const double a = val[e], *xj = x + 3 * (size_t)col[e];
+                s0 -= a * xj[0], s1 -= a * xj[1], s2 -= a * xj[2];
             }
-            for (int32_t c = 0; c < C; c++) acc[c] -= v->A.val[e] * v->xv[(size_t)jj * C + c];
+            double d = dinv[i];
+            x[3 * (size_t)i] += s0 * d, x[3 * (size_t)i + 1] += s1 * d, x[3 * (size_t)i + 2] += s2 * d;
+            continue;
         }
-        for (int32_t c = 0; c < C; c++) v->xv[(size_t)i * C + c] = acc[c] / diag;
+        double acc[4] = {0, 0, 0, 0};
+        for (int32_t c = 0; c < C; c++) acc[c] = b[(size_t)i * C + c];
+        for (int32_t e = ptr[i]; e < ptr[i + 1]; e++)
+            for (int32_t c = 0; c < C; c++) acc[c] -= val[e] * x[(size_t)col[e] * C + c];
+        for (int32_t c = 0; c < C; c++) x[(size_t)i * C + c] += acc[c] * dinv[i];
     }
     return SC_OK;
 }
@@ -1122,13 +1138,24 @@ static int rows_chunk(void *ud, int32_t chunk) {
     const gd_rows_job *j = ud;
     const gd_csr *M = j->M;
     int32_t C = j->C, i0 = chunk * GD_ROWS_CHUNK, i1 = i0 + GD_ROWS_CHUNK < M->rows ? i0 + GD_ROWS_CHUNK : M->rows;
-    for (int32_t i = i0; i < i1; i++)
+    for (int32_t i = i0; i < i1; i++) {
+        double acc[4] = {0, 0, 0, 0};
+        if (C == 3) {
+            double a0 = 0, a1 = 0, a2 = 0;
+            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++) {
+                const double a = M->val[e], *xj = j->x + 3 * (size_t)M->col[e];
+                a0 += a * xj[0], a1 += a * xj[1], a2 += a * xj[2];
+            }
+            acc[0] = a0, acc[1] = a1, acc[2] = a2;
+        } else {
+            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++)
+                for (int32_t c = 0; c < C; c++) acc[c] += M->val[e] * j->x[(size_t)M->col[e] * C + c];
+        }
         for (int32_t c = 0; c < C; c++) {
             size_t at = (size_t)i * C + c;
-            double acc = 0;
-            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++) acc += M->val[e] * j->x[(size_t)M->col[e] * C + c];
-            j->out[at] = j->residual ? j->b[at] - acc : j->add ? j->out[at] + acc : acc;
+            j->out[at] = j->residual ? j->b[at] - acc[c] : j->add ? j->out[at] + acc[c] : acc[c];
         }
+    }
     return SC_OK;
 }
 
