@@ -350,18 +350,19 @@ static bool face_metric(const sc_mesh *m, int32_t f, const double P[3][2], doubl
 
 /* Visit every piece of every face of the material, in face order, cells
  * in row order. */
-static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
+/* the pieces of face f, each given to visit */
+static int walk_face(gd_walk *w, int32_t f, gd_visit visit, void *ud, sc_error *err) {
     const sc_mesh *m = w->m;
     const sc_seam_grid *g = &w->g;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (!in_material(w, f)) continue;
+    {
+        if (!in_material(w, f)) return SC_OK;
         double P[3][2];
         for (int k = 0; k < 3; k++) {
             const double *uv = uv_of(m, m->FU[3 * f + k]);
             P[k][0] = uv[0] * g->width - 0.5, P[k][1] = uv[1] * g->height - 0.5;
         }
         gd_piece pc = {.face = f};
-        if (!face_metric(m, f, P, &pc.sqrtdet, pc.ginv)) continue;
+        if (!face_metric(m, f, P, &pc.sqrtdet, pc.ginv)) return SC_OK;
         double x0 = fmin(P[0][0], fmin(P[1][0], P[2][0])), x1 = fmax(P[0][0], fmax(P[1][0], P[2][0]));
         double y0 = fmin(P[0][1], fmin(P[1][1], P[2][1])), y1 = fmax(P[0][1], fmax(P[1][1], P[2][1]));
         if (x1 - x0 > 1e6 || y1 - y0 > 1e6) return sc_fail(err, SC_EINPUT, "face %d spans too many texels", (int)f);
@@ -457,6 +458,25 @@ static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
     return SC_OK;
 }
 
+static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
+    for (int32_t f = 0; f < w->m->nf; f++) {
+        int rc = walk_face(w, f, visit, ud, err);
+        if (rc != SC_OK) return rc;
+    }
+    return SC_OK;
+}
+
+/* the texel cells face f's uv bounding box spans */
+static double face_cells(const gd_walk *w, int32_t f) {
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    for (int k = 0; k < 3; k++) {
+        const double *uv = uv_of(w->m, w->m->FU[3 * f + k]);
+        x0 = fmin(x0, uv[0] * w->g.width), x1 = fmax(x1, uv[0] * w->g.width);
+        y0 = fmin(y0, uv[1] * w->g.height), y1 = fmax(y1, uv[1] * w->g.height);
+    }
+    return (floor(x1) - floor(x0) + 2) * (floor(y1) - floor(y0) + 2);
+}
+
 /* element i of a piece: its corners and its six nodes (P2 order: corners,
  * then midpoints of edges 01, 12, 20) */
 static void piece_element(const gd_piece *p, int32_t i, double c[3][2], const gd_node *nd[6]) {
@@ -541,7 +561,35 @@ typedef struct gd_asm {
     double cellm[2][4][4];
     int32_t cap, *tid;
     double *loc;               /* GD_NMAT x cap x cap */
+    struct gd_reclist *rec;    /* set: additions are recorded here, not made */
 } gd_asm;
+
+/* the additions one face makes, recorded on a worker thread and made on the
+ * calling one in face order */
+typedef struct gd_rec {
+    int32_t a, b;
+    double v;
+    int32_t k;
+} gd_rec;
+
+typedef struct gd_reclist {
+    size_t n, cap;
+    gd_rec *r;
+    bool failed;
+} gd_reclist;
+
+static void rec_push(gd_reclist *l, int k, int32_t a, int32_t b, double v) {
+    if (l->n == l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 1024;
+        gd_rec *r = sc_realloc_array(l->r, cap, sizeof *r);
+        if (!r) {
+            l->failed = true;
+            return;
+        }
+        l->r = r, l->cap = cap;
+    }
+    l->r[l->n++] = (gd_rec){a, b, v, k};
+}
 
 static int stencil_slot(const sc_seam_grid *g, int32_t *a, int32_t *b) {
     int32_t W = g->width;
@@ -560,6 +608,10 @@ static const int slot_dx[5] = {0, 1, -1, 0, 1}, slot_dy[5] = {0, 0, 1, 1, 1};
 
 static void asm_add(gd_asm *s, int k, int32_t a, int32_t b, double v) {
     if (v == 0) return;
+    if (s->rec) {
+        rec_push(s->rec, k, a, b, v);
+        return;
+    }
     int slot = stencil_slot(s->g, &a, &b);
     if (slot >= 0) s->st[k][(size_t)a * 5 + (size_t)slot] += v;
     else sc_triplets_add(&s->extra[k], a, b, v);
@@ -663,6 +715,87 @@ static int asm_visit(void *ud, const gd_piece *p, sc_error *err) {
     return SC_OK;
 }
 
+/* Assembly on several threads, the same bytes as on one: faces go in
+ * batches; within a batch, worker t walks faces t, t + T, ... with a scratch
+ * of its own and records each face's additions; then the calling thread
+ * makes them in face order, exactly the additions one thread makes. A face
+ * spanning more than GD_REC_CELLS cells is walked by the calling thread in
+ * its turn instead (its record would be large). */
+#define GD_BATCH 256
+#define GD_REC_CELLS 4096.0
+
+typedef struct gd_asm_job {
+    gd_walk *w;                /* per worker: shared tables, own scratch */
+    gd_asm *s;                 /* per worker: own scratch, recording */
+    gd_reclist *lists;         /* per face of the batch */
+    int *rcs;
+    sc_error *errs;
+    int32_t f0, nfaces, workers;
+} gd_asm_job;
+
+static int asm_batch(void *ud, int32_t t) {
+    gd_asm_job *j = ud;
+    for (int32_t i = t; i < j->nfaces; i += j->workers) {
+        int32_t f = j->f0 + i;
+        j->lists[i].n = 0, j->lists[i].failed = false, j->rcs[i] = SC_OK;
+        if (!in_material(&j->w[t], f) || face_cells(&j->w[t], f) > GD_REC_CELLS) continue;
+        j->s[t].rec = &j->lists[i];
+        j->rcs[i] = walk_face(&j->w[t], f, asm_visit, &j->s[t], &j->errs[i]);
+    }
+    return SC_OK;
+}
+
+static int assemble(gd_walk *w, gd_asm *s, int threads, sc_error *err) {
+    int T = threads < 1 ? 1 : threads > 16 ? 16 : threads;
+    if (T == 1) return walk_pieces(w, asm_visit, s, err);
+    gd_walk *ws = sc_calloc_array((size_t)T, sizeof *ws);
+    gd_asm *ss = sc_calloc_array((size_t)T, sizeof *ss);
+    gd_reclist *lists = sc_calloc_array(GD_BATCH, sizeof *lists);
+    int *rcs = sc_calloc_array(GD_BATCH, sizeof *rcs);
+    sc_error *errs = sc_calloc_array(GD_BATCH, sizeof *errs);
+    int rc = ws && ss && lists && rcs && errs ? SC_OK : SC_ENOMEM;
+    for (int t = 0; t < T && rc == SC_OK; t++) {
+        ws[t] = *w;
+        ws[t].cap = 0, ws[t].bv = NULL, ws[t].g0 = ws[t].g1 = NULL, ws[t].bseam = NULL, ws[t].pos = NULL, ws[t].node = NULL;
+        ss[t] = *s;
+        ss[t].cap = 64, ss[t].cell_face = -1, ss[t].rec = NULL;
+        ss[t].tid = sc_alloc_array((size_t)ss[t].cap, sizeof *ss[t].tid);
+        ss[t].loc = sc_alloc_array((size_t)GD_NMAT * ss[t].cap * ss[t].cap, sizeof *ss[t].loc);
+        if (!ss[t].tid || !ss[t].loc) rc = SC_ENOMEM;
+    }
+    if (rc == SC_ENOMEM) sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t f0 = 0; f0 < w->m->nf && rc == SC_OK; f0 += GD_BATCH) {
+        gd_asm_job j = {ws, ss, lists, rcs, errs, f0, w->m->nf - f0 < GD_BATCH ? w->m->nf - f0 : GD_BATCH, T};
+        if (sc_parallel(T, T, asm_batch, &j) != SC_OK) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            break;
+        }
+        for (int32_t i = 0; i < j.nfaces && rc == SC_OK; i++) {
+            int32_t f = f0 + i;
+            if (!in_material(w, f)) continue;
+            if (face_cells(w, f) > GD_REC_CELLS) {
+                rc = walk_face(w, f, asm_visit, s, err);
+                continue;
+            }
+            if (rcs[i] != SC_OK) {
+                *err = errs[i];
+                rc = rcs[i];
+            } else if (lists[i].failed) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            }
+            for (size_t e = 0; e < lists[i].n && rc == SC_OK; e++)
+                asm_add(s, lists[i].r[e].k, lists[i].r[e].a, lists[i].r[e].b, lists[i].r[e].v);
+        }
+    }
+    for (int t = 0; ws && ss && t < T; t++) {
+        free(ws[t].bv), free(ws[t].g0), free(ws[t].g1), free(ws[t].bseam), free(ws[t].pos), free(ws[t].node);
+        free(ss[t].tid), free(ss[t].loc);
+    }
+    for (int32_t i = 0; lists && i < GD_BATCH; i++) free(lists[i].r);
+    free(ws), free(ss), free(lists), free(rcs), free(errs);
+    return rc;
+}
+
 /* The system over the unknowns: texels of positive mass. */
 typedef struct gd_system {
     sc_seam_grid g;
@@ -680,7 +813,7 @@ static void system_free(gd_system *y) {
     memset(y, 0, sizeof *y);
 }
 
-static int system_build(gd_walk *w, const sc_image_data *labels, gd_system *y, sc_error *err) {
+static int system_build(gd_walk *w, const sc_image_data *labels, int threads, gd_system *y, sc_error *err) {
     memset(y, 0, sizeof *y);
     y->g = w->g;
     size_t np = (size_t)w->g.width * (size_t)w->g.height;
@@ -692,7 +825,7 @@ static int system_build(gd_walk *w, const sc_image_data *labels, gd_system *y, s
     s.tid = sc_alloc_array((size_t)s.cap, sizeof *s.tid);
     s.loc = sc_alloc_array((size_t)GD_NMAT * s.cap * s.cap, sizeof *s.loc);
     if (!s.tid || !s.loc) goto done;
-    rc = walk_pieces(w, asm_visit, &s, err);
+    rc = assemble(w, &s, threads, err);
     if (rc != SC_OK) goto done;
     rc = SC_ENOMEM;
     for (int k = 0; k < s.nmat; k++)
@@ -1583,7 +1716,7 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
         sc_image_free(in);
         return rc;
     }
-    rc = system_build(&w, o->op == SC_GRADIENT_STITCH ? o->labels : NULL, &y, err);
+    rc = system_build(&w, o->op == SC_GRADIENT_STITCH ? o->labels : NULL, threads, &y, err);
     if (rc != SC_OK) goto done;
     y.threads = threads;
     r.unknowns = y.n;
