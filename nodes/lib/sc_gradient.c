@@ -18,8 +18,14 @@
  *              kept only inside one label), geodesic (the heat method), and
  *              the seam energy of what comes out (sc_seam_energy).
  *
- * Everything runs on one thread in a fixed order, so the same inputs give
- * the same bits. Measurements: docs/notes/gradient_domain.md.
+ * Threads share the work in orders fixed by the mesh and the grid, so the
+ * same inputs give the same bits on any number of threads: assembly walks
+ * faces on workers that record each face's additions, made afterwards in
+ * face order; Gauss-Seidel relaxes strips of rows, even strips side by side,
+ * then odd; matrix-vector products go by chunks of rows. The hierarchy's
+ * coarse matrices are formed in one pass (no intermediate A P) and the
+ * fine system's other matrices are freed before it is built, which sets the
+ * run's peak memory. Measurements: docs/notes/gradient_domain.md.
  */
 #include "sc_gradient.h"
 
