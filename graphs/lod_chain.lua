@@ -42,12 +42,14 @@ asset = chartified.atlas
 -- scales the gradients of one texture (smooth_texture, colour by default):
 -- 0 <= BETA < 1 smooths, BETA > 1 sharpens, held to the input by
 -- smooth_screening (the paper's 1e4 on a surface of unit area). It runs
--- before erase_seams: the filter blurs the seams but does not close them.
+-- before erase_seams: the filter blurs the seams but does not close them,
+-- and erase_seams closes them next, so the node's own erasure is off
+-- (seamless = false).
 local smooth = param("smooth", -1)
 if smooth >= 0 then
   asset = gradient_domain{ name = "smooth", atlas = asset, operation = smooth > 1 and "sharpen" or "smooth",
                            gradient_scale = smooth, screening = param("smooth_screening", 1e4),
-                           texture = param("smooth_texture", "color") }.atlas_native
+                           texture = param("smooth_texture", "color"), seamless = false }.atlas_native
 end
 
 -- Seam-free textures: float for the chain, and in the input's own format.

@@ -11,11 +11,27 @@
  * (`atlas_native`, what the main job carries on). The
  * kernel's metrics (residual after every V-cycle, seam energies before and
  * after) pass on as they come. `lic` is not built: it fails with a message.
+ *
+ * Seams. The paper's function space is continuous across seams, but the
+ * bilinear texture it is written back to is not: the solve narrows the
+ * seams (blub 2048^2: seam energy x 2e-4) without closing them. With
+ * `seamless` (the default) the node ends with the seam-erasure kernel
+ * (nodes/lib/sc_erase.h, every gap erased: no tolerance) on the result, so
+ * both sides of every seam sample the same values; `atlas_native` is then
+ * the erased result rounded by erasure's optimal rounding. The metrics
+ * `seam_energy_seamless` and `seam_energy_seamless_ratio` (to the input's)
+ * give the seam energy after it, beside `seam_energy_out`, the raw solve's,
+ * and the erasure's own metrics under `seamless.`. seamless=false keeps the
+ * paper's raw result (for a graph that erases after the node anyway).
+ * Geodesic distances are left as solved.
  */
+#include <stdio.h>
 #include <string.h>
 
+#include "sc_erase.h"
 #include "sc_gradient.h"
 #include "sc_nodes.h"
+#include "sc_seam.h"
 
 /* the atlas with texture k's image replaced (a new reference, NULL when out of memory) */
 static sc_value *with_slot(const sc_value *atlas, int32_t k, sc_value *img) {
@@ -31,6 +47,45 @@ static sc_value *with_slot(const sc_value *atlas, int32_t k, sc_value *img) {
         }
     }
     return sc_value_new_atlas(out);
+}
+
+/* The seam-erasure kernel on the solve's result (image, tagged as it comes:
+ * linear light for sRGB colour): *f32 and *native (in src's pixel type and
+ * encoding) get new references; the seam energy after it goes to the metrics. */
+static int erase_result(sc_ctx *ctx, const sc_mesh *mesh, const sc_texture *t, sc_value *image,
+                        const sc_image_data *src, double e_in, sc_value **f32, sc_value **native, sc_error *err) {
+    sc_texture tt = *t;
+    tt.image = image;
+    sc_erase_options eo;
+    sc_erase_defaults(&eo);
+    eo.gap_tolerance = 0; /* the smallest gap is erased too: the output is seam-free to the float floor */
+    const sc_image_data *like[1] = {src};
+    eo.native_like = like;
+    sc_erase_result er;
+    int rc = sc_erase(mesh, &tt, 1, &eo, sc_ctx_threads(ctx), &er, err);
+    if (rc != SC_OK) return rc;
+    for (int32_t i = 0; i < er.metrics.count; i++) {
+        char key[160];
+        snprintf(key, sizeof key, "seamless.%s", er.metrics.items[i].name);
+        sc_ctx_metric(ctx, key, er.metrics.items[i].value);
+    }
+    *f32 = sc_value_retain(er.f32[0]);
+    *native = sc_value_retain(er.native[0]);
+    sc_erase_result_free(&er);
+    /* the seam energy of what the node outputs, by the function the solve reported with */
+    sc_seam_set set;
+    rc = sc_seam_find(mesh, t->material, &set, err);
+    if (rc != SC_OK) return rc;
+    const sc_image_data *im = (*f32)->as.image;
+    sc_seam_grid g = {im->width, im->height, t->wrap_u, t->wrap_v};
+    double e = 0, gap = 0;
+    rc = sc_seam_energy(mesh, &set, &g, im, sc_ctx_threads(ctx), &e, &gap, err);
+    sc_seam_set_free(&set);
+    if (rc != SC_OK) return rc;
+    sc_ctx_metric(ctx, "seam_energy_seamless", e);
+    sc_ctx_metric(ctx, "seam_max_gap_seamless", gap);
+    if (e_in > 0) sc_ctx_metric(ctx, "seam_energy_seamless_ratio", e / e_in);
+    return SC_OK;
 }
 
 static int run(sc_ctx *ctx, sc_error *err) {
@@ -66,14 +121,28 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc != SC_OK) return rc;
     for (int32_t i = 0; i < r.metrics.count; i++) sc_ctx_metric(ctx, r.metrics.items[i].name, r.metrics.items[i].value);
     const sc_image_data *src = t->image->as.image;
-    sc_image_data *nat = op == SC_GRADIENT_GEODESIC || src->pixel == SC_PIXEL_F32
+    bool seamless = sc_ctx_bool(ctx, "seamless") && op != SC_GRADIENT_GEODESIC;
+    sc_image_data *nat = seamless || op == SC_GRADIENT_GEODESIC || src->pixel == SC_PIXEL_F32
                              ? NULL
                              : sc_image_quantize(r.image, src->pixel, src->colorspace);
     bool want_native = op != SC_GRADIENT_GEODESIC && src->pixel != SC_PIXEL_F32;
+    double e_in = 0;
+    for (int32_t i = 0; i < r.metrics.count; i++)
+        if (!strcmp(r.metrics.items[i].name, "seam_energy_in")) e_in = r.metrics.items[i].value;
     sc_value *img = sc_value_new_image(r.image);
     r.image = NULL;
     sc_gradient_result_free(&r);
-    sc_value *native = want_native ? (nat ? sc_value_new_image(nat) : NULL) : sc_value_retain(img);
+    sc_value *native = NULL;
+    if (seamless && img) {
+        sc_value *erased = NULL;
+        rc = erase_result(ctx, a->mesh->as.mesh, t, img, src, e_in, &erased, &native, err);
+        sc_value_release(img);
+        if (rc != SC_OK) return rc;
+        img = erased;
+        if (!want_native) sc_value_release(native), native = sc_value_retain(img);
+    } else {
+        native = want_native ? (nat ? sc_value_new_image(nat) : NULL) : sc_value_retain(img);
+    }
     sc_value *av = img ? with_slot(in, k, img) : NULL, *nv = native ? with_slot(in, k, native) : NULL;
     sc_value_release(img), sc_value_release(native);
     if (!av || !nv) {
@@ -115,6 +184,9 @@ static const sc_param_desc params[] = {
      .doc = "the most V-cycles per solve"},
     {.name = "tolerance", .type = SC_PARAM_NUMBER, .def = 1e-8, .min = 0, .max = 1,
      .doc = "V-cycles stop once the relative residual is below this"},
+    {.name = "seamless", .type = SC_PARAM_BOOL, .def = 1,
+     .doc = "end with seam erasure (Liu et al. 2017, every gap) so that the output is seam-free; false: the "
+            "paper's raw result, whose seams the solve narrows but does not close (smooth, sharpen, stitch)"},
 };
 
 static const sc_port_desc inputs[] = {
@@ -132,11 +204,11 @@ static const sc_port_desc outputs[] = {
             "geodesic: as atlas)"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_gradient, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_gradient, &sc_kernel_erase, NULL};
 
 const sc_node_desc sc_node_gradient_domain = {
     .type = "gradient_domain",
-    .version = 1,
+    .version = 2,
     .summary = "gradient-domain processing in the texture atlas (Prada et al. 2018): smooth, sharpen, stitch, geodesic",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -18,8 +18,14 @@
  *              kept only inside one label), geodesic (the heat method), and
  *              the seam energy of what comes out (sc_seam_energy).
  *
- * Everything runs on one thread in a fixed order, so the same inputs give
- * the same bits. Measurements: docs/notes/gradient_domain.md.
+ * Threads share the work in orders fixed by the mesh and the grid, so the
+ * same inputs give the same bits on any number of threads: assembly walks
+ * faces on workers that record each face's additions, made afterwards in
+ * face order; Gauss-Seidel relaxes strips of rows, even strips side by side,
+ * then odd; matrix-vector products go by chunks of rows. The hierarchy's
+ * coarse matrices are formed in one pass (no intermediate A P) and the
+ * fine system's other matrices are freed before it is built, which sets the
+ * run's peak memory. Measurements: docs/notes/gradient_domain.md.
  */
 #include "sc_gradient.h"
 
@@ -350,18 +356,19 @@ static bool face_metric(const sc_mesh *m, int32_t f, const double P[3][2], doubl
 
 /* Visit every piece of every face of the material, in face order, cells
  * in row order. */
-static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
+/* the pieces of face f, each given to visit */
+static int walk_face(gd_walk *w, int32_t f, gd_visit visit, void *ud, sc_error *err) {
     const sc_mesh *m = w->m;
     const sc_seam_grid *g = &w->g;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (!in_material(w, f)) continue;
+    {
+        if (!in_material(w, f)) return SC_OK;
         double P[3][2];
         for (int k = 0; k < 3; k++) {
             const double *uv = uv_of(m, m->FU[3 * f + k]);
             P[k][0] = uv[0] * g->width - 0.5, P[k][1] = uv[1] * g->height - 0.5;
         }
         gd_piece pc = {.face = f};
-        if (!face_metric(m, f, P, &pc.sqrtdet, pc.ginv)) continue;
+        if (!face_metric(m, f, P, &pc.sqrtdet, pc.ginv)) return SC_OK;
         double x0 = fmin(P[0][0], fmin(P[1][0], P[2][0])), x1 = fmax(P[0][0], fmax(P[1][0], P[2][0]));
         double y0 = fmin(P[0][1], fmin(P[1][1], P[2][1])), y1 = fmax(P[0][1], fmax(P[1][1], P[2][1]));
         if (x1 - x0 > 1e6 || y1 - y0 > 1e6) return sc_fail(err, SC_EINPUT, "face %d spans too many texels", (int)f);
@@ -457,6 +464,25 @@ static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
     return SC_OK;
 }
 
+static int walk_pieces(gd_walk *w, gd_visit visit, void *ud, sc_error *err) {
+    for (int32_t f = 0; f < w->m->nf; f++) {
+        int rc = walk_face(w, f, visit, ud, err);
+        if (rc != SC_OK) return rc;
+    }
+    return SC_OK;
+}
+
+/* the texel cells face f's uv bounding box spans */
+static double face_cells(const gd_walk *w, int32_t f) {
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    for (int k = 0; k < 3; k++) {
+        const double *uv = uv_of(w->m, w->m->FU[3 * f + k]);
+        x0 = fmin(x0, uv[0] * w->g.width), x1 = fmax(x1, uv[0] * w->g.width);
+        y0 = fmin(y0, uv[1] * w->g.height), y1 = fmax(y1, uv[1] * w->g.height);
+    }
+    return (floor(x1) - floor(x0) + 2) * (floor(y1) - floor(y0) + 2);
+}
+
 /* element i of a piece: its corners and its six nodes (P2 order: corners,
  * then midpoints of edges 01, 12, 20) */
 static void piece_element(const gd_piece *p, int32_t i, double c[3][2], const gd_node *nd[6]) {
@@ -541,7 +567,35 @@ typedef struct gd_asm {
     double cellm[2][4][4];
     int32_t cap, *tid;
     double *loc;               /* GD_NMAT x cap x cap */
+    struct gd_reclist *rec;    /* set: additions are recorded here, not made */
 } gd_asm;
+
+/* the additions one face makes, recorded on a worker thread and made on the
+ * calling one in face order */
+typedef struct gd_rec {
+    int32_t a, b;
+    double v;
+    int32_t k;
+} gd_rec;
+
+typedef struct gd_reclist {
+    size_t n, cap;
+    gd_rec *r;
+    bool failed;
+} gd_reclist;
+
+static void rec_push(gd_reclist *l, int k, int32_t a, int32_t b, double v) {
+    if (l->n == l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 1024;
+        gd_rec *r = sc_realloc_array(l->r, cap, sizeof *r);
+        if (!r) {
+            l->failed = true;
+            return;
+        }
+        l->r = r, l->cap = cap;
+    }
+    l->r[l->n++] = (gd_rec){a, b, v, k};
+}
 
 static int stencil_slot(const sc_seam_grid *g, int32_t *a, int32_t *b) {
     int32_t W = g->width;
@@ -560,6 +614,10 @@ static const int slot_dx[5] = {0, 1, -1, 0, 1}, slot_dy[5] = {0, 0, 1, 1, 1};
 
 static void asm_add(gd_asm *s, int k, int32_t a, int32_t b, double v) {
     if (v == 0) return;
+    if (s->rec) {
+        rec_push(s->rec, k, a, b, v);
+        return;
+    }
     int slot = stencil_slot(s->g, &a, &b);
     if (slot >= 0) s->st[k][(size_t)a * 5 + (size_t)slot] += v;
     else sc_triplets_add(&s->extra[k], a, b, v);
@@ -663,6 +721,87 @@ static int asm_visit(void *ud, const gd_piece *p, sc_error *err) {
     return SC_OK;
 }
 
+/* Assembly on several threads, the same bytes as on one: faces go in
+ * batches; within a batch, worker t walks faces t, t + T, ... with a scratch
+ * of its own and records each face's additions; then the calling thread
+ * makes them in face order, exactly the additions one thread makes. A face
+ * spanning more than GD_REC_CELLS cells is walked by the calling thread in
+ * its turn instead (its record would be large). */
+#define GD_BATCH 256
+#define GD_REC_CELLS 4096.0
+
+typedef struct gd_asm_job {
+    gd_walk *w;                /* per worker: shared tables, own scratch */
+    gd_asm *s;                 /* per worker: own scratch, recording */
+    gd_reclist *lists;         /* per face of the batch */
+    int *rcs;
+    sc_error *errs;
+    int32_t f0, nfaces, workers;
+} gd_asm_job;
+
+static int asm_batch(void *ud, int32_t t) {
+    gd_asm_job *j = ud;
+    for (int32_t i = t; i < j->nfaces; i += j->workers) {
+        int32_t f = j->f0 + i;
+        j->lists[i].n = 0, j->lists[i].failed = false, j->rcs[i] = SC_OK;
+        if (!in_material(&j->w[t], f) || face_cells(&j->w[t], f) > GD_REC_CELLS) continue;
+        j->s[t].rec = &j->lists[i];
+        j->rcs[i] = walk_face(&j->w[t], f, asm_visit, &j->s[t], &j->errs[i]);
+    }
+    return SC_OK;
+}
+
+static int assemble(gd_walk *w, gd_asm *s, int threads, sc_error *err) {
+    int T = threads < 1 ? 1 : threads > 16 ? 16 : threads;
+    if (T == 1) return walk_pieces(w, asm_visit, s, err);
+    gd_walk *ws = sc_calloc_array((size_t)T, sizeof *ws);
+    gd_asm *ss = sc_calloc_array((size_t)T, sizeof *ss);
+    gd_reclist *lists = sc_calloc_array(GD_BATCH, sizeof *lists);
+    int *rcs = sc_calloc_array(GD_BATCH, sizeof *rcs);
+    sc_error *errs = sc_calloc_array(GD_BATCH, sizeof *errs);
+    int rc = ws && ss && lists && rcs && errs ? SC_OK : SC_ENOMEM;
+    for (int t = 0; t < T && rc == SC_OK; t++) {
+        ws[t] = *w;
+        ws[t].cap = 0, ws[t].bv = NULL, ws[t].g0 = ws[t].g1 = NULL, ws[t].bseam = NULL, ws[t].pos = NULL, ws[t].node = NULL;
+        ss[t] = *s;
+        ss[t].cap = 64, ss[t].cell_face = -1, ss[t].rec = NULL;
+        ss[t].tid = sc_alloc_array((size_t)ss[t].cap, sizeof *ss[t].tid);
+        ss[t].loc = sc_alloc_array((size_t)GD_NMAT * ss[t].cap * ss[t].cap, sizeof *ss[t].loc);
+        if (!ss[t].tid || !ss[t].loc) rc = SC_ENOMEM;
+    }
+    if (rc == SC_ENOMEM) sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t f0 = 0; f0 < w->m->nf && rc == SC_OK; f0 += GD_BATCH) {
+        gd_asm_job j = {ws, ss, lists, rcs, errs, f0, w->m->nf - f0 < GD_BATCH ? w->m->nf - f0 : GD_BATCH, T};
+        if (sc_parallel(T, T, asm_batch, &j) != SC_OK) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            break;
+        }
+        for (int32_t i = 0; i < j.nfaces && rc == SC_OK; i++) {
+            int32_t f = f0 + i;
+            if (!in_material(w, f)) continue;
+            if (face_cells(w, f) > GD_REC_CELLS) {
+                rc = walk_face(w, f, asm_visit, s, err);
+                continue;
+            }
+            if (rcs[i] != SC_OK) {
+                *err = errs[i];
+                rc = rcs[i];
+            } else if (lists[i].failed) {
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            }
+            for (size_t e = 0; e < lists[i].n && rc == SC_OK; e++)
+                asm_add(s, lists[i].r[e].k, lists[i].r[e].a, lists[i].r[e].b, lists[i].r[e].v);
+        }
+    }
+    for (int t = 0; ws && ss && t < T; t++) {
+        free(ws[t].bv), free(ws[t].g0), free(ws[t].g1), free(ws[t].bseam), free(ws[t].pos), free(ws[t].node);
+        free(ss[t].tid), free(ss[t].loc);
+    }
+    for (int32_t i = 0; lists && i < GD_BATCH; i++) free(lists[i].r);
+    free(ws), free(ss), free(lists), free(rcs), free(errs);
+    return rc;
+}
+
 /* The system over the unknowns: texels of positive mass. */
 typedef struct gd_system {
     sc_seam_grid g;
@@ -671,6 +810,7 @@ typedef struct gd_system {
     int32_t *unknown;          /* W * H: unknown of each texel, or -1 */
     sc_sparse mat[GD_NMAT];    /* mass, stiffness, labelled stiffness (upper CSC) */
     double area;               /* surface area of the material's faces */
+    int threads;               /* the solver's parallel loops */
 } gd_system;
 
 static void system_free(gd_system *y) {
@@ -679,7 +819,7 @@ static void system_free(gd_system *y) {
     memset(y, 0, sizeof *y);
 }
 
-static int system_build(gd_walk *w, const sc_image_data *labels, gd_system *y, sc_error *err) {
+static int system_build(gd_walk *w, const sc_image_data *labels, int threads, gd_system *y, sc_error *err) {
     memset(y, 0, sizeof *y);
     y->g = w->g;
     size_t np = (size_t)w->g.width * (size_t)w->g.height;
@@ -691,7 +831,7 @@ static int system_build(gd_walk *w, const sc_image_data *labels, gd_system *y, s
     s.tid = sc_alloc_array((size_t)s.cap, sizeof *s.tid);
     s.loc = sc_alloc_array((size_t)GD_NMAT * s.cap * s.cap, sizeof *s.loc);
     if (!s.tid || !s.loc) goto done;
-    rc = walk_pieces(w, asm_visit, &s, err);
+    rc = assemble(w, &s, threads, err);
     if (rc != SC_OK) goto done;
     rc = SC_ENOMEM;
     for (int k = 0; k < s.nmat; k++)
@@ -770,43 +910,48 @@ static void sort_row(int32_t *col, double *val, int32_t n) {
     }
 }
 
-/* C = A B */
-static int csr_mul(const gd_csr *a, const gd_csr *b, gd_csr *c) {
+/* C = PT A P in one pass over the coarse rows (PT = P^T), without the
+ * intermediate A P: coarse row I gathers PT(I,i) A(i,j) P(j,J) */
+static int csr_galerkin(const gd_csr *pt, const gd_csr *a, const gd_csr *p, gd_csr *c) {
     memset(c, 0, sizeof *c);
-    c->rows = a->rows, c->cols = b->cols;
-    size_t cap = (size_t)a->ptr[a->rows] * 2 + 16, nnz = 0;
-    int32_t *mark = sc_alloc_array((size_t)b->cols + 1, sizeof *mark), *pos = sc_alloc_array((size_t)b->cols + 1, sizeof *pos);
-    c->ptr = sc_calloc_array((size_t)a->rows + 1, sizeof *c->ptr);
+    c->rows = pt->rows, c->cols = p->cols;
+    size_t cap = (size_t)pt->rows * 12 + 16, nnz = 0;
+    int32_t *mark = sc_alloc_array((size_t)p->cols + 1, sizeof *mark), *pos = sc_alloc_array((size_t)p->cols + 1, sizeof *pos);
+    c->ptr = sc_calloc_array((size_t)pt->rows + 1, sizeof *c->ptr);
     c->col = sc_alloc_array(cap, sizeof *c->col);
     c->val = sc_alloc_array(cap, sizeof *c->val);
     if (!mark || !pos || !c->ptr || !c->col || !c->val) goto oom;
-    for (int32_t j = 0; j < b->cols; j++) mark[j] = -1;
-    for (int32_t i = 0; i < a->rows; i++) {
+    for (int32_t j = 0; j < p->cols; j++) mark[j] = -1;
+    for (int32_t I = 0; I < pt->rows; I++) {
         size_t start = nnz;
-        for (int32_t ea = a->ptr[i]; ea < a->ptr[i + 1]; ea++) {
-            int32_t k = a->col[ea];
-            double va = a->val[ea];
-            for (int32_t eb = b->ptr[k]; eb < b->ptr[k + 1]; eb++) {
-                int32_t j = b->col[eb];
-                if (mark[j] == i) {
-                    c->val[pos[j]] += va * b->val[eb];
-                    continue;
+        for (int32_t et = pt->ptr[I]; et < pt->ptr[I + 1]; et++) {
+            int32_t i = pt->col[et];
+            double vt = pt->val[et];
+            for (int32_t ea = a->ptr[i]; ea < a->ptr[i + 1]; ea++) {
+                int32_t j = a->col[ea];
+                double va = vt * a->val[ea];
+                for (int32_t ep = p->ptr[j]; ep < p->ptr[j + 1]; ep++) {
+                    int32_t J = p->col[ep];
+                    if (mark[J] == I) {
+                        c->val[pos[J]] += va * p->val[ep];
+                        continue;
+                    }
+                    if (nnz == cap) {
+                        cap *= 2;
+                        int32_t *nc = sc_realloc_array(c->col, cap, sizeof *nc);
+                        if (nc) c->col = nc;
+                        double *nv = sc_realloc_array(c->val, cap, sizeof *nv);
+                        if (nv) c->val = nv;
+                        if (!nc || !nv) goto oom;
+                    }
+                    mark[J] = I, pos[J] = (int32_t)nnz;
+                    c->col[nnz] = J, c->val[nnz] = va * p->val[ep], nnz++;
                 }
-                if (nnz == cap) {
-                    cap *= 2;
-                    int32_t *nc = sc_realloc_array(c->col, cap, sizeof *nc);
-                    if (nc) c->col = nc;
-                    double *nv = sc_realloc_array(c->val, cap, sizeof *nv);
-                    if (nv) c->val = nv;
-                    if (!nc || !nv) goto oom;
-                }
-                mark[j] = i, pos[j] = (int32_t)nnz;
-                c->col[nnz] = j, c->val[nnz] = va * b->val[eb], nnz++;
             }
         }
         sort_row(c->col + start, c->val + start, (int32_t)(nnz - start));
         if (nnz > INT32_MAX) goto oom;
-        c->ptr[i + 1] = (int32_t)nnz;
+        c->ptr[I + 1] = (int32_t)nnz;
     }
     free(mark), free(pos);
     return 0;
@@ -863,19 +1008,30 @@ static int csr_upper(const gd_csr *a, const int32_t *keep, int32_t count, sc_spa
     return SC_OK;
 }
 
+/* Gauss-Seidel runs by strips of GD_STRIP rows: the even strips first, each
+ * on a thread of its own (an interior texel's row reaches only the rows next
+ * to it, so strips of one parity never read each other's texels), then the
+ * odd ones; backwards, the reverse. The order is fixed by the grid, not by
+ * the thread count, so the results are the same on any number of threads. */
+#define GD_STRIP 32
+#define GD_ROWS_CHUNK 16384   /* rows per chunk of a parallel matrix-vector product */
+
 typedef struct gd_level {
     int32_t n, W, H;
     int32_t *x, *y;            /* grid coordinates of each unknown */
     gd_csr A;                  /* full symmetric */
     gd_csr P, PT;              /* prolongation from the next level, and its transpose */
     int32_t nb, *blist, *bidx; /* boundary unknowns, and each unknown's place among them (-1: interior) */
-    int32_t ni, *ilist;        /* interior unknowns, relaxed */
+    int32_t ni, *ilist;        /* interior unknowns, relaxed (in row order) */
+    int32_t nstrips, *istart;  /* strips of GD_STRIP rows: ilist[istart[s] .. istart[s + 1]) */
     sc_sparse_chol *f;         /* boundary block (the whole matrix on the coarsest level) */
     double *xv, *bv, *rv, *tmp;
+    double *dinv;              /* 1 / the diagonal of A, per unknown */
 } gd_level;
 
 typedef struct gd_mg {
     int32_t nl, C;
+    int threads;
     gd_level *lv;
 } gd_mg;
 
@@ -883,8 +1039,8 @@ static void mg_free(gd_mg *mg) {
     for (int32_t l = 0; l < mg->nl; l++) {
         gd_level *v = &mg->lv[l];
         free(v->x), free(v->y), csr_free(&v->A), csr_free(&v->P), csr_free(&v->PT);
-        free(v->blist), free(v->bidx), free(v->ilist), sc_sparse_chol_free(v->f);
-        free(v->xv), free(v->bv), free(v->rv), free(v->tmp);
+        free(v->blist), free(v->bidx), free(v->ilist), free(v->istart), sc_sparse_chol_free(v->f);
+        free(v->xv), free(v->bv), free(v->rv), free(v->tmp), free(v->dinv);
     }
     free(mg->lv);
     memset(mg, 0, sizeof *mg);
@@ -919,6 +1075,21 @@ static int level_split(gd_level *v, bool coarsest, sc_error *err) {
         else v->bidx[i] = v->nb, v->blist[v->nb++] = i;
     }
     free(map);
+    v->dinv = sc_alloc_array((size_t)v->n + 1, sizeof *v->dinv);
+    if (!v->dinv) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t i = 0; i < v->n; i++) {
+        v->dinv[i] = 0;
+        for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++)
+            if (v->A.col[e] == i && v->A.val[e] != 0) v->dinv[i] = 1 / v->A.val[e];
+    }
+    /* the interior by strips of rows (unknowns are numbered row by row) */
+    v->nstrips = (v->H + GD_STRIP - 1) / GD_STRIP;
+    v->istart = sc_alloc_array((size_t)v->nstrips + 1, sizeof *v->istart);
+    if (!v->istart) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t st = 0, k = 0; st <= v->nstrips; st++) {
+        while (k < v->ni && v->y[v->ilist[k]] < st * GD_STRIP) k++;
+        v->istart[st] = st == v->nstrips ? v->ni : k;
+    }
     if (v->nb == 0) return SC_OK;
     sc_sparse up;
     int rc = csr_upper(&v->A, v->bidx, v->nb, &up, err);
@@ -965,19 +1136,21 @@ static int level_coarsen(gd_level *v, gd_level *c, sc_error *err) {
         P->ptr[i + 1] = nnz;
     }
     free(cmap);
-    gd_csr AP;
-    if (csr_transpose(P, &v->PT) || csr_mul(&v->A, P, &AP)) return sc_fail(err, SC_ENOMEM, "out of memory");
-    int bad = csr_mul(&v->PT, &AP, &c->A);
-    csr_free(&AP);
-    return bad ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
+    if (csr_transpose(P, &v->PT) || csr_galerkin(&v->PT, &v->A, P, &c->A)) return sc_fail(err, SC_ENOMEM, "out of memory");
+    return SC_OK;
 }
 
-static int mg_build(const sc_sparse *A, const gd_system *y, int32_t levels, int32_t C, gd_mg *mg, sc_error *err) {
+/* the hierarchy for A (consumed: freed once its full copy is made, also on failure) */
+static int mg_build(sc_sparse *A, const gd_system *y, int32_t levels, int32_t C, gd_mg *mg, sc_error *err) {
     memset(mg, 0, sizeof *mg);
     if (levels < 1) levels = 1;
     mg->lv = sc_calloc_array((size_t)levels, sizeof *mg->lv);
-    if (!mg->lv) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (!mg->lv) {
+        sc_sparse_free(A);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
     mg->C = C;
+    mg->threads = y->threads;
     gd_level *v = &mg->lv[0];
     mg->nl = 1;
     v->n = y->n, v->W = y->g.width, v->H = y->g.height;
@@ -985,6 +1158,7 @@ static int mg_build(const sc_sparse *A, const gd_system *y, int32_t levels, int3
     v->y = sc_alloc_array((size_t)v->n + 1, sizeof *v->y);
     sc_sparse full;
     int rc = sc_sparse_full(A, &full, err);
+    sc_sparse_free(A);
     if (rc != SC_OK) goto fail;
     v->A = (gd_csr){.rows = full.n, .cols = full.n, .ptr = full.colptr, .col = full.rowind, .val = full.val};
     rc = SC_ENOMEM;
@@ -1014,23 +1188,59 @@ fail:
     return rc;
 }
 
-/* Gauss-Seidel on the interior unknowns, forwards or (after the coarse
- * correction, which keeps the V-cycle symmetric) backwards */
-static void relax(gd_level *v, int32_t C, int32_t sweeps, bool backwards) {
-    for (int32_t s = 0; s < sweeps; s++)
-        for (int32_t kk = 0; kk < v->ni; kk++) {
-            int32_t i = v->ilist[backwards ? v->ni - 1 - kk : kk];
-            double acc[4] = {0, 0, 0, 0}, diag = 0;
-            for (int32_t c = 0; c < C; c++) acc[c] = v->bv[(size_t)i * C + c];
-            for (int32_t e = v->A.ptr[i]; e < v->A.ptr[i + 1]; e++) {
-                int32_t j = v->A.col[e];
-                if (j == i) {
-                    diag = v->A.val[e];
-                    continue;
-                }
-                for (int32_t c = 0; c < C; c++) acc[c] -= v->A.val[e] * v->xv[(size_t)j * C + c];
+/* fn(ud, chunk) for chunk in [0, n) on `threads` threads; in order on this
+ * one when no thread (nor the bookkeeping) can be had: every chunk's work is
+ * independent of the others and of the thread that runs it */
+static void gd_for(int threads, int32_t n, int (*fn)(void *ud, int32_t chunk), void *ud) {
+    if (threads > 1 && n > 1 && sc_parallel(threads, n, fn, ud) == SC_OK) return;
+    for (int32_t c = 0; c < n; c++) fn(ud, c);
+}
+
+typedef struct gd_relax_job {
+    gd_level *v;
+    int32_t C, parity;
+    bool backwards;
+} gd_relax_job;
+
+/* Gauss-Seidel over strip 2 * chunk + parity of the interior unknowns,
+ * forwards or (after the coarse correction, which keeps the V-cycle
+ * symmetric) backwards: x_i += (b_i - A_i x) / a_ii. Three channels (colour)
+ * have a loop of their own, the same arithmetic unrolled. */
+static int relax_strip(void *ud, int32_t chunk) {
+    const gd_relax_job *j = ud;
+    gd_level *v = j->v;
+    int32_t C = j->C, st = 2 * chunk + j->parity;
+    if (st >= v->nstrips) return SC_OK;
+    int32_t k0 = v->istart[st], k1 = v->istart[st + 1];
+    const int32_t *ptr = v->A.ptr, *col = v->A.col;
+    const double *val = v->A.val, *b = v->bv, *dinv = v->dinv;
+    double *x = v->xv;
+    for (int32_t kk = 0; kk < k1 - k0; kk++) {
+        int32_t i = v->ilist[j->backwards ? k1 - 1 - kk : k0 + kk];
+        if (C == 3) {
+            double s0 = b[3 * (size_t)i], s1 = b[3 * (size_t)i + 1], s2 = b[3 * (size_t)i + 2];
+            for (int32_t e = ptr[i]; e < ptr[i + 1]; e++) {
+                const double a = val[e], *xj = x + 3 * (size_t)col[e];
+                s0 -= a * xj[0], s1 -= a * xj[1], s2 -= a * xj[2];
             }
-            for (int32_t c = 0; c < C; c++) v->xv[(size_t)i * C + c] = acc[c] / diag;
+            double d = dinv[i];
+            x[3 * (size_t)i] += s0 * d, x[3 * (size_t)i + 1] += s1 * d, x[3 * (size_t)i + 2] += s2 * d;
+            continue;
+        }
+        double acc[4] = {0, 0, 0, 0};
+        for (int32_t c = 0; c < C; c++) acc[c] = b[(size_t)i * C + c];
+        for (int32_t e = ptr[i]; e < ptr[i + 1]; e++)
+            for (int32_t c = 0; c < C; c++) acc[c] -= val[e] * x[(size_t)col[e] * C + c];
+        for (int32_t c = 0; c < C; c++) x[(size_t)i * C + c] += acc[c] * dinv[i];
+    }
+    return SC_OK;
+}
+
+static void relax(gd_level *v, int32_t C, int32_t sweeps, bool backwards, int threads) {
+    for (int32_t s = 0; s < sweeps; s++)
+        for (int pass = 0; pass < 2; pass++) {
+            gd_relax_job j = {v, C, backwards ? 1 - pass : pass, backwards};
+            gd_for(threads, (v->nstrips + 1) / 2, relax_strip, &j);
         }
 }
 
@@ -1055,23 +1265,51 @@ static int boundary_solve(gd_level *v, int32_t C, sc_error *err) {
     return SC_OK;
 }
 
-static void residual(const gd_csr *A, int32_t C, const double *b, const double *x, double *r) {
-    for (int32_t i = 0; i < A->rows; i++)
-        for (int32_t c = 0; c < C; c++) {
-            double s = b[(size_t)i * C + c];
-            for (int32_t e = A->ptr[i]; e < A->ptr[i + 1]; e++) s -= A->val[e] * x[(size_t)A->col[e] * C + c];
-            r[(size_t)i * C + c] = s;
+typedef struct gd_rows_job {
+    const gd_csr *M;
+    int32_t C;
+    const double *b, *x;  /* residual: r = b - M x; product: y = M x (+ y when add) */
+    double *out;
+    bool residual, add;
+} gd_rows_job;
+
+static int rows_chunk(void *ud, int32_t chunk) {
+    const gd_rows_job *j = ud;
+    const gd_csr *M = j->M;
+    int32_t C = j->C, i0 = chunk * GD_ROWS_CHUNK, i1 = i0 + GD_ROWS_CHUNK < M->rows ? i0 + GD_ROWS_CHUNK : M->rows;
+    for (int32_t i = i0; i < i1; i++) {
+        double acc[4] = {0, 0, 0, 0};
+        if (C == 3) {
+            double a0 = 0, a1 = 0, a2 = 0;
+            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++) {
+                const double a = M->val[e], *xj = j->x + 3 * (size_t)M->col[e];
+                a0 += a * xj[0], a1 += a * xj[1], a2 += a * xj[2];
+            }
+            acc[0] = a0, acc[1] = a1, acc[2] = a2;
+        } else {
+            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++)
+                for (int32_t c = 0; c < C; c++) acc[c] += M->val[e] * j->x[(size_t)M->col[e] * C + c];
         }
+        for (int32_t c = 0; c < C; c++) {
+            size_t at = (size_t)i * C + c;
+            j->out[at] = j->residual ? j->b[at] - acc[c] : j->add ? j->out[at] + acc[c] : acc[c];
+        }
+    }
+    return SC_OK;
+}
+
+static int32_t row_chunks(const gd_csr *M) { return (M->rows + GD_ROWS_CHUNK - 1) / GD_ROWS_CHUNK; }
+
+/* r = b - A x for C interleaved channels */
+static void residual(const gd_csr *A, int32_t C, const double *b, const double *x, double *r, int threads) {
+    gd_rows_job j = {A, C, b, x, r, true, false};
+    gd_for(threads, row_chunks(A), rows_chunk, &j);
 }
 
 /* y = M x for a row matrix and C interleaved channels (add: y += M x) */
-static void csr_apply(const gd_csr *M, int32_t C, const double *x, double *y, bool add) {
-    for (int32_t i = 0; i < M->rows; i++)
-        for (int32_t c = 0; c < C; c++) {
-            double s = add ? y[(size_t)i * C + c] : 0;
-            for (int32_t e = M->ptr[i]; e < M->ptr[i + 1]; e++) s += M->val[e] * x[(size_t)M->col[e] * C + c];
-            y[(size_t)i * C + c] = s;
-        }
+static void csr_apply(const gd_csr *M, int32_t C, const double *x, double *y, bool add, int threads) {
+    gd_rows_job j = {M, C, NULL, x, y, false, add};
+    gd_for(threads, row_chunks(M), rows_chunk, &j);
 }
 
 /* Fig. 8: relax the interior, solve the boundary, restrict the residual,
@@ -1081,19 +1319,19 @@ static int vcycle(gd_mg *mg, int32_t l, int32_t sweeps, sc_error *err) {
     gd_level *v = &mg->lv[l];
     int32_t C = mg->C;
     if (l == mg->nl - 1) return boundary_solve(v, C, err);
-    relax(v, C, sweeps, false);
+    relax(v, C, sweeps, false, mg->threads);
     int rc = boundary_solve(v, C, err);
     if (rc != SC_OK) return rc;
-    residual(&v->A, C, v->bv, v->xv, v->rv);
+    residual(&v->A, C, v->bv, v->xv, v->rv, mg->threads);
     gd_level *c = &mg->lv[l + 1];
-    csr_apply(&v->PT, C, v->rv, c->bv, false);
+    csr_apply(&v->PT, C, v->rv, c->bv, false, mg->threads);
     memset(c->xv, 0, (size_t)c->n * C * sizeof(double));
     rc = vcycle(mg, l + 1, sweeps, err);
     if (rc != SC_OK) return rc;
-    csr_apply(&v->P, C, c->xv, v->xv, true);
+    csr_apply(&v->P, C, c->xv, v->xv, true, mg->threads);
     rc = boundary_solve(v, C, err);
     if (rc != SC_OK) return rc;
-    relax(v, C, sweeps, true);
+    relax(v, C, sweeps, true, mg->threads);
     return SC_OK;
 }
 
@@ -1117,15 +1355,12 @@ static void vcycle_metric(sc_metric_list *ml, const char *name, int32_t k, doubl
     sc_metric_list_add(ml, key, rel);
 }
 
-/* z = one V-cycle applied to r from a zero guess */
-static int precondition(gd_mg *mg, int32_t sweeps, const double *r, double *z, sc_error *err) {
+/* the finest level's xv = one V-cycle applied to its bv from a zero guess
+ * (a V-cycle reads the finest bv and leaves it as it is) */
+static int precondition(gd_mg *mg, int32_t sweeps, sc_error *err) {
     gd_level *v = &mg->lv[0];
-    size_t nn = (size_t)v->n * (size_t)mg->C;
-    memcpy(v->bv, r, nn * sizeof *r);
-    memset(v->xv, 0, nn * sizeof *z);
-    int rc = vcycle(mg, 0, sweeps, err);
-    memcpy(z, v->xv, nn * sizeof *z);
-    return rc;
+    memset(v->xv, 0, (size_t)v->n * (size_t)mg->C * sizeof *v->xv);
+    return vcycle(mg, 0, sweeps, err);
 }
 
 static void dot_channels(int32_t C, int32_t n, const double *a, const double *b, double out[4]) {
@@ -1134,8 +1369,9 @@ static void dot_channels(int32_t C, int32_t n, const double *a, const double *b,
         for (int32_t c = 0; c < C; c++) out[c] += a[(size_t)i * C + c] * b[(size_t)i * C + c];
 }
 
-/* A x = b for C interleaved channels; x holds the initial guess (multigrid) */
-static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_options *o, int32_t C, const double *b,
+/* A x = b for C interleaved channels; x holds the initial guess (multigrid).
+ * A is consumed (freed as soon as the factor or the hierarchy holds it). */
+static int solve(sc_sparse *A, const gd_system *y, const sc_gradient_options *o, int32_t C, const double *b,
                  double *x, const char *name, sc_metric_list *ml, int32_t *vcycles, sc_error *err) {
     size_t nn = (size_t)y->n * (size_t)C;
     if (o->solver == SC_GRADIENT_DIRECT) {
@@ -1143,6 +1379,7 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
         double *cm = sc_alloc_array(nn + 1, sizeof *cm);
         if (!cm) return sc_fail(err, SC_ENOMEM, "out of memory");
         int rc = sc_sparse_chol_factor(A, NULL, &f, err);
+        sc_sparse_free(A);
         if (rc == SC_OK) {
             for (int32_t i = 0; i < y->n; i++)
                 for (int32_t c = 0; c < C; c++) cm[(size_t)c * y->n + i] = b[(size_t)i * C + c];
@@ -1162,7 +1399,7 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
     int32_t k = 0;
     metric(ml, "%s_levels", name, mg.nl);
     metric(ml, "%s_boundary_texels", name, v->nb);
-    double *r = NULL, *z = NULL, *p = NULL, *q = NULL;
+    double *p = NULL, *q = NULL;
     if (bn == 0) {
         memset(x, 0, nn * sizeof *x);
         rel = 0;
@@ -1171,27 +1408,29 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
         memcpy(v->xv, x, nn * sizeof *x);
         while (rel > o->tolerance && k < o->max_vcycles && rc == SC_OK) {
             rc = vcycle(&mg, 0, o->relaxations, err);
-            residual(&v->A, C, v->bv, v->xv, v->rv);
+            residual(&v->A, C, v->bv, v->xv, v->rv, mg.threads);
             rel = norm2(v->rv, nn) / bn;
             vcycle_metric(ml, name, ++k, rel);
         }
         memcpy(x, v->xv, nn * sizeof *x);
     } else {
-        /* conjugate gradients, one V-cycle (a symmetric operator) as the preconditioner */
-        r = sc_alloc_array(nn, sizeof *r), z = sc_alloc_array(nn, sizeof *z);
+        /* conjugate gradients, one V-cycle (a symmetric operator) as the
+         * preconditioner; the residual r lives in the finest level's bv and
+         * the preconditioned z in its xv, which the V-cycle reads and writes */
+        double *r = v->bv, *z = v->xv;
         p = sc_alloc_array(nn, sizeof *p), q = sc_alloc_array(nn, sizeof *q);
-        if (!r || !z || !p || !q) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (!p || !q) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         double rz[4] = {0, 0, 0, 0};
         if (rc == SC_OK) {
-            residual(&v->A, C, b, x, r);
+            residual(&v->A, C, b, x, r, mg.threads);
             rel = norm2(r, nn) / bn;
-            rc = precondition(&mg, o->relaxations, r, z, err);
+            rc = precondition(&mg, o->relaxations, err);
             memcpy(p, z, nn * sizeof *z);
             dot_channels(C, y->n, r, z, rz);
         }
         while (rc == SC_OK && rel > o->tolerance && k < o->max_vcycles) {
             double pq[4] = {0, 0, 0, 0}, rz1[4] = {0, 0, 0, 0};
-            csr_apply(&v->A, C, p, q, false);
+            csr_apply(&v->A, C, p, q, false, mg.threads);
             dot_channels(C, y->n, p, q, pq);
             for (size_t i = 0; i < nn; i++) {
                 double alpha = pq[i % C] > 0 ? rz[i % C] / pq[i % C] : 0;
@@ -1200,13 +1439,13 @@ static int solve(const sc_sparse *A, const gd_system *y, const sc_gradient_optio
             rel = norm2(r, nn) / bn;
             vcycle_metric(ml, name, ++k, rel);
             if (rel <= o->tolerance || k == o->max_vcycles) break;
-            rc = precondition(&mg, o->relaxations, r, z, err);
+            rc = precondition(&mg, o->relaxations, err);
             dot_channels(C, y->n, r, z, rz1);
             for (size_t i = 0; i < nn; i++) p[i] = z[i] + (rz[i % C] > 0 ? rz1[i % C] / rz[i % C] : 0) * p[i];
             memcpy(rz, rz1, sizeof rz);
         }
     }
-    free(r), free(z), free(p), free(q);
+    free(p), free(q);
     if (rc == SC_OK) {
         metric(ml, "%s_vcycles", name, k);
         metric(ml, "%s_residual", name, rel);
@@ -1415,8 +1654,11 @@ done:
     return rc;
 }
 
-/* smooth, sharpen, stitch: (a M + S) x = a M x0 + beta S x0 (stitch: + S_same x0) */
-static int run_filter(const gd_system *y, const sc_gradient_options *o, int32_t C, const double *x0, double *x,
+/* smooth, sharpen, stitch: (a M + S) x = a M x0 + beta S x0 (stitch: + S_same x0).
+ * Once the right-hand side and the system matrix are formed, y's mass and
+ * stiffness matrices are freed: nothing after the solve reads them, and the
+ * hierarchy is built next, at the run's peak. */
+static int run_filter(gd_system *y, const sc_gradient_options *o, int32_t C, const double *x0, double *x,
                       sc_metric_list *ml, int32_t *vcycles, sc_error *err) {
     double a = o->screening / y->area;
     size_t nn = (size_t)y->n * (size_t)C;
@@ -1428,6 +1670,7 @@ static int run_filter(const gd_system *y, const sc_gradient_options *o, int32_t 
     else if (ok && o->gradient_scale != 0) ok = !symv_channels(&y->mat[1], C, x0, b, o->gradient_scale, true);
     if (!ok) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     else if ((rc = sc_sparse_add(&y->mat[0], a, &y->mat[1], 1.0, &A, err)) == SC_OK) {
+        for (int k = 0; k < GD_NMAT; k++) sc_sparse_free(&y->mat[k]);
         memcpy(x, x0, nn * sizeof *x);
         rc = solve(&A, y, o, C, b, x, op_names[o->op], ml, vcycles, err);
     }
@@ -1479,8 +1722,9 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
         sc_image_free(in);
         return rc;
     }
-    rc = system_build(&w, o->op == SC_GRADIENT_STITCH ? o->labels : NULL, &y, err);
+    rc = system_build(&w, o->op == SC_GRADIENT_STITCH ? o->labels : NULL, threads, &y, err);
     if (rc != SC_OK) goto done;
+    y.threads = threads;
     r.unknowns = y.n;
     sc_metric_list_add(&r.metrics, "unknowns", y.n);
     sc_metric_list_add(&r.metrics, "surface_area", y.area);

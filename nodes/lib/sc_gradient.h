@@ -39,7 +39,7 @@
 #include "sc_value.h"
 
 /* Bump whenever sc_gradient_apply's output for the same inputs can change. */
-#define SC_GRADIENT_VERSION 1
+#define SC_GRADIENT_VERSION 2
 extern const sc_kernel sc_kernel_gradient;
 
 typedef enum sc_gradient_op {
@@ -93,7 +93,9 @@ typedef struct sc_gradient_result {
 } sc_gradient_result;
 
 /* Process `image` (the texture `tex` of `mesh`: its material and wrap modes)
- * as o says. sRGB colour is processed in linear light and returned linear.
+ * as o says, assembling and relaxing on `threads` threads in an order fixed
+ * by the mesh and the grid: the result does not depend on the thread count.
+ * sRGB colour is processed in linear light and returned linear.
  * On failure *res is empty and err says why (lic: not built). */
 int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image_data *image,
                       const sc_gradient_options *o, int threads, sc_gradient_result *res, sc_error *err);
