@@ -489,6 +489,18 @@ typedef struct erase_counts {
     int unerased;   /* map levels below erase_min_size */
 } erase_counts;
 
+/* Level image `in` as the f32 image the next level is built from: itself
+ * when float, else decoded into the space the erasure filters in. */
+static sc_value *float_view(sc_value *in, const erase_settings *es) {
+    const sc_image_data *im = in->as.image;
+    if (im->pixel == SC_PIXEL_F32) return sc_value_retain(in);
+    sc_image_data *f = es->erase.filter_space == SC_ERASE_FILTER_LINEAR ? sc_image_to_linear_f32(im, 1)
+                                                                         : sc_image_to_f32(im);
+    sc_value *fv = f ? sc_value_new_image(f) : NULL;
+    if (f && !fv) sc_image_free(f);
+    return fv;
+}
+
 /* Erase level m of the chains of one group on `mesh`: the input images are
  * in[i] (pixel type of the chain); results into the chains' level m. At
  * level 0, chains whose seams are closed already (seam_free_already) pass
@@ -523,11 +535,7 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
                                        &clean, err);
         }
         if (rc == SC_OK && clean) {
-            const sc_image_data *im = in[i]->as.image;
-            sc_image_data *f = im->pixel == SC_PIXEL_F32                         ? NULL
-                               : es->erase.filter_space == SC_ERASE_FILTER_LINEAR ? sc_image_to_linear_f32(im, 1)
-                                                                                 : sc_image_to_f32(im);
-            sc_value *fv = im->pixel == SC_PIXEL_F32 ? sc_value_retain(in[i]) : f ? sc_value_new_image(f) : NULL;
+            sc_value *fv = float_view(in[i], es);
             if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
             chains[i]->f32[m] = fv, chains[i]->native[m] = fv ? sc_value_retain(in[i]) : NULL;
             if (erase) counts->passed++;
@@ -541,7 +549,13 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
         rc = sc_atlas_ops_erase(mesh->as.mesh, maps, nerase, &es->erase, es->threads, f32, native, err);
         if (rc == SC_OK) {
             counts->runs++;
-            for (int i = 0; i < nerase; i++) chains[which[i]]->f32[m] = f32[i], chains[which[i]]->native[m] = native[i];
+            for (int i = 0; i < nerase; i++) {
+                /* a map the kernel passes through comes back as it went in */
+                sc_value *fv = float_view(f32[i], es);
+                sc_value_release(f32[i]);
+                if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+                chains[which[i]]->f32[m] = fv, chains[which[i]]->native[m] = native[i];
+            }
         }
     }
     if (rc == SC_ENOMEM && m > 0)   /* e.g. a factor over CHOLMOD's size limit: charts under a texel */
@@ -1074,7 +1088,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imag
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 9,
+    .version = 10,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

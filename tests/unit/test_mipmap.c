@@ -273,6 +273,43 @@ done:
     sc_value_release(atlas);
 }
 
+/* A level the erase kernel passes through (already seam-free within one
+ * 8-bit step, as every level of a flat colour is) comes back in its 8-bit
+ * bytes; the next level is still built from its float values. Every level
+ * of a flat grey is that grey. */
+SC_TEST(levels_passed_through_as_8bit_feed_the_next_level) {
+    const char *pp[] = {"resolution", "16", "texture_size", "64", NULL};
+    sc_test_run r = sc_test_run_node(&sc_node_procedural, pp, NULL, NULL, NULL, NULL);
+    sc_value *sphere = take(&r, 0, "procedural");
+    if (!sphere) return;
+    sc_image_data *grey = sc_image_alloc(64, 64, 3, SC_PIXEL_U8);
+    grey->colorspace = SC_COLOR_SRGB;
+    memset(grey->pixels, 128, 64 * 64 * 3);
+    sc_atlas *a = sc_atlas_new(sc_value_retain(sphere->as.atlas->mesh));
+    sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_new_image(grey));
+    sc_value *atlas = sc_value_new_atlas(a);
+    /* level 0 goes to the kernel too, which passes each level through */
+    const char *mp[] = {"level0_gap", "0", "gap_tolerance", "1e-3", NULL};
+    r = sc_test_run_node(&sc_node_mipmap, mp, "atlas", atlas, NULL, NULL);
+    SC_CHECK_MSG(r.rc == SC_OK, "mipmap: %s", r.err.message);
+    if (r.rc == SC_OK) {
+        const sc_lods *levels = sc_ctx_output(r.ctx, 0)->as.lods;
+        SC_CHECK_INT(levels->count, 7);   /* 64 ... 1 */
+        for (int m = 0; m < levels->count; m++) {
+            const sc_image_data *im = levels->levels[m]->as.atlas->textures[0].image->as.image;
+            size_t off = 0, n = (size_t)im->width * im->height * im->channels;
+            const uint8_t *px = im->pixels;
+            while (off < n && px[off] == 128) off++;
+            SC_CHECK_MSG(im->pixel == SC_PIXEL_U8 && im->width == 64 >> m && off == n,
+                         "level %d: %dx%d, texel value %d at byte %zu", m, im->width, im->height,
+                         off < n ? px[off] : 128, off);
+        }
+    }
+    sc_ctx_free(r.ctx);
+    sc_value_release(atlas);
+    sc_value_release(sphere);
+}
+
 /* erase_min_size: levels with both sides below it are averaged, not erased,
  * and counted; the levels above are what a full run makes, byte for byte. */
 SC_TEST(levels_below_erase_min_size_are_not_erased) {
