@@ -8,23 +8,33 @@
  * filter_space is encoded) and in the input's pixel type and encoding
  * (`atlas_native`). When nothing is erased both outputs are the input atlas.
  */
+#include <math.h>
 #include <string.h>
 
 #include "sc_erase.h"
 #include "sc_nodes.h"
 
-/* A normal map the kernel left unerased, or one that looks tangent-space
- * but was erased as object-space, is worth a line. */
-static void warn_of_normal_map(sc_ctx *ctx, const sc_metric *m, bool tangent_space) {
-    static const char unerasable[] = ".tangent_space_unerasable", suspect[] = ".tangent_space_suspect";
+/* A tangent-space normal map whose reconstructed normals stay apart across
+ * a seam, or a normal map that looks tangent-space but is erased as
+ * object-space, is worth a line. */
+static void warn_of_normal_map(sc_ctx *ctx, const sc_metric_list *ml, int32_t k, sc_erase_normal_space space) {
+    static const char discontinuous[] = "tangent_space_discontinuous", suspect[] = "tangent_space_suspect";
+    const sc_metric *m = &ml->items[k];
     size_t n = strlen(m->name);
     if (m->value != 1) return;
-    if (n > sizeof unerasable - 1 && !strcmp(m->name + n - (sizeof unerasable - 1), unerasable))
-        sc_ctx_warn(ctx, "%.*s: a tangent-space normal map is left unerased: its seams stay",
-                    (int)(n - (sizeof unerasable - 1)), m->name);
-    else if (!tangent_space && n > sizeof suspect - 1 && !strcmp(m->name + n - (sizeof suspect - 1), suspect))
+    if (n >= sizeof discontinuous - 1 && !strcmp(m->name + n - (sizeof discontinuous - 1), discontinuous)) {
+        double gap = NAN;   /* the normal_gap_after just before it */
+        for (int32_t j = k - 1; j >= 0 && isnan(gap); j--) {
+            size_t l = strlen(ml->items[j].name);
+            if (l >= 16 && !strcmp(ml->items[j].name + l - 16, "normal_gap_after")) gap = ml->items[j].value;
+        }
+        sc_ctx_warn(ctx, "%.*s: the tangent-space normal map cannot be made continuous: reconstructed normals "
+                         "still differ by up to %.3g (about radians) across a seam",
+                    (int)(n - (sizeof discontinuous - 1) - (n > sizeof discontinuous - 1)), m->name, gap);
+    } else if (space == SC_ERASE_NORMALS_OBJECT && n >= sizeof suspect - 1 &&
+               !strcmp(m->name + n - (sizeof suspect - 1), suspect))
         sc_ctx_warn(ctx, "%.*s: the normal map looks tangent-space but is erased as object-space "
-                         "(tangent_space_normals=true leaves it as it is)",
+                         "(normal_space=tangent or auto erases it through its tangent frames)",
                     (int)(n - (sizeof suspect - 1)), m->name);
 }
 
@@ -42,7 +52,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.w_outside = sc_ctx_number(ctx, "w_outside");
     o.lerp = sc_ctx_bool(ctx, "lerp");
     o.outside = sc_ctx_bool(ctx, "outside");
-    o.tangent_space_normals = sc_ctx_bool(ctx, "tangent_space_normals");
+    o.normal_space = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
     o.gap_tolerance = sc_ctx_number(ctx, "gap_tolerance");
     double wc = sc_ctx_number(ctx, "w_change");
     const char *preset = sc_ctx_string(ctx, "preset");
@@ -68,7 +78,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     for (int32_t i = 0; i < r.metrics.count; i++) {
         const sc_metric *m = &r.metrics.items[i];
         sc_ctx_metric(ctx, m->name, m->value);
-        warn_of_normal_map(ctx, m, o.tangent_space_normals);
+        warn_of_normal_map(ctx, &r.metrics, i, o.normal_space);
     }
     sc_value *f32 = sc_erase_result_atlas(in, &r, false), *native = sc_erase_result_atlas(in, &r, true);
     sc_erase_result_free(&r);
@@ -87,6 +97,7 @@ static const char *const preset_choices[] = {"local", "global", NULL};
 static const char *const quantize_choices[] = {"none", "naive", "optimal", NULL};
 static const char *const solver_choices[] = {"auto", "cholmod", "schur", NULL};
 static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
+static const char *const normal_space_choices[] = {"auto", "tangent", "object", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "preset", .type = SC_PARAM_ENUM, .def_string = "local", .choices = preset_choices,
@@ -114,8 +125,8 @@ static const sc_param_desc params[] = {
             "encoding) is already seam-free and passes through unchanged; 0: always erase"},
     {.name = "textures", .type = SC_PARAM_STRING, .def_string = "all",
      .doc = "texture slots to erase, comma-separated (color, normal, ...), or all"},
-    {.name = "tangent_space_normals", .type = SC_PARAM_BOOL, .def = 0,
-     .doc = "the normal slot holds a tangent-space map: leave it and report it unerasable"},
+    {.name = "normal_space", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = normal_space_choices,
+     .doc = SC_ERASE_NORMAL_SPACE_DOC},
     {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
      .doc = SC_ERASE_FILTER_SPACE_DOC},
     {.name = "quantize", .type = SC_PARAM_ENUM, .def_string = "optimal", .choices = quantize_choices,
@@ -151,7 +162,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, NULL};
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 7,
+    .version = 8,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -1005,6 +1005,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_erase_defaults(&es.erase);
     es.erase.w_seam = sc_ctx_number(ctx, "w_seam");
     es.erase.filter_space = sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space"));
+    es.erase.normal_space = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
     es.erase.gap_tolerance = es.gap_tolerance;
     mip_run r = {.nsrc = nsrc, .lods = lods != NULL, .linear = es.erase.filter_space == SC_ERASE_FILTER_LINEAR};
     r.src = calloc((size_t)nsrc, sizeof *r.src);
@@ -1053,10 +1054,13 @@ static int run(sc_ctx *ctx, sc_error *err) {
 }
 
 static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
+static const char *const normal_space_choices[] = {"auto", "tangent", "object", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
      .doc = SC_ERASE_FILTER_SPACE_DOC},
+    {.name = "normal_space", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = normal_space_choices,
+     .doc = SC_ERASE_NORMAL_SPACE_DOC},
     {.name = "min_size", .type = SC_PARAM_INTEGER, .def = 1, .min = 1, .max = 32768,
      .doc = "the chain stops once both sides are at most this many texels"},
     {.name = "gap_tolerance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
@@ -1088,7 +1092,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imag
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 10,
+    .version = 11,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -872,11 +872,12 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
 
 /* Erase the re-rendered atlas: the float result (*out) and, in each input
  * texture's own pixel type and encoding, its optimal rounding (*native). */
-static int erase_atlas(const sc_value *atlas, const sc_atlas *input, sc_erase_filter_space space, int threads,
-                       sc_value **out, sc_value **native, sc_error *err) {
+static int erase_atlas(const sc_value *atlas, const sc_atlas *input, sc_erase_filter_space space,
+                       sc_erase_normal_space normals, int threads, sc_value **out, sc_value **native, sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
     o.filter_space = space;
+    o.normal_space = normals;
     const sc_atlas *a = atlas->as.atlas;
     const sc_image_data **like = calloc(a->ntex ? (size_t)a->ntex : 1, sizeof *like);
     if (!like) return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
@@ -1134,7 +1135,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (rc == SC_OK) {
             if (erase)
                 rc = erase_atlas(warped, atlas, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
-                                 threads, &result, &native, err);
+                                 sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space")), threads, &result,
+                                 &native, err);
             else result = sc_value_retain(warped), native = sc_value_retain(warped);
         }
         t_erase = sc_now() - t_erase;
@@ -1157,10 +1159,13 @@ static int run(sc_ctx *ctx, sc_error *err) {
 static const char *const border_choices[] = {"with_seams", "always", "never", NULL};
 
 static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
+static const char *const normal_space_choices[] = {"auto", "tangent", "object", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
      .doc = SC_ERASE_FILTER_SPACE_DOC},
+    {.name = "normal_space", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = normal_space_choices,
+     .doc = SC_ERASE_NORMAL_SPACE_DOC},
     {.name = "tolerance", .type = SC_PARAM_NUMBER, .def = 0.01, .min = 0, .max = 1,
      .doc = "Ramer-Douglas-Peucker tolerance as a fraction of each seam or boundary chain's bounding-box "
             "diagonal (4D for seams); 0 removes only exactly collinear vertices"},
@@ -1193,7 +1198,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &s
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 6,
+    .version = 7,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

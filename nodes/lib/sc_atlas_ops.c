@@ -13,7 +13,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const sc_kernel *const atlas_ops_uses[] = {&sc_kernel_erase, NULL};
+#include "sc_tangent.h"
+
+static const sc_kernel *const atlas_ops_uses[] = {&sc_kernel_erase, &sc_kernel_tangent, NULL};
 const sc_kernel sc_kernel_atlas_ops = {"atlas_ops", SC_ATLAS_OPS_VERSION, atlas_ops_uses};
 
 
@@ -27,7 +29,8 @@ sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *ms, int n) {
         nv += ms[i]->nv, nu += ms[i]->nu, nf += ms[i]->nf;
     }
     if (nv > INT32_MAX || nu > INT32_MAX || nf > INT32_MAX) return NULL;
-    sc_mesh *u = sc_mesh_alloc((int32_t)nv, (int32_t)nu, 0, (int32_t)nf, ms[0]->nmat);
+    if (3 * nf > INT32_MAX) return NULL;
+    sc_mesh *u = sc_mesh_alloc((int32_t)nv, (int32_t)nu, (int32_t)(3 * nf), (int32_t)nf, ms[0]->nmat);
     if (!u) return NULL;
     for (int32_t k = 0; k < ms[0]->nmat; k++)
         if (!(u->materials[k] = sc_strdup(ms[0]->materials[k]))) {
@@ -39,10 +42,18 @@ sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *ms, int n) {
         const sc_mesh *m = ms[i];
         if (m->nv) memcpy(u->V + 3 * ov, m->V, sizeof(double) * 3 * (size_t)m->nv);
         if (m->nu) memcpy(u->U + 2 * ou, m->U, sizeof(double) * 2 * (size_t)m->nu);
+        double *normals = sc_tangent_corner_normals(m);
+        if (!normals) {
+            sc_mesh_free(u);
+            return NULL;
+        }
+        if (m->nf) memcpy(u->N + 9 * of, normals, sizeof(double) * 9 * (size_t)m->nf);
+        free(normals);
         for (int64_t f = 0; f < m->nf; f++) {
             for (int c = 0; c < 3; c++) {
                 u->FV[3 * (of + f) + c] = (int32_t)(m->FV[3 * f + c] + ov);
                 u->FU[3 * (of + f) + c] = (int32_t)(m->FU[3 * f + c] + ou);
+                u->FN[3 * (of + f) + c] = (int32_t)(3 * (of + f) + c);
             }
             u->FM[of + f] = m->FM[f];
         }

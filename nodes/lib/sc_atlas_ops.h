@@ -21,12 +21,14 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_atlas_ops (or a kernel built on it) is re-keyed. */
-#define SC_ATLAS_OPS_VERSION 1
+#define SC_ATLAS_OPS_VERSION 2
 extern const sc_kernel sc_kernel_atlas_ops;
 
 /* The meshes one after the other (vertex, uv and face indices shifted) in a
- * new mesh value; every mesh must have the materials of the first (same
- * count and names). NULL when out of memory, or when the counts overflow or
+ * new mesh value, with a normal per corner (each mesh's, or the smooth ones
+ * sc_tangent_corner_normals gives a mesh without), so that tangent frames on
+ * the union are each mesh's own; every mesh must have the materials of the
+ * first (same count and names). NULL when out of memory, or when the counts overflow or
  * the materials differ. */
 sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *meshes, int n);
 

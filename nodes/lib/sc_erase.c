@@ -134,11 +134,17 @@
  * q^T M q, M applied to the values the consumer filters (linear light for
  * sRGB colour in linear mode), each byte staying within one step of its
  * float value; 16-bit inputs round to nearest). Every energy and gap of a
- * quantised result is measured on its bytes decoded as the consumer does. Tangent-space normal maps
- * cannot be made seam-free in general (the paper's footnote 3): with
- * o->tangent_space_normals the normal slot is left as it is and the metrics
- * say so; without it every normal map is treated as object-space and a
- * `tangent_space_suspect` metric flags maps that look tangent-space.
+ * quantised result is measured on its bytes decoded as the consumer does.
+ *
+ * Tangent-space normal maps (o->normal_space; the paper's footnote 3 leaves
+ * them) are erased in object space: the map is converted texel by texel
+ * with the MikkTSpace frame of the texel's face (sc_tangent.h), that field
+ * is erased as a float data map by the same method, and converted back with
+ * the same frames and rounded to nearest. A frame changes inside a texel's
+ * footprint, so the result is continuous up to that change: the metrics give
+ * the gap of the reconstructed normal on the bytes written, before and after,
+ * and `tangent_space_discontinuous` flags a map left beyond
+ * SC_ERASE_NORMAL_GAP_LIMIT.
  *
  * Shared texels. Texels whose centre lies in two or more uv triangles of the
  * material (mirrored or overlapping charts, foldovers) are counted and
@@ -165,6 +171,7 @@
 #include "sc_schur.h"
 #include "sc_seam.h"
 #include "sc_sparse.h"
+#include "sc_tangent.h"
 
 #define TIKHONOV 1e-8
 #define FLOOR_RETRY 1e-12         /* a refused factorisation retries with this share of the largest diagonal added */
@@ -173,12 +180,14 @@
 #define ROUND_ROWS_PER_CHUNK 16384
 #define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no chain's cluster */
 #define SCHUR_KEY_SPAN 256.0      /* texels along a seam chain that one cluster's couplings may span */
+#define TANGENT_BAND 3.0           /* texels around a chart that take its faces' tangent frames */
 #define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
 
 
 typedef struct options {
     double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
-    bool lerp, outside, tangent_space;
+    bool lerp, outside;
+    sc_erase_normal_space normal_space;
     double gap_tolerance;
     sc_erase_quantize quantize;
     sc_erase_filter_space filter_space;
@@ -194,7 +203,7 @@ typedef struct options {
 typedef enum tex_fate {
     FATE_KEEP = 0,        /* not selected, or no seams: passed through */
     FATE_ERASE = 1,       /* erased (possibly as a duplicate of another slot) */
-    FATE_TANGENT = 2,     /* tangent-space normal map: left, and reported */
+    FATE_TANGENT = 2,     /* tangent-space normal map: erased in object space */
     FATE_CLEAN = 3,       /* seams already within the tolerance: passed through */
 } tex_fate;
 
@@ -1581,7 +1590,8 @@ static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *
 
 /* ---------------------------------------------------------------- the kernel */
 
-static const sc_kernel *const erase_uses[] = {&sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_schur, NULL};
+static const sc_kernel *const erase_uses[] = {&sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_schur,
+                                              &sc_kernel_tangent, NULL};
 const sc_kernel sc_kernel_erase = {"erase", SC_ERASE_VERSION, erase_uses};
 
 static bool slot_selected(const char *list, const char *name) {
@@ -1677,7 +1687,7 @@ static void emit_totals(sc_metric_list *ml, const totals *t, bool several) {
     }
     sc_metric_list_add(ml, "textures_erased", t->erased);
     sc_metric_list_add(ml, "textures_unchanged", t->unchanged);
-    sc_metric_list_add(ml, "tangent_space_unerasable", t->tangent);
+    if (t->tangent > 0) sc_metric_list_add(ml, "tangent_space_maps", t->tangent);
     sc_metric_list_add(ml, "factorizations", t->factorizations);
     sc_metric_list_add(ml, "seconds_build", t->seconds_build);
     sc_metric_list_add(ml, "seconds_factor", t->seconds_factor);
@@ -1693,6 +1703,12 @@ static void emit_totals(sc_metric_list *ml, const totals *t, bool several) {
         sc_metric_list_add(ml, "pcg_iterations", t->pcg_iterations);
     }
     sc_metric_list_add(ml, "factor_flops", t->factor_flops);
+}
+
+sc_erase_normal_space sc_erase_normal_space_named(const char *name) {
+    return strcmp(name, "tangent") == 0  ? SC_ERASE_NORMALS_TANGENT
+           : strcmp(name, "object") == 0 ? SC_ERASE_NORMALS_OBJECT
+                                         : SC_ERASE_NORMALS_AUTO;
 }
 
 sc_erase_filter_space sc_erase_filter_space_named(const char *name) {
@@ -1730,7 +1746,7 @@ static int collect_results(const sc_texture *textures, int32_t ntex, const tex_s
     if (!res->f32 || !res->native || res->metrics.failed) return sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t i = 0; i < ntex; i++) {
         int32_t src = st[i].same_as >= 0 ? st[i].same_as : i;
-        bool own = st[src].fate == FATE_ERASE;
+        bool own = st[src].fate == FATE_ERASE || st[src].fate == FATE_TANGENT;
         const sc_image_data *img = textures[i].image->as.image;
         res->f32[i] = sc_value_retain(own ? st[src].f32 : textures[i].image);
         if (own || !native_like || !native_like[i] || native_like[i] == img) {
@@ -1754,6 +1770,92 @@ void sc_erase_result_free(sc_erase_result *res) {
     free(res->f32), free(res->native);
     sc_metric_list_free(&res->metrics);
     *res = (sc_erase_result){0};
+}
+
+/* normal_space auto, for a map that looks tangent-space: is it one whose
+ * normals meet across the seams through the tangent frames here (MikkTSpace's,
+ * which glTF names), or one whose stored vectors already meet, as a map baked
+ * with frames that are continuous across seams is? The smaller mean gap
+ * along the seams decides; both are reported. */
+static int frames_explain_seams(const sc_mesh *m, const sc_seam_set *seams, const sc_texture *t,
+                                const sc_tangent_frames *frames, bool *tangent, sc_metric_list *ml,
+                                const char *prefix, sc_error *err) {
+    const sc_image_data *img = t->image->as.image;
+    const sc_seam_grid g = {img->width, img->height, t->wrap_u, t->wrap_v};
+    double max_framed, mean_framed, max_stored, mean_stored;
+    int rc = sc_tangent_seam_gap(m, seams, &g, frames, img, &max_framed, &mean_framed, err);
+    if (rc == SC_OK) rc = sc_tangent_seam_gap(m, seams, &g, NULL, img, &max_stored, &mean_stored, err);
+    if (rc != SC_OK) return rc;
+    metric(ml, prefix, "normal_gap_mean_through_frames", mean_framed);
+    metric(ml, prefix, "normal_gap_mean_as_stored", mean_stored);
+    *tangent = mean_framed < mean_stored;
+    return SC_OK;
+}
+
+/* A tangent-space normal map (FATE_TANGENT): to object space with the
+ * frames of `frames`, erased there as one float data map with the caller's
+ * weights (no rounding), back to tangent space, and rounded to nearest in
+ * the input's pixel type (like's, when given: an 8/16-bit original). Its metrics: the reconstructed normal's seam gap
+ * on the input and on the bytes written, and the object-space field's seam
+ * energy before and after the solve. */
+static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const sc_texture *t,
+                               const sc_image_data *like, const sc_erase_options *eo, int threads, const sc_tangent_frames *frames,
+                               tex_state *s, sc_metric_list *ml, sc_error *err) {
+    const sc_image_data *img = t->image->as.image;
+    const sc_seam_grid g = {img->width, img->height, t->wrap_u, t->wrap_v};
+    sc_tangent_texels tx = {0};
+    sc_erase_result sub = {0};
+    sc_image_data *back = NULL;
+    double gap_before = 0, mean_before = 0, gap_after = 0, mean_after = 0;
+    int rc = sc_tangent_texels_build(m, t->material, &g, TANGENT_BAND, &tx, err);
+    if (rc == SC_OK) rc = sc_tangent_seam_gap(m, seams, &g, frames, img, &gap_before, &mean_before, err);
+    if (rc == SC_OK) {
+        sc_image_data *obj = sc_tangent_to_object(img, frames, &tx);
+        sc_value *objv = obj ? sc_value_new_image(obj) : NULL;
+        if (!objv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        sc_erase_options so = *eo;
+        so.normal_space = SC_ERASE_NORMALS_OBJECT, so.quantize = SC_ERASE_QUANTIZE_NONE, so.gap_tolerance = 0;
+        so.native_like = NULL, so.textures = "all";
+        sc_texture st = *t;
+        st.image = objv;
+        if (rc == SC_OK) rc = sc_erase(m, &st, 1, &so, threads, &sub, err);
+        sc_value_release(objv);
+    }
+    if (rc == SC_OK && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx)))
+        rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK) {
+        const sc_image_data *to = like && like->pixel != SC_PIXEL_F32 ? like : img;
+        sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to);
+        s->f32 = sc_value_new_image(back), back = NULL;
+        s->native = to->pixel == SC_PIXEL_F32 ? sc_value_retain(s->f32) : nat ? sc_value_new_image(nat) : NULL;
+        if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    if (rc == SC_OK)
+        rc = sc_tangent_seam_gap(m, seams, &g, frames, s->native->as.image, &gap_after, &mean_after, err);
+    if (rc == SC_OK) {
+        const char *pre = s->prefix;
+        metric(ml, pre, "tangent_space", 1);
+        metric(ml, pre, "seam_edges", seams->nseams);
+        for (int32_t k = 0; k < sub.metrics.count; k++) {
+            const char *name = sub.metrics.items[k].name;
+            if (!strcmp(name, "seam_energy_before") || !strcmp(name, "seam_energy_after")) {
+                char full[64];
+                snprintf(full, sizeof full, "object_%s", name);
+                metric(ml, pre, full, sub.metrics.items[k].value);
+            }
+        }
+        metric(ml, pre, "normal_gap_before", gap_before);
+        metric(ml, pre, "normal_gap_mean_before", mean_before);
+        metric(ml, pre, "normal_gap_after", gap_after);
+        metric(ml, pre, "normal_gap_mean_after", mean_after);
+        metric(ml, pre, "tangent_space_discontinuous", gap_after > SC_ERASE_NORMAL_GAP_LIMIT);
+    } else {
+        sc_error_prefix(err, "texture %s (tangent-space)", t->name);
+    }
+    sc_image_free(back);
+    sc_erase_result_free(&sub);
+    sc_tangent_texels_free(&tx);
+    return rc;
 }
 
 /* Linear mode: every selected sRGB texture is solved from a linear f32 copy
@@ -1791,7 +1893,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
         .w_outside = eo->w_outside,
         .lerp = eo->lerp,
         .outside = eo->outside,
-        .tangent_space = eo->tangent_space_normals,
+        .normal_space = eo->normal_space,
         .gap_tolerance = eo->gap_tolerance,
         .textures = eo->textures ? eo->textures : "all",
         .quantize = eo->quantize,
@@ -1814,6 +1916,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
     sc_value **copies = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *copies);
     const sc_image_data **stored = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *stored);
     const sc_texture *inputs = textures;
+    sc_tangent_frames frames = {0};
     int32_t ngroups = 0;
     totals tot = {.nullity_all = true};
     if (!st || !sets || !found || !groups || !work || !copies || !stored) {
@@ -1848,11 +1951,18 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             if ((rc = sc_seam_find(m, t->material, &sets[t->material], err))) goto done;
             found[t->material] = true;
         }
-        if (o.tangent_space && is_normal_slot(t->name)) {
-            st[i].fate = FATE_TANGENT;
-            metric(&res->metrics, st[i].prefix, "tangent_space_unerasable", 1);
-            tot.tangent++;
-            continue;
+        if (is_normal_slot(t->name) && t->image->as.image->channels >= 3 && o.normal_space != SC_ERASE_NORMALS_OBJECT) {
+            bool tangent = o.normal_space == SC_ERASE_NORMALS_TANGENT;
+            if (!tangent && looks_tangent_space(t->image->as.image)) {
+                if (!frames.tangent && (rc = sc_tangent_frames_build(m, &frames, err))) goto done;
+                if ((rc = frames_explain_seams(m, &sets[t->material], t, &frames, &tangent, &res->metrics,
+                                               st[i].prefix, err)))
+                    goto done;
+            }
+            if (tangent) {
+                st[i].fate = FATE_TANGENT;
+                continue;
+            }
         }
         if (sets[t->material].nseams == 0) {
             metric(&res->metrics, st[i].prefix, "seam_edges", 0);
@@ -1920,6 +2030,13 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
     for (int32_t gi = 0; gi < ngroups && rc == SC_OK; gi++)
         rc = erase_group(&res->metrics, m, &sets[groups[gi].material], textures, stored, &groups[gi], &o, st, several,
                          &tot, err);
+    for (int32_t i = 0; i < ntex && rc == SC_OK; i++)
+        if (st[i].fate == FATE_TANGENT) {
+            if (!frames.tangent && (rc = sc_tangent_frames_build(m, &frames, err))) break;
+            rc = erase_tangent_space(m, &sets[textures[i].material], &textures[i], o.native_like ? stored[i] : NULL,
+                                     eo, threads, &frames, &st[i], &res->metrics, err);
+            tot.tangent++, tot.erased++;
+        }
     if (rc) goto done;
     for (int32_t i = 0; i < ntex; i++)
         if (st[i].fate == FATE_ERASE && st[i].same_as >= 0) {
@@ -1943,6 +2060,7 @@ done:
     if (copies)
         for (int32_t i = 0; i < ntex; i++) sc_value_release(copies[i]);
     free(st), free(sets), free(found), free(groups), free(work), free(copies), free(stored);
+    sc_tangent_frames_free(&frames);
     if (rc != SC_OK) sc_erase_result_free(res);
     return rc;
 }

@@ -25,7 +25,7 @@
 #include "sc_value.h"
 
 /* Bump whenever sc_erase's output bytes for the same inputs can change. */
-#define SC_ERASE_VERSION 2
+#define SC_ERASE_VERSION 3
 extern const sc_kernel sc_kernel_erase;
 
 /* The paper's weights: the defaults of erase_seams's parameters. */
@@ -63,10 +63,35 @@ sc_erase_filter_space sc_erase_filter_space_named(const char *name);
     "where sRGB colour is erased: linear (light, as GPUs filter sRGB textures: glTF, GL/Vulkan sRGB formats) " \
     "or encoded (the stored values, for engines that filter those)"
 
+/* What a "normal" slot holds. Tangent-space maps are converted to object
+ * space with MikkTSpace frames (sc_tangent.h), erased there and converted
+ * back texel by texel; what is measured is the seam gap of the normal a
+ * renderer reconstructs from the bytes written. */
+typedef enum sc_erase_normal_space {
+    SC_ERASE_NORMALS_AUTO = 0,       /* tangent-space when the map looks it (mean near (0.5, 0.5, 1)) and its
+                                        normals meet across seams better through the frames than as stored */
+    SC_ERASE_NORMALS_TANGENT = 1,
+    SC_ERASE_NORMALS_OBJECT = 2,     /* erased as stored */
+} sc_erase_normal_space;
+
+/* The nodes' normal_space parameter: "tangent", "object", or "auto" (anything else). */
+sc_erase_normal_space sc_erase_normal_space_named(const char *name);
+#define SC_ERASE_NORMAL_SPACE_DOC                                                                           \
+    "what the normal slot holds: tangent (erased in object space through MikkTSpace frames, as glTF's maps " \
+    "are), object (erased as stored), or auto (tangent when the map looks tangent-space and its seams meet " \
+    "better through the frames than as stored)"
+/* A tangent-space map whose reconstructed normals still differ by more than
+ * this across a seam (|n_a - n_b|, about radians: 3 degrees) after erasure is
+ * reported as discontinuous. What erasure leaves below it: the frames' turn
+ * within one texel's footprint (texels are converted with the frame at their
+ * centre, the renderer uses the frame at the seam) and 8-bit rounding (about
+ * 0.01). */
+#define SC_ERASE_NORMAL_GAP_LIMIT 0.05
+
 typedef struct sc_erase_options {
     double w_change, w_seam, w_grad_in, w_c1, w_grad_out, w_lerp, w_outside;
     bool lerp, outside;              /* add E_lerp, E_outside */
-    bool tangent_space_normals;      /* the "normal" slot is tangent-space: left, reported unerasable */
+    sc_erase_normal_space normal_space;
     double gap_tolerance;            /* a texture within this (or one encoding step) passes through */
     const char *textures;            /* slots to erase, comma-separated, or "all" (borrowed) */
     sc_erase_quantize quantize;

@@ -19,6 +19,7 @@
  * triangles and unused entries.
  */
 #include "sc_gltf.h"
+#include "sc_tangent.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -30,7 +31,7 @@
 
 #include "sc_obj.h"
 
-static const sc_kernel *const gltf_uses[] = {&sc_kernel_obj, NULL};
+static const sc_kernel *const gltf_uses[] = {&sc_kernel_obj, &sc_kernel_tangent, NULL};
 const sc_kernel sc_kernel_gltf = {"gltf", SC_GLTF_VERSION, gltf_uses};
 
 #define MAX_NODE_DEPTH 1000

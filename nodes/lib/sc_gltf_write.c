@@ -1,9 +1,12 @@
 /* sc_gltf_write.c - glTF 2.0 with every level of detail, as one binary
  * .glb or as a .gltf with its .bin and images beside it (sc_gltf.h). The JSON is printed by hand in a fixed order, numbers as the
  * shortest text that reads back to the same float, so the bytes depend on
- * the inputs alone. Levels go on node 0 through MSFT_lod; a level's corners
- * become glTF vertices by their (position, uv, normal) indices, so a vertex
- * is shared exactly where the source mesh shares one.
+ * the inputs alone. Levels go on node 0 through MSFT_lod. Every level has
+ * normals (the mesh's, or the smooth ones sc_tangent gives a mesh without)
+ * and, when a material has a normal map, the MikkTSpace tangents the erase
+ * kernel converted that map with (sc_tangent.h), so a renderer rebuilds the
+ * same frames. A level's corners become glTF vertices by their position and
+ * uv indices and their normal and tangent values.
  */
 #include <math.h>
 #include <stdio.h>
@@ -11,19 +14,26 @@
 #include <string.h>
 
 #include "sc_gltf.h"
+#include "sc_tangent.h"
 
 enum { GL_FLOAT_T = 5126, GL_UINT_T = 5125, GL_ARRAY_BUFFER_T = 34962, GL_ELEMENT_ARRAY_BUFFER_T = 34963 };
 
 typedef struct corner_key {
-    int32_t v, u, n, order;
+    int32_t v, u, order;
+    float frame[7];   /* normal, then tangent (xyz, w), as written */
 } corner_key;
 
 static int cmp_corner(const void *a, const void *b) {
     const corner_key *x = a, *y = b;
     if (x->v != y->v) return x->v < y->v ? -1 : 1;
     if (x->u != y->u) return x->u < y->u ? -1 : 1;
-    if (x->n != y->n) return x->n < y->n ? -1 : 1;
+    int c = memcmp(x->frame, y->frame, sizeof x->frame);
+    if (c) return c;
     return x->order < y->order ? -1 : x->order > y->order;
+}
+
+static bool same_vertex(const corner_key *x, const corner_key *y) {
+    return x->v == y->v && x->u == y->u && !memcmp(x->frame, y->frame, sizeof x->frame);
 }
 
 /* The JSON being printed and the binary chunk beside it. */
@@ -84,8 +94,11 @@ static int32_t add_index_accessor(glb *g, const uint32_t *data, int32_t count) {
 }
 
 /* One primitive: the faces of material `mat` of mesh m, corners welded by
- * their (v, u, n) indices. Prints the primitive's JSON into `prims`. */
-static int add_primitive(glb *g, const sc_mesh *m, int32_t mat, bool *first, sc_buf *prims, sc_error *err) {
+ * their position and uv indices and frame values (f: the level's frames;
+ * tangents written when `tangents`). Prints the primitive's JSON into
+ * `prims`. */
+static int add_primitive(glb *g, const sc_mesh *m, const sc_tangent_frames *fr, bool tangents, int32_t mat,
+                         bool *first, sc_buf *prims, sc_error *err) {
     int32_t nf = 0;
     for (int32_t f = 0; f < m->nf; f++) nf += m->FM[f] == mat;
     if (nf == 0) return SC_OK;
@@ -93,27 +106,27 @@ static int add_primitive(glb *g, const sc_mesh *m, int32_t mat, bool *first, sc_
     corner_key *keys = malloc((size_t)nc * sizeof *keys);
     uint32_t *index = malloc((size_t)nc * sizeof *index);
     float *pos = malloc((size_t)nc * 3 * sizeof *pos), *uv = malloc((size_t)nc * 2 * sizeof *uv);
-    float *nrm = m->nn ? malloc((size_t)nc * 3 * sizeof *nrm) : NULL;
-    if (!keys || !index || !pos || !uv || (m->nn && !nrm)) {
-        free(keys), free(index), free(pos), free(uv), free(nrm);
+    float *nrm = malloc((size_t)nc * 3 * sizeof *nrm), *tan = malloc((size_t)nc * 4 * sizeof *tan);
+    int32_t *first_of = malloc((size_t)nc * sizeof *first_of), *vid = malloc((size_t)nc * sizeof *vid);
+    if (!keys || !index || !pos || !uv || !nrm || !tan || !first_of || !vid) {
+        free(keys), free(index), free(pos), free(uv), free(nrm), free(tan), free(first_of), free(vid);
         return sc_fail(err, SC_ENOMEM, "glb: out of memory");
     }
     int32_t k = 0;
     for (int32_t f = 0; f < m->nf; f++) {
         if (m->FM[f] != mat) continue;
-        for (int c = 0; c < 3; c++, k++)
-            keys[k] = (corner_key){m->FV[3 * f + c], m->FU[3 * f + c], m->nn ? m->FN[3 * f + c] : -1, k};
+        for (int c = 0; c < 3; c++, k++) {
+            size_t at = 3 * (size_t)f + c;
+            keys[k] = (corner_key){m->FV[at], m->FU[at], k, {0}};
+            for (int d = 0; d < 3; d++) keys[k].frame[d] = (float)fr->normal[3 * at + d];
+            for (int d = 0; d < 4 && tangents; d++) keys[k].frame[3 + d] = (float)fr->tangent[4 * at + d];
+        }
     }
     qsort(keys, (size_t)nc, sizeof *keys, cmp_corner);
     /* vertices numbered by first appearance in face order */
-    int32_t *first_of = malloc((size_t)nc * sizeof *first_of), *vid = malloc((size_t)nc * sizeof *vid);
-    if (!first_of || !vid) {
-        free(keys), free(index), free(pos), free(uv), free(nrm), free(first_of), free(vid);
-        return sc_fail(err, SC_ENOMEM, "glb: out of memory");
-    }
     for (int32_t i = 0; i < nc;) {
         int32_t j = i;
-        while (j < nc && keys[j].v == keys[i].v && keys[j].u == keys[i].u && keys[j].n == keys[i].n) j++;
+        while (j < nc && same_vertex(&keys[j], &keys[i])) j++;
         for (int32_t t = i; t < j; t++) first_of[keys[t].order] = keys[i].order;   /* the group's earliest corner */
         i = j;
     }
@@ -128,25 +141,25 @@ static int add_primitive(glb *g, const sc_mesh *m, int32_t mat, bool *first, sc_
         for (int c = 0; c < 3; c++, k++) {
             if (first_of[k] != k) continue;
             int32_t o = vid[k];
-            const double *V = m->V + 3 * (size_t)m->FV[3 * f + c], *U = m->U + 2 * (size_t)m->FU[3 * f + c];
+            size_t at = 3 * (size_t)f + c;
+            const double *V = m->V + 3 * (size_t)m->FV[at], *U = m->U + 2 * (size_t)m->FU[at];
             for (int d = 0; d < 3; d++) pos[3 * o + d] = (float)V[d];
             uv[2 * o] = (float)U[0], uv[2 * o + 1] = (float)(1.0 - U[1]);
-            if (nrm) {
-                const double *N = m->N + 3 * (size_t)m->FN[3 * f + c];
-                double len = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]);
-                for (int d = 0; d < 3; d++) nrm[3 * o + d] = (float)(len > 0 ? N[d] / len : (d == 2));
-            }
+            for (int d = 0; d < 3; d++) nrm[3 * o + d] = (float)fr->normal[3 * at + d];
+            for (int d = 0; d < 4; d++) tan[4 * o + d] = (float)fr->tangent[4 * at + d];
         }
     }
     int32_t ap = add_float_accessor(g, pos, nv, 3, true);
     int32_t at = add_float_accessor(g, uv, nv, 2, false);
-    int32_t an = nrm ? add_float_accessor(g, nrm, nv, 3, false) : -1;
+    int32_t an = add_float_accessor(g, nrm, nv, 3, false);
+    int32_t atan = tangents ? add_float_accessor(g, tan, nv, 4, false) : -1;
     int32_t ai = add_index_accessor(g, index, nc);
-    sc_buf_printf(prims, "%s{\"attributes\":{\"POSITION\":%d,\"TEXCOORD_0\":%d", *first ? "" : ",", ap, at);
-    if (an >= 0) sc_buf_printf(prims, ",\"NORMAL\":%d", an);
+    sc_buf_printf(prims, "%s{\"attributes\":{\"POSITION\":%d,\"TEXCOORD_0\":%d,\"NORMAL\":%d", *first ? "" : ",", ap,
+                  at, an);
+    if (atan >= 0) sc_buf_printf(prims, ",\"TANGENT\":%d", atan);
     sc_buf_printf(prims, "},\"indices\":%d,\"material\":%d,\"mode\":4}", ai, mat);
     *first = false;
-    free(keys), free(index), free(pos), free(uv), free(nrm), free(first_of), free(vid);
+    free(keys), free(index), free(pos), free(uv), free(nrm), free(tan), free(first_of), free(vid);
     return SC_OK;
 }
 
@@ -183,12 +196,17 @@ static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlev
     sc_buf meshes, images, texs, samplers, materials;
     sc_buf_init(&meshes), sc_buf_init(&images), sc_buf_init(&texs), sc_buf_init(&samplers), sc_buf_init(&materials);
     int rc = SC_OK;
+    bool tangents = false;
+    for (int32_t i = 0; i < ntextures; i++) tangents |= strcmp(textures[i].slot, "normal") == 0;
     for (int32_t l = 0; l < nlevels && rc == SC_OK; l++) {
         sc_buf prims;
         sc_buf_init(&prims);
         bool first = true;
+        sc_tangent_frames fr;
+        rc = sc_tangent_frames_build(levels[l], &fr, err);
         for (int32_t mat = 0; mat < levels[l]->nmat && rc == SC_OK; mat++)
-            rc = add_primitive(&g, levels[l], mat, &first, &prims, err);
+            rc = add_primitive(&g, levels[l], &fr, tangents, mat, &first, &prims, err);
+        sc_tangent_frames_free(&fr);
         sc_buf_printf(&meshes, "%s{\"name\":\"lod%d\",\"primitives\":[", l ? "," : "", (int)l);
         sc_buf_append(&meshes, prims.data, prims.len);
         sc_buf_puts(&meshes, "]}");
