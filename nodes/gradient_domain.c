@@ -10,7 +10,8 @@
  * same with the result rounded once to the input's pixel type and encoding
  * (`atlas_native`, what the main job carries on). The
  * kernel's metrics (residual after every V-cycle, seam energies before and
- * after) pass on as they come. `lic` is not built: it fails with a message.
+ * after) pass on as they come. `lic` replaces the slot's values by white
+ * noise (`seed`) diffused along the largest principal curvature (§7.4).
  *
  * Seams. The paper's function space is continuous across seams, but the
  * bilinear texture it is written back to is not: the solve narrows the
@@ -101,6 +102,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (w >= 0) o.screening = w;
     o.time_step = sc_ctx_number(ctx, "time_step");
     o.sources = sc_ctx_string(ctx, "sources");
+    o.lic_length = sc_ctx_number(ctx, "lic_length");
+    o.lic_seed = (uint64_t)sc_ctx_integer(ctx, "seed");
     const char *solver = sc_ctx_string(ctx, "solver");
     o.solver = strcmp(solver, "direct") == 0    ? SC_GRADIENT_DIRECT
                : strcmp(solver, "vcycles") == 0 ? SC_GRADIENT_VCYCLES
@@ -163,12 +166,18 @@ static const char *const solver_choices[] = {"multigrid", "vcycles", "direct", N
 static const sc_param_desc params[] = {
     {.name = "operation", .type = SC_PARAM_ENUM, .def_string = "smooth", .choices = operation_choices,
      .doc = "smooth, sharpen (gradients scaled by gradient_scale), stitch (gradients kept inside each label of "
-            "the labels image), geodesic (heat-method distance to sources), lic (not built: fails)"},
+            "the labels image), geodesic (heat-method distance to sources), lic (white noise diffused along the "
+            "direction of largest principal curvature: line integral convolution, §7.4)"},
     {.name = "texture", .type = SC_PARAM_STRING, .def_string = "color", .doc = "the texture slot processed"},
     {.name = "gradient_scale", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e6,
      .doc = "beta, the factor of the gradients kept (smooth < 1 < sharpen); negative: 0 smooth, 2 sharpen"},
     {.name = "screening", .type = SC_PARAM_NUMBER, .def = -1, .min = -1, .max = 1e30,
-     .doc = "w, the screening weight on a surface scaled to unit area; negative: 1e4 (smooth, sharpen), 1e2 (stitch)"},
+     .doc = "w, the screening weight on a surface scaled to unit area; negative: 1e4 (smooth, sharpen), 1e2 (stitch); "
+            "lic: a factor on one over a texel's area (negative: 1, streaks one texel wide)"},
+    {.name = "lic_length", .type = SC_PARAM_NUMBER, .def = 16, .min = 1, .max = 1e4,
+     .doc = "lic: the streaks' length in texels (epsilon of the metric = 1 / length^2)"},
+    {.name = "seed", .type = SC_PARAM_INTEGER, .def = 1, .min = 0, .max = 2147483647,
+     .doc = "lic: the seed of the white noise diffused"},
     {.name = "time_step", .type = SC_PARAM_NUMBER, .def = 1e-3, .min = 1e-12, .max = 1e6,
      .doc = "geodesic: the heat step t, on a surface scaled to unit area (the paper's 1e-3)"},
     {.name = "sources", .type = SC_PARAM_STRING, .def_string = "",
@@ -208,7 +217,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_gradient, &sc_kernel_erase
 
 const sc_node_desc sc_node_gradient_domain = {
     .type = "gradient_domain",
-    .version = 2,
+    .version = 3,
     .summary = "gradient-domain processing in the texture atlas (Prada et al. 2018): smooth, sharpen, stitch, geodesic",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -36,8 +36,9 @@
 
 #include "sc_seam.h"
 #include "sc_sparse.h"
+#include "sc_tangent.h"
 
-static const sc_kernel *const gradient_uses[] = {&sc_kernel_seam, &sc_kernel_sparse, NULL};
+static const sc_kernel *const gradient_uses[] = {&sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_tangent, NULL};
 const sc_kernel sc_kernel_gradient = {"gradient", SC_GRADIENT_VERSION, gradient_uses};
 
 static const char *const op_names[] = {"smooth", "sharpen", "stitch", "geodesic", "lic"};
@@ -60,7 +61,10 @@ void sc_gradient_defaults(sc_gradient_options *o, sc_gradient_op op) {
         .relaxations = 3,
         .max_vcycles = 30,
         .tolerance = 1e-8,
+        .lic_length = 16,
+        .lic_seed = 1,
     };
+    if (op == SC_GRADIENT_LIC) o->screening = 1;
 }
 
 /* ================================================================ pieces */
@@ -112,6 +116,9 @@ typedef struct gd_walk {
     int32_t *bseam;        /* seam of boundary sub-edge i (i -> i + 1), or -1 */
     double (*pos)[2];
     gd_node *node;
+    /* lic: per face, u_perp (3D, scaled), and epsilon; NULL: the surface metric */
+    const double *lic_perp;
+    double lic_epsilon;
 } gd_walk;
 
 static bool in_material(const gd_walk *w, int32_t f) { return w->material < 0 || w->m->FM[f] == w->material; }
@@ -331,8 +338,10 @@ static double seam_gamma(const gd_walk *w, int32_t f, int k, const double P[3][2
     return gm < 0 ? 0 : gm > 1 ? 1 : gm;
 }
 
-/* the face's metric in texel space: g = E^-T (F^T F) E^-1 */
-static bool face_metric(const sc_mesh *m, int32_t f, const double P[3][2], double *sqrtdet, double ginv[3]) {
+/* the face's metric in texel space: g = E^-T (F^T F) E^-1; with perp (lic),
+ * h = c c^T + eps g, c_x = dX/dx . perp, c_y = dX/dy . perp */
+static bool face_metric(const sc_mesh *m, int32_t f, const double P[3][2], const double *perp, double eps,
+                        double *sqrtdet, double ginv[3]) {
     const double *X0 = m->V + 3 * (size_t)m->FV[3 * f], *X1 = m->V + 3 * (size_t)m->FV[3 * f + 1],
                  *X2 = m->V + 3 * (size_t)m->FV[3 * f + 2];
     double e1[3], e2[3];
@@ -349,6 +358,17 @@ static bool face_metric(const sc_mesh *m, int32_t f, const double P[3][2], doubl
     double gxx = i11 * t11 + i21 * t21, gxy = i11 * t12 + i21 * t22, gyy = i12 * t12 + i22 * t22;
     double dg = gxx * gyy - gxy * gxy;
     if (!(dg > 0)) return false;
+    if (perp) {
+        double cx = 0, cy = 0;
+        for (int i = 0; i < 3; i++)
+            cx += (i11 * e1[i] + i21 * e2[i]) * perp[i], cy += (i12 * e1[i] + i22 * e2[i]) * perp[i];
+        gxx = cx * cx + eps * gxx, gxy = cx * cy + eps * gxy, gyy = cy * cy + eps * gyy;
+        dg = gxx * gyy - gxy * gxy;
+        if (!(dg > 0)) return false;
+        *sqrtdet = sqrt(dg);
+        ginv[0] = gyy / dg, ginv[1] = -gxy / dg, ginv[2] = gxx / dg;
+        return true;
+    }
     *sqrtdet = sqrt(detG) / fabs(det);
     ginv[0] = gyy / dg, ginv[1] = -gxy / dg, ginv[2] = gxx / dg;
     return true;
@@ -368,7 +388,9 @@ static int walk_face(gd_walk *w, int32_t f, gd_visit visit, void *ud, sc_error *
             P[k][0] = uv[0] * g->width - 0.5, P[k][1] = uv[1] * g->height - 0.5;
         }
         gd_piece pc = {.face = f};
-        if (!face_metric(m, f, P, &pc.sqrtdet, pc.ginv)) return SC_OK;
+        if (!face_metric(m, f, P, w->lic_perp ? w->lic_perp + 3 * (size_t)f : NULL, w->lic_epsilon, &pc.sqrtdet,
+                         pc.ginv))
+            return SC_OK;
         double x0 = fmin(P[0][0], fmin(P[1][0], P[2][0])), x1 = fmax(P[0][0], fmax(P[1][0], P[2][0]));
         double y0 = fmin(P[0][1], fmin(P[1][1], P[2][1])), y1 = fmax(P[0][1], fmax(P[1][1], P[2][1]));
         if (x1 - x0 > 1e6 || y1 - y0 > 1e6) return sc_fail(err, SC_EINPUT, "face %d spans too many texels", (int)f);
@@ -1688,6 +1710,99 @@ static int seam_energy(const sc_mesh *m, const sc_seam_set *s, const sc_seam_gri
     return SC_OK;
 }
 
+/* ================================================================ lic */
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Per face of `material`, u_perp for lic: the direction of largest
+ * |principal curvature| turned a quarter in the face's plane, scaled by
+ * |k1 - k2| over its 90th percentile on the surface (capped at 1); the shape operator of each face is the
+ * least-squares fit S e = dn over its three edges (e in the face's plane,
+ * dn the change of the corner normals along it). NULL when out of memory. */
+static double *lic_field(const sc_mesh *m, int32_t material) {
+    double *normals = sc_tangent_corner_normals(m);
+    double *out = sc_calloc_array(m->nf ? (size_t)m->nf * 3 : 1, sizeof *out);
+    double *aniso = sc_calloc_array(m->nf ? (size_t)m->nf : 1, sizeof *aniso);
+    if (!normals || !out || !aniso) {
+        free(normals), free(out), free(aniso);
+        return NULL;
+    }
+    double top = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (material >= 0 && m->FM[f] != material) continue;
+        const double *X[3], *N[3];
+        for (int k = 0; k < 3; k++) X[k] = m->V + 3 * (size_t)m->FV[3 * f + k], N[k] = normals + 9 * (size_t)f + 3 * k;
+        double e1[3], e2[3], nf[3], t1[3], t2[3];
+        for (int i = 0; i < 3; i++) e1[i] = X[1][i] - X[0][i], e2[i] = X[2][i] - X[0][i];
+        nf[0] = e1[1] * e2[2] - e1[2] * e2[1], nf[1] = e1[2] * e2[0] - e1[0] * e2[2], nf[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        double ln = sqrt(nf[0] * nf[0] + nf[1] * nf[1] + nf[2] * nf[2]), l1 = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
+        if (!(ln > 0) || !(l1 > 0)) continue;
+        for (int i = 0; i < 3; i++) nf[i] /= ln, t1[i] = e1[i] / l1;
+        t2[0] = nf[1] * t1[2] - nf[2] * t1[1], t2[1] = nf[2] * t1[0] - nf[0] * t1[2], t2[2] = nf[0] * t1[1] - nf[1] * t1[0];
+        /* normal equations of  a ex + b ey = dnx,  b ex + c ey = dny  over the edges */
+        double A[3][3] = {{0}}, r[3] = {0};
+        for (int k = 0; k < 3; k++) {
+            int i = (k + 1) % 3, j = (k + 2) % 3;
+            double ex = 0, ey = 0, nx = 0, ny = 0;
+            for (int d = 0; d < 3; d++) {
+                double e = X[j][d] - X[i][d], dn = N[j][d] - N[i][d];
+                ex += e * t1[d], ey += e * t2[d], nx += dn * t1[d], ny += dn * t2[d];
+            }
+            double row1[3] = {ex, ey, 0}, row2[3] = {0, ex, ey};
+            for (int p = 0; p < 3; p++) {
+                r[p] += row1[p] * nx + row2[p] * ny;
+                for (int q = 0; q < 3; q++) A[p][q] += row1[p] * row1[q] + row2[p] * row2[q];
+            }
+        }
+        double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+                     A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+        if (!(fabs(det) > 1e-300)) continue;
+        double sol[3];
+        for (int c = 0; c < 3; c++) {
+            double B[3][3];
+            memcpy(B, A, sizeof B);
+            for (int p = 0; p < 3; p++) B[p][c] = r[p];
+            sol[c] = (B[0][0] * (B[1][1] * B[2][2] - B[1][2] * B[2][1]) - B[0][1] * (B[1][0] * B[2][2] - B[1][2] * B[2][0]) +
+                      B[0][2] * (B[1][0] * B[2][1] - B[1][1] * B[2][0])) / det;
+        }
+        double a = sol[0], b = sol[1], c = sol[2];
+        double mid = 0.5 * (a + c), rad = sqrt(0.25 * (a - c) * (a - c) + b * b);
+        double theta = 0.5 * atan2(2 * b, a - c);   /* eigenvector of the larger eigenvalue mid + rad */
+        if (fabs(mid - rad) > fabs(mid + rad)) theta += M_PI / 2;
+        /* u = cos t1 + sin t2, u_perp = -sin t1 + cos t2 */
+        for (int i = 0; i < 3; i++) out[3 * (size_t)f + i] = -sin(theta) * t1[i] + cos(theta) * t2[i];
+        aniso[f] = 2 * rad;   /* |k1 - k2| */
+        if (aniso[f] > top) top = aniso[f];
+    }
+    /* scaled by the 90th percentile of the faces' |k1 - k2| (the largest is
+     * often one sharp feature's), capped at 1 */
+    double *sorted = sc_alloc_array(m->nf ? (size_t)m->nf : 1, sizeof *sorted);
+    int32_t ns = 0;
+    for (int32_t f = 0; sorted && f < m->nf; f++)
+        if (aniso[f] > 0) sorted[ns++] = aniso[f];
+    if (sorted && ns > 0) {
+        qsort(sorted, (size_t)ns, sizeof *sorted, cmp_double);
+        top = sorted[(size_t)(0.9 * (ns - 1))];
+    }
+    free(sorted);
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int i = 0; i < 3; i++) out[3 * (size_t)f + i] *= top > 0 ? fmin(1.0, aniso[f] / top) : 0;
+    free(normals), free(aniso);
+    return out;
+}
+
+/* White noise in [0, 1) from a 64-bit seed and a texel id (splitmix64). */
+static double lic_noise(uint64_t seed, uint64_t id) {
+    uint64_t z = seed * 0x9e3779b97f4a7c15ull + id + 0x9e3779b97f4a7c15ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return (double)(z >> 11) / 9007199254740992.0;
+}
+
 void sc_gradient_result_free(sc_gradient_result *res) {
     sc_image_free(res->image);
     sc_metric_list_free(&res->metrics);
@@ -1697,8 +1812,8 @@ void sc_gradient_result_free(sc_gradient_result *res) {
 int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image_data *image,
                       const sc_gradient_options *o, int threads, sc_gradient_result *res, sc_error *err) {
     memset(res, 0, sizeof *res);
-    if (o->op == SC_GRADIENT_LIC)
-        return sc_fail(err, SC_EINPUT, "operation lic (line integral convolution) is not built");
+    if (o->op == SC_GRADIENT_LIC && !(o->lic_length >= 1))
+        return sc_fail(err, SC_EINPUT, "lic_length must be at least 1 texel");
     if ((int)o->op < 0 || o->op > SC_GRADIENT_LIC) return sc_fail(err, SC_EINPUT, "unknown operation %d", (int)o->op);
     if (o->op == SC_GRADIENT_STITCH) {
         if (!o->labels) return sc_fail(err, SC_EINPUT, "stitch: no labels image given");
@@ -1721,6 +1836,14 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
     if (rc != SC_OK) {
         sc_image_free(in);
         return rc;
+    }
+    double *perp = NULL;
+    if (o->op == SC_GRADIENT_LIC) {
+        if (!(perp = lic_field(mesh, tex->material))) {
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            goto done;
+        }
+        w.lic_perp = perp, w.lic_epsilon = 1 / (o->lic_length * o->lic_length);
     }
     rc = system_build(&w, o->op == SC_GRADIENT_STITCH ? o->labels : NULL, threads, &y, err);
     if (rc != SC_OK) goto done;
@@ -1748,8 +1871,42 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
         rc = run_geodesic(mesh, tex->material, &w, &y, o, x, &r.metrics, &r.vcycles, err);
     } else {
         for (int32_t i = 0; i < y.n; i++)
-            for (int32_t c = 0; c < C; c++) x0[(size_t)i * C + c] = px[(size_t)y.texel[i] * C + c];
-        rc = run_filter(&y, o, C, x0, x, &r.metrics, &r.vcycles, err);
+            for (int32_t c = 0; c < C; c++) {
+                bool colour = !(C == 2 || C == 4) || c < C - 1;   /* alpha keeps its values */
+                x0[(size_t)i * C + c] = o->op == SC_GRADIENT_LIC && colour ? lic_noise(o->lic_seed, (uint64_t)y.texel[i])
+                                                                           : px[(size_t)y.texel[i] * C + c];
+                if (o->op == SC_GRADIENT_LIC) px[(size_t)y.texel[i] * C + c] = (float)x0[(size_t)i * C + c];
+            }
+        if (o->op == SC_GRADIENT_LIC) {
+            /* w = screening / (area per texel): under h the mass scales by sqrt(det h) / sqrt(det g), so the
+             * texel's area is taken under g, from the faces */
+            double area = 0;
+            for (int32_t f = 0; f < mesh->nf; f++) {
+                if (tex->material >= 0 && mesh->FM[f] != tex->material) continue;
+                const double *X0 = mesh->V + 3 * (size_t)mesh->FV[3 * f], *X1 = mesh->V + 3 * (size_t)mesh->FV[3 * f + 1],
+                             *X2 = mesh->V + 3 * (size_t)mesh->FV[3 * f + 2];
+                double a[3] = {X1[0] - X0[0], X1[1] - X0[1], X1[2] - X0[2]}, b[3] = {X2[0] - X0[0], X2[1] - X0[1], X2[2] - X0[2]};
+                double cx = a[1] * b[2] - a[2] * b[1], cy = a[2] * b[0] - a[0] * b[2], cz = a[0] * b[1] - a[1] * b[0];
+                area += 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+            }
+            sc_gradient_options lo = *o;
+            lo.screening = o->screening * y.area * y.n / area;   /* run_filter divides by y.area */
+            lo.gradient_scale = 0;
+            rc = run_filter(&y, &lo, C, x0, x, &r.metrics, &r.vcycles, err);
+            /* diffusion shrinks the noise's contrast: back to mean 1/2, deviation 1/6 */
+            for (int32_t c = 0; c < C && rc == SC_OK; c++) {
+                if ((C == 2 || C == 4) && c == C - 1) continue;
+                double sum = 0, sq = 0;
+                for (int32_t i = 0; i < y.n; i++) sum += x[(size_t)i * C + c];
+                double mean = sum / y.n;
+                for (int32_t i = 0; i < y.n; i++) sq += (x[(size_t)i * C + c] - mean) * (x[(size_t)i * C + c] - mean);
+                double sd = sqrt(sq / y.n), k = sd > 0 ? 1.0 / (6 * sd) : 0;
+                metric(&r.metrics, "%s_deviation", "lic", sd);
+                for (int32_t i = 0; i < y.n; i++) x[(size_t)i * C + c] = 0.5 + k * (x[(size_t)i * C + c] - mean);
+            }
+        } else {
+            rc = run_filter(&y, o, C, x0, x, &r.metrics, &r.vcycles, err);
+        }
     }
     if (rc != SC_OK) goto done;
     double e_in = 0, e_out = 0;
@@ -1764,7 +1921,7 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
     if (o->op != SC_GRADIENT_GEODESIC && e_in > 0) sc_metric_list_add(&r.metrics, "seam_energy_ratio", e_out / e_in);
     rc = r.metrics.failed ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
 done:
-    free(x0), free(x);
+    free(x0), free(x), free(perp);
     sc_image_free(in);
     system_free(&y);
     walk_free(&w);

@@ -36,10 +36,12 @@
 #ifndef SC_GRADIENT_H
 #define SC_GRADIENT_H
 
+#include <stdint.h>
+
 #include "sc_value.h"
 
 /* Bump whenever sc_gradient_apply's output for the same inputs can change. */
-#define SC_GRADIENT_VERSION 2
+#define SC_GRADIENT_VERSION 3
 extern const sc_kernel sc_kernel_gradient;
 
 typedef enum sc_gradient_op {
@@ -47,7 +49,8 @@ typedef enum sc_gradient_op {
     SC_GRADIENT_SHARPEN = 1,  /* the same with beta > 1 */
     SC_GRADIENT_STITCH = 2,   /* (w M + S) x = w M x0 + S_same x0: gradients kept inside each label */
     SC_GRADIENT_GEODESIC = 3, /* heat method: distance to the sources */
-    SC_GRADIENT_LIC = 4,      /* line integral convolution: not built (an error) */
+    SC_GRADIENT_LIC = 4,      /* line integral convolution: white noise diffused along the max-curvature
+                                 direction under the anisotropic metric of §7.4 */
 } sc_gradient_op;
 
 /* The operation named (smooth, sharpen, stitch, geodesic, lic), or -1. */
@@ -78,11 +81,26 @@ typedef struct sc_gradient_options {
     int32_t relaxations;      /* Gauss-Seidel sweeps before and after the coarse correction */
     int32_t max_vcycles;
     double tolerance;         /* V-cycles stop below this relative residual */
+    /* lic: the streaks' length in texels (epsilon = 1 / length^2), and the
+     * seed of the white noise diffused (the input's values are not used) */
+    double lic_length;
+    uint64_t lic_seed;
 } sc_gradient_options;
 
 /* The paper's settings for op: beta 0 (smooth) or 2 (sharpen), w 1e4 (1e2
- * for stitch), t = 1e-3, 4 levels, 3 sweeps, tolerance 1e-8 in
- * at most 30 V-cycles. */
+ * for stitch; lic: 1, a factor on one over a texel's area, so that streaks
+ * are one texel wide), t = 1e-3, 4 levels, 3 sweeps, tolerance 1e-8 in
+ * at most 30 V-cycles; lic: length 16 texels, seed 1.
+ *
+ * lic (§7.4): h(v, w) = g(v, u_perp) g(w, u_perp) + epsilon g(v, w), with u the
+ * direction of largest principal curvature, constant per face (the shape
+ * operator fitted to the face's edges and corner normals), scaled by
+ * |k1 - k2| over its 90th percentile on the surface (capped at 1), and u_perp its
+ * quarter-turn in the tangent plane; white noise psi is diffused by
+ * (w M_h + S_h) x = w M_h psi with w = screening / (surface area per
+ * texel), then rescaled to mean 1/2 and deviation 1/6 (the diffusion shrinks
+ * the noise's contrast). Where |k1 - k2| vanishes (umbilics) the metric is
+ * isotropic and the noise blurs round. */
 void sc_gradient_defaults(sc_gradient_options *o, sc_gradient_op op);
 
 typedef struct sc_gradient_result {
@@ -96,7 +114,7 @@ typedef struct sc_gradient_result {
  * as o says, assembling and relaxing on `threads` threads in an order fixed
  * by the mesh and the grid: the result does not depend on the thread count.
  * sRGB colour is processed in linear light and returned linear.
- * On failure *res is empty and err says why (lic: not built). */
+ * On failure *res is empty and err says why. */
 int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image_data *image,
                       const sc_gradient_options *o, int threads, sc_gradient_result *res, sc_error *err);
 void sc_gradient_result_free(sc_gradient_result *res);
