@@ -114,6 +114,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.tolerance = sc_ctx_number(ctx, "tolerance");
     const sc_value *labels = sc_ctx_input(ctx, "labels");
     if (labels) o.labels = labels->as.image;
+    const sc_value *field = sc_ctx_input(ctx, "field");
+    if (field) o.lic_field = field->as.image;
     const char *slot = sc_ctx_string(ctx, "texture");
     int32_t k = 0;
     while (k < a->ntex && strcmp(a->textures[k].name, slot) != 0) k++;
@@ -202,6 +204,9 @@ static const sc_port_desc inputs[] = {
     {.name = "atlas", .kind = SC_KIND_ATLAS, .doc = "the textured mesh"},
     {.name = "labels", .kind = SC_KIND_IMAGE, .optional = true,
      .doc = "stitch: the source of every texel as an index image (channel 0), the texture's size"},
+    {.name = "field", .kind = SC_KIND_IMAGE, .optional = true,
+     .doc = "lic: the vector field as an object-space direction map (xyz; signed float, else 0..1 for -1..1), the "
+            "texture's size; without it, the directions of largest principal curvature"},
 };
 
 static const sc_port_desc outputs[] = {

@@ -1722,6 +1722,47 @@ static int cmp_double(const void *a, const void *b) {
  * |k1 - k2| over its 90th percentile on the surface (capped at 1); the shape operator of each face is the
  * least-squares fit S e = dn over its three edges (e in the face's plane,
  * dn the change of the corner normals along it). NULL when out of memory. */
+/* Per face, u_perp from a direction map (sc_gradient_options.lic_field):
+ * the map at the face's uv centroid (bilinear, the grid's wrap modes),
+ * projected into the face's plane, turned a quarter, length capped at 1. */
+static double *lic_field_from_map(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
+                                  const sc_image_data *map) {
+    double *out = sc_calloc_array(m->nf ? (size_t)m->nf * 3 : 1, sizeof *out);
+    sc_image_data *f = sc_image_to_f32(map);
+    if (!out || !f) {
+        free(out), sc_image_free(f);
+        return NULL;
+    }
+    bool is_signed = false;
+    const float *px = f->pixels;
+    for (size_t i = 0; i < (size_t)f->width * f->height * f->channels && !is_signed; i++) is_signed = px[i] < 0;
+    sc_seam_grid mg = {f->width, f->height, g->wrap_u, g->wrap_v};
+    for (int32_t fc = 0; fc < m->nf; fc++) {
+        if (material >= 0 && m->FM[fc] != material) continue;
+        double uv[2] = {0, 0}, v[4] = {0, 0, 0, 0}, e1[3], e2[3], n[3];
+        const double *X0 = m->V + 3 * (size_t)m->FV[3 * fc], *X1 = m->V + 3 * (size_t)m->FV[3 * fc + 1],
+                     *X2 = m->V + 3 * (size_t)m->FV[3 * fc + 2];
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 2; d++) uv[d] += m->U[2 * (size_t)m->FU[3 * fc + k] + d] / 3;
+        sc_seam_sample(&mg, f->pixels, f->channels, uv[0], uv[1], v);
+        if (!is_signed)
+            for (int d = 0; d < 3; d++) v[d] = 2 * v[d] - 1;
+        for (int d = 0; d < 3; d++) e1[d] = X1[d] - X0[d], e2[d] = X2[d] - X0[d];
+        n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2], n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        double ln = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!(ln > 0)) continue;
+        for (int d = 0; d < 3; d++) n[d] /= ln;
+        double p = v[0] * n[0] + v[1] * n[1] + v[2] * n[2];
+        for (int d = 0; d < 3; d++) v[d] -= p * n[d];
+        double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), k = l > 1 ? 1 / l : 1;
+        out[3 * (size_t)fc] = k * (n[1] * v[2] - n[2] * v[1]);
+        out[3 * (size_t)fc + 1] = k * (n[2] * v[0] - n[0] * v[2]);
+        out[3 * (size_t)fc + 2] = k * (n[0] * v[1] - n[1] * v[0]);
+    }
+    sc_image_free(f);
+    return out;
+}
+
 static double *lic_field(const sc_mesh *m, int32_t material) {
     double *normals = sc_tangent_corner_normals(m);
     double *out = sc_calloc_array(m->nf ? (size_t)m->nf * 3 : 1, sizeof *out);
@@ -1839,7 +1880,15 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
     }
     double *perp = NULL;
     if (o->op == SC_GRADIENT_LIC) {
-        if (!(perp = lic_field(mesh, tex->material))) {
+        if (o->lic_field && (o->lic_field->width != image->width || o->lic_field->height != image->height ||
+                             o->lic_field->channels < 3)) {
+            rc = sc_fail(err, SC_EINPUT, "lic: the field is %dx%d with %d channels; the texture is %dx%d, 3 needed",
+                         (int)o->lic_field->width, (int)o->lic_field->height, (int)o->lic_field->channels,
+                         (int)image->width, (int)image->height);
+            goto done;
+        }
+        perp = o->lic_field ? lic_field_from_map(mesh, tex->material, &g, o->lic_field) : lic_field(mesh, tex->material);
+        if (!perp) {
             rc = sc_fail(err, SC_ENOMEM, "out of memory");
             goto done;
         }

@@ -85,6 +85,12 @@ typedef struct sc_gradient_options {
      * seed of the white noise diffused (the input's values are not used) */
     double lic_length;
     uint64_t lic_seed;
+    /* lic: the vector field instead of the curvature directions, an
+     * object-space direction map (xyz in channels 0-2: signed float, else 0..1
+     * for -1..1) of the texture's size, read at each face's uv centroid and
+     * projected into the face's plane; its length (capped at 1) scales the
+     * anisotropy. NULL: the curvature directions. Borrowed. */
+    const sc_image_data *lic_field;
 } sc_gradient_options;
 
 /* The paper's settings for op: beta 0 (smooth) or 2 (sharpen), w 1e4 (1e2

@@ -515,8 +515,8 @@ static double streak_difference(const sc_image_data *im, int dx, int dy) {
 
 /* lic (§7.4) on a tube, whose largest curvature runs around it (u): the
  * noise is diffused along u and hardly across, so texels a few apart along
- * u are alike and across are not; with the surface metric (smooth) the
- * same noise blurs alike both ways. The seed changes the noise. */
+ * u are alike and across are not. The seed changes the noise; a field
+ * map along the axis turns the streaks along v. */
 SC_TEST(lic_streaks_follow_the_largest_curvature) {
     sc_value *tube = tube_atlas(48, 128);
     const char *lp[] = {"operation", "lic", "lic_length", "12", NULL};
@@ -534,6 +534,24 @@ SC_TEST(lic_streaks_follow_the_largest_curvature) {
         sc_value *other = run_gradient(tube, NULL, lp2, NULL);
         SC_CHECK(other && max_diff(im, other->as.image) > 0.01);
         sc_value_release(other);
+        /* a field given as a map, along the tube's axis (v): the streaks turn with it */
+        sc_image_data *axis = sc_image_alloc(128, 128, 3, SC_PIXEL_F32);
+        axis->colorspace = SC_COLOR_DATA;
+        for (int i = 0; i < 128 * 128; i++) {   /* encoded 0..1 for -1..1: (0, 0, 1) */
+            float *p = (float *)axis->pixels + 3 * i;
+            p[0] = p[1] = 0.5f, p[2] = 1;
+        }
+        sc_value *field = sc_value_new_image(axis);
+        sc_test_run fr = sc_test_run_node(&sc_node_gradient_domain, lp, "atlas", tube, "field", field);
+        SC_CHECK_MSG(fr.rc == SC_OK, "lic with a field: %s", fr.err.message);
+        if (fr.rc == SC_OK) {
+            const sc_image_data *fi = sc_ctx_output(fr.ctx, 1)->as.image;
+            double fu = streak_difference(fi, 3, 0), fv = streak_difference(fi, 0, 3);
+            printf("     lic along the axis map: along v %.3g, across %.3g (ratio %.3f)\n", fv, fu, fv / fu);
+            SC_CHECK_MSG(fv < 0.25 * fu, "along %g across %g", fv, fu);
+        }
+        sc_ctx_free(fr.ctx);
+        sc_value_release(field);
     }
     sc_ctx_free(ctx);
     sc_value_release(img);
