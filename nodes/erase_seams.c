@@ -18,11 +18,16 @@
  * a seam, or a normal map that looks tangent-space but is erased as
  * object-space, is worth a line. */
 static void warn_of_normal_map(sc_ctx *ctx, const sc_metric_list *ml, int32_t k, sc_erase_normal_space space) {
-    static const char discontinuous[] = "tangent_space_discontinuous", suspect[] = "tangent_space_suspect";
+    static const char discontinuous[] = "tangent_space_discontinuous", suspect[] = "tangent_space_suspect",
+                      left[] = "tangent_space_left";
     const sc_metric *m = &ml->items[k];
     size_t n = strlen(m->name);
     if (m->value != 1) return;
-    if (n >= sizeof discontinuous - 1 && !strcmp(m->name + n - (sizeof discontinuous - 1), discontinuous)) {
+    if (n >= sizeof left - 1 && !strcmp(m->name + n - (sizeof left - 1), left))
+        sc_ctx_warn(ctx, "%.*s: the tangent-space normal map is left as it is: erasing it through its frames would "
+                         "widen the normals' seams (texels that charts with other frames share)",
+                    (int)(n - (sizeof left - 1) - (n > sizeof left - 1)), m->name);
+    else if (n >= sizeof discontinuous - 1 && !strcmp(m->name + n - (sizeof discontinuous - 1), discontinuous)) {
         double gap = NAN;   /* the normal_gap_after just before it */
         for (int32_t j = k - 1; j >= 0 && isnan(gap); j--) {
             size_t l = strlen(ml->items[j].name);

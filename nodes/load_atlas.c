@@ -14,7 +14,12 @@
  *
  * Slots: "color" and "emissive" are colour (sRGB when 8/16-bit); "normal",
  * "occlusion" and "metallic_roughness" are data, and their images are tagged
- * SC_COLOR_DATA so no later step applies a transfer curve to them.
+ * SC_COLOR_DATA so no later step applies a transfer curve to them. A glTF
+ * normal map whose material's TANGENT bitangents mostly run against
+ * increasing v (sc_gltf_texture.green_flipped) is given with its green
+ * channel turned the other way up, so that it reads right through the
+ * MikkTSpace frames every later step and the glTF writer use; the metric
+ * normal_maps_green_flipped counts them.
  *
  * Metrics: the mesh's counts, seam and boundary edges (meshstats.py's
  * definitions: an edge of two or more faces is a seam when its faces do not
@@ -81,6 +86,7 @@ typedef struct texref {
     sc_wrap wrap_u, wrap_v;
     char *origin;            /* who names it, for messages: "a.mtl:12", "a.gltf" */
     int job;                 /* index into the decode jobs */
+    bool green_flipped;      /* a normal map stored with its green channel the other way up */
 } texref;
 
 typedef struct decode_job {
@@ -134,6 +140,7 @@ static int add_ref(loaded *l, int32_t material, int slot, char *path, const uint
     r->wrap_u = wu, r->wrap_v = wv;
     r->origin = origin;
     r->job = -1;
+    r->green_flipped = false;
     return SC_OK;
 }
 
@@ -210,10 +217,36 @@ static int load_gltf(file_reader *fr, const char *path, const sc_buf *bytes, con
         if ((rc = add_ref(l, t->material, slot, file, im->data, im->size, t->wrap_u, t->wrap_v,
                           sc_strprintf("%s: image %d", path, im->index), err)))
             return rc;
+        l->refs[l->nrefs - 1].green_flipped = t->green_flipped;
     }
     sc_ctx_metric(fr->ctx, "primitives_skipped", (double)l->gltf.primitives_skipped);
     sc_ctx_metric(fr->ctx, "textures_skipped", (double)l->gltf.textures_skipped);
     return SC_OK;
+}
+
+/* A copy of normal map im with channel 1 the other way up (g -> 1 - g in
+ * the stored range; -g for a signed float map), as a new value; NULL when
+ * out of memory. */
+static sc_value *green_flipped_copy(const sc_image_data *im) {
+    sc_image_data *c = sc_image_alloc(im->width, im->height, im->channels, im->pixel);
+    if (!c) return NULL;
+    c->colorspace = im->colorspace;
+    memcpy(c->format, im->format, sizeof c->format);
+    size_t n = (size_t)im->width * im->height, C = (size_t)im->channels;
+    memcpy(c->pixels, im->pixels, n * C * (size_t)im->pixel);
+    bool is_signed = false;
+    if (im->pixel == SC_PIXEL_F32)
+        for (size_t i = 0; i < n * C && !is_signed; i++) is_signed = ((const float *)im->pixels)[i] < 0;
+    for (size_t i = 0; C >= 2 && i < n; i++) {
+        if (im->pixel == SC_PIXEL_U8) ((uint8_t *)c->pixels)[i * C + 1] = (uint8_t)(255 - ((uint8_t *)c->pixels)[i * C + 1]);
+        else if (im->pixel == SC_PIXEL_U16)
+            ((uint16_t *)c->pixels)[i * C + 1] = (uint16_t)(65535 - ((uint16_t *)c->pixels)[i * C + 1]);
+        else {
+            float *g = (float *)c->pixels + i * C + 1;
+            *g = is_signed ? -*g : 1.0f - *g;
+        }
+    }
+    return sc_value_new_image(c);
 }
 
 /* The `texture` parameter replaces every material's colour texture. */
@@ -439,6 +472,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     /* textures in material order, then slot order: the same atlas for any file order */
+    int flipped = 0;
     for (int32_t m = 0; m < (int32_t)materials && rc == SC_OK; m++)
         for (int s = 0; s < NSLOTS && rc == SC_OK; s++)
             for (int i = 0; i < l.nrefs && rc == SC_OK; i++) {
@@ -452,8 +486,11 @@ static int run(sc_ctx *ctx, sc_error *err) {
                 }
                 const char *base = r->path ? strrchr(r->path, '/') : NULL;
                 const char *source = r->path ? (base ? base + 1 : r->path) : "";
-                rc = sc_atlas_add_texture(atlas, slot_names[s], m, wu, wv, source,
-                                          sc_value_retain(l.jobs[r->job].value));
+                sc_value *image = r->green_flipped ? green_flipped_copy(l.jobs[r->job].value->as.image)
+                                                   : sc_value_retain(l.jobs[r->job].value);
+                flipped += r->green_flipped;
+                rc = image ? sc_atlas_add_texture(atlas, slot_names[s], m, wu, wv, source, image)
+                           : sc_fail(err, SC_ENOMEM, "out of memory");
                 break;   /* one texture per (material, slot) */
             }
     int32_t ntex = atlas->ntex;
@@ -468,6 +505,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_ctx_metric(ctx, "vertices", vertices);
     sc_ctx_metric(ctx, "uv_vertices", uvs);
     sc_ctx_metric(ctx, "materials", materials);
+    sc_ctx_metric(ctx, "normal_maps_green_flipped", flipped);
     sc_ctx_metric(ctx, "textures", ntex);
     sc_ctx_metric(ctx, "seam_edges", (double)edges.seams);
     sc_ctx_metric(ctx, "boundary_edges", (double)edges.boundary);
@@ -505,7 +543,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, 
 
 const sc_node_desc sc_node_load_atlas = {
     .type = "load_atlas",
-    .version = 1,
+    .version = 2,
     .summary = "load a textured mesh (OBJ + MTL, glTF 2.0) and its textures",
     .outputs = outputs,
     .noutputs = SC_COUNT(outputs),

@@ -1795,7 +1795,9 @@ static int frames_explain_seams(const sc_mesh *m, const sc_seam_set *seams, cons
 /* A tangent-space normal map (FATE_TANGENT): to object space with the
  * frames of `frames`, erased there as one float data map with the caller's
  * weights (no rounding), back to tangent space, and rounded to nearest in
- * the input's pixel type (like's, when given: an 8/16-bit original). Its metrics: the reconstructed normal's seam gap
+ * the input's pixel type (like's, when given: an 8/16-bit original). A map
+ * whose mean rendered gap would widen (texels shared by faces with other
+ * frames) is left as it is, and tangent_space_left says so. Its metrics: the reconstructed normal's seam gap
  * on the input and on the bytes written, and the object-space field's seam
  * energy before and after the solve. */
 static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const sc_texture *t,
@@ -1832,9 +1834,22 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
     }
     if (rc == SC_OK)
         rc = sc_tangent_seam_gap(m, seams, &g, frames, s->native->as.image, &gap_after, &mean_after, err);
+    bool left = false;
+    if (rc == SC_OK && mean_after > mean_before) {
+        /* texels that faces with other frames share (overlapping or mirrored
+         * charts) cannot hold one object-space value: rather than widen
+         * the rendered gaps, the map is left as it is */
+        sc_image_data *f = sc_image_to_f32(img);
+        sc_value_release(s->f32), sc_value_release(s->native);
+        s->f32 = f ? sc_value_new_image(f) : NULL;
+        s->native = sc_value_retain(t->image);
+        if (!s->f32) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        gap_after = gap_before, mean_after = mean_before, left = true;
+    }
     if (rc == SC_OK) {
         const char *pre = s->prefix;
         metric(ml, pre, "tangent_space", 1);
+        metric(ml, pre, "tangent_space_left", left);
         metric(ml, pre, "seam_edges", seams->nseams);
         for (int32_t k = 0; k < sub.metrics.count; k++) {
             const char *name = sub.metrics.items[k].name;
@@ -2035,7 +2050,9 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             if (!frames.tangent && (rc = sc_tangent_frames_build(m, &frames, err))) break;
             rc = erase_tangent_space(m, &sets[textures[i].material], &textures[i], o.native_like ? stored[i] : NULL,
                                      eo, threads, &frames, &st[i], &res->metrics, err);
-            tot.tangent++, tot.erased++;
+            tot.tangent++;
+            if (rc == SC_OK && st[i].native == textures[i].image) tot.unchanged++;
+            else tot.erased++;
         }
     if (rc) goto done;
     for (int32_t i = 0; i < ntex; i++)

@@ -85,6 +85,9 @@ typedef struct reader {
     int64_t ntri, captri, captm;
     bool all_normals;
     int64_t primitives_skipped;
+    /* per glTF material (index + 1; 0: none): corners whose TANGENT's
+     * bitangent runs with and against increasing v (GL uv) */
+    int64_t *tangent_with, *tangent_against;
 } reader;
 
 /* ---------------------------------------------------------------- helpers */
@@ -593,6 +596,52 @@ static int material_transform(reader *r, int64_t gm, uv_transform *out) {
     return SC_OK;
 }
 
+
+/* A primitive's TANGENT (optional, float VEC4, transformed like POSITION's
+ * directions): for each corner of its triangles r->ntri .. + nt, does
+ * w cross(N, T) run with increasing v (the GL uv the reader stores) or
+ * against it? Counted per glTF material: a normal map baked against
+ * bitangents that run against v stores its green channel the other way up
+ * from the frames seamcook writes (sc_gltf_texture.green_flipped). */
+static int count_tangent_convention(reader *r, const char *ctx, const cJSON *attributes, const mat4 m,
+                                    int64_t material, int64_t base, int64_t n, int64_t nt) {
+    int64_t tan_i = -1;
+    int rc = get_ref(r, ctx, attributes, "TANGENT", &r->accessors, "accessor", false, &tan_i);
+    if (rc != SC_OK || tan_i < 0 || !r->all_normals) return rc;
+    accessor tan;
+    if ((rc = open_accessor(r, tan_i, 4, "TANGENT", &tan))) return rc;
+    if (tan.ctype != CT_F32 || tan.count != n) return SC_OK;   /* not usable: the frames built here serve */
+    if (!r->tangent_with) {
+        r->tangent_with = sc_calloc_array((size_t)r->materials.count + 1, sizeof *r->tangent_with);
+        r->tangent_against = sc_calloc_array((size_t)r->materials.count + 1, sizeof *r->tangent_against);
+        if (!r->tangent_with || !r->tangent_against) return fail(r, SC_ENOMEM, "out of memory");
+    }
+    double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                 m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    for (int64_t t = 0; t < nt; t++) {
+        const int32_t *c = r->tri + 3 * (r->ntri + t);
+        const double *P0 = r->P + 3 * (size_t)c[0], *P1 = r->P + 3 * (size_t)c[1], *P2 = r->P + 3 * (size_t)c[2];
+        const double *U0 = r->UV + 2 * (size_t)c[0], *U1 = r->UV + 2 * (size_t)c[1], *U2 = r->UV + 2 * (size_t)c[2];
+        double s1 = U1[0] - U0[0], t1 = U1[1] - U0[1], s2 = U2[0] - U0[0], t2 = U2[1] - U0[1];
+        double area = s1 * t2 - s2 * t1, dv[3];
+        if (!(fabs(area) > 0)) continue;
+        for (int k = 0; k < 3; k++) dv[k] = (s1 * (P2[k] - P0[k]) - s2 * (P1[k] - P0[k])) / area;
+        for (int k = 0; k < 3; k++) {
+            int64_t i = c[k] - base;
+            double a = accessor_get(&tan, i, 0), b = accessor_get(&tan, i, 1), e = accessor_get(&tan, i, 2);
+            double w = accessor_get(&tan, i, 3), T[3], B[3];
+            if (!isfinite(a) || !isfinite(b) || !isfinite(e) || !isfinite(w) || w == 0) continue;
+            for (int d = 0; d < 3; d++) T[d] = m[d][0] * a + m[d][1] * b + m[d][2] * e;
+            const double *N = r->N + 3 * (size_t)c[k];
+            B[0] = N[1] * T[2] - N[2] * T[1], B[1] = N[2] * T[0] - N[0] * T[2], B[2] = N[0] * T[1] - N[1] * T[0];
+            double along = (w < 0 ? -1 : 1) * (det < 0 ? -1 : 1) * (B[0] * dv[0] + B[1] * dv[1] + B[2] * dv[2]);
+            if (along > 0) r->tangent_with[material + 1]++;
+            else if (along < 0) r->tangent_against[material + 1]++;
+        }
+    }
+    return SC_OK;
+}
+
 static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *prim, const mat4 m) {
     char ctx[96];
     snprintf(ctx, sizeof ctx, "mesh %lld primitive %lld", (long long)mesh, (long long)index);
@@ -716,6 +765,7 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
         r->tri[3 * r->ntri + c] = (int32_t)(base + k);
     }
     for (int64_t t = 0; t < nt; t++) r->tri_material[r->ntri + t] = (int32_t)material;
+    if ((rc = count_tangent_convention(r, ctx, attributes, m, material, base, n, nt)) != SC_OK) return rc;
     r->ntri += nt;
     r->nraw = base + n;
     return SC_OK;
@@ -919,7 +969,7 @@ static int wrap_mode(reader *r, const char *ctx, const cJSON *sampler, const cha
     return fail(r, SC_EINPUT, "%s: %s %lld is not a glTF wrap mode", ctx, key, (long long)v);
 }
 
-static int add_texture(reader *r, const char *mctx, const cJSON *info, const char *slot,
+static int add_texture(reader *r, const char *mctx, const cJSON *info, const char *slot, int64_t gm,
                        int32_t material, sc_gltf *out) {
     if (!info) return SC_OK;
     if (!cJSON_IsObject(info)) return fail(r, SC_EINPUT, "%s: the %s texture is not an object", mctx, slot);
@@ -958,6 +1008,8 @@ static int add_texture(reader *r, const char *mctx, const cJSON *info, const cha
     x->slot = sc_strdup(slot);
     x->image = image;
     x->wrap_u = wrap_u, x->wrap_v = wrap_v;
+    x->green_flipped = strcmp(slot, "normal") == 0 && r->tangent_with &&
+                       r->tangent_against[gm + 1] > r->tangent_with[gm + 1];
     if (!x->slot) return fail(r, SC_ENOMEM, "out of memory");
     out->ntextures++;
     return SC_OK;
@@ -972,11 +1024,11 @@ static int add_material_textures(reader *r, int64_t gm, int32_t material, sc_glt
     if (!color)
         color = field(field(field(m, "extensions"), "KHR_materials_pbrSpecularGlossiness"), "diffuseTexture");
     int rc;
-    if ((rc = add_texture(r, ctx, color, "color", material, out)) ||
-        (rc = add_texture(r, ctx, field(m, "normalTexture"), "normal", material, out)) ||
-        (rc = add_texture(r, ctx, field(m, "emissiveTexture"), "emissive", material, out)) ||
-        (rc = add_texture(r, ctx, field(m, "occlusionTexture"), "occlusion", material, out)) ||
-        (rc = add_texture(r, ctx, field(pbr, "metallicRoughnessTexture"), "metallic_roughness", material, out)))
+    if ((rc = add_texture(r, ctx, color, "color", gm, material, out)) ||
+        (rc = add_texture(r, ctx, field(m, "normalTexture"), "normal", gm, material, out)) ||
+        (rc = add_texture(r, ctx, field(m, "emissiveTexture"), "emissive", gm, material, out)) ||
+        (rc = add_texture(r, ctx, field(m, "occlusionTexture"), "occlusion", gm, material, out)) ||
+        (rc = add_texture(r, ctx, field(pbr, "metallicRoughnessTexture"), "metallic_roughness", gm, material, out)))
         return rc;
     return SC_OK;
 }
@@ -1154,6 +1206,7 @@ int sc_gltf_parse(const char *name, const void *bytes, size_t size, sc_gltf_read
                      &r.materials, &r.textures, &r.images, &r.samplers, &r.scenes};
     for (size_t i = 0; i < sizeof lists / sizeof lists[0]; i++) free(lists[i]->items);
     free(r.P), free(r.UV), free(r.N), free(r.tri), free(r.tri_material);
+    free(r.tangent_with), free(r.tangent_against);
     cJSON_Delete(r.root);
     if (rc != SC_OK) sc_gltf_free(out);
     return rc;

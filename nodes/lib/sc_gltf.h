@@ -51,7 +51,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 3
+#define SC_GLTF_VERSION 4
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */
@@ -74,6 +74,11 @@ typedef struct sc_gltf_texture {
     char *slot;         /* "color", "normal", "emissive", "occlusion", "metallic_roughness" */
     int32_t image;      /* index into sc_gltf.images */
     sc_wrap wrap_u, wrap_v;
+    /* normal: most of the material's TANGENT bitangents run against
+     * increasing v, so the map's green channel is stored the other way up
+     * from frames whose bitangent follows v (MikkTSpace's, which seamcook
+     * writes): the caller flips channel 1 (g -> 1 - g) */
+    bool green_flipped;
 } sc_gltf_texture;
 
 typedef struct sc_gltf {

@@ -206,6 +206,62 @@ SC_TEST(parses_gltf_with_transforms_and_seams) {
     cJSON_Delete(j);
 }
 
+/* The quad with a TANGENT of handedness w on every vertex, as a .glb. */
+static int parse_with_tangent(cJSON *j, float w, sc_gltf *g, sc_error *err) {
+    sc_buf bin, glb;
+    quad_bin(j, &bin);
+    size_t offset = bin.len;
+    for (int i = 0; i < 6; i++) {
+        float t[4] = {1, 0, 0, w};
+        sc_buf_append(&bin, t, sizeof t);
+    }
+    set_number(at(j, "buffers", 0), "byteLength", (double)bin.len);
+    cJSON *view = cJSON_CreateObject();
+    cJSON_AddNumberToObject(view, "buffer", 0), cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
+    cJSON_AddNumberToObject(view, "byteLength", 96);
+    cJSON_AddItemToArray(cJSON_GetObjectItemCaseSensitive(j, "bufferViews"), view);
+    cJSON *acc = cJSON_CreateObject();
+    cJSON_AddNumberToObject(acc, "bufferView", 2), cJSON_AddNumberToObject(acc, "componentType", 5126);
+    cJSON_AddNumberToObject(acc, "count", 6), cJSON_AddStringToObject(acc, "type", "VEC4");
+    cJSON_AddItemToArray(cJSON_GetObjectItemCaseSensitive(j, "accessors"), acc);
+    cJSON_AddNumberToObject(cJSON_GetObjectItemCaseSensitive(at(at(j, "meshes", 0), "primitives", 0), "attributes"),
+                            "TANGENT", 4);
+    make_glb(j, &bin, &glb);
+    int rc = sc_gltf_parse("quad.glb", glb.data, glb.len, failing_read, NULL, g, err);
+    sc_buf_free(&bin), sc_buf_free(&glb);
+    return rc;
+}
+
+/* TANGENT's handedness: of the two, exactly one has bitangents against v
+ * and marks the normal map green-flipped; without TANGENT none is. */
+SC_TEST(tangent_handedness_marks_green_down_normal_maps) {
+    int flagged = 0;
+    for (int k = 0; k < 2; k++) {
+        cJSON *j = load_quad();
+        if (!j) return;
+        sc_gltf g;
+        sc_error err = {0};
+        int rc = parse_with_tangent(j, k ? -1.0f : 1.0f, &g, &err);
+        SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+        if (rc == SC_OK && g.ntextures >= 2) {
+            SC_CHECK_STR(g.textures[1].slot, "normal");
+            SC_CHECK(!g.textures[0].green_flipped);
+            flagged += g.textures[1].green_flipped;
+        }
+        if (rc == SC_OK) sc_gltf_free(&g);
+        cJSON_Delete(j);
+    }
+    SC_CHECK_INT(flagged, 1);
+    cJSON *j = load_quad();
+    sc_gltf g;
+    sc_error err = {0};
+    if (j && parse_json("quad.gltf", j, &g, &err) == SC_OK) {
+        SC_CHECK(g.ntextures >= 2 && !g.textures[1].green_flipped);
+        sc_gltf_free(&g);
+    }
+    cJSON_Delete(j);
+}
+
 /* KHR_texture_transform, written out by hand: u' = sx u cos r + sy v sin r + ox,
  * v' = sy v cos r - sx u sin r + oy in glTF's uv (v down), the atlas's v = 1 - v' */
 static void add_transform(cJSON *info, double ox, double oy, double r, double sx, double sy, int texcoord) {
