@@ -214,7 +214,7 @@ static int run_once(void *ud, int out) {
     sc_value *atlas = sc_value_retain(sc_ctx_output(load, 0));
     sc_ctx_free(load);
     if (peer_file || ra->pr) atlas = as_stored(atlas);
-    sc_value *inputs[] = {atlas, NULL}; /* atlas, labels */
+    sc_value *inputs[] = {atlas, NULL, NULL}; /* atlas, labels, field */
     sc_ctx *ctx = sc_ctx_new(&sc_node_gradient_domain, NULL, inputs);
     sc_ctx_set_threads(ctx, 2);
     /* beside the peer: the same system, so the paper's raw result (the peer
@@ -334,7 +334,7 @@ static int run_geodesic(void *ud, int out) {
     }
     sc_value *sphere = sc_value_retain(sc_ctx_output(pc, 0));
     sc_ctx_free(pc);
-    sc_value *inputs[] = {sphere, NULL};
+    sc_value *inputs[] = {sphere, NULL, NULL}; /* atlas, labels, field */
     sc_ctx *ctx = sc_ctx_new(&sc_node_gradient_domain, NULL, inputs);
     sc_ctx_set_threads(ctx, 2);
     rc = sc_ctx_set_param(ctx, "operation", "geodesic", &err);

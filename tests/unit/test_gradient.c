@@ -344,7 +344,7 @@ SC_TEST(threads_give_the_same_bytes) {
     sc_value *atlas = painted(sphere, 3, smooth_field, 0);
     sc_value *out[2] = {NULL, NULL};
     for (int k = 0; k < 2; k++) {
-        sc_value *inputs[] = {atlas, NULL};
+        sc_value *inputs[] = {atlas, NULL, NULL}; /* atlas, labels, field */
         sc_ctx *ctx = sc_ctx_new(&sc_node_gradient_domain, NULL, inputs);
         sc_ctx_set_threads(ctx, k + 1);
         sc_error err = {0};
