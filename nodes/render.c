@@ -71,7 +71,12 @@
  *    seam can open; corner_data). A crack pixel that shows a back face in the
  *    welded picture too is lod<k>.<pass>.fold_pixels, not a crack: welding
  *    moved nothing by more than the gap, under a pixel, so the two pictures
- *    differ only where a seam opens. A wider gap is not welded: moving a
+ *    differ only where a seam opens. When the gap is also under the
+ *    rasteriser's vertex grid, a crack pixel beside a back face of the welded
+ *    picture is a fold pixel too: welding moved the fold's edge by less than
+ *    a grid step, enough to turn the depth test at a pixel where the folded
+ *    sheets cross, and a seam that narrow opens no more than a lone pixel
+ *    (a pinhole, told apart above). A wider gap is not welded: moving a
  *    seam's sides by more than a pixel can fold a strip along it. A pass
  *    whose seam gap is exactly 0 (every side at the same vertices: the
  *    textured pass) of a level whose topology is the reference's (Euler
@@ -1601,7 +1606,11 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
             cracks = 0;
         } else if (cracks > 0 && weld_check) {
             /* the same pass with every seam welded shut: a crack pixel that
-             * shows a back face there too is a fold, not an opening seam */
+             * shows a back face there too is a fold, not an opening seam;
+             * so is one beside such a back face when the gap is under the
+             * rasteriser's grid: welding moved the fold's edge by less than
+             * a grid step, and a seam that narrow opens no more than a lone
+             * pixel (a pinhole), so this pixel is the fold's edge */
             t0 = sc_now();
             rc = draw(R, L, ps, &J->views[v], true, err);
             if (rc == SC_OK) rc = read_target(R, err);
@@ -1612,7 +1621,9 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
             }
             int64_t kept = 0;
             for (int64_t c = 0; c < cracks; c++) {
-                bool fold = R->flags[R->cracks[c]] == 2;
+                int32_t x = R->cracks[c] % J->size, y = R->cracks[c] / J->size;
+                bool fold = R->flags[R->cracks[c]] == 2 ||
+                            (gap_below_grid && !lone_back_face(R->flags, J->size, x, y));
                 sheet_mark(sh, row, v, R->cracks[c], J->size, fold ? fold_mark : crack_mark);
                 if (fold) folds++;
                 else kept++;
@@ -2163,7 +2174,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 14,
+    .version = 15,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
