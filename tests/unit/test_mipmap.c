@@ -88,16 +88,20 @@ static int render_check(sc_value *lods, sc_value *reference, const char *modes, 
     return rc;
 }
 
-SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
-    sc_value *atlas = NULL;
-    sc_value *lods = baked_lods(&atlas, NULL);
-    if (!lods) {
-        sc_value_release(atlas);
-        return;
-    }
+/* The sphere's baked levels (*lods, NULL on failure) and their mip chains
+ * down to 16 x 16 (mipmap's run; r.rc says whether it ran). */
+static sc_test_run sphere_chains(sc_value **atlas, sc_value **lods) {
+    *lods = baked_lods(atlas, NULL);
+    if (!*lods) return (sc_test_run){.rc = SC_EINPUT};
     const char *mp[] = {"min_size", "16", NULL};
-    sc_test_run r = sc_test_run_node(&sc_node_mipmap, mp, "lods", lods, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_mipmap, mp, "lods", *lods, NULL, NULL);
     SC_CHECK_MSG(r.rc == SC_OK, "mipmap: %s", r.err.message);
+    return r;
+}
+
+SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
+    sc_value *atlas = NULL, *lods = NULL;
+    sc_test_run r = sphere_chains(&atlas, &lods);
     if (r.rc != SC_OK) goto done;
     sc_value *levels = sc_ctx_output(r.ctx, 0), *report = sc_ctx_output(r.ctx, 1);
     const int nlod = lods->as.lods->count, nmip = 4;   /* 128, 64, 32, 16 */
@@ -219,6 +223,61 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
         free(dir);
     }
 done:
+    sc_ctx_free(r.ctx);
+    sc_value_release(lods);
+    sc_value_release(atlas);
+}
+
+/* The crack check keeps its power at every mip level: on each level of the
+ * sphere's chain (lod 0, 128^2 down to 16^2), one texel of the geometry
+ * image next to a seam, moved by 0.5 (a tenth of the sphere's diameter
+ * four times over at 16^2, a sliver at 128^2), opens that seam: the render
+ * node counts crack pixels in the position modes, and the seam gap it
+ * measures is that of the moved texel. The same level unmoved has none
+ * (the test above). */
+SC_TEST(a_one_texel_crack_shows_at_every_mip_level) {
+    sc_value *atlas = NULL, *lods = NULL;
+    sc_test_run r = sphere_chains(&atlas, &lods);
+    const int nmip = 4;
+    for (int m = 0; r.rc == SC_OK && m < nmip; m++) {
+        const sc_atlas *a = sc_ctx_output(r.ctx, 0)->as.lods->levels[m]->as.atlas;   /* lod 0, mip m */
+        const sc_mesh *mesh = a->mesh->as.mesh;
+        int gi = sc_atlas_find_texture(a, 0, "geometry_image");
+        SC_CHECK(gi >= 0);
+        if (gi < 0) break;
+        const sc_image_data *src = a->textures[gi].image->as.image;
+        sc_image_data *moved = sc_image_alloc(src->width, src->height, src->channels, src->pixel);
+        memcpy(moved->pixels, src->pixels, (size_t)src->width * src->height * src->channels * (size_t)src->pixel);
+        sc_seam_set seams;
+        sc_error err;
+        SC_CHECK(sc_seam_find(mesh, 0, &seams, &err) == SC_OK && seams.nseams > 0);
+        /* the texel nearest the middle of the first seam edge, on side 0 */
+        const sc_seam_side *side = &seams.seams[0].side[0];
+        double u = 0.5 * (mesh->U[2 * side->uv0] + mesh->U[2 * side->uv1]);
+        double v = 0.5 * (mesh->U[2 * side->uv0 + 1] + mesh->U[2 * side->uv1 + 1]);
+        int32_t i = (int32_t)floor(u * src->width), j = (int32_t)floor(v * src->height);
+        float *texel = (float *)moved->pixels + ((size_t)j * src->width + i) * src->channels;
+        for (int c = 0; c < 3; c++) texel[c] += 0.5f;
+        sc_seam_set_free(&seams);
+        sc_atlas *b = sc_atlas_new(sc_value_retain(a->mesh));
+        for (int t = 0; t < a->ntex; t++)
+            sc_atlas_add_texture(b, a->textures[t].name, a->textures[t].material, a->textures[t].wrap_u,
+                                 a->textures[t].wrap_v, a->textures[t].source,
+                                 t == gi ? sc_value_new_image(moved) : sc_value_retain(a->textures[t].image));
+        sc_lods *one = sc_lods_new();
+        sc_lods_add(one, sc_value_new_atlas(b));
+        sc_value *level = sc_value_new_lods(one);
+        const char *rp[] = {"modes", "geometry_image,tessellated", "views", "6", "size", "96", "tess_levels", "2", NULL};
+        sc_test_run rr = sc_test_run_node(&sc_node_render, rp, "lods", level, "reference", atlas);
+        SC_CHECK_MSG(rr.rc == SC_OK, "render: %s", rr.err.message);
+        double cracks = sc_ctx_metric_value(rr.ctx, "crack_pixels"), gap = sc_ctx_metric_value(rr.ctx, "max_seam_gap");
+        printf("     mip %d (%d^2): texel (%d, %d) moved: %g crack pixels, seam gap %.3g\n", m, (int)src->width,
+               (int)i, (int)j, cracks, gap);
+        SC_CHECK_MSG(cracks > 0, "mip %d: %g crack pixels", m, cracks);
+        SC_CHECK_MSG(gap > 1e-3, "mip %d: seam gap %g", m, gap);
+        sc_ctx_free(rr.ctx);
+        sc_value_release(level);
+    }
     sc_ctx_free(r.ctx);
     sc_value_release(lods);
     sc_value_release(atlas);
