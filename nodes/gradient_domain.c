@@ -53,6 +53,22 @@ static sc_value *with_slot(const sc_value *atlas, int32_t k, sc_value *img) {
 /* The seam-erasure kernel on the solve's result (image, tagged as it comes:
  * linear light for sRGB colour): *f32 and *native (in src's pixel type and
  * encoding) get new references; the seam energy after it goes to the metrics. */
+
+/* A solve whose V-cycles stopped at max_vcycles above the tolerance is said
+ * on stderr, one line per solve (<solve>_residual in the metrics; the
+ * per-cycle <solve>_vcycle_<k>_residual are passed over). */
+static void warn_unconverged(sc_ctx *ctx, const sc_metric_list *ml, double tolerance) {
+    for (int32_t i = 0; i < ml->count; i++) {
+        const char *name = ml->items[i].name;
+        size_t n = strlen(name), tail = strlen("_residual");
+        if (n <= tail || strcmp(name + n - tail, "_residual") != 0 || strstr(name, "_vcycle_")) continue;
+        double residual = ml->items[i].value;
+        if (!(residual > tolerance)) continue;
+        sc_ctx_warn(ctx, "the %.*s solve stopped at a relative residual of %.3g, above the tolerance %.3g "
+                    "(max_vcycles: more V-cycles, or a direct solve)", (int)(n - tail), name, residual, tolerance);
+    }
+}
+
 static int erase_result(sc_ctx *ctx, const sc_mesh *mesh, const sc_texture *t, sc_value *image,
                         const sc_image_data *src, double e_in, sc_value **f32, sc_value **native, sc_error *err) {
     sc_texture tt = *t;
@@ -125,6 +141,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     int rc = sc_gradient_apply(a->mesh->as.mesh, t, t->image->as.image, &o, sc_ctx_threads(ctx), &r, err);
     if (rc != SC_OK) return rc;
     for (int32_t i = 0; i < r.metrics.count; i++) sc_ctx_metric(ctx, r.metrics.items[i].name, r.metrics.items[i].value);
+    warn_unconverged(ctx, &r.metrics, o.tolerance);
     const sc_image_data *src = t->image->as.image;
     bool seamless = sc_ctx_bool(ctx, "seamless") && op != SC_GRADIENT_GEODESIC;
     sc_image_data *nat = seamless || op == SC_GRADIENT_GEODESIC || src->pixel == SC_PIXEL_F32
@@ -189,7 +206,7 @@ static const sc_param_desc params[] = {
             "relaxed, boundary texels solved by CHOLMOD); vcycles: V-cycles alone, as the paper; direct: one "
             "CHOLMOD factorisation"},
     {.name = "levels", .type = SC_PARAM_INTEGER, .def = 4, .min = 1, .max = 16, .doc = "multigrid levels"},
-    {.name = "relaxations", .type = SC_PARAM_INTEGER, .def = 3, .min = 0, .max = 100,
+    {.name = "relaxations", .type = SC_PARAM_INTEGER, .def = 4, .min = 0, .max = 100,
      .doc = "Gauss-Seidel sweeps on each level, before and after the coarse correction"},
     {.name = "max_vcycles", .type = SC_PARAM_INTEGER, .def = 30, .min = 1, .max = 10000,
      .doc = "the most V-cycles per solve"},
@@ -222,7 +239,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_gradient, &sc_kernel_erase
 
 const sc_node_desc sc_node_gradient_domain = {
     .type = "gradient_domain",
-    .version = 3,
+    .version = 4,
     .summary = "gradient-domain processing in the texture atlas (Prada et al. 2018): smooth, sharpen, stitch, geodesic",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -58,7 +58,7 @@ void sc_gradient_defaults(sc_gradient_options *o, sc_gradient_op op) {
         .sources = "",
         .solver = SC_GRADIENT_MULTIGRID,
         .levels = 4,
-        .relaxations = 3,
+        .relaxations = 4,
         .max_vcycles = 30,
         .tolerance = 1e-8,
         .lic_length = 16,
