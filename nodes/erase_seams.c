@@ -14,35 +14,6 @@
 #include "sc_erase.h"
 #include "sc_nodes.h"
 
-/* A tangent-space normal map whose reconstructed normals stay apart across
- * a seam, or a normal map that looks tangent-space but is erased as
- * object-space, is worth a line. */
-static void warn_of_normal_map(sc_ctx *ctx, const sc_metric_list *ml, int32_t k, sc_erase_normal_space space) {
-    static const char discontinuous[] = "tangent_space_discontinuous", suspect[] = "tangent_space_suspect",
-                      left[] = "tangent_space_left";
-    const sc_metric *m = &ml->items[k];
-    size_t n = strlen(m->name);
-    if (m->value != 1) return;
-    if (n >= sizeof left - 1 && !strcmp(m->name + n - (sizeof left - 1), left))
-        sc_ctx_warn(ctx, "%.*s: the tangent-space normal map is left as it is: erasing it through its frames would "
-                         "widen the normals' seams (texels that charts with other frames share)",
-                    (int)(n - (sizeof left - 1) - (n > sizeof left - 1)), m->name);
-    else if (n >= sizeof discontinuous - 1 && !strcmp(m->name + n - (sizeof discontinuous - 1), discontinuous)) {
-        double gap = NAN;   /* the normal_gap_after just before it */
-        for (int32_t j = k - 1; j >= 0 && isnan(gap); j--) {
-            size_t l = strlen(ml->items[j].name);
-            if (l >= 16 && !strcmp(ml->items[j].name + l - 16, "normal_gap_after")) gap = ml->items[j].value;
-        }
-        sc_ctx_warn(ctx, "%.*s: the tangent-space normal map cannot be made continuous: reconstructed normals "
-                         "still differ by up to %.3g (about radians) across a seam",
-                    (int)(n - (sizeof discontinuous - 1) - (n > sizeof discontinuous - 1)), m->name, gap);
-    } else if (space == SC_ERASE_NORMALS_OBJECT && n >= sizeof suspect - 1 &&
-               !strcmp(m->name + n - (sizeof suspect - 1), suspect))
-        sc_ctx_warn(ctx, "%.*s: the normal map looks tangent-space but is erased as object-space "
-                         "(normal_space=tangent or auto erases it through its tangent frames)",
-                    (int)(n - (sizeof suspect - 1)), m->name);
-}
-
 static int run(sc_ctx *ctx, sc_error *err) {
     const sc_value *in = sc_ctx_input(ctx, "atlas");
     if (!in || in->kind != SC_KIND_ATLAS) return sc_fail(err, SC_EINPUT, "atlas: no atlas given");
@@ -83,7 +54,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
     for (int32_t i = 0; i < r.metrics.count; i++) {
         const sc_metric *m = &r.metrics.items[i];
         sc_ctx_metric(ctx, m->name, m->value);
-        warn_of_normal_map(ctx, &r.metrics, i, o.normal_space);
+        char line[512];
+        if (sc_erase_warning(&r.metrics, i, o.normal_space, line, sizeof line)) sc_ctx_warn(ctx, "%s", line);
     }
     sc_value *f32 = sc_erase_result_atlas(in, &r, false), *native = sc_erase_result_atlas(in, &r, true);
     sc_erase_result_free(&r);

@@ -80,7 +80,12 @@
  * too. A texel of a moved face takes its barycentric coordinates in the new
  * triangle (extended beyond it in the padding), maps them to the old uv and
  * samples the old texture there bilinearly with its wrap mode (sc_seam); a
- * texel of an unmoved face or of no face keeps its value. With `erase` (the
+ * texel of an unmoved face or of no face keeps its value. A tangent-space
+ * normal map (as the erase kernel judges it, sc_erase_takes_tangent_space)
+ * holds vectors in frames that follow the uv, and a warp turns them: it is
+ * taken to object space through the input's frames, re-rendered there, and
+ * brought back through the frames of the new uv, every texel (a kept face's
+ * frame can turn with a moved neighbour). With `erase` (the
  * default) the erase kernel (sc_erase, erase_seams's defaults, no
  * quantisation) then erases the new atlas's textures, as the resampling
  * leaves the two sides of each seam slightly different.
@@ -101,7 +106,8 @@
  * (straightened), boundary_chains_kept (left by `borders`), skipped_chains
  * (halves that do not pair up: left as they are), moved_uv_vertices,
  * flipped_triangles, max_uv_displacement (uv units), degenerate_uv_faces,
- * warp_steps, textures_rendered; psnr: colour (sRGB colour in linear light,
+ * warp_steps, textures_rendered, tangent_maps_reframed; erase.* (the erase
+ * kernel's metrics, with its warnings passed on); psnr: colour (sRGB colour in linear light,
  * as seen) at 15 barycentric points of
  * every face of every re-rendered texture, old texture at old uv against the
  * output texture at new uv, peak 1; seconds (report only).
@@ -109,6 +115,7 @@
  */
 #include <float.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -117,6 +124,7 @@
 #include "sc_nodes.h"
 #include "sc_seam.h"
 #include "sc_sparse.h"
+#include "sc_tangent.h"
 #include "sc_topology.h"
 
 #define DEGENERATE_AREA 1e-12      /* twice the area / longest edge^2 */
@@ -848,6 +856,46 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
     return SC_OK;
 }
 
+static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U);
+
+/* Re-render a tangent-space normal map: its vectors are relative to frames
+ * that follow the uv, so the map goes to object space through the input's
+ * frames, is re-rendered there, and comes back through the frames of the
+ * moved uv (warped texels and kept ones alike: a kept face's frame can turn
+ * with a moved neighbour's). */
+static int warp_tangent_texture(const sc_mesh *m, const double *Unew, const bool *face_moved, const sc_texture *tex,
+                                int32_t pad, sc_image_data **out, sc_error *err) {
+    const sc_image_data *img = tex->image->as.image;
+    const sc_seam_grid g = {img->width, img->height, tex->wrap_u, tex->wrap_v};
+    sc_tangent_frames f_old = {0}, f_new = {0};
+    sc_tangent_texels x_old = {0}, x_new = {0};
+    sc_mesh *moved = mesh_with_uv(m, Unew);
+    sc_value *object = NULL;
+    sc_image_data *warped = NULL;
+    int rc = moved ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    if (rc == SC_OK) rc = sc_tangent_frames_build(m, &f_old, err);
+    if (rc == SC_OK) rc = sc_tangent_texels_build(m, tex->material, &g, SC_TANGENT_BAND, &x_old, err);
+    if (rc == SC_OK) rc = sc_tangent_frames_build(moved, &f_new, err);
+    if (rc == SC_OK) rc = sc_tangent_texels_build(moved, tex->material, &g, SC_TANGENT_BAND, &x_new, err);
+    if (rc == SC_OK) {
+        sc_image_data *o = sc_tangent_to_object(img, &f_old, &x_old);
+        if (!o || !(object = sc_value_new_image(o))) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    }
+    if (rc == SC_OK) {
+        sc_texture in_object = *tex;
+        in_object.image = object;
+        rc = warp_texture(m, Unew, face_moved, &in_object, pad, &warped, err);
+    }
+    if (rc == SC_OK && !(*out = sc_tangent_from_object(warped, img, &f_new, &x_new)))
+        rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    sc_image_free(warped);
+    sc_value_release(object);
+    sc_tangent_texels_free(&x_old), sc_tangent_texels_free(&x_new);
+    sc_tangent_frames_free(&f_old), sc_tangent_frames_free(&f_new);
+    sc_mesh_free(moved);
+    return rc;
+}
+
 /* ---------------------------------------------------------------- atlas assembly */
 
 static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
@@ -871,8 +919,10 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
 }
 
 /* Erase the re-rendered atlas: the float result (*out) and, in each input
- * texture's own pixel type and encoding, its optimal rounding (*native). */
-static int erase_atlas(const sc_value *atlas, const sc_atlas *input, sc_erase_filter_space space,
+ * texture's own pixel type and encoding, its optimal rounding (*native).
+ * The kernel's metrics go to ctx prefixed "erase." (seam energies, rounding
+ * floors, tangent-space maps' normal gaps). */
+static int erase_atlas(sc_ctx *ctx, const sc_value *atlas, const sc_atlas *input, sc_erase_filter_space space,
                        sc_erase_normal_space normals, int threads, sc_value **out, sc_value **native, sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
@@ -885,6 +935,13 @@ static int erase_atlas(const sc_value *atlas, const sc_atlas *input, sc_erase_fi
     o.native_like = like;
     sc_erase_result r;
     int rc = sc_erase(a->mesh->as.mesh, a->textures, a->ntex, &o, threads, &r, err);
+    for (int32_t i = 0; rc == SC_OK && i < r.metrics.count; i++) {
+        char name[256];
+        snprintf(name, sizeof name, "erase.%s", r.metrics.items[i].name);
+        sc_ctx_metric(ctx, name, r.metrics.items[i].value);
+        char line[512];
+        if (sc_erase_warning(&r.metrics, i, normals, line, sizeof line)) sc_ctx_warn(ctx, "%s", line);
+    }
     if (rc == SC_OK && (!(*out = sc_erase_result_atlas(atlas, &r, false)) ||
                         !(*native = sc_erase_result_atlas(atlas, &r, true))))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
@@ -935,6 +992,8 @@ typedef struct job {
     bool *moved;                /* nu: straightening moved it */
     bool *face_moved;           /* nf: the warp moved a corner */
     sc_value **images;          /* ntex: the re-rendered textures, NULL where kept */
+    sc_erase_normal_space normals;  /* the normal_space parameter */
+    int32_t tangent_maps;       /* re-rendered through the frames (warp_tangent_texture) */
 } job;
 
 static void job_free(job *J) {
@@ -1046,7 +1105,12 @@ static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err)
                 J->images[i] = sc_value_retain(J->images[j]);
         if (!touched || J->images[i]) continue;
         sc_image_data *im = NULL;
-        rc = warp_texture(m, J->Uout, J->face_moved, tex, pad, &im, err);
+        bool tangent = false;
+        rc = sc_erase_takes_tangent_space(m, tex, J->normals, &tangent, err);
+        if (rc == SC_OK)
+            rc = tangent ? warp_tangent_texture(m, J->Uout, J->face_moved, tex, pad, &im, err)
+                         : warp_texture(m, J->Uout, J->face_moved, tex, pad, &im, err);
+        J->tangent_maps += tangent;
         if (rc == SC_OK && !(J->images[i] = sc_value_new_image(im)))
             rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
         (*rendered)++;
@@ -1113,6 +1177,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     job J;
     rc = job_init(&J, ctx, atlas, err);
+    J.normals = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
     int64_t nmoved = 0, collapsible_before = 0;
     if (rc == SC_OK) rc = straighten_step(&J, tol, borders, &nmoved, &collapsible_before, err);
     if (rc == SC_OK && nmoved == 0) {
@@ -1134,7 +1199,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         double t_erase = sc_now();
         if (rc == SC_OK) {
             if (erase)
-                rc = erase_atlas(warped, atlas, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
+                rc = erase_atlas(ctx, warped, atlas, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
                                  sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space")), threads, &result,
                                  &native, err);
             else result = sc_value_retain(warped), native = sc_value_retain(warped);
@@ -1143,6 +1208,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (rc == SC_OK) rc = appearance_step(&J, result->as.atlas, err);
         if (rc == SC_OK) {
             sc_ctx_metric(ctx, "textures_rendered", rendered);
+            sc_ctx_metric(ctx, "tangent_maps_reframed", J.tangent_maps);
             sc_ctx_metric(ctx, "seconds_render", t_render);
             sc_ctx_metric(ctx, "seconds_erase", t_erase);
             sc_ctx_metric(ctx, "seconds", sc_now() - started);
@@ -1193,12 +1259,12 @@ static const sc_port_desc outputs[] = {
             "judged as filtered); the input itself when nothing moves"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_topology,
-                                            NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_tangent,
+                                            &sc_kernel_topology, NULL};
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 7,
+    .version = 8,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

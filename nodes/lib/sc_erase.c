@@ -180,7 +180,6 @@
 #define ROUND_ROWS_PER_CHUNK 16384
 #define SCHUR_MAX_SHARED 0.5      /* solver auto: CHOLMOD when more than this fraction of the unknowns is in no chain's cluster */
 #define SCHUR_KEY_SPAN 256.0      /* texels along a seam chain that one cluster's couplings may span */
-#define TANGENT_BAND 3.0           /* texels around a chart that take its faces' tangent frames */
 #define PCG_TOLERANCE 1e-12         /* preconditioned residual, relative to the start */
 
 
@@ -1588,6 +1587,42 @@ static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *
     return rc;
 }
 
+/* ---------------------------------------------------------------- warnings */
+
+bool sc_erase_warning(const sc_metric_list *ml, int32_t k, sc_erase_normal_space space, char *out, size_t size) {
+    static const char discontinuous[] = "tangent_space_discontinuous", suspect[] = "tangent_space_suspect",
+                      left[] = "tangent_space_left";
+    const sc_metric *m = &ml->items[k];
+    size_t n = strlen(m->name);
+    if (m->value != 1) return false;
+    if (n >= sizeof left - 1 && !strcmp(m->name + n - (sizeof left - 1), left)) {
+        snprintf(out, size, "%.*s: the tangent-space normal map is left as it is: erasing it through its frames would "
+                 "widen the normals' seams (texels that charts with other frames share)",
+                 (int)(n - (sizeof left - 1) - (n > sizeof left - 1)), m->name);
+        return true;
+    }
+    if (n >= sizeof discontinuous - 1 && !strcmp(m->name + n - (sizeof discontinuous - 1), discontinuous)) {
+        double gap = NAN;   /* the normal_gap_after just before it */
+        for (int32_t j = k - 1; j >= 0 && isnan(gap); j--) {
+            size_t l = strlen(ml->items[j].name);
+            if (l >= 16 && !strcmp(ml->items[j].name + l - 16, "normal_gap_after")) gap = ml->items[j].value;
+        }
+        snprintf(out, size, "%.*s: the tangent-space normal map cannot be made continuous: reconstructed normals "
+                 "still differ by up to %.3g (about radians) across a seam",
+                 (int)(n - (sizeof discontinuous - 1) - (n > sizeof discontinuous - 1)), m->name, gap);
+        return true;
+    }
+    if (space == SC_ERASE_NORMALS_OBJECT && n >= sizeof suspect - 1 &&
+        !strcmp(m->name + n - (sizeof suspect - 1), suspect)) {
+        snprintf(out, size, "%.*s: the normal map looks tangent-space but is erased as object-space "
+                 "(normal_space=tangent or auto erases it through its tangent frames)",
+                 (int)(n - (sizeof suspect - 1)), m->name);
+        return true;
+    }
+    return false;
+}
+
+
 /* ---------------------------------------------------------------- the kernel */
 
 static const sc_kernel *const erase_uses[] = {&sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_schur,
@@ -1792,6 +1827,38 @@ static int frames_explain_seams(const sc_mesh *m, const sc_seam_set *seams, cons
     return SC_OK;
 }
 
+/* Whether texture t is taken as a tangent-space normal map under `space`:
+ * a normal slot of 3+ channels, always with tangent, never with object, and
+ * with auto when it looks like one and frames_explain_seams says so (the
+ * frames built into *frames on first need). */
+static int tangent_decision(const sc_mesh *m, const sc_seam_set *seams, const sc_texture *t,
+                            sc_erase_normal_space space, sc_tangent_frames *frames, bool *tangent, sc_metric_list *ml,
+                            const char *prefix, sc_error *err) {
+    *tangent = false;
+    if (!is_normal_slot(t->name) || t->image->as.image->channels < 3 || space == SC_ERASE_NORMALS_OBJECT) return SC_OK;
+    *tangent = space == SC_ERASE_NORMALS_TANGENT;
+    if (*tangent || !looks_tangent_space(t->image->as.image)) return SC_OK;
+    int rc = frames->tangent ? SC_OK : sc_tangent_frames_build(m, frames, err);
+    return rc ? rc : frames_explain_seams(m, seams, t, frames, tangent, ml, prefix, err);
+}
+
+int sc_erase_takes_tangent_space(const sc_mesh *m, const sc_texture *t, sc_erase_normal_space space, bool *tangent,
+                                 sc_error *err) {
+    *tangent = false;
+    if (t->material < 0 || t->material >= m->nmat)
+        return sc_fail(err, SC_EINPUT, "texture %s: material %d out of range", t->name, (int)t->material);
+    sc_seam_set seams;
+    int rc = sc_seam_find(m, t->material, &seams, err);
+    if (rc) return rc;
+    sc_tangent_frames frames = {0};
+    sc_metric_list ml = {0};
+    rc = tangent_decision(m, &seams, t, space, &frames, tangent, &ml, "", err);
+    sc_metric_list_free(&ml);
+    sc_tangent_frames_free(&frames);
+    sc_seam_set_free(&seams);
+    return rc;
+}
+
 /* A tangent-space normal map (FATE_TANGENT): to object space with the
  * frames of `frames`, erased there as one float data map with the caller's
  * weights (no rounding), back to tangent space, and rounded to nearest in
@@ -1809,7 +1876,7 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
     sc_erase_result sub = {0};
     sc_image_data *back = NULL;
     double gap_before = 0, mean_before = 0, gap_after = 0, mean_after = 0;
-    int rc = sc_tangent_texels_build(m, t->material, &g, TANGENT_BAND, &tx, err);
+    int rc = sc_tangent_texels_build(m, t->material, &g, SC_TANGENT_BAND, &tx, err);
     if (rc == SC_OK) rc = sc_tangent_seam_gap(m, seams, &g, frames, img, &gap_before, &mean_before, err);
     if (rc == SC_OK) {
         sc_image_data *obj = sc_tangent_to_object(img, frames, &tx);
@@ -1966,18 +2033,13 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             if ((rc = sc_seam_find(m, t->material, &sets[t->material], err))) goto done;
             found[t->material] = true;
         }
-        if (is_normal_slot(t->name) && t->image->as.image->channels >= 3 && o.normal_space != SC_ERASE_NORMALS_OBJECT) {
-            bool tangent = o.normal_space == SC_ERASE_NORMALS_TANGENT;
-            if (!tangent && looks_tangent_space(t->image->as.image)) {
-                if (!frames.tangent && (rc = sc_tangent_frames_build(m, &frames, err))) goto done;
-                if ((rc = frames_explain_seams(m, &sets[t->material], t, &frames, &tangent, &res->metrics,
-                                               st[i].prefix, err)))
-                    goto done;
-            }
-            if (tangent) {
-                st[i].fate = FATE_TANGENT;
-                continue;
-            }
+        bool tangent = false;
+        if ((rc = tangent_decision(m, &sets[t->material], t, o.normal_space, &frames, &tangent, &res->metrics,
+                                   st[i].prefix, err)))
+            goto done;
+        if (tangent) {
+            st[i].fate = FATE_TANGENT;
+            continue;
         }
         if (sets[t->material].nseams == 0) {
             metric(&res->metrics, st[i].prefix, "seam_edges", 0);

@@ -126,6 +126,22 @@ int sc_erase(const sc_mesh *mesh, const sc_texture *textures, int32_t n, const s
 
 void sc_erase_result_free(sc_erase_result *res);
 
+/* The line a node warns with for metric k of ml (sc_erase's metrics, in
+ * their order), into out (at most size bytes), when there is one: a
+ * tangent-space normal map left as it is, one whose reconstructed normals
+ * stay apart across a seam (with its largest gap), or, with normal_space
+ * object, a normal map that looks tangent-space. False: no line. */
+bool sc_erase_warning(const sc_metric_list *ml, int32_t k, sc_erase_normal_space space, char *out, size_t size);
+
+/* Whether sc_erase, with normal_space `space`, takes texture t of `mesh` as
+ * a tangent-space normal map (and so erases it through the mesh's frames):
+ * a slot named "normal" of 3 or more channels; with auto, one whose values
+ * sit near (0.5, 0.5, 1) and whose seams meet better through the frames
+ * than as stored. A node that moves uv re-expresses such a map in the
+ * frames of the new uv. */
+int sc_erase_takes_tangent_space(const sc_mesh *mesh, const sc_texture *t, sc_erase_normal_space space,
+                                 bool *tangent, sc_error *err);
+
 /* The atlas `atlas` (an ATLAS value whose textures were given to sc_erase)
  * with each texture's image replaced by the result's f32 or native image: a
  * new reference, the atlas itself when nothing was erased; NULL when out of

@@ -47,6 +47,8 @@
 extern const sc_kernel sc_kernel_tangent;
 
 #define SC_TANGENT_SMOOTH_DEGREES 60.0
+/* Texels around a chart that take its faces' frames (sc_tangent_texels_build's band). */
+#define SC_TANGENT_BAND 3.0
 
 /* Per corner (face f, corner c at 3 f + c): 3 doubles, unit; NULL when out
  * of memory. Free with free(). */

@@ -202,3 +202,23 @@ double ref_total(const sc_image_data *im, sc_wrap wu, sc_wrap wv, const ref_seam
     }
     return L > 0 ? num / L : 0;
 }
+
+void ref_solve3(const double c0[3], const double c1[3], const double c2[3], const double rhs[3], double x[3]) {
+    double A[3][4];
+    for (int i = 0; i < 3; i++) A[i][0] = c0[i], A[i][1] = c1[i], A[i][2] = c2[i], A[i][3] = rhs[i];
+    for (int c = 0; c < 3; c++) {
+        int piv = c;
+        for (int i = c + 1; i < 3; i++)
+            if (fabs(A[i][c]) > fabs(A[piv][c])) piv = i;
+        for (int k = 0; k < 4; k++) {
+            double tmp = A[c][k];
+            A[c][k] = A[piv][k], A[piv][k] = tmp;
+        }
+        for (int i = 0; i < 3; i++)
+            if (i != c) {
+                double q = A[i][c] / A[c][c];
+                for (int k = 0; k < 4; k++) A[i][k] -= q * A[c][k];
+            }
+    }
+    for (int c = 0; c < 3; c++) x[c] = A[c][3] / A[c][c];
+}

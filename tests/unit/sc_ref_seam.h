@@ -50,4 +50,8 @@ int ref_breaks(const sc_image_data *im, const ref_seam *s, double **out);
  * sampled at 17 points per piece. */
 double ref_total(const sc_image_data *im, sc_wrap wu, sc_wrap wv, const ref_seam *s, int n, double *maxgap);
 
+/* x with x[0] c0 + x[1] c1 + x[2] c2 = rhs (Gauss-Jordan, partial pivoting):
+ * a vector in the frame of columns c0, c1, c2 (a tangent frame T, B, N). */
+void ref_solve3(const double c0[3], const double c1[3], const double c2[3], const double rhs[3], double x[3]);
+
 #endif

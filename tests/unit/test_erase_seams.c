@@ -1639,24 +1639,7 @@ SC_TEST(tangent_space_normal_map_is_continuous_after_erasure) {
                 for (int d = 0; d < 3; d++) p[d] += b[c] * m->V[3 * (size_t)m->FV[3 * f + c] + d];
             bumpy_normal(p, n);
             sc_tangent_frame_at(&fr, f, b, M[0], M[1], M[2]);
-            /* solve by Gauss-Jordan on the 3x3 with columns T, B, N */
-            double A[3][4];
-            for (int i = 0; i < 3; i++) A[i][0] = M[0][i], A[i][1] = M[1][i], A[i][2] = M[2][i], A[i][3] = n[i];
-            for (int c = 0; c < 3; c++) {
-                int piv = c;
-                for (int i = c + 1; i < 3; i++)
-                    if (fabs(A[i][c]) > fabs(A[piv][c])) piv = i;
-                for (int k = 0; k < 4; k++) {
-                    double tmp = A[c][k];
-                    A[c][k] = A[piv][k], A[piv][k] = tmp;
-                }
-                for (int i = 0; i < 3; i++)
-                    if (i != c) {
-                        double q = A[i][c] / A[c][c];
-                        for (int k = 0; k < 4; k++) A[i][k] -= q * A[c][k];
-                    }
-            }
-            for (int c = 0; c < 3; c++) t[c] = A[c][3] / A[c][c];
+            ref_solve3(M[0], M[1], M[2], n, t);
         }
         for (int c = 0; c < 3; c++) {
             seed = seed * 6364136223846793005ull + 1442695040888963407ull;

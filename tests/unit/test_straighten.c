@@ -16,6 +16,8 @@
 #include "sc_exec.h"
 #include "sc_imageio.h"
 #include "sc_nodes.h"
+#include "sc_ref_seam.h"
+#include "sc_tangent.h"
 #include "sc_test.h"
 
 /* ================================================================ reference sampler */
@@ -295,6 +297,99 @@ SC_TEST(synthetic_seam_straightened) {
     sc_value_release(first);
     sc_ctx_free(ctx);
     sc_value_release(atlas);
+}
+
+/* The object-space field of the tangent-space test map: the shading
+ * normal N tipped toward +x. */
+static void tipped(const double N[3], double n[3]) {
+    double l = 0;
+    for (int d = 0; d < 3; d++) n[d] = N[d] + (d == 0 ? 0.3 : 0), l += n[d] * n[d];
+    for (int d = 0; d < 3; d++) n[d] /= sqrt(l);
+}
+
+/* The atlas with a W x W tangent-space normal map (f32, 0..1 encoded) of
+ * `tipped`, through the mesh's frames, in place of its textures. */
+static sc_value *with_tangent_map(const sc_value *atlas, int W) {
+    const sc_mesh *m = atlas->as.atlas->mesh->as.mesh;
+    sc_error err = {0};
+    sc_tangent_frames fr;
+    sc_tangent_texels tx;
+    sc_seam_grid g = {W, W, SC_WRAP_CLAMP, SC_WRAP_CLAMP};
+    SC_CHECK(sc_tangent_frames_build(m, &fr, &err) == SC_OK);
+    SC_CHECK(sc_tangent_texels_build(m, 0, &g, 3.0, &tx, &err) == SC_OK);
+    sc_image_data *map = sc_image_alloc(W, W, 3, SC_PIXEL_F32);
+    map->colorspace = SC_COLOR_DATA;
+    float *px = map->pixels;
+    for (size_t id = 0; id < (size_t)W * W; id++) {
+        double t[3] = {0, 0, 1};
+        if (tx.face[id] >= 0) {
+            double b[3] = {1 - tx.bary[2 * id] - tx.bary[2 * id + 1], tx.bary[2 * id], tx.bary[2 * id + 1]};
+            double T[3], B[3], N[3], n[3];
+            sc_tangent_frame_at(&fr, tx.face[id], b, T, B, N);
+            tipped(N, n);
+            ref_solve3(T, B, N, n, t);
+        }
+        for (int c = 0; c < 3; c++) px[3 * id + c] = (float)(0.5 + 0.5 * t[c]);
+    }
+    sc_tangent_texels_free(&tx);
+    sc_tangent_frames_free(&fr);
+    sc_atlas *a = sc_atlas_new(sc_value_retain(atlas->as.atlas->mesh));
+    sc_atlas_add_texture(a, "normal", 0, SC_WRAP_CLAMP, SC_WRAP_CLAMP, "", sc_value_new_image(map));
+    return sc_value_new_atlas(a);
+}
+
+/* The largest distance from `tipped` of the normal a renderer rebuilds at
+ * the face centres of `frames_of`: the map sampled (bilinear) at the
+ * centre's uv in `uv_of`, decoded, taken through the frame there. */
+static double field_error(const sc_mesh *uv_of, const sc_mesh *frames_of, const sc_image_data *map) {
+    sc_error err = {0};
+    sc_tangent_frames fr;
+    if (sc_tangent_frames_build(frames_of, &fr, &err) != SC_OK) return INFINITY;
+    double worst = 0;
+    for (int32_t f = 0; f < frames_of->nf; f++) {
+        double b[3] = {1.0 / 3, 1.0 / 3, 1.0 / 3}, uv[2] = {0, 0}, e[3], T[3], B[3], N[3], n[3], want[3], l = 0;
+        for (int c = 0; c < 3; c++)
+            for (int d = 0; d < 2; d++) uv[d] += b[c] * uv_of->U[2 * (size_t)uv_of->FU[3 * f + c] + d];
+        bilinear(map, SC_WRAP_CLAMP, SC_WRAP_CLAMP, uv[0], uv[1], e);
+        sc_tangent_frame_at(&fr, f, b, T, B, N);
+        for (int d = 0; d < 3; d++) {
+            n[d] = 0;
+            for (int c = 0; c < 3; c++) n[d] += (2 * e[c] - 1) * (c == 0 ? T : c == 1 ? B : N)[d];
+            l += n[d] * n[d];
+        }
+        tipped(N, want);
+        for (int d = 0; d < 3; d++) e[d] = n[d] / sqrt(l) - want[d];
+        worst = fmax(worst, sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]));
+    }
+    sc_tangent_frames_free(&fr);
+    return worst;
+}
+
+/* A tangent-space normal map holds vectors in frames that follow the uv:
+ * straightening shears the charts, so the frames turn, and the map is
+ * re-rendered through them (to object space with the input's frames, back
+ * with the output's). The normal rebuilt from the output stays the field
+ * the input held; the input's vectors taken as they are through the new
+ * frames would not. */
+SC_TEST(tangent_space_map_follows_the_moved_frames) {
+    sc_value *grid = make_cut_grid(16, true), *atlas = with_tangent_map(grid, 256);
+    sc_error err = {0};
+    sc_ctx *ctx = run_straighten(atlas, (const char *const[]){"erase", "false", "normal_space", "tangent", NULL}, &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        const sc_atlas *in = atlas->as.atlas, *out = sc_ctx_output(ctx, 0)->as.atlas;
+        const sc_mesh *mi = in->mesh->as.mesh, *mo = out->mesh->as.mesh;
+        const sc_image_data *before = in->textures[0].image->as.image, *after = out->textures[0].image->as.image;
+        double held = field_error(mi, mi, before), kept = field_error(mo, mo, after), unturned = field_error(mi, mo, before);
+        printf("     field error at face centres: input %.4f, output %.4f; the input's vectors through the "
+               "output's frames %.4f\n", held, kept, unturned);
+        SC_CHECK_INT(sc_ctx_metric_value(ctx, "tangent_maps_reframed"), 1);
+        SC_CHECK(kept < 1e-3);
+        SC_CHECK_MSG(unturned > 10 * kept, "%g against %g", unturned, kept);
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+    sc_value_release(grid);
 }
 
 SC_TEST(already_straight_is_unchanged) {
