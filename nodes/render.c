@@ -100,7 +100,8 @@
  *    plane.
  *  - Output: a REPORT with one contact sheet render/lod<k>_sheet.png per LOD
  *    (of a mip chain, lod<k>_mip0_sheet.png, and lod<k>_mip<m>_sheet.png
- *    only for a level that shows cracks or folds, or with pictures = all)
+ *    only for a level that shows cracks, or folds with max_map_fold_pixels
+ *    set, or with pictures = all)
  *    (rows: passes in order, columns: views; each crack pixel marked with a
  *    yellow and each fold pixel with a cyan 3x3 square, so one pixel shows at
  *    thumbnail size), render/reference_sheet.png (the reference's textured
@@ -1923,8 +1924,11 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
          metricf(o, level_gap, "%s.max_seam_gap", k->metric)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
     /* one contact sheet per LOD: a mip level past the first has its sheet
-     * and uv pictures only when it shows cracks or folds (or pictures = all) */
-    bool pictures = J->all_pictures || k->mip == 0 || o->crack_total > cracks_before || o->fold_total > folds_before;
+     * and uv pictures only when it shows cracks, or folds that a gate
+     * bounds (or pictures = all); the folds of coarse maps, ungated by
+     * default, are numbers in the report */
+    bool pictures = J->all_pictures || k->mip == 0 || o->crack_total > cracks_before ||
+                    (J->max_map_folds >= 0 && o->fold_total > folds_before);
     if (rc == SC_OK && npasses > 0 && pictures) {
         char path[200];
         snprintf(path, sizeof path, "%s/%s_sheet.png", o->folder, k->file);
@@ -2127,8 +2131,9 @@ static const sc_param_desc params[] = {
      .check_text = check_modes},
     {.name = "pictures", .type = SC_PARAM_ENUM, .def_string = "sheets", .choices = picture_choices,
      .doc = "sheets: one contact sheet per LOD (and its uv picture; for a mip chain, its first level's, and "
-            "another level's only where it shows cracks or folds), plus the picture of every view with crack "
-            "candidates; all: every view's picture, every level's sheet and the reference's too"},
+            "another level's only where it shows cracks, or folds that max_map_fold_pixels bounds), plus the "
+            "picture of every view with crack candidates; all: every view's picture, every level's sheet and the "
+            "reference's too"},
     {.name = "views", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 64,
      .doc = "views per LOD and mode: 6 axis views, then oblique ones"},
     {.name = "size", .type = SC_PARAM_INTEGER, .def = 512, .min = 16, .max = 4096,
@@ -2174,7 +2179,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 15,
+    .version = 16,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -1876,8 +1876,16 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
     sc_erase_result sub = {0};
     sc_image_data *back = NULL;
     double gap_before = 0, mean_before = 0, gap_after = 0, mean_after = 0;
-    int rc = sc_tangent_texels_build(m, t->material, &g, SC_TANGENT_BAND, &tx, err);
-    if (rc == SC_OK) rc = sc_tangent_seam_gap(m, seams, &g, frames, img, &gap_before, &mean_before, err);
+    /* written in like's pixel type when like is 8/16-bit; a float input (a
+     * map re-rendered from an 8-bit one) is measured as it would be written
+     * if left, rounded the same way */
+    const sc_image_data *to = like && like->pixel != SC_PIXEL_F32 ? like : img;
+    sc_image_data *as_left = img->pixel == SC_PIXEL_F32 && to->pixel != SC_PIXEL_F32 ? quantised_like(img, to) : NULL;
+    int rc = img->pixel == SC_PIXEL_F32 && to->pixel != SC_PIXEL_F32 && !as_left
+                 ? sc_fail(err, SC_ENOMEM, "out of memory")
+                 : sc_tangent_texels_build(m, t->material, &g, SC_TANGENT_BAND, &tx, err);
+    if (rc == SC_OK)
+        rc = sc_tangent_seam_gap(m, seams, &g, frames, as_left ? as_left : img, &gap_before, &mean_before, err);
     if (rc == SC_OK) {
         sc_image_data *obj = sc_tangent_to_object(img, frames, &tx);
         sc_value *objv = obj ? sc_value_new_image(obj) : NULL;
@@ -1893,7 +1901,6 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
     if (rc == SC_OK && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK) {
-        const sc_image_data *to = like && like->pixel != SC_PIXEL_F32 ? like : img;
         sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to);
         s->f32 = sc_value_new_image(back), back = NULL;
         s->native = to->pixel == SC_PIXEL_F32 ? sc_value_retain(s->f32) : nat ? sc_value_new_image(nat) : NULL;
@@ -1909,8 +1916,9 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         sc_image_data *f = sc_image_to_f32(img);
         sc_value_release(s->f32), sc_value_release(s->native);
         s->f32 = f ? sc_value_new_image(f) : NULL;
-        s->native = sc_value_retain(t->image);
-        if (!s->f32) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        s->native = as_left ? sc_value_new_image(as_left) : sc_value_retain(t->image);
+        as_left = NULL;
+        if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         gap_after = gap_before, mean_after = mean_before, left = true;
     }
     if (rc == SC_OK) {
@@ -1935,6 +1943,7 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         sc_error_prefix(err, "texture %s (tangent-space)", t->name);
     }
     sc_image_free(back);
+    sc_image_free(as_left);
     sc_erase_result_free(&sub);
     sc_tangent_texels_free(&tx);
     return rc;
