@@ -18,53 +18,9 @@ done
 fail() { echo "FAIL: $*"; exit 1; }
 
 # ------------------------------------------------------------------ the cluster
-cl=$work/cluster
-mkdir -p "$cl/munge" "$cl/ctld" "$cl/d" "$cl/log"
-mungekey -c -k "$cl/munge/munge.key" >/dev/null 2>&1
-chmod 600 "$cl/munge/munge.key"
-munged --force -S "$cl/munge/socket" --key-file="$cl/munge/munge.key" --pid-file="$cl/munge/pid" \
-  --log-file="$cl/munge/log" --seed-file="$cl/munge/seed"
-base=$((20000 + RANDOM % 40000))
-host=$(hostname -s)
-cat > "$cl/slurm.conf" <<CONF
-ClusterName=seamcook
-SlurmctldHost=$host(127.0.0.1)
-SlurmctldPort=$base
-SlurmdPort=$((base + 1))
-SlurmUser=root
-SlurmdUser=root
-AuthType=auth/munge
-AuthInfo=socket=$cl/munge/socket
-CredType=cred/munge
-StateSaveLocation=$cl/ctld
-SlurmdSpoolDir=$cl/d
-SlurmctldPidFile=$cl/slurmctld.pid
-SlurmdPidFile=$cl/slurmd.pid
-SlurmctldLogFile=$cl/log/slurmctld.log
-SlurmdLogFile=$cl/log/slurmd.log
-ProctrackType=proctrack/linuxproc
-TaskPlugin=task/none
-JobAcctGatherType=jobacct_gather/none
-AccountingStorageType=accounting_storage/none
-JobCompType=jobcomp/none
-SelectType=select/cons_tres
-SelectTypeParameters=CR_CPU
-MpiDefault=none
-ReturnToService=2
-NodeName=$host NodeAddr=127.0.0.1 CPUs=$(nproc) State=UNKNOWN
-PartitionName=farm Nodes=$host Default=YES MaxTime=INFINITE State=UP
-CONF
-export SLURM_CONF=$cl/slurm.conf
-stop_cluster() {
-  for f in "$cl/slurmd.pid" "$cl/slurmctld.pid" "$cl/munge/pid"; do
-    [ -f "$f" ] && kill "$(cat "$f")" 2>/dev/null || true
-  done
-}
+source "$(dirname "$0")/cluster.sh"
 trap stop_cluster EXIT
-slurmctld -c -i
-slurmd -N "$host"
-for _ in $(seq 100); do sinfo --noheader -o %t 2>/dev/null | grep -q idle && break; sleep 0.1; done
-sinfo --noheader -o %t | grep -q idle || { cat "$cl/log/"*; fail "the test cluster did not come up"; }
+start_cluster "$work/cluster" "$(nproc)" || fail "the test cluster did not come up"
 
 # wait_done OUT: until no task is pending or running (at most 3 minutes)
 wait_done() {
