@@ -27,6 +27,7 @@
  * fine system's other matrices are freed before it is built, which sets the
  * run's peak memory. Measurements: docs/notes/gradient_domain.md.
  */
+#include "sc_geometry.h"
 #include "sc_gradient.h"
 
 #include <math.h>
@@ -1763,6 +1764,11 @@ static double *lic_field_from_map(const sc_mesh *m, int32_t material, const sc_s
     return out;
 }
 
+static double det3(const double A[3][3]) {
+    return A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+           A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+}
+
 static double *lic_field(const sc_mesh *m, int32_t material) {
     double *normals = sc_tangent_corner_normals(m);
     double *out = sc_calloc_array(m->nf ? (size_t)m->nf * 3 : 1, sizeof *out);
@@ -1776,13 +1782,13 @@ static double *lic_field(const sc_mesh *m, int32_t material) {
         if (material >= 0 && m->FM[f] != material) continue;
         const double *X[3], *N[3];
         for (int k = 0; k < 3; k++) X[k] = m->V + 3 * (size_t)m->FV[3 * f + k], N[k] = normals + 9 * (size_t)f + 3 * k;
-        double e1[3], e2[3], nf[3], t1[3], t2[3];
-        for (int i = 0; i < 3; i++) e1[i] = X[1][i] - X[0][i], e2[i] = X[2][i] - X[0][i];
-        nf[0] = e1[1] * e2[2] - e1[2] * e2[1], nf[1] = e1[2] * e2[0] - e1[0] * e2[2], nf[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double ln = sqrt(nf[0] * nf[0] + nf[1] * nf[1] + nf[2] * nf[2]), l1 = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
+        double e1[3], nf[3], t1[3], t2[3];
+        sc_sub3(X[1], X[0], e1);
+        sc_triangle_normal(X[0], X[1], X[2], nf);
+        double ln = sc_norm3(nf), l1 = sc_norm3(e1);
         if (!(ln > 0) || !(l1 > 0)) continue;
         for (int i = 0; i < 3; i++) nf[i] /= ln, t1[i] = e1[i] / l1;
-        t2[0] = nf[1] * t1[2] - nf[2] * t1[1], t2[1] = nf[2] * t1[0] - nf[0] * t1[2], t2[2] = nf[0] * t1[1] - nf[1] * t1[0];
+        sc_cross3(nf, t1, t2);
         /* normal equations of  a ex + b ey = dnx,  b ex + c ey = dny  over the edges */
         double A[3][3] = {{0}}, r[3] = {0};
         for (int k = 0; k < 3; k++) {
@@ -1798,16 +1804,14 @@ static double *lic_field(const sc_mesh *m, int32_t material) {
                 for (int q = 0; q < 3; q++) A[p][q] += row1[p] * row1[q] + row2[p] * row2[q];
             }
         }
-        double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
-                     A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+        double det = det3(A);
         if (!(fabs(det) > 1e-300)) continue;
         double sol[3];
-        for (int c = 0; c < 3; c++) {
+        for (int c = 0; c < 3; c++) {   /* Cramer's rule */
             double B[3][3];
             memcpy(B, A, sizeof B);
             for (int p = 0; p < 3; p++) B[p][c] = r[p];
-            sol[c] = (B[0][0] * (B[1][1] * B[2][2] - B[1][2] * B[2][1]) - B[0][1] * (B[1][0] * B[2][2] - B[1][2] * B[2][0]) +
-                      B[0][2] * (B[1][0] * B[2][1] - B[1][1] * B[2][0])) / det;
+            sol[c] = det3(B) / det;
         }
         double a = sol[0], b = sol[1], c = sol[2];
         double mid = 0.5 * (a + c), rad = sqrt(0.25 * (a - c) * (a - c) + b * b);
@@ -1932,11 +1936,10 @@ int sc_gradient_apply(const sc_mesh *mesh, const sc_texture *tex, const sc_image
             double area = 0;
             for (int32_t f = 0; f < mesh->nf; f++) {
                 if (tex->material >= 0 && mesh->FM[f] != tex->material) continue;
-                const double *X0 = mesh->V + 3 * (size_t)mesh->FV[3 * f], *X1 = mesh->V + 3 * (size_t)mesh->FV[3 * f + 1],
-                             *X2 = mesh->V + 3 * (size_t)mesh->FV[3 * f + 2];
-                double a[3] = {X1[0] - X0[0], X1[1] - X0[1], X1[2] - X0[2]}, b[3] = {X2[0] - X0[0], X2[1] - X0[1], X2[2] - X0[2]};
-                double cx = a[1] * b[2] - a[2] * b[1], cy = a[2] * b[0] - a[0] * b[2], cz = a[0] * b[1] - a[1] * b[0];
-                area += 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+                double n[3];
+                sc_triangle_normal(mesh->V + 3 * (size_t)mesh->FV[3 * f], mesh->V + 3 * (size_t)mesh->FV[3 * f + 1],
+                                   mesh->V + 3 * (size_t)mesh->FV[3 * f + 2], n);
+                area += 0.5 * sc_norm3(n);
             }
             sc_gradient_options lo = *o;
             lo.screening = o->screening * y.area * y.n / area;   /* run_filter divides by y.area */
