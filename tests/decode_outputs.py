@@ -190,11 +190,11 @@ def main():
                 line += f", save reports {reported:.4g}"
                 if abs(e - reported) > 0.02 * reported + 1e-14:
                     failures.append(f"{d}/{name}: the bytes hold {e:.6g}, the report says {reported:.6g}")
-            floor = None
-            for key in (f"{slot}.seam_energy_after_u8_naive", "seam_energy_after_u8_naive"):
-                if key in erased and (key.startswith(slot) or f"{slot}.seam_energy_before" not in erased):
-                    floor = erased[key]
-                    break
+            # the slot's own floor; the unprefixed one only when erase_seams
+            # erased a single texture (with several, it is their sum)
+            prefixed = any(k.endswith(".seam_energy_before") for k in erased)
+            key = f"{slot}.seam_energy_after_u8_naive" if prefixed else "seam_energy_after_u8_naive"
+            floor = erased.get(key)
             if floor is not None and floor > 0:
                 line += f", naive-rounding floor {floor:.4g} (ratio {e / floor:.3g})"
                 ratios.append(e / floor)
