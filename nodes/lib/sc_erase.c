@@ -1589,39 +1589,38 @@ static int erase_group(sc_metric_list *ml, const sc_mesh *m, const sc_seam_set *
 
 /* ---------------------------------------------------------------- warnings */
 
+/* The length of the texture prefix of metric `name` ending in "suffix"
+ * (without the '.' before the suffix), or -1 when it ends otherwise. */
+static int prefix_before(const char *name, const char *suffix) {
+    size_t n = strlen(name), l = strlen(suffix);
+    if (n < l || strcmp(name + n - l, suffix) != 0) return -1;
+    return (int)(n - l - (n > l));
+}
+
 bool sc_erase_warning(const sc_metric_list *ml, int32_t k, sc_erase_normal_space space, char *out, size_t size) {
-    static const char discontinuous[] = "tangent_space_discontinuous", suspect[] = "tangent_space_suspect",
-                      left[] = "tangent_space_left";
     const sc_metric *m = &ml->items[k];
-    size_t n = strlen(m->name);
     if (m->value != 1) return false;
-    if (n >= sizeof left - 1 && !strcmp(m->name + n - (sizeof left - 1), left)) {
+    int p;
+    if ((p = prefix_before(m->name, "tangent_space_left")) >= 0) {
         snprintf(out, size, "%.*s: the tangent-space normal map is left as it is: erasing it through its frames would "
-                 "widen the normals' seams (texels that charts with other frames share)",
-                 (int)(n - (sizeof left - 1) - (n > sizeof left - 1)), m->name);
+                 "widen the normals' seams (texels that charts with other frames share)", p, m->name);
         return true;
     }
-    if (n >= sizeof discontinuous - 1 && !strcmp(m->name + n - (sizeof discontinuous - 1), discontinuous)) {
+    if ((p = prefix_before(m->name, "tangent_space_discontinuous")) >= 0) {
         double gap = NAN;   /* the normal_gap_after just before it */
-        for (int32_t j = k - 1; j >= 0 && isnan(gap); j--) {
-            size_t l = strlen(ml->items[j].name);
-            if (l >= 16 && !strcmp(ml->items[j].name + l - 16, "normal_gap_after")) gap = ml->items[j].value;
-        }
+        for (int32_t j = k - 1; j >= 0 && isnan(gap); j--)
+            if (prefix_before(ml->items[j].name, "normal_gap_after") >= 0) gap = ml->items[j].value;
         snprintf(out, size, "%.*s: the tangent-space normal map cannot be made continuous: reconstructed normals "
-                 "still differ by up to %.3g (about radians) across a seam",
-                 (int)(n - (sizeof discontinuous - 1) - (n > sizeof discontinuous - 1)), m->name, gap);
+                 "still differ by up to %.3g (about radians) across a seam", p, m->name, gap);
         return true;
     }
-    if (space == SC_ERASE_NORMALS_OBJECT && n >= sizeof suspect - 1 &&
-        !strcmp(m->name + n - (sizeof suspect - 1), suspect)) {
+    if (space == SC_ERASE_NORMALS_OBJECT && (p = prefix_before(m->name, "tangent_space_suspect")) >= 0) {
         snprintf(out, size, "%.*s: the normal map looks tangent-space but is erased as object-space "
-                 "(normal_space=tangent or auto erases it through its tangent frames)",
-                 (int)(n - (sizeof suspect - 1)), m->name);
+                 "(normal_space=tangent or auto erases it through its tangent frames)", p, m->name);
         return true;
     }
     return false;
 }
-
 
 /* ---------------------------------------------------------------- the kernel */
 
