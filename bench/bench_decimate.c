@@ -21,7 +21,7 @@
  *   seams cut   seam edges collapsed (decimate's metric; for meshoptimizer,
  *               input seam edges minus level seam edges)
  *   ms          wall time of the simplification alone (no metrics), best of
- *               REPEATS runs (one above 20k input faces), for every method
+ *               REPEATS runs (three above 20k input faces), for every method
  *               alike: the machine's noise only ever adds
  * Methods: aware, fixed and free on the erased atlas; "straight" is aware
  * after the straighten node (the path graphs/lod_chain.lua takes), its
@@ -376,7 +376,7 @@ int main(int argc, char **argv) {
                 for (int i = 0; i <= nextra; i++) kv[6 + i] = extra[i];
                 sc_ctx *best = NULL;
                 double best_seconds = INFINITY;
-                for (int rep = 0; rep < (in->nf > 20000 ? 1 : REPEATS); rep++) {
+                for (int rep = 0; rep < (in->nf > 20000 ? 3 : REPEATS); rep++) {
                     t0 = sc_now();
                     sc_ctx *ctx = run(&sc_node_decimate, kv, "mesh", source, &err);
                     double s = sc_now() - t0;

@@ -39,9 +39,11 @@
  *             only.
  * The placement minimises the quadric under these constraints exactly: a
  * 5-D problem, or for a seam the 10-D block metric of the two half-vertex
- * quadrics with x1 = x2, y1 = y2, z1 = z2. Lines and bounds go to sc_qp
- * (Goldfarb-Idnani); where the equalities only fix variables (kept uv) they
- * are eliminated, which is exact and much cheaper. A small rho |x - mid|^2
+ * quadrics with x1 = x2, y1 = y2, z1 = z2. The equalities (a shared point,
+ * a kept uv, a uv on its line) describe an affine subspace, so the problem
+ * is solved exactly over that subspace's coordinates by Cholesky; the one
+ * inequality, t in [0, 1], puts t at the nearer end when the free minimiser
+ * leaves it, which is exact for a convex objective in one bounded variable. A small rho |x - mid|^2
  * (rho = 1e-9 trace/n) makes every problem strictly convex and picks, among
  * the minimisers of a singular quadric (flat, linearly parameterised
  * regions), the one nearest the edge's midpoint. A slid uv is snapped exactly
@@ -219,6 +221,7 @@
  *
  * Measurements and history behind these choices: docs/notes/decimate.md.
  */
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -315,14 +318,22 @@ typedef struct collapse_plan {
     block_reason reason;
 } collapse_plan;
 
+/* A face in a grid cell, with its bounding box when put in, rounded outwards
+ * to float: a query filters the cell's faces by box without leaving the
+ * cell's memory. */
+typedef struct grid_item {
+    int32_t face;
+    float lo[3], hi[3];
+} grid_item;
+
 /* Live faces by the cells of a uniform grid their bounding boxes overlap
  * (refuse_crossings). */
 typedef struct face_grid {
     double lo[3], inv_cell;
     int32_t n[3];
-    int32_t **items, *len, *cap;   /* per cell */
+    grid_item **items;             /* per cell */
+    int32_t *len, *cap;            /* per cell */
     int32_t built_faces;           /* live faces when built */
-    double *box;                   /* per face: its bounding box when put in (lo, hi) */
     uint32_t *seen, stamp;         /* per face: the last query that met it */
     struct fan_entry *fan;         /* scratch: the new fan of a query */
     int32_t fan_cap;
@@ -753,67 +764,66 @@ static void half_quadric(const state *st, const half_plan *h, bool skip_keep, do
     q5_set_sum(q, st->zq + (size_t)h->keep * QSIZE, wk, st->zq + (size_t)h->gone * QSIZE, wg);
 }
 
-/* The general case (a uv on a line, or free uv on both sides of a seam):
- * Q + rho |x - ref|^2 under the constraints, by Goldfarb-Idnani. */
+/* The general case (a uv on a line, or free uv on both sides of a seam).
+ * Every constraint but the bound on t is an equality that the points of an
+ * affine subspace meet by construction: x = B y + c with y = (xyz, the free
+ * uv, t). The point is shared by both halves, a fixed uv sits in c, and a
+ * slid uv is line0 + t (line1 - line0) with the one parameter t of half 0
+ * (a slid half 1 beside an unslid half 0 keeps t = 0, its line0). The
+ * minimiser of Q + rho |x - ref|^2 over that subspace is exact; when its t
+ * leaves [0, 1], the objective is convex in t, so the bounded minimiser has
+ * t at the nearer end, and the rest is solved again with t fixed there. */
 static bool solve_constrained(const state *st, const collapse_plan *p, const double *quad, const double *ref,
                               double rho, double *x) {
     const double s = st->uv_scale;
-    int nh = p->nhalf, n = QDIM * nh;
-    sc_qp qp;
-    sc_qp_init(&qp, n);
-    double row[SC_QUADRIC_MAX_DIM];
-    double D0[2] = {0, 0}, t0 = 0, len2_0 = 1;   /* half 0's line (scaled) */
+    int nh = p->nhalf, n = QDIM * nh, m = 3;
+    double B[SC_QUADRIC_MAX_DIM * SC_QUADRIC_MAX_DIM] = {0}, c[SC_QUADRIC_MAX_DIM] = {0};
+    double slope[SC_QUADRIC_MAX_DIM] = {0};   /* d x / d t */
+    bool slides = p->h[0].uv_mode == UV_SLIDE;
     for (int i = 0; i < nh; i++) {
         const half_plan *h = &p->h[i];
         int o = QDIM * i;
         if (h->uv_mode == UV_FIXED) {
-            for (int k = 0; k < 2; k++) {
-                memset(row, 0, sizeof(double) * (size_t)n);
-                row[o + 3 + k] = 1;
-                sc_qp_add_eq(&qp, row, s * h->fixed[k]);
-            }
+            c[o + 3] = s * h->fixed[0], c[o + 4] = s * h->fixed[1];
         } else if (h->uv_mode == UV_SLIDE) {
-            double P0[2] = {s * h->line0[0], s * h->line0[1]};
-            double D[2] = {s * (h->line1[0] - h->line0[0]), s * (h->line1[1] - h->line0[1])};
-            double len2 = D[0] * D[0] + D[1] * D[1];
-            if (!(len2 > 0)) return false;
-            double len = sqrt(len2);
-            /* on the line: normal . (x_uv - P0) = 0 */
-            memset(row, 0, sizeof(double) * (size_t)n);
-            row[o + 3] = -D[1] / len;
-            row[o + 4] = D[0] / len;
-            sc_qp_add_eq(&qp, row, (-D[1] * P0[0] + D[0] * P0[1]) / len);
-            /* its parameter t = D . (x_uv - P0) / |D|^2 */
-            double t_off = (D[0] * P0[0] + D[1] * P0[1]) / len2;
-            if (i == 0) {   /* 0 <= t <= 1 */
-                D0[0] = D[0], D0[1] = D[1], t0 = t_off, len2_0 = len2;
-                memset(row, 0, sizeof(double) * (size_t)n);
-                row[3] = D[0] / len2;
-                row[4] = D[1] / len2;
-                sc_qp_add_ge(&qp, row, t_off);
-                row[3] = -row[3];
-                row[4] = -row[4];
-                sc_qp_add_ge(&qp, row, -(1.0 + t_off));
-            } else {        /* the same parameter on both sides: t_1 = t_0 */
-                memset(row, 0, sizeof(double) * (size_t)n);
-                row[3] = D0[0] / len2_0;
-                row[4] = D0[1] / len2_0;
-                row[o + 3] = -D[0] / len2;
-                row[o + 4] = -D[1] / len2;
-                sc_qp_add_eq(&qp, row, t0 - t_off);
-            }
+            double D[2] = {h->line1[0] - h->line0[0], h->line1[1] - h->line0[1]};
+            if (!(D[0] * D[0] + D[1] * D[1] > 0)) return false;
+            c[o + 3] = s * h->line0[0], c[o + 4] = s * h->line0[1];
+            if (slides) slope[o + 3] = s * D[0], slope[o + 4] = s * D[1];
         }
     }
-    if (nh == 2)
-        for (int k = 0; k < 3; k++) {   /* one surface point: x1 = x2 */
-            memset(row, 0, sizeof(double) * (size_t)n);
-            row[k] = 1;
-            row[QDIM + k] = -1;
-            sc_qp_add_eq(&qp, row, 0);
+    /* the columns of B: xyz, then each free uv, then t */
+    const int cols = 3 + 2 * (p->h[0].uv_mode == UV_FREE) + 2 * (nh == 2 && p->h[1].uv_mode == UV_FREE) + slides;
+    for (int i = 0; i < nh; i++)
+        for (int k = 0; k < 3; k++) B[(QDIM * i + k) * cols + k] = 1;
+    for (int i = 0; i < nh; i++)
+        if (p->h[i].uv_mode == UV_FREE) {
+            B[(QDIM * i + 3) * cols + m] = 1, B[(QDIM * i + 4) * cols + m + 1] = 1;
+            m += 2;
         }
-    sc_qp_result res;
-    if (sc_qp_minimize_quadric(&qp, quad, ref, rho, &res, NULL) != SC_QP_OK) return false;
-    memcpy(x, res.x, sizeof(double) * (size_t)n);
+    double y[SC_QUADRIC_MAX_DIM];
+    if (slides) {
+        for (int r = 0; r < n; r++) B[r * cols + m] = slope[r];
+        if (!sc_quadric_minimize_affine(quad, n, B, cols, c, ref, rho, y)) return false;
+        double t = y[m];
+        if (t < 0 || t > 1) {   /* t at the nearer end: its column joins c */
+            t = t < 0 ? 0 : 1;
+            double fixed[SC_QUADRIC_MAX_DIM * SC_QUADRIC_MAX_DIM], at_end[SC_QUADRIC_MAX_DIM];
+            for (int r = 0; r < n; r++) {
+                at_end[r] = c[r] + t * slope[r];
+                for (int j = 0; j < m; j++) fixed[r * m + j] = B[r * cols + j];
+            }
+            if (!sc_quadric_minimize_affine(quad, n, fixed, m, at_end, ref, rho, y)) return false;
+            y[m] = t;
+        }
+    } else if (!sc_quadric_minimize_affine(quad, n, B, cols, c, ref, rho, y)) {
+        return false;
+    }
+    for (int r = 0; r < n; r++) {
+        double v = c[r];
+        for (int j = 0; j < m; j++) v += B[r * cols + j] * y[j];
+        x[r] = v + (slides ? slope[r] * y[m] : 0);
+    }
     return true;
 }
 
@@ -824,7 +834,7 @@ static bool solve_constrained(const state *st, const collapse_plan *p, const dou
  * ref the midpoint of the edge in every dimension, or the fixed uv). When
  * every uv is fixed, or nothing is constrained, the equality constraints
  * only fix variables: eliminating them is exact and leaves a small positive
- * definite system. Lines and bounds go to the Goldfarb-Idnani solver. */
+ * definite system. Lines and free seam uv go to solve_constrained. */
 static void solve_plan(state *st, collapse_plan *p) {
     if (p->reason != BLOCK_NONE) return;
     const double s = st->uv_scale;
@@ -1317,7 +1327,7 @@ static bool triangles_cross(const double *const A[3], const double *const B[3]) 
 static void grid_free(face_grid *g) {
     int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
     for (int64_t c = 0; g->items && c < cells; c++) free(g->items[c]);
-    free(g->items), free(g->len), free(g->cap), free(g->box), free(g->seen), free(g->fan);
+    free(g->items), free(g->len), free(g->cap), free(g->seen), free(g->fan);
     memset(g, 0, sizeof *g);
 }
 
@@ -1340,9 +1350,22 @@ static void triangle_box(const double *const P[3], double lo[3], double hi[3]) {
     }
 }
 
-static bool boxes_meet(const double *alo, const double *ahi, const double *blo, const double *bhi) {
-    return !(blo[0] > ahi[0] || bhi[0] < alo[0] || blo[1] > ahi[1] || bhi[1] < alo[1] || blo[2] > ahi[2] ||
-             bhi[2] < alo[2]);
+/* Whether box (lo, hi) meets a grid item's (float, rounded outwards) box. */
+static bool item_meets(const double *lo, const double *hi, const grid_item *it) {
+    return !(it->lo[0] > hi[0] || it->hi[0] < lo[0] || it->lo[1] > hi[1] || it->hi[1] < lo[1] ||
+             it->lo[2] > hi[2] || it->hi[2] < lo[2]);
+}
+
+/* x rounded to float downwards (upwards): a rounding past x is taken back
+ * by at least one step (|f| FLT_EPSILON is one or two units in f's last place). */
+static float float_below(double x) {
+    float f = (float)x;
+    return (double)f > x ? f - (fabsf(f) * FLT_EPSILON + FLT_MIN) : f;
+}
+
+static float float_above(double x) {
+    float f = (float)x;
+    return (double)f < x ? f + (fabsf(f) * FLT_EPSILON + FLT_MIN) : f;
 }
 
 static void face_points(const state *st, int32_t f, const double *P[3]) {
@@ -1358,7 +1381,8 @@ static bool grid_put(state *st, int32_t f, bool add) {
     int32_t c0[3], c1[3];
     face_points(st, f, P);
     triangle_box(P, lo, hi);
-    if (add) memcpy(g->box + 6 * (size_t)f, lo, sizeof lo), memcpy(g->box + 6 * (size_t)f + 3, hi, sizeof hi);
+    grid_item item = {.face = f};
+    for (int k = 0; k < 3; k++) item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
     grid_range(g, lo, hi, c0, c1);
     for (int32_t i = c0[0]; i <= c1[0]; i++)
         for (int32_t j = c0[1]; j <= c1[1]; j++)
@@ -1367,14 +1391,14 @@ static bool grid_put(state *st, int32_t f, bool add) {
                 if (add) {
                     if (g->len[c] == g->cap[c]) {
                         int32_t cap = g->cap[c] ? 2 * g->cap[c] : 4;
-                        int32_t *items = realloc(g->items[c], (size_t)cap * sizeof *items);
+                        grid_item *items = realloc(g->items[c], (size_t)cap * sizeof *items);
                         if (!items) return false;
                         g->items[c] = items, g->cap[c] = cap;
                     }
-                    g->items[c][g->len[c]++] = f;
+                    g->items[c][g->len[c]++] = item;
                 } else {
                     for (int32_t x = 0; x < g->len[c]; x++)
-                        if (g->items[c][x] == f) {
+                        if (g->items[c][x].face == f) {
                             g->items[c][x] = g->items[c][--g->len[c]];
                             break;
                         }
@@ -1414,9 +1438,8 @@ static bool grid_build(state *st) {
     g->items = calloc((size_t)cells, sizeof *g->items);
     g->len = calloc((size_t)cells, sizeof *g->len);
     g->cap = calloc((size_t)cells, sizeof *g->cap);
-    g->box = malloc((size_t)st->nf * 6 * sizeof *g->box);
     g->seen = calloc((size_t)st->nf, sizeof *g->seen);
-    if (!g->items || !g->len || !g->cap || !g->box || !g->seen) return false;
+    if (!g->items || !g->len || !g->cap || !g->seen) return false;
     g->built_faces = st->nf_alive;
     for (int32_t f = 0; f < st->nf; f++)
         if (st->falive[f] && !grid_put(st, f, true)) return false;
@@ -1481,17 +1504,19 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
         for (int32_t j = c0[1]; j <= c1[1]; j++)
             for (int32_t k = c0[2]; k <= c1[2]; k++) {
                 int64_t c = ((int64_t)k * grid->n[1] + j) * grid->n[0] + i;
+                const grid_item *items = grid->items[c];
                 for (int32_t x = 0; x < grid->len[c]; x++) {
-                    int32_t g = grid->items[c][x];
+                    const grid_item *it = &items[x];
+                    if (!item_meets(all_lo, all_hi, it)) continue;
+                    int32_t g = it->face;
                     if (grid->seen[g] == grid->stamp) continue;
                     grid->seen[g] = grid->stamp;
-                    const double *glo = grid->box + 6 * (size_t)g, *ghi = glo + 3;
-                    if (!boxes_meet(all_lo, all_hi, glo, ghi) || in_fan(st, p, g)) continue;
+                    if (in_fan(st, p, g)) continue;
                     const double *Q[3];
                     face_points(st, g, Q);
                     for (int32_t a = 0; a < nfan; a++) {
                         const fan_entry *e = &grid->fan[a];
-                        if (!boxes_meet(e->lo, e->hi, glo, ghi) || shares_vertex(e->v, st->fv + 3 * g)) continue;
+                        if (!item_meets(e->lo, e->hi, it) || shares_vertex(e->v, st->fv + 3 * g)) continue;
                         if (triangles_cross(e->P, Q) && !crossed_before(st, p, g)) return false;
                     }
                 }
@@ -1537,7 +1562,7 @@ static bool mark_contacts(state *st, int64_t *marked) {
                 for (int32_t k = c0[2]; k <= c1[2]; k++) {
                     int64_t cell = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
                     for (int32_t n = 0; n < g->len[cell]; n++) {
-                        int32_t f = g->items[cell][n];
+                        int32_t f = g->items[cell][n].face;
                         const int32_t *c = st->fv + 3 * f;
                         if (part[c[0]] == part[v]) continue;
                         double q[3];
@@ -3322,7 +3347,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quad
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 7,
+    .version = 8,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -225,6 +225,64 @@ bool sc_quadric_minimize(const double *q, int n, const double *x_ref, double rho
     }
 }
 
+bool sc_quadric_minimize_affine(const double *q, int n, const double *B, int m, const double *c,
+                                const double *x_ref, double rho, double *y) {
+    if (n < 1 || n > SC_QUADRIC_MAX_DIM || m < 1 || m > n) return false;
+    double A[SC_QUADRIC_MAX_DIM * SC_QUADRIC_MAX_DIM], b[SC_QUADRIC_MAX_DIM];
+    sc_quadric_unpack(q, n, A, b);
+    for (int i = 0; i < n; i++) A[i * n + i] += rho;
+    /* the gradient of the objective at B y + c is 2 ((A + rho I)(B y + c) + b - rho x_ref) */
+    double r[SC_QUADRIC_MAX_DIM], AB[SC_QUADRIC_MAX_DIM * SC_QUADRIC_MAX_DIM];
+    for (int i = 0; i < n; i++) {
+        double v = b[i] - rho * x_ref[i];
+        for (int k = 0; k < n; k++) v += A[i * n + k] * c[k];
+        r[i] = v;
+        for (int j = 0; j < m; j++) {
+            double w = 0;
+            for (int k = 0; k < n; k++) w += A[i * n + k] * B[k * m + j];
+            AB[i * m + j] = w;
+        }
+    }
+    /* B^T (A + rho I) B y = -B^T r, lower triangle into L */
+    double L[SC_QUADRIC_MAX_DIM][SC_QUADRIC_MAX_DIM], rhs[SC_QUADRIC_MAX_DIM], trace = 0;
+    for (int i = 0; i < m; i++) {
+        double v = 0;
+        for (int k = 0; k < n; k++) v -= B[k * m + i] * r[k];
+        rhs[i] = v;
+        for (int j = 0; j <= i; j++) {
+            double w = 0;
+            for (int k = 0; k < n; k++) w += B[k * m + i] * AB[k * m + j];
+            L[i][j] = w;
+        }
+        trace += L[i][i];
+    }
+    double inv[SC_QUADRIC_MAX_DIM];
+    const double floor_pivot = DBL_EPSILON * 1e-6 * fabs(trace);
+    for (int j = 0; j < m; j++) {
+        double v = L[j][j];
+        for (int k = 0; k < j; k++) v -= L[j][k] * L[j][k];
+        if (!(v > floor_pivot) || !(v > 0)) return false;
+        inv[j] = 1.0 / sqrt(v);
+        for (int i = j + 1; i < m; i++) {
+            double w = L[i][j];
+            for (int k = 0; k < j; k++) w -= L[i][k] * L[j][k];
+            L[i][j] = w * inv[j];
+        }
+    }
+    double z[SC_QUADRIC_MAX_DIM];
+    for (int i = 0; i < m; i++) {
+        double v = rhs[i];
+        for (int k = 0; k < i; k++) v -= L[i][k] * z[k];
+        z[i] = v * inv[i];
+    }
+    for (int i = m - 1; i >= 0; i--) {
+        double v = z[i];
+        for (int k = i + 1; k < m; k++) v -= L[k][i] * y[k];
+        y[i] = v * inv[i];
+    }
+    return true;
+}
+
 void sc_sym3_eigen(const double a[6], double values[3], double vectors[3][3]) {
     double m[3][3] = {{a[0], a[1], a[2]}, {a[1], a[3], a[4]}, {a[2], a[4], a[5]}};
     double v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};

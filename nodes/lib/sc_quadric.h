@@ -80,6 +80,14 @@ void sc_quadric_restrict(const double *q, int n, int k, const double *tail, doub
  * of sc_qp_minimize_quadric) by Cholesky. False when not positive definite. */
 bool sc_quadric_minimize(const double *q, int n, const double *x_ref, double rho, double *x);
 
+/* Minimiser over y in R^m of Q(B y + c) + rho |B y + c - x_ref|^2, B an n x m
+ * matrix (row-major, m <= n), by Cholesky of the m x m system: the exact
+ * solution of the equality-constrained problem whose feasible set is the
+ * affine subspace {B y + c}. False when that system is not positive definite
+ * (rho > 0 and B of full column rank make it so). */
+bool sc_quadric_minimize_affine(const double *q, int n, const double *B, int m, const double *c,
+                                const double *x_ref, double rho, double *y);
+
 /* The default regularisation weight: 1e-9 * (trace(A)/n + 1e-300). */
 double sc_quadric_default_rho(const double *q, int n);
 

@@ -455,4 +455,72 @@ SC_TEST(restrict_and_minimize_match_the_qp) {
     }
 }
 
+/* The minimiser over an affine subspace {B y + c} is the QP's under the
+ * equalities that describe the same subspace: N^T x = N^T c for a basis N of
+ * B's orthogonal complement (built here by Gram-Schmidt, apart from the code
+ * under test), and its gradient is orthogonal to the subspace. */
+SC_TEST(affine_minimize_matches_the_qp) {
+    srand(7);
+    for (int trial = 0; trial < 200; trial++) {
+        int n = 3 + rand() % 8, m = 1 + rand() % n;
+        double quad[SC_QUADRIC_MAX_SIZE];
+        sc_quadric_zero(quad, n);
+        for (int t = 0; t < 3; t++) {   /* semidefinite: rho makes it definite */
+            double p[SC_QUADRIC_MAX_DIM], q[SC_QUADRIC_MAX_DIM], r[SC_QUADRIC_MAX_DIM];
+            for (int i = 0; i < n; i++) p[i] = uniform(-1, 1), q[i] = uniform(-1, 1), r[i] = uniform(-1, 1);
+            sc_quadric_add_triangle(quad, n, p, q, r, uniform(0.2, 2));
+        }
+        double B[SC_QUADRIC_MAX_DIM * SC_QUADRIC_MAX_DIM], c[SC_QUADRIC_MAX_DIM], ref[SC_QUADRIC_MAX_DIM];
+        for (int i = 0; i < n; i++) {
+            c[i] = uniform(-1, 1), ref[i] = uniform(-1, 1);
+            for (int j = 0; j < m; j++) B[i * m + j] = uniform(-1, 1);
+        }
+        double rho = 1e-3, y[SC_QUADRIC_MAX_DIM], x[SC_QUADRIC_MAX_DIM];
+        SC_CHECK(sc_quadric_minimize_affine(quad, n, B, m, c, ref, rho, y));
+        for (int i = 0; i < n; i++) {
+            x[i] = c[i];
+            for (int j = 0; j < m; j++) x[i] += B[i * m + j] * y[j];
+        }
+        /* an orthonormal basis of range(B), then of its complement */
+        double basis[SC_QUADRIC_MAX_DIM][SC_QUADRIC_MAX_DIM];
+        int nb = 0;
+        for (int v = 0; v < m + n; v++) {
+            double w[SC_QUADRIC_MAX_DIM];
+            for (int i = 0; i < n; i++) w[i] = v < m ? B[i * m + v] : (i == v - m);
+            for (int b = 0; b < nb; b++) {
+                double d = 0;
+                for (int i = 0; i < n; i++) d += w[i] * basis[b][i];
+                for (int i = 0; i < n; i++) w[i] -= d * basis[b][i];
+            }
+            double len = 0;
+            for (int i = 0; i < n; i++) len += w[i] * w[i];
+            if (len < 1e-12) continue;
+            for (int i = 0; i < n; i++) basis[nb][i] = w[i] / sqrt(len);
+            nb++;
+        }
+        SC_CHECK_INT(nb, n);
+        sc_qp p;
+        sc_qp_init(&p, n);
+        for (int b = m; b < n; b++) {
+            double rhs = 0;
+            for (int i = 0; i < n; i++) rhs += basis[b][i] * c[i];
+            sc_qp_add_eq(&p, basis[b], rhs);
+        }
+        sc_qp_result r;
+        SC_CHECK_INT(sc_qp_minimize_quadric(&p, quad, ref, rho, &r, NULL), SC_QP_OK);
+        for (int i = 0; i < n; i++) SC_CHECK_NEAR(x[i], r.x[i], 1e-8);
+        double A[SC_QUADRIC_MAX_DIM * SC_QUADRIC_MAX_DIM], b[SC_QUADRIC_MAX_DIM], g[SC_QUADRIC_MAX_DIM];
+        sc_quadric_unpack(quad, n, A, b);
+        for (int i = 0; i < n; i++) {
+            g[i] = b[i] + rho * (x[i] - ref[i]);
+            for (int j = 0; j < n; j++) g[i] += A[i * n + j] * x[j];
+        }
+        for (int j = 0; j < m; j++) {
+            double d = 0;
+            for (int i = 0; i < n; i++) d += B[i * m + j] * g[i];
+            SC_CHECK_NEAR(d, 0, 1e-9);
+        }
+    }
+}
+
 int main(void) { return sc_test_main(); }
