@@ -352,14 +352,30 @@ static int corner_of(const sc_mesh *m, int32_t f, int32_t v) {
     return -1;
 }
 
+/* sc_seam_sample on the image as stored: each tap read as sc_image_to_f32
+ * would convert it (the same floats), without converting the whole map. */
+static void sample_stored(const sc_seam_grid *g, const sc_image_data *img, int32_t channels, double u, double v,
+                          double *out) {
+    int32_t id[4];
+    double w[4];
+    sc_seam_taps(g, u, v, id, w);
+    for (int32_t c = 0; c < channels; c++) {
+        double s = 0;
+        for (int k = 0; k < 4; k++) s += w[k] * sc_image_texel(img, id[k] % img->width, id[k] / img->width, c);
+        out[c] = s;
+    }
+}
+
 int sc_tangent_seam_gap(const sc_mesh *m, const sc_seam_set *seams, const sc_seam_grid *g,
                         const sc_tangent_frames *f, const sc_image_data *img, double *max_gap, double *mean_gap,
                         sc_error *err) {
     *max_gap = 0, *mean_gap = 0;
     if (img->channels < 3) return sc_fail(err, SC_EINPUT, "normal map: %d channels, 3 needed", img->channels);
+    if (img->width != g->width || img->height != g->height)
+        return sc_fail(err, SC_EINPUT, "normal map: %dx%d, its seam grid %dx%d", img->width, img->height, g->width,
+                       g->height);
     bool is_signed = sc_tangent_signed(img);
-    sc_image_data *fimg = sc_image_to_f32(img);
-    if (!fimg) return sc_fail(err, SC_ENOMEM, "out of memory");
+    const int32_t channels = img->channels < 4 ? img->channels : 4;
     double sum = 0, length = 0;
     for (int32_t e = 0; e < seams->nseams; e++) {
         const sc_seam_edge *se = &seams->seams[e];
@@ -382,7 +398,7 @@ int sc_tangent_seam_gap(const sc_mesh *m, const sc_seam_set *seams, const sc_sea
                 const sc_seam_side *sd = &se->side[s];
                 const double *a = m->U + 2 * (size_t)sd->uv0, *b = m->U + 2 * (size_t)sd->uv1;
                 double u = a[0] + gamma * (b[0] - a[0]), v = a[1] + gamma * (b[1] - a[1]), t[4] = {0, 0, 0, 0};
-                sc_seam_sample(g, fimg->pixels, fimg->channels < 4 ? fimg->channels : 4, u, v, t);
+                sample_stored(g, img, channels, u, v, t);
                 if (!is_signed)
                     for (int c = 0; c < 3; c++) t[c] = 2 * t[c] - 1;
                 double bc[3] = {0, 0, 0}, T[3] = {1, 0, 0}, B[3] = {0, 1, 0}, N[3] = {0, 0, 1};
@@ -398,7 +414,6 @@ int sc_tangent_seam_gap(const sc_mesh *m, const sc_seam_set *seams, const sc_sea
         }
         sum += se->length * edge_sum / samples, length += se->length;
     }
-    sc_image_free(fimg);
     *mean_gap = length > 0 ? sum / length : 0;
     return SC_OK;
 }
