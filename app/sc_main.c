@@ -21,9 +21,6 @@
  */
 #include <errno.h>
 #include <limits.h>
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -1109,20 +1106,7 @@ static const struct command {
     {"version", version_usage, cmd_version},
 };
 
-/* One malloc arena for the whole process. With glibc's default of one per
- * thread, the image-sized buffers that nodes allocate on pool threads come
- * from per-thread heaps that are trimmed and faulted in again from one node
- * to the next; with one arena they are reused (the main job on Avocado: a
- * quarter less wall time and peak memory, docs/notes/build.md). Set before
- * any thread starts. */
-static void one_malloc_arena(void) {
-#ifdef __GLIBC__
-    mallopt(M_ARENA_MAX, 1);
-#endif
-}
-
 int main(int argc, char **argv) {
-    one_malloc_arena();
     const char *first = argc > 1 ? argv[1] : "";
     if (!strcmp(first, "--version")) argv[1] = "version";
     if (!strcmp(first, "help") && argc > 2) {   /* seamcook help COMMAND */
@@ -1144,9 +1128,10 @@ int main(int argc, char **argv) {
         return status;
     }
     sc_tune_allocator();
-    /* the thread pool is sized once, at its first use: cooking jobs plus loads */
+    /* the thread pool is sized once, at its first use: cooking jobs, the
+     * stores of the nodes they cooked, and loads */
     char pool[16];
-    snprintf(pool, sizeof pool, "%d", o.jobs + 1);
+    snprintf(pool, sizeof pool, "%d", 2 * o.jobs + 1);
     setenv("UV_THREADPOOL_SIZE", pool, 1);
     status = cmd->run(&o);
     free_options(&o);

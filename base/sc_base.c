@@ -669,6 +669,7 @@ void sc_tune_allocator(void) {
     mallopt(M_MMAP_THRESHOLD, 32 << 20);   /* fixed: frees do not move it */
     mallopt(M_TRIM_THRESHOLD, INT_MAX);
     mallopt(M_MMAP_MAX, 0);                /* large blocks from the heap too: reused, not re-faulted */
+    mallopt(M_ARENA_MAX, 1);               /* pool threads share the heap that keeps them */
 #endif
 }
 

@@ -209,6 +209,10 @@ double sc_now(void);
  *    no trimming). Blocks above that ceiling come from the heap too (no
  *    mmap), so a stage's large arrays reuse the pages an earlier stage freed
  *    instead of faulting fresh ones.
+ *  - One arena for every thread (glibc: M_ARENA_MAX 1). Nodes run on pool
+ *    threads, and a thread's own arena lives in 64 MB heaps that are
+ *    trimmed and unmapped whatever the trim threshold, so each node faulted
+ *    in again the pages the one before it freed.
  * Nothing on other C libraries. sc_release_memory hands the retained memory
  * back (watch mode, between cooks). Measurements: docs/notes/base.md. */
 void sc_tune_allocator(void);

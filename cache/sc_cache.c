@@ -208,7 +208,7 @@ struct sc_cache {
     sqlite3_stmt *st[ST_COUNT];
     int depth;               /* sc_cache_begin nesting */
     int64_t last_clock;      /* last value handed out by clock_us */
-    unsigned tmp_seq;
+    _Atomic unsigned tmp_seq;   /* publish may run on several threads at once */
     touch *touches;
     int ntouches, cap_touches;
 };
@@ -757,6 +757,17 @@ out:
 static bool file_has_size(const char *path, size_t n) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISREG(st.st_mode) && (uint64_t)st.st_size == (uint64_t)n;
+}
+
+int sc_cache_write_blob_file(sc_cache *c, const sc_digest *d, const void *bytes, size_t n, sc_error *err) {
+    if (!bytes && n > 0) return sc_fail(err, SC_EUSAGE, "cache: write_blob_file without bytes");
+    char hex[65];
+    sc_digest_hex(d, hex);
+    char *path = sc_cache_blob_path(c, d);
+    if (!path) return sc_fail(err, SC_ENOMEM, "out of memory");
+    int rc = file_has_size(path, n) ? SC_OK : publish(c, hex, path, bytes, n, err);
+    free(path);
+    return rc;
 }
 
 int sc_cache_put_blob(sc_cache *c, const sc_digest *d, const void *bytes, size_t n,

@@ -39,6 +39,13 @@ const char *sc_cache_notice(const sc_cache *c);
 int sc_cache_put_blob(sc_cache *c, const sc_digest *d, const void *bytes, size_t n,
                       sc_error *err);
 
+/* The part of sc_cache_put_blob that touches no index: publish the blob's
+ * file unless a file of its size is there. It reads nothing of the cache
+ * that changes after opening, so threads that share one sc_cache under a
+ * lock may call it outside that lock (writing gigabytes while others use the
+ * index), then sc_cache_put_blob under the lock to record it. */
+int sc_cache_write_blob_file(sc_cache *c, const sc_digest *d, const void *bytes, size_t n, sc_error *err);
+
 /* Read and verify a blob. Returns SC_EMISS when absent or when its bytes do
  * not hash to d (the bad file is then deleted). Updates its last use. */
 int sc_cache_get_blob(sc_cache *c, const sc_digest *d, sc_buf *out, sc_error *err);

@@ -82,6 +82,7 @@ typedef struct engine {
     const sc_engine_options *opt;
     uv_loop_t loop;
     uv_mutex_t cache_lock;
+    int stores;                /* cooked nodes whose outputs are being stored */
     node_rt *rt;
     sc_run *run;
     int inflight;              /* cooking jobs */
@@ -149,6 +150,7 @@ sc_value *sc_engine_load(sc_cache *cache, const sc_digest *digest, sc_error *err
 
 typedef struct storer {
     sc_cache *cache;
+    uv_mutex_t *lock;   /* the engine's cache lock: held for the index, not for the bytes */
     sc_digest *blobs;
     int nblobs, cap;
     int rc;
@@ -176,7 +178,12 @@ static void store_value(void *ud, sc_value *v) {
     if (sc_value_serialize(v, &buf) != SC_OK)
         s->rc = sc_fail(s->err, SC_ENOMEM, "out of memory serialising a %s", sc_kind_name(v->kind));
     else
+        s->rc = sc_cache_write_blob_file(s->cache, &v->digest, buf.data, buf.len, s->err);
+    if (s->rc == SC_OK) {
+        uv_mutex_lock(s->lock);
         s->rc = sc_cache_put_blob(s->cache, &v->digest, buf.data, buf.len, s->err);
+        uv_mutex_unlock(s->lock);
+    }
     sc_buf_free(&buf);
 }
 
@@ -706,7 +713,8 @@ static void set_terminal(engine *e, int i, node_state st) {
     finish_consumer_edges(e, i);   /* a finished node no longer needs its inputs */
 }
 
-static void fail_node(engine *e, int i, int rc, const sc_error *err) {
+/* Keep a node's error, stop the run (the first failure names it) and say so. */
+static void note_failure(engine *e, int i, int rc, const sc_error *err) {
     const sc_graph_node *n = gnode(e, i);
     sc_node_result *r = &e->run->results[i];
     r->error = sc_strprintf("%s:%d: %s (%s): %s", n->file, n->line, n->name, n->desc->type,
@@ -718,6 +726,10 @@ static void fail_node(engine *e, int i, int rc, const sc_error *err) {
         e->first_err.code = e->first_rc;
     }
     say(e, "FAILED %s", r->error ? r->error : n->name);
+}
+
+static void fail_node(engine *e, int i, int rc, const sc_error *err) {
+    note_failure(e, i, rc, err);
     set_terminal(e, i, ST_FAILED);
 }
 
@@ -946,7 +958,7 @@ static void resolve(engine *e, int i) {
 
 /* ---------------------------------------------------------------- jobs */
 
-typedef enum job_kind { JOB_RUN, JOB_LOAD } job_kind;
+typedef enum job_kind { JOB_RUN, JOB_LOAD, JOB_STORE } job_kind;
 
 typedef struct job {
     uv_work_t req;
@@ -959,7 +971,10 @@ typedef struct job {
     sc_ctx *ctx;
     bool *want_full, *want_mesh;   /* JOB_LOAD: which outputs to load */
     sc_value **full, **mesh;       /* JOB_LOAD: what was loaded */
-    storer stored;                 /* JOB_RUN: blobs written */
+    storer stored;                 /* JOB_STORE: blobs written */
+    char *outputs, *record;        /* JOB_STORE: the action's record once they are */
+    sc_cache_dep *deps;
+    int ndeps;
 } job;
 
 static void run_work(uv_work_t *req) {
@@ -986,13 +1001,6 @@ static void run_work(uv_work_t *req) {
     sc_ctx_set_threads(j->ctx, e->opt->jobs);
     j->rc = sc_ctx_run(j->ctx, &j->err);
     j->seconds = sc_now() - t;
-    if (j->rc != SC_OK) return;
-    j->stored = (storer){.cache = e->cache, .err = &j->err};
-    uv_mutex_lock(&e->cache_lock);
-    for (int k = 0; k < n->desc->noutputs && j->stored.rc == SC_OK; k++)
-        store_value(&j->stored, sc_ctx_output(j->ctx, k));
-    uv_mutex_unlock(&e->cache_lock);
-    j->rc = j->stored.rc;
 }
 
 static char *metrics_json(const sc_ctx *ctx) {
@@ -1024,6 +1032,9 @@ static void keep_deps_of_failure(sc_node_result *r, const sc_ctx *ctx) {
         if ((r->deps[r->ndeps] = sc_strdup(sc_ctx_dep_path(ctx, d)))) r->ndeps++;
     }
 }
+
+static void store_work(uv_work_t *req);
+static void store_done(uv_work_t *req, int status);
 
 static void run_done(uv_work_t *req, int status) {
     (void)status;
@@ -1062,44 +1073,86 @@ static void run_done(uv_work_t *req, int status) {
         cJSON *oj = outputs_json(e, i);
         char *outputs = cJSON_PrintUnformatted(oj);
         cJSON_Delete(oj);
-        sc_cache_action act = {
-            .key = r->key, .node_type = (char *)n->desc->type, .outputs = outputs,
-            .metrics = record, .ndeps = nd, .deps = deps,
-            .nblobs = j->stored.nblobs, .blobs = j->stored.blobs, .seconds = j->seconds,
-        };
         if (rc == SC_OK && (!outputs || !record || !r->deps || !deps || !dep_digests || !paths_ok))
             rc = sc_fail(&j->err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK) rc = materialize(e, i, &j->err);
+        r->dep_digests = dep_digests;
         if (rc == SC_OK) {
-            uv_mutex_lock(&e->cache_lock);
-            rc = sc_cache_put_action(e->cache, &act, &j->err);
-            uv_mutex_unlock(&e->cache_lock);
-            if (rc == SC_OK && e->opt->remote) rc = sc_remote_upload(e->opt->remote, &act, &j->err);
-            /* a concurrent gc took a blob: the result stands, it is just not recorded */
-            if (rc == SC_EMISS) {
-                say(e, "note: %s was cooked but not recorded: %s", n->name, j->err.message);
-                rc = SC_OK;
-            }
-        }
-        if (rc == SC_OK) {
-            remember(e, i, dep_digests);
-            rc = materialize(e, i, &j->err);
+            /* Consumers start now; the outputs go to the cache meanwhile,
+             * and the action is recorded once they are there (store_done). */
+            say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
+            set_terminal(e, i, ST_DONE);
+            j->kind = JOB_STORE;
+            j->stored = (storer){.cache = e->cache, .lock = &e->cache_lock, .err = &j->err};
+            j->outputs = outputs, j->record = record, j->deps = deps, j->ndeps = nd;
+            e->stores++;
+            uv_queue_work(&e->loop, &j->req, store_work, store_done);
+            show_progress(e);
+            pump(e);
+            return;
         }
         for (int d = 0; deps && d < nd; d++) free(deps[d].path);
         free(outputs), free(deps), free(record);
-        r->dep_digests = dep_digests;
-        give_lease_back(e, i);   /* after the record: a waiter finds the result */
-        if (rc == SC_OK) {
-            say(e, "cooked %s (%s) in %.3f s", n->name, n->desc->type, j->seconds);
-            set_terminal(e, i, ST_DONE);
-        } else {
-            fail_node(e, i, rc, &j->err);
-        }
+        give_lease_back(e, i);
+        fail_node(e, i, rc, &j->err);
     } else {
         keep_deps_of_failure(r, j->ctx);
         give_lease_back(e, i);
         fail_node(e, i, j->rc, &j->err);
     }
-    free(j->stored.blobs);
+    sc_ctx_free(j->ctx);
+    free(j);
+    show_progress(e);
+    pump(e);
+}
+
+/* A cooked node's outputs into the cache (on a pool thread, beside the
+ * cooks of its consumers). */
+static void store_work(uv_work_t *req) {
+    job *j = req->data;
+    const sc_graph_node *n = gnode(j->e, j->node);
+    for (int k = 0; k < n->desc->noutputs && j->stored.rc == SC_OK; k++)
+        store_value(&j->stored, sc_ctx_output(j->ctx, k));
+}
+
+/* Record the action once its blobs are stored. A node whose outputs cannot
+ * be stored (a full disk) fails the run, though its consumers may have
+ * cooked with them already. */
+static void store_done(uv_work_t *req, int status) {
+    (void)status;
+    job *j = req->data;
+    engine *e = j->e;
+    int i = j->node;
+    sc_node_result *r = &e->run->results[i];
+    const sc_graph_node *n = gnode(e, i);
+    e->stores--;
+    int rc = j->stored.rc;
+    if (rc == SC_OK) {
+        sc_cache_action act = {
+            .key = r->key, .node_type = (char *)n->desc->type, .outputs = j->outputs,
+            .metrics = j->record, .ndeps = j->ndeps, .deps = j->deps,
+            .nblobs = j->stored.nblobs, .blobs = j->stored.blobs, .seconds = j->seconds,
+        };
+        uv_mutex_lock(&e->cache_lock);
+        rc = sc_cache_put_action(e->cache, &act, &j->err);
+        uv_mutex_unlock(&e->cache_lock);
+        if (rc == SC_OK && e->opt->remote) rc = sc_remote_upload(e->opt->remote, &act, &j->err);
+        /* a concurrent gc took a blob: the result stands, it is just not recorded */
+        if (rc == SC_EMISS) {
+            say(e, "note: %s was cooked but not recorded: %s", n->name, j->err.message);
+            rc = SC_OK;
+        }
+    }
+    if (rc == SC_OK) remember(e, i, r->dep_digests);
+    give_lease_back(e, i);   /* after the record: a waiter finds the result */
+    if (rc != SC_OK) {   /* it counts as finished already, as cooked: now as failed */
+        note_failure(e, i, rc, &j->err);
+        e->rt[i].state = ST_FAILED;
+        r->status = SC_STATUS_FAILED;
+        e->run->ran--, e->run->failed++;
+    }
+    for (int d = 0; j->deps && d < j->ndeps; d++) free(j->deps[d].path);
+    free(j->outputs), free(j->deps), free(j->record), free(j->stored.blobs);
     sc_ctx_free(j->ctx);
     free(j);
     show_progress(e);
@@ -1327,7 +1380,7 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
     if (!opt->dry_run) uv_timer_start(&e.tick, tick, LEASE_POLL_MS, LEASE_POLL_MS);
     if (!e.stop) {
         pump(&e);
-        while (e.inflight > 0 || e.loads > 0 || e.lease_waits > 0) {
+        while (e.inflight > 0 || e.stores > 0 || e.loads > 0 || e.lease_waits > 0) {
             uv_run(&e.loop, UV_RUN_ONCE);
         }
     }

@@ -7,6 +7,7 @@
 #include "sc_test.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 /* ---------------------------------------------------------------- kernels */
 
@@ -121,6 +122,43 @@ SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
     kernel_base.version = 1, kernel_top.version = 1;
     cook(cache, ran);
     CHECK_RAN(ran, 0, 0, 0, 0);
+    sc_cache_close(cache);
+    sc_test_system("rm -rf '%s'", dir);
+    free(dir);
+}
+
+/* Outputs reach the cache after their consumers may have started: a node
+ * whose outputs cannot be stored (here every objects/xx is a file, so no
+ * blob can be published) fails the run with the store's error, counts as
+ * failed, not cooked, and leaves no cache entry: with the store mended,
+ * every node cooks again. */
+SC_TEST(outputs_that_cannot_be_stored_fail_the_run_and_record_nothing) {
+    char *dir = sc_test_tempdir("unstored");
+    sc_cache *cache = NULL;
+    sc_error err = {0};
+    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    if (!cache) return;
+    kernel_base.version = 1, kernel_top.version = 1;
+    SC_CHECK_INT(sc_test_system("cd '%s/objects' && for i in $(seq 0 255); do touch $(printf %%02x $i); done", dir), 0);
+    for (int jobs = 1; jobs <= 2; jobs++) {
+        sc_graph *g = kernel_graph();
+        sc_engine_options opt = {.jobs = jobs};
+        sc_run *r = NULL;
+        err = (sc_error){0};
+        int rc = sc_engine_run(g, cache, &opt, &r, &err);
+        SC_CHECK(rc != SC_OK);
+        SC_CHECK_MSG(strstr(err.message, "cannot publish") != NULL, "error: %s", err.message);
+        SC_CHECK(r && r->results[0].status == SC_STATUS_FAILED);
+        SC_CHECK_MSG(r && r->failed >= 1 && r->ran + r->failed + r->skipped + r->cached == g->count,
+                     "ran %d failed %d skipped %d cached %d of %d", r ? r->ran : -1, r ? r->failed : -1,
+                     r ? r->skipped : -1, r ? r->cached : -1, g->count);
+        sc_run_free(r);
+        sc_graph_free(g);
+    }
+    SC_CHECK_INT(sc_test_system("cd '%s/objects' && rm -f ??", dir), 0);
+    int ran[4];
+    cook(cache, ran);
+    CHECK_RAN(ran, 1, 1, 1, 1);
     sc_cache_close(cache);
     sc_test_system("rm -rf '%s'", dir);
     free(dir);
