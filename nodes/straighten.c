@@ -1090,31 +1090,69 @@ static int warp_step(job *J, int steps, sc_error *err) {
 
 /* Signals: every texture of a material with a moved face, re-rendered at Uout
  * (once per image, material and wrap modes). */
+/* The textures render_signals re-renders, one per chunk of sc_parallel:
+ * each is independent of the others (about a second each at 2048^2). */
+typedef struct render_list {
+    const job *J;
+    int32_t pad;
+    int32_t *todo, ntodo;   /* texture indices */
+    sc_image_data **im;     /* per entry of todo */
+    bool *tangent;
+    sc_error *errs;
+} render_list;
+
+static int render_one(void *ud, int32_t k) {
+    render_list *L = ud;
+    const job *J = L->J;
+    const sc_texture *tex = &J->atlas->textures[L->todo[k]];
+    int rc = sc_erase_takes_tangent_space(J->mesh, tex, J->normals, &L->tangent[k], &L->errs[k]);
+    if (rc == SC_OK)
+        rc = L->tangent[k] ? warp_tangent_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, &L->im[k], &L->errs[k])
+                           : warp_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, &L->im[k], &L->errs[k]);
+    return rc;
+}
+
 static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err) {
     const sc_atlas *atlas = J->atlas;
     const sc_mesh *m = J->mesh;
-    int rc = SC_OK;
     *rendered = 0;
+    int32_t *source = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *source);   /* the texture it copies, or -1 */
+    render_list L = {.J = J, .pad = pad, .todo = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.todo)};
+    L.im = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.im);
+    L.tangent = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.tangent);
+    L.errs = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.errs);
+    int rc = source && L.todo && L.im && L.tangent && L.errs ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
         const sc_texture *tex = &atlas->textures[i];
         bool touched = false;
         for (int32_t f = 0; f < m->nf && !touched; f++) touched = J->face_moved[f] && m->FM[f] == tex->material;
-        for (int32_t j = 0; j < i && touched && !J->images[i]; j++)   /* the same image in the same material */
-            if (atlas->textures[j].image == tex->image && atlas->textures[j].material == tex->material &&
-                atlas->textures[j].wrap_u == tex->wrap_u && atlas->textures[j].wrap_v == tex->wrap_v && J->images[j])
-                J->images[i] = sc_value_retain(J->images[j]);
-        if (!touched || J->images[i]) continue;
-        sc_image_data *im = NULL;
-        bool tangent = false;
-        rc = sc_erase_takes_tangent_space(m, tex, J->normals, &tangent, err);
-        if (rc == SC_OK)
-            rc = tangent ? warp_tangent_texture(m, J->Uout, J->face_moved, tex, pad, &im, err)
-                         : warp_texture(m, J->Uout, J->face_moved, tex, pad, &im, err);
-        J->tangent_maps += tangent;
-        if (rc == SC_OK && !(J->images[i] = sc_value_new_image(im)))
+        source[i] = touched ? i : -1;
+        for (int32_t j = 0; j < i && touched && source[i] == i; j++)   /* the same image in the same material */
+            if (source[j] == j && atlas->textures[j].image == tex->image && atlas->textures[j].material == tex->material &&
+                atlas->textures[j].wrap_u == tex->wrap_u && atlas->textures[j].wrap_v == tex->wrap_v)
+                source[i] = j;
+        if (source[i] == i) L.todo[L.ntodo++] = i;
+    }
+    int failed = rc == SC_OK ? sc_parallel(sc_ctx_threads(J->ctx), L.ntodo, render_one, &L) : SC_OK;
+    if (failed != SC_OK) {   /* the first texture's error, or sc_parallel's own */
+        rc = sc_fail(err, failed, "straighten: out of memory");
+        for (int32_t k = 0; k < L.ntodo; k++)
+            if (L.errs[k].code != SC_OK) {
+                rc = sc_fail(err, L.errs[k].code, "%s", L.errs[k].message);
+                break;
+            }
+    }
+    for (int32_t k = 0; k < L.ntodo; k++) {
+        if (rc == SC_OK && !(J->images[L.todo[k]] = sc_value_new_image(L.im[k])))
             rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+        else if (!J->images[L.todo[k]])
+            sc_image_free(L.im[k]);
+        J->tangent_maps += L.tangent[k];
         (*rendered)++;
     }
+    for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++)
+        if (source[i] >= 0 && source[i] != i) J->images[i] = sc_value_retain(J->images[source[i]]);
+    free(source), free(L.todo), free(L.im), free(L.tangent), free(L.errs);
     return rc;
 }
 
