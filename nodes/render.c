@@ -1988,6 +1988,63 @@ static bool is_mip_of(const sc_atlas *b, const sc_atlas *a) {
     return halved;
 }
 
+/* What one level added to the run's totals, for a level that repeats it. */
+typedef struct level_tally {
+    double cracks, pinholes, folds;
+} level_tally;
+
+/* The entry of `lods` before k holding the same atlas (mesh and every map,
+ * by digest: a decimation that stopped gives its next level the same mesh),
+ * or -1. */
+static int32_t same_level_before(const sc_lods *lods, int32_t k) {
+    for (int32_t j = 0; lods && j < k; j++)
+        if (sc_digest_equal(&lods->levels[j]->digest, &lods->levels[k]->digest)) return j;
+    return -1;
+}
+
+/* Whether metric `name` belongs to level `prefix` ("lod1.mip2"): the name
+ * itself, or the prefix and a dot. Returns the suffix ("" or ".faces"). */
+static const char *level_suffix(const char *name, const char *prefix) {
+    size_t n = strlen(prefix);
+    if (strncmp(name, prefix, n) != 0 || (name[n] != 0 && name[n] != '.')) return NULL;
+    return name + n;
+}
+
+/* Level k repeats level j: the same pictures render the same bytes, so its
+ * metrics are j's under k's name, its totals count again, and it says
+ * which level it repeats. */
+static int repeat_level(outcome *o, const level_label *j, const level_label *k, int32_t j_index,
+                        const level_tally *t) {
+    int32_t n = o->report->nmetrics;
+    for (int32_t i = 0; i < n; i++) {
+        const char *suffix = level_suffix(o->report->metrics[i].name, j->metric);
+        if (suffix && metricf(o, o->report->metrics[i].value, "%s%s", k->metric, suffix)) return SC_ENOMEM;
+    }
+    o->crack_total += t->cracks, o->pinhole_total += t->pinholes, o->fold_total += t->folds;
+    return metricf(o, j_index, "%s.repeats_level", k->metric) ? SC_ENOMEM : SC_OK;
+}
+
+/* The pictures of level j again under level k's name (after the encoder has
+ * finished): "render/lod1_sheet.png" as "render/lod2_sheet.png". */
+static int repeat_pictures(outcome *o, const level_label *j, const level_label *k) {
+    size_t nf = strlen(o->folder), nj = strlen(j->file);
+    int32_t n = o->report->nfiles;
+    for (int32_t i = 0; i < n; i++) {
+        const sc_report_file *f = &o->report->files[i];
+        if (strncmp(f->path, o->folder, nf) != 0 || f->path[nf] != '/') continue;
+        const char *base = f->path + nf + 1;
+        if (strncmp(base, j->file, nj) != 0 || base[nj] != '_') continue;
+        char path[256];
+        snprintf(path, sizeof path, "%s/%s%s", o->folder, k->file, base + nj);
+        const sc_bytes *b = f->bytes->as.bytes;
+        void *copy = malloc(b->size ? b->size : 1);
+        if (!copy) return SC_ENOMEM;
+        memcpy(copy, b->data, b->size);
+        if (sc_report_add_file(o->report, path, copy, b->size) != SC_OK) return SC_ENOMEM;
+    }
+    return SC_OK;
+}
+
 static int run(sc_ctx *ctx, sc_error *err) {
     double t_start = sc_now();
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
@@ -2061,6 +2118,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc == SC_OK) rc = sc_gl_target_create(&R.target, J.size, J.size, err);
     if (rc == SC_OK && reference) rc = render_reference(&R, reference, &J, &o, err);
     int lod = -1, mip = 0;
+    level_label *labels = calloc((size_t)nlevels, sizeof *labels);
+    level_tally *tallies = calloc((size_t)nlevels, sizeof *tallies);
+    int32_t *repeats = calloc((size_t)nlevels, sizeof *repeats);
+    if (rc == SC_OK && (!labels || !tallies || !repeats)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t k = 0; k < nlevels && rc == SC_OK; k++) {
         const sc_atlas *a = lods ? lods->levels[k]->as.atlas : single;
         if (k > 0 && is_mip_of(a, lods->levels[k - 1]->as.atlas)) mip++;
@@ -2082,10 +2143,20 @@ static int run(sc_ctx *ctx, sc_error *err) {
             snprintf(label.file, sizeof label.file, "lod%d", lod);
             snprintf(label.human, sizeof label.human, "lod %d", lod);
         }
+        labels[k] = label;
+        repeats[k] = same_level_before(lods, k);
+        if (repeats[k] >= 0) {
+            if (repeat_level(&o, &labels[repeats[k]], &label, repeats[k], &tallies[repeats[k]]) != SC_OK)
+                rc = sc_fail(err, SC_ENOMEM, "out of memory");
+            continue;
+        }
         char who[48];
         if (lods) snprintf(who, sizeof who, "lods: level %d", k);
         else snprintf(who, sizeof who, "atlas");
+        level_tally before = {o.crack_total, o.pinhole_total, o.fold_total};
         rc = run_level(&R, a, &label, who, want, levels, ntess, &J, &o, err);
+        tallies[k] = (level_tally){o.crack_total - before.cracks, o.pinhole_total - before.pinholes,
+                                   o.fold_total - before.folds};
     }
     if (rc == SC_OK &&
         (metric(&o, "levels", nlevels) || metric(&o, "views", J.nviews) || metric(&o, "size", J.size) ||
@@ -2102,6 +2173,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     t0 = sc_now();
     int rc_png = encoder_finish(&enc, rc == SC_OK ? o.report : NULL, err);
     if (rc == SC_OK) rc = rc_png;
+    for (int32_t k = 0; k < nlevels && rc == SC_OK; k++)
+        if (repeats[k] >= 0 && repeat_pictures(&o, &labels[repeats[k]], &labels[k]) != SC_OK)
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    free(labels), free(tallies), free(repeats);
     double t_encode = enc.seconds, t_drain = sc_now() - t0;
     free(views);
     free(J.reference);
@@ -2179,7 +2254,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 16,
+    .version = 17,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

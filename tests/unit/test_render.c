@@ -12,6 +12,7 @@
  * face (an open mesh). Levels of detail of the flat cube are the same cube
  * with a coarser grid and the very same textures.
  */
+#include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
@@ -661,6 +662,41 @@ SC_TEST(levels_share_textures_and_all_stay_crack_free) {
     sc_ctx_free(r.ctx);
     sc_value_release(lods);
     sc_value_release(l0), sc_value_release(l1), sc_value_release(l2);
+    cube_textures_free(&tex);
+}
+
+/* A level whose atlas is an earlier level's (equal digests: a decimation
+ * that stopped gives its next level the same mesh) is not drawn again: its
+ * metrics and pictures are the earlier level's, and it counts in the totals
+ * as often as it appears. Level 2 here is built apart from level 0 with the
+ * same content; the cracks of the split cube show under both names. */
+SC_TEST(a_repeated_level_is_checked_once_with_the_same_results) {
+    cube_textures tex = cube_textures_make(0);
+    sc_value *split = cube_atlas(4, CUBE_SPLIT | CUBE_NO_POSITIONS, &tex);
+    sc_value *whole = cube_atlas(2, CUBE_NO_POSITIONS, &tex);
+    sc_value *again = cube_atlas(4, CUBE_SPLIT | CUBE_NO_POSITIONS, &tex);
+    const char *const params[] = {"size", "128", "modes", "textured", NULL};
+    run_result one = render(NULL, split, NULL, params), other = render(NULL, whole, NULL, params);
+    SC_CHECK(one.rc == SC_OK && other.rc == SC_OK);
+    sc_value *lods = lods_of((sc_value *const[]){split, whole, again}, 3);
+    run_result r = render(lods, NULL, NULL, params);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK_INT(M(&r, "renders"), M(&one, "renders") + M(&other, "renders"));
+    double cracks = M(&one, "lod0.textured.crack_pixels");
+    SC_CHECK_MSG(cracks > 50, "%g", cracks);
+    SC_CHECK_INT(M(&r, "lod0.textured.crack_pixels"), cracks);
+    SC_CHECK_INT(M(&r, "lod2.textured.crack_pixels"), cracks);
+    SC_CHECK_INT(M(&r, "lod2.faces"), M(&r, "lod0.faces"));
+    SC_CHECK_INT(M(&r, "lod2.repeats_level"), 0);
+    SC_CHECK(isnan(M(&r, "lod1.repeats_level")) && isnan(M(&r, "lod0.repeats_level")));
+    SC_CHECK_INT(M(&r, "crack_pixels"), 2 * cracks + M(&other, "crack_pixels"));
+    int64_t marks0 = pixels_of_colour(&r, "render/lod0_sheet.png", yellow);
+    SC_CHECK_MSG(marks0 > 20 && pixels_of_colour(&r, "render/lod2_sheet.png", yellow) == marks0, "%lld %lld",
+                 (long long)marks0, (long long)pixels_of_colour(&r, "render/lod2_sheet.png", yellow));
+    SC_CHECK(has_file(&r, "render/lod1_sheet.png"));
+    sc_ctx_free(r.ctx), sc_ctx_free(one.ctx), sc_ctx_free(other.ctx);
+    sc_value_release(lods);
+    sc_value_release(split), sc_value_release(whole), sc_value_release(again);
     cube_textures_free(&tex);
 }
 
