@@ -637,6 +637,28 @@ static int collect_files(sc_report *r, chain_files *out, int32_t nchains, sc_err
     return rc;
 }
 
+/* The files of a repeated source under its own name: "mip/lod1_..." again
+ * as "mip/lod2_..." (the report's files up to now are the chains'). */
+static int repeat_files(sc_report *r, int32_t j, int32_t k, sc_error *err) {
+    char from[32], to[32];
+    snprintf(from, sizeof from, "mip/lod%d_", j);
+    snprintf(to, sizeof to, "mip/lod%d_", k);
+    size_t nf = strlen(from);
+    int32_t n = r->nfiles;
+    for (int32_t i = 0; i < n; i++) {
+        const sc_report_file *f = &r->files[i];
+        if (strncmp(f->path, from, nf) != 0) continue;
+        char path[320];
+        snprintf(path, sizeof path, "%s%s", to, f->path + nf);
+        const sc_bytes *b = f->bytes->as.bytes;
+        void *copy = malloc(b->size ? b->size : 1);
+        if (!copy) return sc_fail(err, SC_ENOMEM, "out of memory");
+        memcpy(copy, b->data, b->size);
+        if (sc_report_add_file(r, path, copy, b->size) != SC_OK) return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    return SC_OK;
+}
+
 /* ---------------------------------------------------------------- groups */
 
 /* What one group did. */
@@ -743,6 +765,7 @@ typedef struct mip_run {
     int32_t nchains;
     int32_t *map;                /* (source, texture) -> chain + 1 */
     int32_t *first_tex;          /* source k's first entry in map */
+    int32_t *repeats;            /* per source: the earlier source with the same atlas, or -1 */
     int32_t nmip, nall;          /* levels output (down to min_size), levels built (down to 1 x 1) */
     sc_value *union_mesh;        /* the erase mesh of the shared chains; NULL when none */
     chain_files *files;          /* per chain */
@@ -771,13 +794,16 @@ static bool alloc_chains(mip_run *r) {
     r->chains = calloc((size_t)cap + 1, sizeof *r->chains);
     r->map = calloc((size_t)cap + 1, sizeof *r->map);
     r->first_tex = calloc((size_t)r->nsrc + 1, sizeof *r->first_tex);
-    return r->chains && r->map && r->first_tex;
+    r->repeats = calloc((size_t)r->nsrc + 1, sizeof *r->repeats);
+    return r->chains && r->map && r->first_tex && r->repeats;
 }
 
 /* The chains: a shared one for each texture of level 0 that every other
  * source has too (2 to 256 sources; in level 0's texture order), then one
- * per other texture of each source. */
-static void make_chains(mip_run *r) {
+ * per other texture of each source. A source whose atlas is an earlier
+ * source's (by digest: a decimation that stopped repeats its mesh, and the
+ * bake its maps) takes that source's chains. */
+static void make_chains(mip_run *r, const sc_lods *lods) {
     const int32_t nsrc = r->nsrc;
     const sc_atlas **src = r->src;
     for (int32_t k = 1; k <= nsrc; k++) r->first_tex[k] = r->first_tex[k - 1] + src[k - 1]->ntex;
@@ -797,12 +823,21 @@ static void make_chains(mip_run *r) {
         for (int32_t k = 1; k < nsrc; k++) r->map[r->first_tex[k] + idx[k]] = r->nchains + 1;
         r->nchains++;
     }
-    for (int32_t k = 0; k < nsrc; k++)
+    for (int32_t k = 0; k < nsrc; k++) {
+        int32_t j = -1;
+        for (int32_t i = 0; lods && i < k && j < 0; i++)
+            if (sc_digest_equal(&lods->levels[i]->digest, &lods->levels[k]->digest)) j = i;
+        r->repeats[k] = j;
         for (int32_t t = 0; t < src[k]->ntex; t++) {
             if (r->map[r->first_tex[k] + t]) continue;
+            if (j >= 0) {   /* the same texture list: j's chains, made already */
+                r->map[r->first_tex[k] + t] = r->map[r->first_tex[j] + t];
+                continue;
+            }
             r->chains[r->nchains] = (chain){.tex = &src[k]->textures[t], .group = k, .source = r->lods ? k : -1};
             r->map[r->first_tex[k] + t] = ++r->nchains;
         }
+    }
 }
 
 /* Each chain's length (down to 1 x 1), and the levels output and built. */
@@ -988,7 +1023,7 @@ static void mip_run_free(mip_run *r) {
         for (int m = 0; m < MAX_MIP; m++)
             sc_value_release(r->chains[c].native[m]), sc_value_release(r->chains[c].f32[m]);
     sc_value_release(r->union_mesh);
-    free(r->chains), free(r->map), free(r->first_tex), free(r->src);
+    free(r->chains), free(r->map), free(r->first_tex), free(r->repeats), free(r->src);
 }
 
 static int run(sc_ctx *ctx, sc_error *err) {
@@ -1015,7 +1050,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     /* the chains, and the erase meshes: each source's own, and the union for shared chains */
     if (!alloc_chains(&r)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK) {
-        make_chains(&r);
+        make_chains(&r, lods);
         chain_lengths(&r, min_size);
         rc = make_union_mesh(&r, err);
     }
@@ -1042,6 +1077,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
         /* frees the buffers either way */
         int frc = collect_files(rc == SC_OK ? r.report : NULL, r.files, r.nchains, err);
         if (rc == SC_OK) rc = frc;
+        for (int32_t k = 0; k < nsrc && rc == SC_OK; k++)
+            if (r.repeats[k] >= 0) rc = repeat_files(r.report, r.repeats[k], k, err);
         free(r.files);
         r.files = NULL;
     }
@@ -1092,7 +1129,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imag
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 11,
+    .version = 12,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -286,6 +286,57 @@ SC_TEST(a_one_texel_crack_shows_at_every_mip_level) {
     sc_value_release(atlas);
 }
 
+/* A level of detail whose atlas is an earlier one's (a decimation that
+ * stopped repeats its mesh, and the bake its maps) takes that level's
+ * chains: no chain and no erase run more than without it, its files the
+ * same bytes under its own name, its levels and seam energies the same. */
+SC_TEST(a_repeated_level_takes_the_chains_of_the_first) {
+    sc_value *atlas = NULL;
+    sc_value *lods = baked_lods(&atlas, NULL);
+    if (!lods) goto done;
+    const sc_lods *in = lods->as.lods;
+    sc_lods *more = sc_lods_new();
+    for (int k = 0; k < in->count; k++) sc_lods_add(more, sc_value_retain(in->levels[k]));
+    sc_lods_add(more, sc_value_retain(in->levels[1]));
+    sc_value *repeated = sc_value_new_lods(more);
+    const char *mp[] = {"min_size", "16", NULL};
+    sc_test_run a = sc_test_run_node(&sc_node_mipmap, mp, "lods", lods, NULL, NULL);
+    sc_test_run b = sc_test_run_node(&sc_node_mipmap, mp, "lods", repeated, NULL, NULL);
+    SC_CHECK_MSG(a.rc == SC_OK && b.rc == SC_OK, "%s %s", a.err.message, b.err.message);
+    if (a.rc == SC_OK && b.rc == SC_OK) {
+        int k = in->count;   /* the repeat's index */
+        SC_CHECK_INT(sc_ctx_metric_value(b.ctx, "chains"), sc_ctx_metric_value(a.ctx, "chains"));
+        SC_CHECK_INT(sc_ctx_metric_value(b.ctx, "erase_runs"), sc_ctx_metric_value(a.ctx, "erase_runs"));
+        const sc_lods *la = sc_ctx_output(a.ctx, 0)->as.lods, *lb = sc_ctx_output(b.ctx, 0)->as.lods;
+        int nmip = la->count / in->count;
+        SC_CHECK_INT(lb->count, (in->count + 1) * nmip);
+        for (int m = 0; m < nmip && lb->count == (in->count + 1) * nmip; m++)
+            SC_CHECK(sc_digest_equal(&lb->levels[k * nmip + m]->digest, &la->levels[nmip + m]->digest));
+        char e1[64], ek[64];
+        snprintf(e1, sizeof e1, "lod1.level0.seam_energy");
+        snprintf(ek, sizeof ek, "lod%d.level0.seam_energy", k);
+        SC_CHECK(sc_ctx_metric_value(b.ctx, ek) == sc_ctx_metric_value(a.ctx, e1));
+        const sc_report *ra = sc_ctx_output(a.ctx, 1)->as.report, *rb = sc_ctx_output(b.ctx, 1)->as.report;
+        int copies = 0;
+        for (int i = 0; i < ra->nfiles; i++) {
+            if (strncmp(ra->files[i].path, "mip/lod1_", 9) != 0) continue;
+            char path[320];
+            snprintf(path, sizeof path, "mip/lod%d_%s", k, ra->files[i].path + 9);
+            const sc_report_file *f = find_file(rb, path);
+            const sc_bytes *x = ra->files[i].bytes->as.bytes, *y = f ? f->bytes->as.bytes : NULL;
+            SC_CHECK_MSG(y && x->size == y->size && memcmp(x->data, y->data, x->size) == 0, "%s", path);
+            copies++;
+        }
+        SC_CHECK(copies > 0);
+        SC_CHECK_INT(rb->nfiles, ra->nfiles + copies);
+    }
+    sc_ctx_free(a.ctx), sc_ctx_free(b.ctx);
+    sc_value_release(repeated);
+done:
+    sc_value_release(lods);
+    sc_value_release(atlas);
+}
+
 SC_TEST(single_atlas_chain_to_one_texel_with_8bit_colour) {
     sc_value *atlas = NULL, *baked_atlas = NULL;
     sc_value *lods = baked_lods(&atlas, &baked_atlas);
