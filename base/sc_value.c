@@ -354,6 +354,23 @@ int sc_report_add_file(sc_report *r, const char *path, void *data, size_t size) 
     return SC_OK;
 }
 
+int sc_report_copy_files(sc_report *r, const char *from, const char *to) {
+    size_t n = strlen(from);
+    int32_t count = r->nfiles;
+    for (int32_t i = 0; i < count; i++) {
+        if (strncmp(r->files[i].path, from, n) != 0) continue;
+        sc_report_file *f = realloc(r->files, sizeof *f * (size_t)(r->nfiles + 1));
+        if (!f) return SC_ENOMEM;
+        r->files = f;
+        char *path = sc_strprintf("%s%s", to, f[i].path + n);
+        if (!path) return SC_ENOMEM;
+        f[r->nfiles].path = path;
+        f[r->nfiles].bytes = sc_value_retain(f[i].bytes);
+        r->nfiles++;
+    }
+    return SC_OK;
+}
+
 void sc_report_free(sc_report *r) {
     if (!r) return;
     for (int32_t i = 0; i < r->nmetrics; i++) free(r->metrics[i].name);

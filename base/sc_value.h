@@ -229,6 +229,9 @@ void sc_lods_free(sc_lods *l);
 sc_report *sc_report_new(void);
 int sc_report_metric(sc_report *r, const char *name, double value);
 int sc_report_add_file(sc_report *r, const char *path, void *data, size_t size); /* takes data */
+/* Every file whose path starts with `from` again, `from` replaced by `to`,
+ * sharing its bytes: a level that repeats another's pictures. */
+int sc_report_copy_files(sc_report *r, const char *from, const char *to);
 void sc_report_free(sc_report *r);
 
 /* ---------------------------------------------------------------- storage */

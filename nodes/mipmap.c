@@ -643,20 +643,7 @@ static int repeat_files(sc_report *r, int32_t j, int32_t k, sc_error *err) {
     char from[32], to[32];
     snprintf(from, sizeof from, "mip/lod%d_", j);
     snprintf(to, sizeof to, "mip/lod%d_", k);
-    size_t nf = strlen(from);
-    int32_t n = r->nfiles;
-    for (int32_t i = 0; i < n; i++) {
-        const sc_report_file *f = &r->files[i];
-        if (strncmp(f->path, from, nf) != 0) continue;
-        char path[320];
-        snprintf(path, sizeof path, "%s%s", to, f->path + nf);
-        const sc_bytes *b = f->bytes->as.bytes;
-        void *copy = malloc(b->size ? b->size : 1);
-        if (!copy) return sc_fail(err, SC_ENOMEM, "out of memory");
-        memcpy(copy, b->data, b->size);
-        if (sc_report_add_file(r, path, copy, b->size) != SC_OK) return sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    return SC_OK;
+    return sc_report_copy_files(r, from, to) == SC_OK ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
 }
 
 /* ---------------------------------------------------------------- groups */

@@ -2027,22 +2027,10 @@ static int repeat_level(outcome *o, const level_label *j, const level_label *k, 
 /* The pictures of level j again under level k's name (after the encoder has
  * finished): "render/lod1_sheet.png" as "render/lod2_sheet.png". */
 static int repeat_pictures(outcome *o, const level_label *j, const level_label *k) {
-    size_t nf = strlen(o->folder), nj = strlen(j->file);
-    int32_t n = o->report->nfiles;
-    for (int32_t i = 0; i < n; i++) {
-        const sc_report_file *f = &o->report->files[i];
-        if (strncmp(f->path, o->folder, nf) != 0 || f->path[nf] != '/') continue;
-        const char *base = f->path + nf + 1;
-        if (strncmp(base, j->file, nj) != 0 || base[nj] != '_') continue;
-        char path[256];
-        snprintf(path, sizeof path, "%s/%s%s", o->folder, k->file, base + nj);
-        const sc_bytes *b = f->bytes->as.bytes;
-        void *copy = malloc(b->size ? b->size : 1);
-        if (!copy) return SC_ENOMEM;
-        memcpy(copy, b->data, b->size);
-        if (sc_report_add_file(o->report, path, copy, b->size) != SC_OK) return SC_ENOMEM;
-    }
-    return SC_OK;
+    char from[96], to[96];
+    snprintf(from, sizeof from, "%s/%s_", o->folder, j->file);
+    snprintf(to, sizeof to, "%s/%s_", o->folder, k->file);
+    return sc_report_copy_files(o->report, from, to);
 }
 
 static int run(sc_ctx *ctx, sc_error *err) {

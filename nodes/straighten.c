@@ -1095,8 +1095,8 @@ static int warp_step(job *J, int steps, sc_error *err) {
 typedef struct render_list {
     const job *J;
     int32_t pad;
-    int32_t *todo, ntodo;   /* texture indices */
-    sc_image_data **im;     /* per entry of todo */
+    int32_t *which, count;   /* the textures re-rendered (indices) */
+    sc_image_data **im;     /* per entry of which */
     bool *tangent;
     sc_error *errs;
 } render_list;
@@ -1104,7 +1104,7 @@ typedef struct render_list {
 static int render_one(void *ud, int32_t k) {
     render_list *L = ud;
     const job *J = L->J;
-    const sc_texture *tex = &J->atlas->textures[L->todo[k]];
+    const sc_texture *tex = &J->atlas->textures[L->which[k]];
     int rc = sc_erase_takes_tangent_space(J->mesh, tex, J->normals, &L->tangent[k], &L->errs[k]);
     if (rc == SC_OK)
         rc = L->tangent[k] ? warp_tangent_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, &L->im[k], &L->errs[k])
@@ -1117,11 +1117,11 @@ static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err)
     const sc_mesh *m = J->mesh;
     *rendered = 0;
     int32_t *source = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *source);   /* the texture it copies, or -1 */
-    render_list L = {.J = J, .pad = pad, .todo = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.todo)};
+    render_list L = {.J = J, .pad = pad, .which = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.which)};
     L.im = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.im);
     L.tangent = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.tangent);
     L.errs = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.errs);
-    int rc = source && L.todo && L.im && L.tangent && L.errs ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    int rc = source && L.which && L.im && L.tangent && L.errs ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
         const sc_texture *tex = &atlas->textures[i];
         bool touched = false;
@@ -1131,28 +1131,28 @@ static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err)
             if (source[j] == j && atlas->textures[j].image == tex->image && atlas->textures[j].material == tex->material &&
                 atlas->textures[j].wrap_u == tex->wrap_u && atlas->textures[j].wrap_v == tex->wrap_v)
                 source[i] = j;
-        if (source[i] == i) L.todo[L.ntodo++] = i;
+        if (source[i] == i) L.which[L.count++] = i;
     }
-    int failed = rc == SC_OK ? sc_parallel(sc_ctx_threads(J->ctx), L.ntodo, render_one, &L) : SC_OK;
+    int failed = rc == SC_OK ? sc_parallel(sc_ctx_threads(J->ctx), L.count, render_one, &L) : SC_OK;
     if (failed != SC_OK) {   /* the first texture's error, or sc_parallel's own */
         rc = sc_fail(err, failed, "straighten: out of memory");
-        for (int32_t k = 0; k < L.ntodo; k++)
+        for (int32_t k = 0; k < L.count; k++)
             if (L.errs[k].code != SC_OK) {
                 rc = sc_fail(err, L.errs[k].code, "%s", L.errs[k].message);
                 break;
             }
     }
-    for (int32_t k = 0; k < L.ntodo; k++) {
-        if (rc == SC_OK && !(J->images[L.todo[k]] = sc_value_new_image(L.im[k])))
+    for (int32_t k = 0; k < L.count; k++) {
+        if (rc == SC_OK && !(J->images[L.which[k]] = sc_value_new_image(L.im[k])))
             rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-        else if (!J->images[L.todo[k]])
+        else if (!J->images[L.which[k]])
             sc_image_free(L.im[k]);
         J->tangent_maps += L.tangent[k];
         (*rendered)++;
     }
     for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++)
         if (source[i] >= 0 && source[i] != i) J->images[i] = sc_value_retain(J->images[source[i]]);
-    free(source), free(L.todo), free(L.im), free(L.tangent), free(L.errs);
+    free(source), free(L.which), free(L.im), free(L.tangent), free(L.errs);
     return rc;
 }
 

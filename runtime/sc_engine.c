@@ -1036,6 +1036,12 @@ static void keep_deps_of_failure(sc_node_result *r, const sc_ctx *ctx) {
 static void store_work(uv_work_t *req);
 static void store_done(uv_work_t *req, int status);
 
+/* What an action's record is built from, freed. */
+static void free_record(sc_cache_dep *deps, int ndeps, char *outputs, char *record) {
+    for (int d = 0; deps && d < ndeps; d++) free(deps[d].path);
+    free(deps), free(outputs), free(record);
+}
+
 static void run_done(uv_work_t *req, int status) {
     (void)status;
     job *j = req->data;
@@ -1091,8 +1097,7 @@ static void run_done(uv_work_t *req, int status) {
             pump(e);
             return;
         }
-        for (int d = 0; deps && d < nd; d++) free(deps[d].path);
-        free(outputs), free(deps), free(record);
+        free_record(deps, nd, outputs, record);
         give_lease_back(e, i);
         fail_node(e, i, rc, &j->err);
     } else {
@@ -1151,8 +1156,8 @@ static void store_done(uv_work_t *req, int status) {
         r->status = SC_STATUS_FAILED;
         e->run->ran--, e->run->failed++;
     }
-    for (int d = 0; j->deps && d < j->ndeps; d++) free(j->deps[d].path);
-    free(j->outputs), free(j->deps), free(j->record), free(j->stored.blobs);
+    free_record(j->deps, j->ndeps, j->outputs, j->record);
+    free(j->stored.blobs);
     sc_ctx_free(j->ctx);
     free(j);
     show_progress(e);
