@@ -5,7 +5,8 @@
  * Usage: bench_decimate [CORPUS_DIR] [asset,asset,...] [key=value ...]
  *   CORPUS_DIR defaults to ../shared/corpus next to the source tree; each
  *   key=value is passed to every decimate run (error_weight=0: the quadric
- *   alone, without error tracking).
+ *   alone, without error tracking), but methods=aware,straight, say, which
+ *   runs only the methods named.
  *
  * Per asset: load it (load_atlas), erase its colour texture's seams
  * (erase_seams, f32 output), then for each target and method report
@@ -309,6 +310,7 @@ int main(int argc, char **argv) {
     enum { MAX_EXTRA = 16 };
     char *extra[2 * MAX_EXTRA + 1] = {NULL};
     int nextra = 0;
+    const char *methods = NULL;
     for (int i = 3; i < argc && nextra < 2 * MAX_EXTRA; i++) {
         char *eq = strchr(argv[i], '=');
         if (!eq) {
@@ -316,6 +318,10 @@ int main(int argc, char **argv) {
             return 2;
         }
         *eq = 0;
+        if (!strcmp(argv[i], "methods")) {   /* the bench's own: which methods run */
+            methods = eq + 1;
+            continue;
+        }
         extra[nextra++] = argv[i];
         extra[nextra++] = eq + 1;
         printf("decimate %s = %s\n", argv[i], eq + 1);
@@ -370,7 +376,7 @@ int main(int argc, char **argv) {
             static const char *const modes[] = {"aware", "fixed", "free", "aware"};
             for (int mo = 0; mo < 4; mo++) {
                 sc_value *source = mo < 3 ? atlas : straight_atlas;
-                if (!source) continue;
+                if (!source || (methods && !strstr(methods, names[mo]))) continue;
                 const sc_atlas *ref = mo < 3 ? erased : straight_atlas->as.atlas;
                 const char *kv[8 + 2 * MAX_EXTRA + 1] = {"faces", faces, "seam_mode", modes[mo], "hausdorff_samples", "0"};
                 for (int i = 0; i <= nextra; i++) kv[6 + i] = extra[i];

@@ -322,8 +322,8 @@ typedef struct collapse_plan {
  * to float: a query filters the cell's faces by box without leaving the
  * cell's memory. */
 typedef struct grid_item {
-    int32_t face;
-    float lo[3], hi[3];
+    int32_t face, v[3];   /* the face and its vertices, */
+    float lo[3], hi[3];   /* its box (float, rounded outwards) */
 } grid_item;
 
 /* Live faces by the cells of a uniform grid their bounding boxes overlap
@@ -336,14 +336,23 @@ typedef struct face_grid {
     int32_t built_faces;           /* live faces when built */
     uint32_t *seen, stamp;         /* per face: the last query that met it */
     struct fan_entry *fan;         /* scratch: the new fan of a query */
-    int32_t fan_cap;
+    float *fan_box;                /* its boxes: 6 rows of fan_cap (lo x, y, z, hi x, y, z) */
+    int32_t *met;                  /* scratch: the fan faces (or cell items) a box meets */
+    int32_t fan_cap, met_cap;
 } face_grid;
 
-/* A face of a collapse's new fan: its corners, vertices and box. */
-typedef struct fan_entry {
+/* A triangle ready for crossing tests: its corners, its normal (not unit),
+ * the normal's length and its longest edge, each computed once per query
+ * however many triangles it meets. */
+typedef struct crossing_triangle {
     const double *P[3];
+    double n[3], len, longest;
+} crossing_triangle;
+
+/* A face of a collapse's new fan: the triangle and its vertices. */
+typedef struct fan_entry {
+    crossing_triangle T;
     int32_t v[3];
-    double lo[3], hi[3];
 } fan_entry;
 
 typedef struct state {
@@ -1271,10 +1280,6 @@ static bool creases_ok(state *st, const collapse_plan *p) {
 
 /* ---------------------------------------------------------------- crossings */
 
-/* Whether triangles A and B cross: each meets the other's plane, and the
- * segments where they meet the line of the two planes overlap by more than
- * a billionth of their size. Triangles in one plane, or that only touch,
- * do not cross. */
 /* The signed distances d of T's corners from the plane through o with
  * normal n of length len, those within eps set to 0; how many lie above and
  * below. */
@@ -1290,25 +1295,33 @@ static void plane_sides(const double *const T[3], const double *o, const double 
     }
 }
 
-static bool triangles_cross(const double *const A[3], const double *const B[3]) {
-    double na[3], nb[3], da[3], db[3], scale = 0;
-    sc_triangle_normal(A[0], A[1], A[2], na);
-    sc_triangle_normal(B[0], B[1], B[2], nb);
-    for (int k = 0; k < 3; k++) scale = fmax(scale, fmax(sc_dist3(A[k], A[(k + 1) % 3]), sc_dist3(B[k], B[(k + 1) % 3])));
-    double la = sc_norm3(na), lb = sc_norm3(nb), eps = 1e-9 * scale;
-    if (!(la > 0 && lb > 0)) return false;
+static void crossing_prepare(const double *const P[3], crossing_triangle *t) {
+    for (int k = 0; k < 3; k++) t->P[k] = P[k];
+    sc_triangle_normal(P[0], P[1], P[2], t->n);
+    t->len = sc_norm3(t->n);
+    t->longest = 0;
+    for (int k = 0; k < 3; k++) t->longest = fmax(t->longest, sc_dist3(P[k], P[(k + 1) % 3]));
+}
+
+/* Whether triangles A and B cross: each meets the other's plane, and the
+ * segments where they meet the line of the two planes overlap by more than
+ * a billionth of their size. Triangles in one plane, or that only touch,
+ * do not cross. */
+static bool triangles_cross(const crossing_triangle *A, const crossing_triangle *B) {
+    double da[3], db[3], eps = 1e-9 * fmax(A->longest, B->longest);
+    if (!(A->len > 0 && B->len > 0)) return false;
     int above, below;
-    plane_sides(A, B[0], nb, lb, eps, da, &above, &below);
+    plane_sides(A->P, B->P[0], B->n, B->len, eps, da, &above, &below);
     if (above == 3 || below == 3 || (above == 0 && below == 0)) return false;
-    plane_sides(B, A[0], na, la, eps, db, &above, &below);
+    plane_sides(B->P, A->P[0], A->n, A->len, eps, db, &above, &below);
     if (above == 3 || below == 3) return false;
     /* both meet the line of the planes; compare their segments on its longest axis */
     double line[3];
-    sc_cross3(na, nb, line);
+    sc_cross3(A->n, B->n, line);
     int axis = fabs(line[0]) > fabs(line[1]) ? (fabs(line[0]) > fabs(line[2]) ? 0 : 2) : (fabs(line[1]) > fabs(line[2]) ? 1 : 2);
     double seg[2][2];
     for (int t = 0; t < 2; t++) {
-        const double *const *T = t ? B : A;
+        const double *const *T = t ? B->P : A->P;
         const double *d = t ? db : da;
         double lo = INFINITY, hi = -INFINITY;
         for (int k = 0; k < 3; k++) {
@@ -1324,19 +1337,35 @@ static bool triangles_cross(const double *const A[3], const double *const B[3]) 
     return fmin(seg[0][1], seg[1][1]) - fmax(seg[0][0], seg[1][0]) > eps;
 }
 
+/* Whether Q's corners all lie on one side of A's plane, farther from it than
+ * triangles_cross's tolerance could be for a triangle whose longest edge is
+ * at most q_size: then the two do not cross (Q not yet prepared). */
+static bool one_side(const crossing_triangle *A, const double *const Q[3], double q_size) {
+    double eps = 1e-9 * fmax(A->longest, q_size);
+    if (!(A->len > 0)) return true;
+    int above = 0, below = 0;
+    for (int k = 0; k < 3; k++) {
+        double x[3];
+        sc_sub3(Q[k], A->P[0], x);
+        double d = sc_dot3(A->n, x) / A->len;   /* as plane_sides computes it */
+        above += d > eps, below += d < -eps;
+    }
+    return above == 3 || below == 3;
+}
+
 static void grid_free(face_grid *g) {
     int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
     for (int64_t c = 0; g->items && c < cells; c++) free(g->items[c]);
-    free(g->items), free(g->len), free(g->cap), free(g->seen), free(g->fan);
+    free(g->items), free(g->len), free(g->cap), free(g->seen), free(g->fan), free(g->fan_box), free(g->met);
     memset(g, 0, sizeof *g);
 }
 
 /* The cell range [c0, c1] of a bounding box, clamped to the grid. */
 static void grid_range(const face_grid *g, const double lo[3], const double hi[3], int32_t c0[3], int32_t c1[3]) {
-    for (int k = 0; k < 3; k++) {
-        double a = floor((lo[k] - g->lo[k]) * g->inv_cell), b = floor((hi[k] - g->lo[k]) * g->inv_cell);
-        c0[k] = a < 0 ? 0 : a >= g->n[k] ? g->n[k] - 1 : (int32_t)a;
-        c1[k] = b < 0 ? 0 : b >= g->n[k] ? g->n[k] - 1 : (int32_t)b;
+    for (int k = 0; k < 3; k++) {   /* truncation is floor where it is not clamped */
+        double a = (lo[k] - g->lo[k]) * g->inv_cell, b = (hi[k] - g->lo[k]) * g->inv_cell;
+        c0[k] = !(a >= 0) ? 0 : a >= g->n[k] ? g->n[k] - 1 : (int32_t)a;
+        c1[k] = !(b >= 0) ? 0 : b >= g->n[k] ? g->n[k] - 1 : (int32_t)b;
     }
 }
 
@@ -1350,10 +1379,49 @@ static void triangle_box(const double *const P[3], double lo[3], double hi[3]) {
     }
 }
 
-/* Whether box (lo, hi) meets a grid item's (float, rounded outwards) box. */
-static bool item_meets(const double *lo, const double *hi, const grid_item *it) {
-    return !(it->lo[0] > hi[0] || it->hi[0] < lo[0] || it->lo[1] > hi[1] || it->hi[1] < lo[1] ||
-             it->lo[2] > hi[2] || it->hi[2] < lo[2]);
+/* Four floats compared at once (GCC and Clang vector extensions). */
+typedef float float4 __attribute__((vector_size(16)));
+typedef int32_t int4 __attribute__((vector_size(16)));
+
+static float4 load4(const float *x) {
+    float4 v;
+    memcpy(&v, x, sizeof v);
+    return v;
+}
+
+static float4 splat4(float x) { return (float4){x, x, x, x}; }
+
+/* Which of n boxes (rows lo x, y, z, hi x, y, z of `stride`, a multiple of
+ * 4, padded with empty boxes) meet the box (lo, hi): their indices into
+ * met, their count returned. Four at a time and without branches, as about
+ * half of them meet at random. */
+static int32_t boxes_meeting(const float *rows, int32_t stride, int32_t n, const float lo[3], const float hi[3],
+                             int32_t *met) {
+    float4 lo0 = splat4(lo[0]), lo1 = splat4(lo[1]), lo2 = splat4(lo[2]);
+    float4 hi0 = splat4(hi[0]), hi1 = splat4(hi[1]), hi2 = splat4(hi[2]);
+    int32_t count = 0;
+    for (int32_t a = 0; a < n; a += 4) {
+        int4 meets = ~(load4(rows + a) > hi0) & ~(load4(rows + 3 * stride + a) < lo0) &
+                     ~(load4(rows + stride + a) > hi1) & ~(load4(rows + 4 * stride + a) < lo1) &
+                     ~(load4(rows + 2 * stride + a) > hi2) & ~(load4(rows + 5 * stride + a) < lo2);
+        for (int i = 0; i < 4; i++) {
+            met[count] = a + i;
+            count += (meets[i] != 0) & (a + i < n);
+        }
+    }
+    return count;
+}
+
+/* Which items of a cell meet the box (lo, hi), the same way. */
+static int32_t items_meeting(const grid_item *items, int32_t n, const float lo[3], const float hi[3], int32_t *met) {
+    int32_t count = 0;
+    for (int32_t x = 0; x < n; x++) {
+        const grid_item *it = &items[x];
+        met[count] = x;
+        count += !(it->lo[0] > hi[0]) & !(it->hi[0] < lo[0]) & !(it->lo[1] > hi[1]) & !(it->hi[1] < lo[1]) &
+                 !(it->lo[2] > hi[2]) & !(it->hi[2] < lo[2]);
+    }
+    return count;
 }
 
 /* x rounded to float downwards (upwards): a rounding past x is taken back
@@ -1382,7 +1450,11 @@ static bool grid_put(state *st, int32_t f, bool add) {
     face_points(st, f, P);
     triangle_box(P, lo, hi);
     grid_item item = {.face = f};
-    for (int k = 0; k < 3; k++) item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
+    if (add)
+        for (int k = 0; k < 3; k++) {
+            item.v[k] = st->fv[3 * f + k];
+            item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
+        }
     grid_range(g, lo, hi, c0, c1);
     for (int32_t i = c0[0]; i <= c1[0]; i++)
         for (int32_t j = c0[1]; j <= c1[1]; j++)
@@ -1447,16 +1519,17 @@ static bool grid_build(state *st) {
 }
 
 static bool shares_vertex(const int32_t *a, const int32_t *b) {
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            if (a[i] == b[j]) return true;
-    return false;
+    int same = 0;   /* without branches: which pairs agree is random */
+    for (int i = 0; i < 3; i++) same |= (a[i] == b[0]) | (a[i] == b[1]) | (a[i] == b[2]);
+    return same != 0;
 }
 
 /* Whether face g (outside the fan) crosses a face around keep or gone now. */
 static bool crossed_before(const state *st, const collapse_plan *p, int32_t g) {
     const double *Q[3], *P[3];
+    crossing_triangle TQ, TP;
     face_points(st, g, Q);
+    crossing_prepare(Q, &TQ);
     for (int side = 0; side < 2; side++) {
         int32_t n;
         const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
@@ -1464,7 +1537,8 @@ static bool crossed_before(const state *st, const collapse_plan *p, int32_t g) {
             int32_t f = list[i];
             if (!st->falive[f] || shares_vertex(st->fv + 3 * f, st->fv + 3 * g)) continue;
             face_points(st, f, P);
-            if (triangles_cross(P, Q)) return true;
+            crossing_prepare(P, &TP);
+            if (triangles_cross(&TP, &TQ)) return true;
         }
     }
     return false;
@@ -1480,23 +1554,38 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
     int32_t need = st->vf_len[p->keep] + st->vf_len[p->gone];
     if (need > grid->fan_cap) {
         fan_entry *fan = realloc(grid->fan, (size_t)need * sizeof *fan);
-        if (!fan) {
+        if (fan) grid->fan = fan;
+        float *box = realloc(grid->fan_box, (size_t)(need + 3) / 4 * 4 * 6 * sizeof *box);
+        if (box) grid->fan_box = box;
+        if (!fan || !box) {
             st->out_of_memory = true;
             return false;
         }
-        grid->fan = fan, grid->fan_cap = need;
+        grid->fan_cap = need;
     }
     double all_lo[3] = {INFINITY, INFINITY, INFINITY}, all_hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    int32_t nfan = 0;
+    int32_t nfan = 0, stride = (grid->fan_cap + 3) / 4 * 4;
     fan_walk walk = {0};
     for (int32_t f; (f = fan_next(st, p, &walk)) >= 0 && nfan < need; nfan++) {
         fan_entry *e = &grid->fan[nfan];
-        const double *W[3];
-        planned_face(st, p, f, e->P, W);
+        const double *P[3], *W[3];
+        double lo[3], hi[3];
+        planned_face(st, p, f, P, W);
+        crossing_prepare(P, &e->T);
         for (int k = 0; k < 3; k++) e->v[k] = st->fv[3 * f + k] == p->gone ? p->keep : st->fv[3 * f + k];
-        triangle_box(e->P, e->lo, e->hi);
-        for (int k = 0; k < 3; k++) all_lo[k] = min2(all_lo[k], e->lo[k]), all_hi[k] = max2(all_hi[k], e->hi[k]);
+        triangle_box(P, lo, hi);
+        for (int k = 0; k < 3; k++) {
+            grid->fan_box[k * stride + nfan] = float_below(lo[k]);
+            grid->fan_box[(3 + k) * stride + nfan] = float_above(hi[k]);
+            all_lo[k] = min2(all_lo[k], lo[k]), all_hi[k] = max2(all_hi[k], hi[k]);
+        }
     }
+    for (int32_t a = nfan; a % 4; a++)   /* empty boxes up to a multiple of 4 */
+        for (int k = 0; k < 3; k++) grid->fan_box[k * stride + a] = INFINITY, grid->fan_box[(3 + k) * stride + a] = -INFINITY;
+    const int32_t fan_ends[3] = {p->keep, p->gone, p->gone};
+    /* boxes compare as floats: rounded outwards, they only let more through */
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = float_below(all_lo[k]), hi[k] = float_above(all_hi[k]);
     if (++grid->stamp == 0) memset(grid->seen, 0, (size_t)st->nf * sizeof *grid->seen), grid->stamp = 1;
     int32_t c0[3], c1[3];
     grid_range(grid, all_lo, all_hi, c0, c1);
@@ -1505,19 +1594,45 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
             for (int32_t k = c0[2]; k <= c1[2]; k++) {
                 int64_t c = ((int64_t)k * grid->n[1] + j) * grid->n[0] + i;
                 const grid_item *items = grid->items[c];
-                for (int32_t x = 0; x < grid->len[c]; x++) {
-                    const grid_item *it = &items[x];
-                    if (!item_meets(all_lo, all_hi, it)) continue;
+                int32_t len = grid->len[c];
+                /* met holds the cell's items that meet, then the fan faces each meets */
+                if (len + nfan + 4 > grid->met_cap) {
+                    int32_t cap = 2 * (len + nfan + 4);
+                    int32_t *met = realloc(grid->met, (size_t)cap * sizeof *met);
+                    if (!met) {
+                        st->out_of_memory = true;
+                        return false;
+                    }
+                    grid->met = met, grid->met_cap = cap;
+                }
+                int32_t nitems = items_meeting(items, len, lo, hi, grid->met);
+                int32_t *fan_met = grid->met + nitems;
+                for (int32_t x = 0; x < nitems; x++) {
+                    const grid_item *it = &items[grid->met[x]];
                     int32_t g = it->face;
                     if (grid->seen[g] == grid->stamp) continue;
                     grid->seen[g] = grid->stamp;
-                    if (in_fan(st, p, g)) continue;
-                    const double *Q[3];
-                    face_points(st, g, Q);
-                    for (int32_t a = 0; a < nfan; a++) {
-                        const fan_entry *e = &grid->fan[a];
-                        if (!item_meets(e->lo, e->hi, it) || shares_vertex(e->v, st->fv + 3 * g)) continue;
-                        if (triangles_cross(e->P, Q) && !crossed_before(st, p, g)) return false;
+                    if (shares_vertex(it->v, fan_ends)) continue;   /* a face of the fan */
+                    crossing_triangle TG;
+                    bool prepared = false;
+                    const double *Q[3] = {NULL, NULL, NULL};
+                    double g_size = 0;
+                    int32_t nmet = boxes_meeting(grid->fan_box, stride, nfan, it->lo, it->hi, fan_met);
+                    for (int32_t m = 0; m < nmet; m++) {
+                        const fan_entry *e = &grid->fan[fan_met[m]];
+                        if (shares_vertex(e->v, it->v)) continue;
+                        if (!Q[0]) {
+                            face_points(st, g, Q);
+                            /* at least g's longest edge: the sum of its box's sides */
+                            g_size = ((double)it->hi[0] - it->lo[0]) + ((double)it->hi[1] - it->lo[1]) +
+                                     ((double)it->hi[2] - it->lo[2]);
+                        }
+                        if (one_side(&e->T, Q, g_size)) continue;
+                        if (!prepared) {
+                            crossing_prepare(Q, &TG);
+                            prepared = true;
+                        }
+                        if (triangles_cross(&e->T, &TG) && !crossed_before(st, p, g)) return false;
                     }
                 }
             }

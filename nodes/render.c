@@ -1744,7 +1744,7 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
  * over it: seam sides red, surface boundaries yellow, foldovers magenta,
  * non-manifold edges cyan. At most UV_PICTURE pixels a side (box-filtered);
  * grey where the material has no colour texture. */
-#define UV_PICTURE 1024
+#define UV_PICTURE 512
 
 static void uv_line(uint8_t *rgba, int32_t w, int32_t h, const double *a, const double *b, const uint8_t c[3]) {
     double x0 = a[0] * w, y0 = (1.0 - a[1]) * h, x1 = b[0] * w, y1 = (1.0 - b[1]) * h;
@@ -2242,7 +2242,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 17,
+    .version = 18,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
