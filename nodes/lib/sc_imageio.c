@@ -85,6 +85,9 @@ const char *sc_image_sniff(const void *bytes, size_t size) { return sc_imageio_s
 
 int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err) {
     *out = NULL;
+    bool declined = true;
+    int rc = sc_imageio_png_decode(name, bytes, size, out, &declined, err);
+    if (rc != SC_OK || !declined) return rc;
     const sc_imageio_codecs *c = get_codecs(err);
     return c ? c->decode(name, bytes, size, out, err) : SC_EIO;
 }

@@ -10,6 +10,7 @@
 #ifndef SC_IMAGEIO_CODECS_H
 #define SC_IMAGEIO_CODECS_H
 
+#include <stdbool.h>
 #include <string.h>
 
 #include "sc_value.h"
@@ -35,6 +36,11 @@ typedef struct sc_imageio_codecs {
 
 /* PNG writing, in C (sc_imageio_png.c): sc_image_encode_png's work. */
 int sc_imageio_png_encode(const sc_image_data *im, int bits, sc_buf *out, sc_error *err);
+/* PNG reading, in C, of the forms sc_imageio_png.c takes: SC_OK with *out,
+ * an error (out of memory), or SC_OK with *declined set and *out NULL for
+ * any other PNG, which OpenImageIO decodes. */
+int sc_imageio_png_decode(const char *name, const void *bytes, size_t size, sc_image_data **out, bool *declined,
+                          sc_error *err);
 
 /* The format the first bytes announce; shared by the module and the loader. */
 static inline const char *sc_imageio_sniff(const void *bytes, size_t size) {

@@ -13,9 +13,19 @@
  *    gives files no larger than zlib's level 6 in less time.
  * The samples are those sc_imageio.h states for PNG: the image's own depth
  * or `bits`, f32 rounded to nearest after the sRGB curve for linear
- * colour (sc_image_quantize). Bytes are deterministic. Decoding stays with
- * OpenImageIO (sc_imageio.cpp).
+ * colour (sc_image_quantize). Bytes are deterministic.
+ *
+ * Decoding takes the forms this writer makes, which are also most PNGs in
+ * the wild: 8 or 16 bits, grey, grey+alpha, RGB or RGBA, not interlaced,
+ * without tRNS, every chunk's CRC right, the image data exactly the size
+ * its rows need. It inflates with libdeflate and undoes the filters, about
+ * ten times faster than OpenImageIO's libpng path (docs/notes/imageio.md),
+ * with the same samples. Any other PNG, damaged ones included, is declined
+ * and goes to OpenImageIO (sc_imageio.cpp), which decodes it or names what
+ * is wrong as before.
  */
+#include <stdbool.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -142,5 +152,141 @@ int sc_imageio_png_encode(const sc_image_data *im, int bits, sc_buf *out, sc_err
                            : NULL;
     int rc = q ? write_png(q, out, err) : sc_fail(err, SC_ENOMEM, "PNG: out of memory");
     sc_image_free(q), sc_image_free(f);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- decoding */
+
+static uint32_t get32(const uint8_t *p) {
+    return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
+}
+
+/* What the chunks of a PNG this reader takes say. */
+typedef struct png_layout {
+    uint32_t width, height;
+    int depth, channels;
+    size_t idat_bytes;   /* all IDAT data together */
+    int idat_chunks;
+} png_layout;
+
+static bool is_type(const uint8_t *t, const char *name) { return memcmp(t, name, 4) == 0; }
+
+/* Walk the chunks (the signature is checked): false for any PNG this reader
+ * does not take. */
+static bool read_layout(const uint8_t *p, size_t size, png_layout *L) {
+    memset(L, 0, sizeof *L);
+    size_t at = 8;
+    bool header = false;
+    while (size - at >= 12) {
+        uint32_t len = get32(p + at);
+        if (len > 0x7fffffffu || len > size - at - 12) return false;
+        const uint8_t *type = p + at + 4, *data = p + at + 8;
+        if (libdeflate_crc32(0, type, 4 + (size_t)len) != get32(data + len)) return false;
+        at += 12 + (size_t)len;
+        if (!header) {   /* IHDR first */
+            if (!is_type(type, "IHDR") || len != 13) return false;
+            L->width = get32(data), L->height = get32(data + 4);
+            int depth = data[8], colour = data[9];
+            static const int channels[7] = {1, 0, 3, 0, 2, 0, 4};   /* by colour type; 0: not taken */
+            if ((depth != 8 && depth != 16) || colour > 6 || !channels[colour]) return false;
+            if (data[10] != 0 || data[11] != 0 || data[12] != 0) return false;   /* deflate, filters, no interlace */
+            L->depth = depth, L->channels = channels[colour];
+            header = true;
+        } else if (is_type(type, "IDAT")) {
+            L->idat_bytes += len, L->idat_chunks++;
+        } else if (is_type(type, "IEND")) {
+            return L->idat_chunks > 0;
+        } else if (is_type(type, "tRNS") || (!(type[0] & 0x20) && !is_type(type, "PLTE"))) {
+            /* transparency that would become alpha, or a critical chunk out of
+             * place; PLTE in a truecolour image is a suggestion, and the other
+             * ancillary chunks change no sample */
+            return false;
+        }
+    }
+    return false;
+}
+
+/* Undo row filter f on raw (n bytes, bpp a pixel) given the previous row. */
+static bool unfilter_row(int f, uint8_t *raw, const uint8_t *prev, size_t n, size_t bpp) {
+    switch (f) {
+    case 0: return true;
+    case 1:
+        for (size_t i = bpp; i < n; i++) raw[i] = (uint8_t)(raw[i] + raw[i - bpp]);
+        return true;
+    case 2:
+        for (size_t i = 0; i < n; i++) raw[i] = (uint8_t)(raw[i] + prev[i]);
+        return true;
+    case 3:
+        for (size_t i = 0; i < bpp; i++) raw[i] = (uint8_t)(raw[i] + (prev[i] >> 1));
+        for (size_t i = bpp; i < n; i++) raw[i] = (uint8_t)(raw[i] + (((unsigned)raw[i - bpp] + prev[i]) >> 1));
+        return true;
+    case 4:
+        for (size_t i = 0; i < bpp; i++) raw[i] = (uint8_t)(raw[i] + prev[i]);
+        for (size_t i = bpp; i < n; i++) raw[i] = (uint8_t)(raw[i] + paeth(raw[i - bpp], prev[i], prev[i - bpp]));
+        return true;
+    default: return false;
+    }
+}
+
+int sc_imageio_png_decode(const char *name, const void *bytes, size_t size, sc_image_data **out, bool *declined,
+                          sc_error *err) {
+    *out = NULL;
+    *declined = true;
+    const uint8_t *p = bytes;
+    png_layout L;
+    if (!p || size < 8 || memcmp(p, "\x89PNG\r\n\x1a\n", 8) != 0 || !read_layout(p, size, &L)) return SC_OK;
+    if (L.width < 1 || L.height < 1 || L.width > SC_IMAGE_MAX_SIDE || L.height > SC_IMAGE_MAX_SIDE ||
+        (uint64_t)L.width * L.height > SC_IMAGE_MAX_PIXELS)
+        return SC_OK;   /* OpenImageIO's reader says why */
+    const size_t bpp = (size_t)L.channels * (size_t)(L.depth / 8), n = bpp * L.width;
+    const size_t raw_size = (n + 1) * L.height;
+    if (raw_size / 1032 > L.idat_bytes + 64) return SC_OK;   /* deflate packs at most 1032:1: data missing */
+    uint8_t *idat = NULL, *raw = malloc(raw_size), *zeros = calloc(n, 1);
+    struct libdeflate_decompressor *z = libdeflate_alloc_decompressor();
+    sc_image_data *im = sc_image_alloc((int32_t)L.width, (int32_t)L.height, L.channels,
+                                       L.depth == 8 ? SC_PIXEL_U8 : SC_PIXEL_U16);
+    int rc = SC_OK;
+    if (!raw || !zeros || !z || !im) {
+        rc = sc_fail(err, SC_ENOMEM, "%s: out of memory for %u x %u pixels", name, L.width, L.height);
+        goto done;
+    }
+    /* the IDAT data as one stream */
+    if (!(idat = malloc(L.idat_bytes ? L.idat_bytes : 1))) {
+        rc = sc_fail(err, SC_ENOMEM, "%s: out of memory", name);
+        goto done;
+    }
+    size_t filled = 0;
+    for (size_t at = 8; size - at >= 12;) {
+        uint32_t len = get32(p + at);
+        if (is_type(p + at + 4, "IDAT")) memcpy(idat + filled, p + at + 8, len), filled += len;
+        if (is_type(p + at + 4, "IEND")) break;
+        at += 12 + (size_t)len;
+    }
+    if (libdeflate_zlib_decompress(z, idat, filled, raw, raw_size, NULL) != LIBDEFLATE_SUCCESS) goto done;
+    const uint8_t *prev = zeros;
+    for (uint32_t y = 0; y < L.height; y++) {
+        uint8_t *row = raw + (size_t)y * (n + 1);
+        if (!unfilter_row(row[0], row + 1, prev, n, bpp)) goto done;
+        prev = row + 1;
+    }
+    /* rows bottom-up; 16-bit samples big-endian in the file */
+    for (uint32_t y = 0; y < L.height; y++) {
+        const uint8_t *src = raw + (size_t)y * (n + 1) + 1;
+        size_t dst_row = (size_t)(L.height - 1 - y) * (size_t)L.width * (size_t)L.channels;
+        if (L.depth == 8) {
+            memcpy((uint8_t *)im->pixels + dst_row, src, n);
+        } else {
+            uint16_t *dst = (uint16_t *)im->pixels + dst_row;
+            for (size_t i = 0; i < n / 2; i++) dst[i] = (uint16_t)(src[2 * i] << 8 | src[2 * i + 1]);
+        }
+    }
+    im->colorspace = SC_COLOR_SRGB;
+    snprintf(im->format, sizeof im->format, "png");
+    *out = im, im = NULL;
+    *declined = false;
+done:
+    free(idat), free(raw), free(zeros);
+    sc_image_free(im);
+    if (z) libdeflate_free_decompressor(z);
     return rc;
 }

@@ -682,14 +682,24 @@ SC_TEST(cache_trims_itself) {
 }
 
 /* cmake --install into a prefix: the installed command runs a graph that
- * reads and writes PNGs with the image module installed beside it (not the
- * build folder's), and the graphs, the Lua reference and the manual are there. */
+ * reads a JPEG (which only the image module decodes; PNGs are read in C)
+ * with the module installed beside it (not the build folder's), and writes
+ * a PNG; the graphs, the Lua reference and the manual are there. */
 SC_TEST(install_into_a_prefix) {
     char *dir = sc_test_tempdir("cli");
     char *build = sc_path_dirname(bin());
     SC_CHECK_INT(sc_test_system("cmake --install '%s' --prefix '%s/prefix' >'%s/install.txt' 2>&1", build, dir, dir), 0);
-    write_png(dir, "64");
+    char *proc = data("proc_save.lua");
+    SC_CHECK_INT(sc_test_system("cd '%s' && '%s' run '%s' --cache jpgcache --out jpgout --set texture_size=64 "
+                                "--set save.format=jpg -q && cp jpgout/asset_default_color.jpg tet.jpg",
+                                dir, bin(), proc), 0);
+    free(proc);
     write_obj_asset(dir, "installed");
+    char *mtl = sc_strprintf("%s/tet.mtl", dir);
+    sc_error werr;
+    const char *jpg_mtl = "newmtl skin\nmap_Kd tet.jpg\n";
+    SC_CHECK(sc_write_file_atomic(mtl, jpg_mtl, strlen(jpg_mtl), &werr) == SC_OK);
+    free(mtl);
     char *g = data("obj_save.lua");
     SC_CHECK_INT(sc_test_system("cd '%s' && LD_DEBUG=files prefix/bin/seamcook run '%s' --cache cache --out out "
                                 "--set mesh=tet.obj -q 2>ld.txt", dir, g), 0);

@@ -68,6 +68,79 @@ static void make_png(sc_buf *png, uint32_t w, uint32_t h, const uint8_t *rgb_top
     sc_buf_free(&raw), sc_buf_free(&z);
 }
 
+/* Deflate as zlib stored blocks, with its Adler-32. */
+static void zlib_stored(const sc_buf *raw, sc_buf *z) {
+    sc_buf_u8(z, 0x78), sc_buf_u8(z, 0x01);
+    uint32_t a = 1, b = 0;
+    for (size_t i = 0; i < raw->len; i++) a = (a + raw->data[i]) % 65521, b = (b + a) % 65521;
+    size_t off = 0;
+    do {
+        size_t n = raw->len - off > 65535 ? 65535 : raw->len - off;
+        sc_buf_u8(z, off + n == raw->len ? 1 : 0);
+        uint8_t len[4] = {(uint8_t)n, (uint8_t)(n >> 8), (uint8_t)~n, (uint8_t)(~n >> 8)};
+        sc_buf_append(z, len, 4);
+        if (n) sc_buf_append(z, raw->data + off, n);
+        off += n;
+    } while (off < raw->len);
+    put_be32(z, (b << 16) | a);
+}
+
+static uint8_t paeth_of(int a, int b, int c) {
+    int p = a + b - c, pa = abs(p - a), pb = abs(p - b), pc = abs(p - c);
+    return (uint8_t)(pa <= pb && pa <= pc ? a : pb <= pc ? b : c);
+}
+
+/* Row `row` (n bytes, bpp a pixel) filtered with filter f (PNG spec, 9.2),
+ * appended to raw after its filter byte. */
+static void filtered_row(sc_buf *raw, int f, const uint8_t *row, const uint8_t *prev, size_t n, size_t bpp) {
+    sc_buf_u8(raw, (uint8_t)f);
+    for (size_t i = 0; i < n; i++) {
+        int a = i >= bpp ? row[i - bpp] : 0, b = prev ? prev[i] : 0, c = i >= bpp && prev ? prev[i - bpp] : 0;
+        int pred = f == 0 ? 0 : f == 1 ? a : f == 2 ? b : f == 3 ? (a + b) / 2 : paeth_of(a, b, c);
+        sc_buf_u8(raw, (uint8_t)(row[i] - pred));
+    }
+}
+
+/* A PNG of w x h, `channels` (grey, grey+alpha, RGB, RGBA) of `depth` bits
+ * from top-down big-endian samples: rows filtered in turn with each of the
+ * five filters, the data split over three IDAT chunks; or, interlaced, the
+ * seven Adam7 passes, unfiltered. */
+static void make_png_form(sc_buf *png, uint32_t w, uint32_t h, int channels, int depth, const uint8_t *samples,
+                          bool interlaced) {
+    static const uint8_t colour_type[5] = {0, 0, 4, 2, 6};
+    const size_t bpp = (size_t)channels * (size_t)depth / 8, n = bpp * w;
+    sc_buf_init(png);
+    sc_buf_append(png, "\x89PNG\r\n\x1a\n", 8);
+    uint8_t ihdr[13] = {0};
+    for (int i = 0; i < 4; i++) ihdr[i] = (uint8_t)(w >> (24 - 8 * i)), ihdr[4 + i] = (uint8_t)(h >> (24 - 8 * i));
+    ihdr[8] = (uint8_t)depth, ihdr[9] = colour_type[channels], ihdr[12] = interlaced ? 1 : 0;
+    put_chunk(png, "IHDR", ihdr, 13);
+    sc_buf raw, z;
+    sc_buf_init(&raw), sc_buf_init(&z);
+    if (!interlaced) {
+        for (uint32_t y = 0; y < h; y++)
+            filtered_row(&raw, (int)(y % 5), samples + y * n, y ? samples + (y - 1) * n : NULL, n, bpp);
+    } else {
+        static const int x0[7] = {0, 4, 0, 2, 0, 1, 0}, y0[7] = {0, 0, 4, 0, 2, 0, 1};
+        static const int dx[7] = {8, 8, 4, 4, 2, 2, 1}, dy[7] = {8, 8, 8, 4, 4, 2, 2};
+        for (int pass = 0; pass < 7; pass++) {
+            if ((uint32_t)x0[pass] >= w || (uint32_t)y0[pass] >= h) continue;   /* an empty pass */
+            for (uint32_t y = (uint32_t)y0[pass]; y < h; y += (uint32_t)dy[pass]) {
+                sc_buf_u8(&raw, 0);
+                for (uint32_t x = (uint32_t)x0[pass]; x < w; x += (uint32_t)dx[pass])
+                    sc_buf_append(&raw, samples + y * n + x * bpp, bpp);
+            }
+        }
+    }
+    zlib_stored(&raw, &z);
+    size_t third = z.len / 3;
+    put_chunk(png, "IDAT", z.data, third);
+    put_chunk(png, "IDAT", z.data + third, third);
+    put_chunk(png, "IDAT", z.data + 2 * third, z.len - 2 * third);
+    put_chunk(png, "IEND", NULL, 0);
+    sc_buf_free(&raw), sc_buf_free(&z);
+}
+
 /* ---------------------------------------------------------------- helpers */
 
 static sc_image_data *gradient_u8(int w, int h, int c) {
@@ -130,6 +203,49 @@ SC_TEST(png_rows_are_bottom_up) {
     }
     sc_image_free(im);
     sc_buf_free(&png);
+}
+
+/* Every form the C reader takes (8 and 16 bits, 1 to 4 channels), each row
+ * with another filter and the data over three IDAT chunks, and the same
+ * pixels interlaced, which OpenImageIO decodes: the samples written, rows
+ * bottom-up. */
+SC_TEST(png_reader_takes_every_filter_and_declines_interlacing) {
+    const uint32_t w = 13, h = 11;
+    for (int depth = 8; depth <= 16; depth += 8)
+        for (int channels = 1; channels <= 4; channels++)
+            for (int interlaced = 0; interlaced <= 1; interlaced++) {
+                const size_t bytes = (size_t)depth / 8, n = (size_t)w * channels * bytes;
+                uint8_t *samples = malloc(n * h);
+                uint32_t x = 12345u + (uint32_t)(depth * 10 + channels);
+                for (size_t i = 0; i < n * h; i++) x = x * 1103515245u + 12345u, samples[i] = (uint8_t)(x >> 16);
+                for (size_t i = 0; i < n * 3; i++) samples[i] = (uint8_t)(i / 5);   /* smooth rows too */
+                sc_buf png;
+                make_png_form(&png, w, h, channels, depth, samples, interlaced);
+                sc_error err = {0};
+                sc_image_data *im = NULL;
+                int rc = sc_image_decode("form.png", png.data, png.len, &im, &err);
+                SC_CHECK_MSG(rc == SC_OK && im, "%d bits, %d channels, interlaced %d: %s", depth, channels, interlaced,
+                             err.message);
+                if (im) {
+                    SC_CHECK(im->width == (int32_t)w && im->height == (int32_t)h && im->channels == channels);
+                    SC_CHECK(im->pixel == (depth == 8 ? SC_PIXEL_U8 : SC_PIXEL_U16));
+                    SC_CHECK(im->colorspace == SC_COLOR_SRGB);
+                    bool same = true;
+                    for (uint32_t y = 0; y < h; y++)
+                        for (size_t i = 0; i < (size_t)w * channels; i++) {
+                            const uint8_t *s = samples + (size_t)y * n + i * bytes;
+                            size_t at = (size_t)(h - 1 - y) * w * channels + i;
+                            unsigned want = depth == 8 ? s[0] : (unsigned)(s[0] << 8 | s[1]);
+                            unsigned got = depth == 8 ? ((uint8_t *)im->pixels)[at] : ((uint16_t *)im->pixels)[at];
+                            same = same && want == got;
+                        }
+                    SC_CHECK_MSG(same, "%d bits, %d channels, interlaced %d: samples differ", depth, channels,
+                                 interlaced);
+                }
+                sc_image_free(im);
+                sc_buf_free(&png);
+                free(samples);
+            }
 }
 
 SC_TEST(png_round_trip_u8_u16) {
