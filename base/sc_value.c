@@ -178,22 +178,22 @@ static int to_f32_chunk(void *ud, int32_t chunk) {
     const to_f32_job *j = ud;
     size_t k0 = (size_t)chunk * TO_F32_CHUNK, k1 = k0 + TO_F32_CHUNK < j->n ? k0 + TO_F32_CHUNK : j->n;
     float *dst = j->dst;
+    const int32_t C = j->in->channels;
+    bool colour[4];   /* per channel: through the sRGB curve */
+    for (int32_t c = 0; c < C && c < 4; c++) colour[c] = j->linear && !sc_channel_is_alpha(C, c);
+    int32_t c = (int32_t)(k0 % (size_t)C);   /* the channel of sample k */
     if (j->in->pixel == SC_PIXEL_F32) {
-        memcpy(dst + k0, (const float *)j->in->pixels + k0, (k1 - k0) * sizeof(float));
+        const float *src = j->in->pixels;
+        for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1)
+            dst[k] = colour[c] ? sc_srgb_to_linear(src[k]) : src[k];
     } else if (j->in->pixel == SC_PIXEL_U8) {
         const uint8_t *src = j->in->pixels;
-        for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 255.0f);
+        for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1)
+            dst[k] = colour[c] ? j->lut[src[k]] : src[k] * (1.0f / 255.0f);
     } else {
         const uint16_t *src = j->in->pixels;
-        for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 65535.0f);
-    }
-    if (!j->linear) return SC_OK;
-    int32_t C = j->in->channels;
-    for (size_t k = k0; k < k1; k++) {
-        if (sc_channel_is_alpha(C, (int32_t)(k % (size_t)C))) continue;
-        if (j->in->pixel == SC_PIXEL_U8) dst[k] = j->lut[((const uint8_t *)j->in->pixels)[k]];
-        else if (j->in->pixel == SC_PIXEL_U16) dst[k] = j->lut[((const uint16_t *)j->in->pixels)[k]];
-        else dst[k] = sc_srgb_to_linear(dst[k]);
+        for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1)
+            dst[k] = colour[c] ? j->lut[src[k]] : src[k] * (1.0f / 65535.0f);
     }
     return SC_OK;
 }

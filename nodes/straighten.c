@@ -763,14 +763,21 @@ static double triangle_distance(const double t[3][2], double px, double py) {
     double p[2] = {px, py};
     double s0 = sc_orient2(t[0], t[1], p), s1 = sc_orient2(t[1], t[2], p), s2 = sc_orient2(t[2], t[0], p);
     if ((s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0)) return 0;
-    double best = DBL_MAX;
+    double ex[3], ey[3], d2[3], least = DBL_MAX;
     for (int k = 0; k < 3; k++) {
         const double *a = t[k], *b = t[(k + 1) % 3];
         double dx = b[0] - a[0], dy = b[1] - a[1], wx = px - a[0], wy = py - a[1];
         double dd = dx * dx + dy * dy, s = dd > 0 ? (wx * dx + wy * dy) / dd : 0;
         s = s < 0 ? 0 : s > 1 ? 1 : s;
-        best = fmin(best, hypot(wx - s * dx, wy - s * dy));
+        ex[k] = wx - s * dx, ey[k] = wy - s * dy;
+        d2[k] = ex[k] * ex[k] + ey[k] * ey[k];
+        least = fmin(least, d2[k]);
     }
+    /* hypot (slow, exact) only where the square is within its rounding of
+     * the least: the same minimum as hypot over all three */
+    double best = DBL_MAX;
+    for (int k = 0; k < 3; k++)
+        if (d2[k] <= least * (1 + 1e-12)) best = fmin(best, hypot(ex[k], ey[k]));
     return best;
 }
 
