@@ -17,6 +17,14 @@
  * out to be missing or corrupt, its producer simply cooks again. An input port
  * of kind MESH fed by an ATLAS is keyed by the atlas's mesh digest, so a
  * texture change does not re-cook mesh-only nodes.
+ *
+ * The cache keeps the outputs a graph reads, every REPORT (its files make the
+ * output folder again) and every output of a node that no node reads (a
+ * result of the graph). An output of a node whose consumers all read other
+ * outputs (the float atlas of erase_seams in the main job, 150 MB on a
+ * 2048^2 asset) is in the action's record by digest but its bytes are not
+ * stored. A later graph that reads it finds it missing, and the node cooks
+ * again and stores it.
  */
 #include "sc_engine.h"
 
@@ -66,6 +74,7 @@ typedef struct node_rt {
     bool leased;               /* this process holds the action's lease */
     bool waited;               /* it said once that it waits for another process */
     int pending_consumers;     /* consumer edges not yet finished */
+    bool *kept;                /* per output: stored in the cache (see the design note) */
     int nfiles;
     report_file *files;        /* report files of every REPORT output */
 } node_rt;
@@ -898,7 +907,8 @@ static void resolve(engine *e, int i) {
         if (!miss && (read_outputs(e, i, act.outputs) != 0 || !read_record(r, act.metrics)))
             miss = "the cache entry is unreadable";
         for (int k = 0; !miss && k < r->noutputs; k++)
-            if (!sc_cache_has_blob(e->cache, &r->outputs[k].digest)) miss = "a cached output is missing";
+            if (rt->kept[k] && !sc_cache_has_blob(e->cache, &r->outputs[k].digest))
+                miss = "an output this graph reads is not in the cache";
     }
     uv_mutex_unlock(&e->cache_lock);
     if (miss) forget_result(r);   /* the record's metrics and warnings, if read */
@@ -1117,7 +1127,7 @@ static void store_work(uv_work_t *req) {
     job *j = req->data;
     const sc_graph_node *n = gnode(j->e, j->node);
     for (int k = 0; k < n->desc->noutputs && j->stored.rc == SC_OK; k++)
-        store_value(&j->stored, sc_ctx_output(j->ctx, k));
+        if (j->e->rt[j->node].kept[k]) store_value(&j->stored, sc_ctx_output(j->ctx, k));
 }
 
 /* Record the action once its blobs are stored. A node whose outputs cannot
@@ -1367,9 +1377,23 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
             e.stop = true;
             e.first_rc = sc_fail(&e.first_err, SC_ENOMEM, "out of memory");
         }
-        for (int port = 0; port < g->nodes[i].desc->ninputs; port++)
-            if (g->nodes[i].input_node[port] >= 0) e.rt[g->nodes[i].input_node[port]].pending_consumers++;
+        e.rt[i].kept = calloc((size_t)nout + 1, sizeof(bool));
+        if (!e.rt[i].kept) {
+            e.stop = true;
+            e.first_rc = sc_fail(&e.first_err, SC_ENOMEM, "out of memory");
+        }
     }
+    for (int i = 0; i < g->count && !e.stop; i++)
+        for (int port = 0; port < g->nodes[i].desc->ninputs; port++) {
+            int p = g->nodes[i].input_node[port];
+            if (p < 0) continue;
+            e.rt[p].pending_consumers++;
+            e.rt[p].kept[g->nodes[i].input_port[port]] = true;
+        }
+    for (int i = 0; i < g->count && !e.stop; i++)   /* a node no node reads is a result: all of it */
+        for (int k = 0; k < g->nodes[i].desc->noutputs; k++)
+            if (g->nodes[i].desc->outputs[k].kind == SC_KIND_REPORT || e.rt[i].pending_consumers == 0)
+                e.rt[i].kept[k] = true;
     if (!realpath(g->file, e.graph_path)) snprintf(e.graph_path, sizeof e.graph_path, "%s", g->file);
     char *graph_dir = sc_path_dirname(e.graph_path);
     if (!opt->base_dir || !realpath(opt->base_dir, e.base_dir))
@@ -1412,7 +1436,7 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
             if (e.rt[i].values) sc_value_release(e.rt[i].values[k]);
             if (e.rt[i].meshes) sc_value_release(e.rt[i].meshes[k]);
         }
-        free(e.rt[i].values), free(e.rt[i].meshes), free(e.rt[i].canon);
+        free(e.rt[i].values), free(e.rt[i].meshes), free(e.rt[i].kept), free(e.rt[i].canon);
         forget_files(&e.rt[i]);
     }
     free(e.rt);

@@ -493,6 +493,37 @@ static const char *node_key(const char *dir, const char *name, char *buf, size_t
     return buf;
 }
 
+/* The cache keeps the outputs a graph reads: erase_seams's float atlas,
+ * which the first graph does not read, is not stored. The same graph again is
+ * all cached (what it reads is there); a graph that reads the float atlas
+ * cooks erase_seams again, saying why, to the same digests (so the first
+ * save stays cached), and stores it; then everything is cached. */
+SC_TEST(the_cache_keeps_what_the_graph_reads) {
+    char *dir = sc_test_tempdir("cli");
+    char *g = data("erase_reads.lua");
+    char *out = sc_path_join(dir, "out");
+    char *args = sc_strprintf("run '%s' --cache cache --out out", g);
+    SC_CHECK_INT(cook(dir, args), 0);
+    SC_CHECK_INT(report_counts(out).ran, 3);
+    SC_CHECK_INT(cook(dir, args), 0);
+    SC_CHECK_INT(report_counts(out).cached, 3);
+    free(args);
+    args = sc_strprintf("run '%s' --cache cache --out out --set float=1 --explain", g);
+    SC_CHECK_INT(cook(dir, args), 0);
+    char st[32];
+    SC_CHECK_STR(node_status(out, "asset", st, sizeof st), "cached");
+    SC_CHECK_STR(node_status(out, "erased", st, sizeof st), "ran");
+    SC_CHECK_STR(node_status(out, "save", st, sizeof st), "cached");
+    SC_CHECK_STR(node_status(out, "save_float", st, sizeof st), "ran");
+    char *err = slurp(dir, "err.txt");
+    SC_CHECK_MSG(err && strstr(err, "erased") && strstr(err, "an output this graph reads is not in the cache"),
+                 "stderr: %s", err ? err : "");
+    free(err);
+    SC_CHECK_INT(cook(dir, args), 0);
+    SC_CHECK_INT(report_counts(out).ran, 0);
+    free(args), free(out), free(g), free(dir);
+}
+
 /* --set node.param=value is a parameter value like any: the same value
  * through param() or by the node's name makes the same key. */
 SC_TEST(node_settings_enter_the_key) {
