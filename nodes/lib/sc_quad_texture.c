@@ -896,6 +896,29 @@ static int chart_faces_build(const qcharts *c, chart_faces *cf) {
     return SC_OK;
 }
 
+/* Each slot's surface PSNR on its own thread: slots are independent, and
+ * their results go into the metrics in slot order. */
+typedef struct psnr_result {
+    double psnr, floor_psnr;
+    int rc;
+    sc_error err;
+} psnr_result;
+
+typedef struct psnr_task {
+    const job *J;
+    const sc_quad_result *out;
+    int32_t samples;
+    psnr_result *slots;
+} psnr_task;
+
+static int psnr_one(void *ud, int32_t s) {
+    psnr_task *t = ud;
+    psnr_result *r = &t->slots[s];
+    r->rc = surface_psnr(t->J, &t->J->slots[s], t->out->textures[s].levels[0], t->out->mesh, t->samples, &r->psnr,
+                         &r->floor_psnr, &r->err);
+    return SC_OK;
+}
+
 int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const sc_quad_options *o, int threads,
                   sc_quad_result *out, sc_error *err) {
     memset(out, 0, sizeof *out);
@@ -1051,16 +1074,23 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         sc_metric_list_add(ml, "flipped_triangles", c.flipped);
         sc_metric_list_add(ml, "boundary_mismatch", (double)mismatch);
         sc_metric_list_add(ml, "shared_texels", (double)shared);
+        psnr_task measure = {&J, out, o->psnr_samples, calloc((size_t)J.nslots + 1, sizeof *measure.slots)};
+        if (!measure.slots) rc = sc_fail(err, SC_ENOMEM, "quad_chartify: out of memory");
+        if (rc == SC_OK && sc_parallel(threads, J.nslots, psnr_one, &measure) != SC_OK)
+            for (int32_t s = 0; s < J.nslots; s++) psnr_one(&measure, s);   /* one thread */
         for (int32_t s = 0; s < J.nslots && rc == SC_OK; s++) {
             char name[96];
-            double psnr, floor_psnr;
-            rc = surface_psnr(&J, &J.slots[s], out->textures[s].levels[0], out->mesh, o->psnr_samples, &psnr,
-                              &floor_psnr, err);
+            if (measure.slots[s].rc != SC_OK) {
+                rc = measure.slots[s].rc;
+                if (err) *err = measure.slots[s].err;
+                break;
+            }
             snprintf(name, sizeof name, "psnr_%s", J.slots[s].name);
-            sc_metric_list_add(ml, name, psnr);
+            sc_metric_list_add(ml, name, measure.slots[s].psnr);
             snprintf(name, sizeof name, "psnr_floor_%s", J.slots[s].name);
-            sc_metric_list_add(ml, name, floor_psnr);
+            sc_metric_list_add(ml, name, measure.slots[s].floor_psnr);
         }
+        free(measure.slots);
         double t5 = now_seconds();
         sc_metric_list_add(ml, "seconds_charts", t1 - t0);
         sc_metric_list_add(ml, "seconds_sample", t2 - t1);
