@@ -1341,15 +1341,10 @@ static bool triangles_cross(const crossing_triangle *A, const crossing_triangle 
  * triangles_cross's tolerance could be for a triangle whose longest edge is
  * at most q_size: then the two do not cross (Q not yet prepared). */
 static bool one_side(const crossing_triangle *A, const double *const Q[3], double q_size) {
-    double eps = 1e-9 * fmax(A->longest, q_size);
     if (!(A->len > 0)) return true;
-    int above = 0, below = 0;
-    for (int k = 0; k < 3; k++) {
-        double x[3];
-        sc_sub3(Q[k], A->P[0], x);
-        double d = sc_dot3(A->n, x) / A->len;   /* as plane_sides computes it */
-        above += d > eps, below += d < -eps;
-    }
+    double d[3];
+    int above, below;
+    plane_sides(Q, A->P[0], A->n, A->len, 1e-9 * fmax(A->longest, q_size), d, &above, &below);
     return above == 3 || below == 3;
 }
 

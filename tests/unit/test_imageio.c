@@ -34,6 +34,23 @@ static void put_chunk(sc_buf *png, const char *type, const uint8_t *data, size_t
     put_be32(png, crc32_of(png->data + start, n + 4, 0));
 }
 
+/* Deflate as zlib stored blocks, with its Adler-32. */
+static void zlib_stored(const sc_buf *raw, sc_buf *z) {
+    sc_buf_u8(z, 0x78), sc_buf_u8(z, 0x01);
+    uint32_t a = 1, b = 0;
+    for (size_t i = 0; i < raw->len; i++) a = (a + raw->data[i]) % 65521, b = (b + a) % 65521;
+    size_t off = 0;
+    do {
+        size_t n = raw->len - off > 65535 ? 65535 : raw->len - off;
+        sc_buf_u8(z, off + n == raw->len ? 1 : 0);
+        uint8_t len[4] = {(uint8_t)n, (uint8_t)(n >> 8), (uint8_t)~n, (uint8_t)(~n >> 8)};
+        sc_buf_append(z, len, 4);
+        if (n) sc_buf_append(z, raw->data + off, n);
+        off += n;
+    } while (off < raw->len);
+    put_be32(z, (b << 16) | a);
+}
+
 /* An 8-bit RGB PNG of w x h with the given top-down rows (no compression:
  * zlib stored blocks). */
 static void make_png(sc_buf *png, uint32_t w, uint32_t h, const uint8_t *rgb_top_down,
@@ -50,39 +67,10 @@ static void make_png(sc_buf *png, uint32_t w, uint32_t h, const uint8_t *rgb_top
         sc_buf_u8(&raw, 0);   /* filter: none */
         sc_buf_append(&raw, rgb_top_down + y * w * 3, w * 3);
     }
-    sc_buf_u8(&z, 0x78), sc_buf_u8(&z, 0x01);
-    uint32_t a = 1, b = 0;
-    for (size_t i = 0; i < raw.len; i++) a = (a + raw.data[i]) % 65521, b = (b + a) % 65521;
-    size_t off = 0;
-    do {
-        size_t n = raw.len - off > 65535 ? 65535 : raw.len - off;
-        sc_buf_u8(&z, off + n == raw.len ? 1 : 0);
-        uint8_t len[4] = {(uint8_t)n, (uint8_t)(n >> 8), (uint8_t)~n, (uint8_t)(~n >> 8)};
-        sc_buf_append(&z, len, 4);
-        if (n) sc_buf_append(&z, raw.data + off, n);
-        off += n;
-    } while (off < raw.len);
-    put_be32(&z, (b << 16) | a);
+    zlib_stored(&raw, &z);
     put_chunk(png, "IDAT", z.data, z.len);
     put_chunk(png, "IEND", NULL, 0);
     sc_buf_free(&raw), sc_buf_free(&z);
-}
-
-/* Deflate as zlib stored blocks, with its Adler-32. */
-static void zlib_stored(const sc_buf *raw, sc_buf *z) {
-    sc_buf_u8(z, 0x78), sc_buf_u8(z, 0x01);
-    uint32_t a = 1, b = 0;
-    for (size_t i = 0; i < raw->len; i++) a = (a + raw->data[i]) % 65521, b = (b + a) % 65521;
-    size_t off = 0;
-    do {
-        size_t n = raw->len - off > 65535 ? 65535 : raw->len - off;
-        sc_buf_u8(z, off + n == raw->len ? 1 : 0);
-        uint8_t len[4] = {(uint8_t)n, (uint8_t)(n >> 8), (uint8_t)~n, (uint8_t)(~n >> 8)};
-        sc_buf_append(z, len, 4);
-        if (n) sc_buf_append(z, raw->data + off, n);
-        off += n;
-    } while (off < raw->len);
-    put_be32(z, (b << 16) | a);
 }
 
 static uint8_t paeth_of(int a, int b, int c) {
