@@ -96,11 +96,13 @@ end
 -- displaced within 8.9e-4 of the diagonal instead of 1.7e-2, at 1,170
 -- faces instead of 886). 0: off.
 -- contact_distance: an open part's rim within this fraction of the diagonal
--- of another part (a seed's rim in a cut fruit, a sleeve on a body) stays
--- where it is, and so does that part there: decimated apart, the two open a
--- gap that shows the open part's inside (Avocado, WaterBottle and BoomBox
--- show such back faces at their 10% level without it). Assets of many
--- nested parts stop higher (MuruCat: 3,168 faces instead of 1,352). 0: off.
+-- of another part (a seed's rim in a cut fruit, a sleeve on a body) gets no
+-- farther from that part, nor higher over it, at its vertices and along its
+-- edges (lods.contact_slack: but for this fraction of the diagonal): decimated
+-- apart, the two open a gap that shows the open part's inside (Avocado,
+-- WaterBottle and BoomBox show such back faces at their 10% level without
+-- it). Assets of many nested parts stop higher (MuruCat: 2,125 faces instead
+-- of 1,352). 0: off.
 local lods = decimate{ name = "lods", mesh = shared,
                        ratio = ratios,
                        max_error = param("max_error", 0.02),

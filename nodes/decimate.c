@@ -84,11 +84,17 @@
  * apart, push through each other and show back faces (a bottle's cap ring
  * through its body). Faces live in a uniform grid of cells about twice the
  * mean edge long, built again whenever the faces fall to a quarter. With
- * contact_distance, an open part's border vertices within that distance of
- * another connected part, and that part's vertices there, never collapse
- * (blocked as "contact"): decimated apart, the two would open a gap that
- * shows the open part's inside. An edge that fails is dropped and its endpoints are marked; any
- * later collapse next to a marked vertex queues its edges again.
+ * contact_distance, an open part's border vertex within that distance of
+ * another connected part is in contact: no collapse may leave it (or the
+ * vertex it merges into), or a point of a border edge between two
+ * contacts, farther from the other parts or higher over their nearest face
+ * than in the input, but for contact_slack; checked on the grid whenever
+ * the collapse moves it or changes another part's faces within its reach
+ * (blocked as "contact"; the state's note). Decimated apart, the two would
+ * open a gap that shows the open part's inside; held so, both still
+ * decimate (a seed in a cut fruit, a cap on a bottle's neck). An edge that
+ * fails is dropped and its endpoints are marked; any later collapse next
+ * to a marked vertex queues its edges again.
  *
  * Queue. A 4-ary heap of (cost bits, a << 32 | b, version a, version b):
  * ties broken by vertex ids, so the order never depends on memory addresses
@@ -272,7 +278,7 @@ typedef enum block_reason {
     BLOCK_TEXEL_CREASE,         /* with map_size: a crease inside a chart would be too sharp for the map's texels */
     BLOCK_WIDE_FAN,             /* an endpoint with more than MAX_FAN faces */
     BLOCK_CROSSING,             /* a face would pass through another (refuse_crossings) */
-    BLOCK_CONTACT,              /* an endpoint where an open part meets another (contact_distance) */
+    BLOCK_CONTACT,              /* an open part's border would move away from another part (contact_distance) */
     BLOCK_COUNT
 } block_reason;
 
@@ -283,7 +289,7 @@ static const char *const block_names[BLOCK_COUNT] = {
     "texel_stretch", "seam_error", "texel_crease", "wide_fan", "crossing", "contact",
 };
 
-enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8, V_CONTACT = 16 };
+enum { V_ALIVE = 1, V_BOUNDARY = 2, V_LOCKED = 4, V_RETRY = 8, V_CONTACT = 16 /* holds a contact */ };
 enum { Z_SILHOUETTE = 1, Z_PINNED = 2 };
 enum { EDGE_INTERIOR = 0, EDGE_SEAM = 1, EDGE_BOUNDARY = 2 };
 enum { UV_FREE = 0, UV_FIXED = 1, UV_SLIDE = 2 };
@@ -365,9 +371,24 @@ typedef struct state {
     double uv_step_given;        /* the uv_precision parameter when >= 0 */
     double normal_cos;           /* a face's normal may turn by less than this angle's cosine */
     bool refuse_crossings;
-    face_grid grid;              /* with refuse_crossings */
-    double contact_distance;     /* model units (mark_contacts); 0: off */
-    int64_t contact_vertices;    /* vertices mark_contacts keeps */
+    face_grid grid;              /* with refuse_crossings or contact_distance */
+    double contact_distance;     /* model units (find_contacts); 0: off */
+    double contact_slack;        /* model units: how much farther a contact may move */
+    /* Contacts: an open part's border vertex within contact_distance of
+     * another part may end up at most its input distance from the other
+     * parts (reach), and at most its input height over the nearest face
+     * (rise), each plus contact_slack; so may the points of a border edge
+     * between two contacts (at the larger of their limits, or no worse than
+     * before). A rim that rises off a body opens a gap that shows the open
+     * part's inside; one that sinks into it passes through its faces, which
+     * refuse_crossings refuses. */
+    int32_t *contacts;           /* the vertices holding one (V_CONTACT), the dead ones dropped */
+    int32_t ncontacts, input_contacts;
+    double *contact_reach, *contact_rise;   /* per surface vertex, where V_CONTACT */
+    int32_t *part;               /* per surface vertex: its connected part (with contacts) */
+    double contact_lo[3], contact_hi[3];   /* the box of every contact's reach */
+    double contact_reach_max;    /* the largest reach */
+    double contact_edge;         /* no edge between two contacts is longer */
     /* surface vertices */
     int32_t nv;
     double *pos;                 /* centred on the input's bounding box */
@@ -654,10 +675,6 @@ static void plan_edge(state *st, int32_t a, int32_t b, collapse_plan *p) {
     p->cost = INFINITY;
     if ((st->vflags[a] | st->vflags[b]) & V_LOCKED) {
         p->reason = BLOCK_NONMANIFOLD;
-        return;
-    }
-    if ((st->vflags[a] | st->vflags[b]) & V_CONTACT) {
-        p->reason = BLOCK_CONTACT;
         return;
     }
     if (st->vf_len[a] > MAX_FAN || st->vf_len[b] > MAX_FAN) {
@@ -1639,17 +1656,93 @@ static int32_t find_root(int32_t *parent, int32_t x) {
     return x;
 }
 
-/* Where an open part's border lies within contact_distance of another
+/* Face P's nearest point to x, kept in *d (distance) and *side (x's height
+ * over that face's plane, along its normal) when nearer than *d. Faces as
+ * near (to 1e-9, as when the nearest point is a corner or an edge they
+ * share) keep the largest height, so the result does not depend on the
+ * order faces come in. */
+static void nearer_face(const double x[3], const double *const P[3], double *d, double *side) {
+    double q[3];
+    sc_hausdorff_closest_on_triangle(x, P[0], P[1], P[2], q);
+    double dist = sc_dist3(x, q);
+    if (!(dist <= *d * (1 + 1e-9))) return;
+    double e1[3], e2[3], n[3], r[3];
+    for (int k = 0; k < 3; k++) e1[k] = P[1][k] - P[0][k], e2[k] = P[2][k] - P[0][k], r[k] = x[k] - q[k];
+    sc_cross3(e1, e2, n);
+    double len = sc_norm3(n);
+    double h = len > 0 ? sc_dot3(r, n) / len : 0;
+    bool tie = dist >= *d * (1 - 1e-9);
+    *side = tie ? fmax(*side, h) : h;
+    *d = fmin(*d, dist);
+}
+
+/* The nearest face to x of another part than `own` within `reach` (grid
+ * cells around x), skipping the faces around `keep` and `gone` (a plan's
+ * old fan, or -1): its distance in *d (INFINITY when none is that near) and
+ * x's height over it in *side. */
+static void other_part_nearest(state *st, const double x[3], int32_t own, double reach, int32_t keep, int32_t gone,
+                               double *d, double *side) {
+    const face_grid *g = &st->grid;
+    double lo[3] = {x[0] - reach, x[1] - reach, x[2] - reach}, hi[3] = {x[0] + reach, x[1] + reach, x[2] + reach};
+    int32_t c0[3], c1[3];
+    grid_range(g, lo, hi, c0, c1);
+    *d = INFINITY, *side = 0;
+    for (int32_t i = c0[0]; i <= c1[0]; i++)
+        for (int32_t j = c0[1]; j <= c1[1]; j++)
+            for (int32_t k = c0[2]; k <= c1[2]; k++) {
+                int64_t cell = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
+                for (int32_t n = 0; n < g->len[cell]; n++) {
+                    const grid_item *it = &g->items[cell][n];
+                    if (st->part[it->v[0]] == own) continue;
+                    if (it->lo[0] > hi[0] || it->hi[0] < lo[0] || it->lo[1] > hi[1] || it->hi[1] < lo[1] ||
+                        it->lo[2] > hi[2] || it->hi[2] < lo[2])
+                        continue;
+                    bool in_fan = false;
+                    for (int e = 0; e < 3; e++) in_fan |= it->v[e] == keep || it->v[e] == gone;
+                    if (in_fan) continue;
+                    double box2 = 0;   /* x's distance to the face's box: no nearer point inside */
+                    for (int e = 0; e < 3; e++) {
+                        double out = fmax(fmax((double)it->lo[e] - x[e], x[e] - (double)it->hi[e]), 0);
+                        box2 += out * out;
+                    }
+                    if (box2 > *d * *d * (1 + 1e-8)) continue;   /* (a face as near stays: nearer_face) */
+                    const double *P[3];
+                    face_points(st, it->face, P);
+                    nearer_face(x, P, d, side);
+                }
+            }
+    if (!(*d <= reach)) *d = INFINITY, *side = 0;
+}
+
+/* Contact v is where it is now: the box of the contacts' reach and the
+ * longest edge between two contacts hold it. */
+static void contact_moved(state *st, int32_t v) {
+    const double *x = st->pos + 3 * v;
+    double reach = st->contact_reach[v];
+    for (int k = 0; k < 3; k++)
+        st->contact_lo[k] = fmin(st->contact_lo[k], x[k] - reach), st->contact_hi[k] = fmax(st->contact_hi[k], x[k] + reach);
+    int32_t n;
+    const int32_t *list = vfaces(st, v, &n);
+    for (int32_t i = 0; i < n; i++) {
+        if (!st->falive[list[i]]) continue;
+        for (int k = 0; k < 3; k++) {
+            int32_t w = st->fv[3 * list[i] + k];
+            if (w != v && (st->vflags[w] & V_CONTACT)) st->contact_edge = fmax(st->contact_edge, sc_dist3(x, st->pos + 3 * w));
+        }
+    }
+}
+
+/* The open parts' border vertices within contact_distance of another
  * connected part (a sleeve's rim on a bottle, a seed's rim in the fruit's
- * cut), the border vertex and the other part's vertices of the faces that
- * near are kept as they are: decimated apart, the two leave a gap that shows
- * the open part's inside. Returns false when out of memory. */
-static bool mark_contacts(state *st, int64_t *marked) {
-    *marked = 0;
-    bool own_grid = !st->grid.items;
-    if (own_grid && !grid_build(st)) return false;
-    int32_t *part = malloc((size_t)st->nv * sizeof *part);
-    if (!part) return false;
+ * cut), each with its limits (the state's note). Returns false when out of
+ * memory. */
+static bool find_contacts(state *st) {
+    st->part = malloc((size_t)st->nv * sizeof *st->part);
+    st->contacts = malloc((size_t)st->nv * sizeof *st->contacts);
+    st->contact_reach = malloc((size_t)st->nv * sizeof *st->contact_reach);
+    st->contact_rise = malloc((size_t)st->nv * sizeof *st->contact_rise);
+    if (!st->part || !st->contacts || !st->contact_reach || !st->contact_rise) return false;
+    int32_t *part = st->part;
     for (int32_t v = 0; v < st->nv; v++) part[v] = v;
     for (int32_t f = 0; f < st->nf; f++) {
         const int32_t *c = st->fv + 3 * f;
@@ -1659,33 +1752,177 @@ static bool mark_contacts(state *st, int64_t *marked) {
         }
     }
     for (int32_t v = 0; v < st->nv; v++) part[v] = find_root(part, v);
-    const face_grid *g = &st->grid;
-    const double d = st->contact_distance;
+    for (int k = 0; k < 3; k++) st->contact_lo[k] = INFINITY, st->contact_hi[k] = -INFINITY;
     for (int32_t v = 0; v < st->nv; v++) {
         if (!(st->vflags[v] & V_BOUNDARY)) continue;
         const double *x = st->pos + 3 * v;
-        double lo[3] = {x[0] - d, x[1] - d, x[2] - d}, hi[3] = {x[0] + d, x[1] + d, x[2] + d};
-        int32_t c0[3], c1[3];
-        grid_range(g, lo, hi, c0, c1);
-        for (int32_t i = c0[0]; i <= c1[0]; i++)
-            for (int32_t j = c0[1]; j <= c1[1]; j++)
-                for (int32_t k = c0[2]; k <= c1[2]; k++) {
-                    int64_t cell = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
-                    for (int32_t n = 0; n < g->len[cell]; n++) {
-                        int32_t f = g->items[cell][n].face;
-                        const int32_t *c = st->fv + 3 * f;
-                        if (part[c[0]] == part[v]) continue;
-                        double q[3];
-                        sc_hausdorff_closest_on_triangle(x, st->pos + 3 * c[0], st->pos + 3 * c[1], st->pos + 3 * c[2], q);
-                        if (sc_dist3(x, q) > d) continue;
-                        st->vflags[v] |= V_CONTACT;
-                        for (int e = 0; e < 3; e++) st->vflags[c[e]] |= V_CONTACT;
-                    }
-                }
+        double d, side;
+        other_part_nearest(st, x, part[v], st->contact_distance, -1, -1, &d, &side);
+        if (!(d <= st->contact_distance)) continue;
+        double reach = d + st->contact_slack;
+        st->contacts[st->ncontacts++] = v;
+        st->contact_reach[v] = reach;
+        st->contact_rise[v] = side + st->contact_slack;
+        st->vflags[v] |= V_CONTACT;
     }
-    for (int32_t v = 0; v < st->nv; v++) *marked += (st->vflags[v] & V_CONTACT) != 0;
-    free(part);
-    if (own_grid) grid_free(&st->grid);
+    st->input_contacts = st->ncontacts;
+    for (int32_t i = 0; i < st->ncontacts; i++) {
+        int32_t v = st->contacts[i];
+        st->contact_reach_max = fmax(st->contact_reach_max, st->contact_reach[v]);
+        contact_moved(st, v);
+    }
+    return true;
+}
+
+/* x's distance to the parts other than `own` after plan p (the grid's faces
+ * within `reach`, the old fan replaced by the new when p changes one of
+ * them), and its height over the nearest face. */
+static void nearest_after(state *st, const collapse_plan *p, const double x[3], int32_t own, double reach, double *d,
+                          double *side) {
+    bool other = st->part[p->keep] != own;
+    other_part_nearest(st, x, own, reach, other ? p->keep : -1, other ? p->gone : -1, d, side);
+    if (!other) return;
+    fan_walk walk = {0};
+    for (int32_t f; (f = fan_next(st, p, &walk)) >= 0;) {
+        const double *P[3], *W[3];
+        planned_face(st, p, f, P, W);
+        nearer_face(x, P, d, side);
+    }
+}
+
+/* The border neighbours of v after plan p (for keep or gone, those of the
+ * vertex they become): the vertices joined to it by an edge of one face.
+ * Returns their count, of which at most 2 go to out. */
+static int border_neighbours_after(const state *st, const collapse_plan *p, int32_t v, int32_t out[2]) {
+    int32_t seen[2 * MAX_FAN + 4];
+    int count[2 * MAX_FAN + 4], nseen = 0;
+    bool merged = v == p->keep || v == p->gone;
+    fan_walk walk = {0};
+    int32_t n = 0, i = 0;
+    const int32_t *list = merged ? NULL : vfaces(st, v, &n);
+    for (;;) {
+        int32_t f;
+        if (merged) f = fan_next(st, p, &walk);
+        else {
+            while (i < n && (!st->falive[list[i]] || is_removed(p, list[i]))) i++;
+            f = i < n ? list[i++] : -1;
+        }
+        if (f < 0) break;
+        for (int k = 0; k < 3; k++) {
+            int32_t x = st->fv[3 * f + k];
+            if (x == v || (merged && (x == p->keep || x == p->gone))) continue;
+            if (x == p->gone) x = p->keep;
+            int j = 0;
+            while (j < nseen && seen[j] != x) j++;
+            if (j == nseen) {
+                if (nseen == 2 * MAX_FAN + 4) return 3;
+                seen[nseen] = x, count[nseen++] = 0;
+            }
+            count[j]++;
+        }
+    }
+    int found = 0;
+    for (int j = 0; j < nseen; j++)
+        if (count[j] == 1) {
+            if (found < 2) out[found] = seen[j];
+            found++;
+        }
+    return found;
+}
+
+/* The distance from x to the box (lo, hi). */
+static double box_distance(const double lo[3], const double hi[3], const double x[3]) {
+    double sum = 0;
+    for (int k = 0; k < 3; k++) {
+        double out = fmax(fmax(lo[k] - x[k], x[k] - hi[k]), 0);
+        sum += out * out;
+    }
+    return sqrt(sum);
+}
+
+/* Whether point x (own part `own`), with limits reach and rise, is within
+ * them after plan p, or no worse than before when `before` is set (a point
+ * of a border edge the plan does not move, which may already be beyond
+ * them: the other part's faces near it then may not move away). */
+static bool contact_point_ok(state *st, const collapse_plan *p, const double x[3], int32_t own, double reach,
+                             double rise, bool before) {
+    double d, side;
+    nearest_after(st, p, x, own, reach, &d, &side);
+    if ((d <= reach && side <= rise) || !before) return d <= reach && side <= rise;
+    double d0, side0;
+    other_part_nearest(st, x, own, 4 * reach, -1, -1, &d0, &side0);
+    if (!isfinite(d0)) return true;   /* not near the other parts at all */
+    reach = fmax(reach, d0), rise = fmax(rise, side0);
+    nearest_after(st, p, x, own, reach, &d, &side);
+    return d <= reach && side <= rise;
+}
+
+/* The contacts and the border edges between them are within their limits
+ * after plan p (the state's note). A contact the plan moves (keep or gone)
+ * is checked at the new point, with the border edges of the vertex it
+ * becomes; a contact next to keep or gone, whose border edge moves, on that
+ * edge; the contacts of other parts when the plan's fan, before or after,
+ * comes within their reach. A contact whose vertex collapses goes to the
+ * vertex kept (apply_plan). */
+static bool contacts_ok(state *st, const collapse_plan *p) {
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = p->xyz[k];
+    for (int side = 0; side < 2; side++) {
+        int32_t n;
+        const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
+        for (int32_t i = 0; i < n; i++) {
+            if (!st->falive[list[i]]) continue;
+            const double *P[3];
+            face_points(st, list[i], P);
+            for (int c = 0; c < 3; c++)
+                for (int k = 0; k < 3; k++) lo[k] = min2(lo[k], P[c][k]), hi[k] = max2(hi[k], P[c][k]);
+        }
+    }
+    for (int k = 0; k < 3; k++)
+        if (lo[k] > st->contact_hi[k] || hi[k] < st->contact_lo[k]) return true;
+    const int32_t own = st->part[p->keep];
+    for (int32_t i = 0; i < st->ncontacts; i++) {
+        int32_t v = st->contacts[i];
+        bool moves = v == p->keep || v == p->gone, same_part = st->part[v] == own;
+        const double *x = moves ? p->xyz : st->pos + 3 * v;
+        double reach = st->contact_reach[v], rise = st->contact_rise[v];
+        if (!moves && !same_part) {   /* near the fan, or its border edges (at most contact_edge long)? */
+            double r = st->contact_edge + 2 * st->contact_reach_max;
+            bool near = true;
+            for (int k = 0; k < 3; k++) near &= !(lo[k] > x[k] + r || hi[k] < x[k] - r);
+            if (!near) continue;
+        } else if (!moves) {   /* of the plan's part: only its edges to keep or gone move */
+            int32_t n;
+            const int32_t *list = vfaces(st, v, &n);
+            bool next_to = false;
+            for (int32_t f = 0; f < n && !next_to; f++)
+                for (int k = 0; k < 3; k++) next_to |= st->fv[3 * list[f] + k] == p->keep || st->fv[3 * list[f] + k] == p->gone;
+            if (!next_to) continue;
+        }
+        /* (a point farther from the fan than it may be from the other
+         * parts keeps its nearest face: the plan changes nothing there) */
+        if ((moves || (!same_part && box_distance(lo, hi, x) <= reach)) &&
+            !contact_point_ok(st, p, x, st->part[v], reach, rise, false))
+            return false;
+        int32_t nb[2];
+        int nn = border_neighbours_after(st, p, v, nb);
+        if (nn > 2) continue;   /* a pinched border: its edges are not told apart */
+        for (int e = 0; e < nn; e++) {
+            int32_t w = nb[e];
+            if (!(st->vflags[w] & V_CONTACT)) continue;
+            bool w_moves = w == p->keep;   /* (gone is already keep here) */
+            if (same_part && !moves && !w_moves) continue;   /* an edge of this part the plan leaves */
+            const double *y = w_moves ? p->xyz : st->pos + 3 * w;
+            double reach_e = max2(reach, st->contact_reach[w]), rise_e = max2(rise, st->contact_rise[w]);
+            for (int t = 1; t < 4; t++) {
+                double s[3];
+                for (int k = 0; k < 3; k++) s[k] = x[k] + 0.25 * t * (y[k] - x[k]);
+                bool unmoved = !moves && !w_moves;   /* then compared with before, as far as 4 reach */
+                if (unmoved && box_distance(lo, hi, s) > 4 * reach_e) continue;
+                if (!contact_point_ok(st, p, s, st->part[v], reach_e, rise_e, unmoved)) return false;
+            }
+        }
+    }
     return true;
 }
 
@@ -1699,6 +1936,7 @@ static block_reason check_plan(state *st, const collapse_plan *p) {
     if (r == BLOCK_NONE && st->crease_limit > 0 && !creases_ok(st, p)) r = BLOCK_TEXEL_CREASE;
     if (r == BLOCK_NONE && st->seam_error2 > 0 && !seam_kept(st, p)) r = BLOCK_SEAM_ERROR;
     if (r == BLOCK_NONE && st->refuse_crossings && !crossings_ok(st, p)) r = BLOCK_CROSSING;
+    if (r == BLOCK_NONE && st->ncontacts > 0 && !contacts_ok(st, p)) r = BLOCK_CONTACT;
     return r;
 }
 
@@ -1794,7 +2032,7 @@ static bool merge_lists(state *st, int32_t keep, int32_t gone) {
 
 static bool apply_plan(state *st, const collapse_plan *p) {
     int32_t keep = p->keep, gone = p->gone;
-    if (st->refuse_crossings)   /* the fans' faces move (or go): out of the grid at their old places */
+    if (st->grid.items)   /* the fans' faces move (or go): out of the grid at their old places */
         for (int side = 0; side < 2; side++) {
             int32_t n;
             const int32_t *list = vfaces(st, side ? gone : keep, &n);
@@ -1849,13 +2087,24 @@ static bool apply_plan(state *st, const collapse_plan *p) {
         st->fz[3 * f + k] = z;
     }
     if (!merge_lists(st, keep, gone)) return false;
-    if (st->refuse_crossings) {
+    if (st->grid.items) {
         list = vfaces(st, keep, &n);
         for (int32_t i = 0; i < n; i++)
             if (st->falive[list[i]] && !grid_put(st, list[i], true)) return false;
     }
-    st->vflags[keep] |= st->vflags[gone] & V_BOUNDARY;
+    if (st->vflags[gone] & V_CONTACT) {   /* keep stands where gone's contact was: the stricter limits */
+        bool both = st->vflags[keep] & V_CONTACT;
+        st->contact_reach[keep] = both ? min2(st->contact_reach[keep], st->contact_reach[gone]) : st->contact_reach[gone];
+        st->contact_rise[keep] = both ? min2(st->contact_rise[keep], st->contact_rise[gone]) : st->contact_rise[gone];
+        for (int32_t i = 0; i < st->ncontacts; i++)
+            if (st->contacts[i] == gone) {
+                st->contacts[i] = both ? st->contacts[--st->ncontacts] : keep;
+                break;
+            }
+    }
+    st->vflags[keep] |= st->vflags[gone] & (V_BOUNDARY | V_CONTACT);
     st->vflags[gone] = 0;
+    if (st->vflags[keep] & V_CONTACT) contact_moved(st, keep);
     st->collapses++;
     if (p->kind == EDGE_SEAM) st->seam_collapses++;
     return true;
@@ -2109,6 +2358,7 @@ static void state_free(state *st) {
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
     free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
+    free(st->contacts), free(st->contact_reach), free(st->contact_rise), free(st->part);
     free(st->importance), free(st->stretch), free(st->input_z_first), free(st->input_z_next), free(st->input_zuv);
     grid_free(&st->grid);
 }
@@ -2521,9 +2771,9 @@ static int setup(state *st, const sc_mesh *m, double uv_weight, sc_error *err) {
     build_vertex_faces(st);
     measure_uv_scale(st, uv_weight);
     if ((rc = classify_fans(st, err)) != SC_OK || (rc = add_quadrics(st, err)) != SC_OK) return rc;
-    if (st->refuse_crossings && !grid_build(st)) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
-    if (st->contact_distance > 0 && !mark_contacts(st, &st->contact_vertices))
+    if ((st->refuse_crossings || st->contact_distance > 0) && !grid_build(st))
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+    if (st->contact_distance > 0 && !find_contacts(st)) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
     return start_error_tracking(st, err);
 }
 
@@ -3082,7 +3332,7 @@ static bool decimate_to(state *st, int64_t target) {
          * one cost more than dropping them in bulk) */
         int64_t edge_bound = (3 * (int64_t)st->nf_alive + st->border_edges) / 2;
         if (st->heap_len > edge_bound * 5 / 4 + 1024) heap_compact(st);
-        if (st->refuse_crossings && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
+        if (st->grid.items && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
             st->out_of_memory = true;
             break;
         }
@@ -3198,6 +3448,7 @@ static int decimate_levels(sc_ctx *ctx, const sc_mesh *in, const int64_t *target
     const double bound = bound_scale * max_error;
     if (bound > 0 && diagonal > 0) st.max_error2 = (diagonal * bound) * (diagonal * bound);
     st.contact_distance = sc_ctx_number(ctx, "contact_distance") * diagonal;
+    st.contact_slack = sc_ctx_number(ctx, "contact_slack") * diagonal;
     st.map_texel_length = sc_ctx_number(ctx, "map_texel") * diagonal * (double)sc_ctx_integer(ctx, "map_size");
     const double seam_error = sc_ctx_number(ctx, "seam_error") * diagonal;
     if (st.map_texel_length > 0) {
@@ -3221,7 +3472,7 @@ static int decimate_levels(sc_ctx *ctx, const sc_mesh *in, const int64_t *target
         total(o, "uv_scale", st.uv_scale);
         total(o, "uv_precision", st.uv_precision);
         total(o, "locked_vertices", (double)locked);
-        total(o, "contact_vertices", (double)st.contact_vertices);
+        total(o, "contact_vertices", (double)st.input_contacts);
         queue_all_edges(&st, st.threads);
         lods = sc_lods_new();
         if (!lods) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
@@ -3433,10 +3684,12 @@ static const sc_param_desc params[] = {
     {.name = "normal_turn", .type = SC_PARAM_NUMBER, .def = 30, .min = 0, .max = 90,
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
     {.name = "contact_distance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
-     .doc = "keep where an open part's border lies within this fraction of the bounding-box diagonal of another "
-            "part (a rim on a body), with the other part's vertices there: decimated apart they leave a gap that "
-            "shows the open part's inside (0.01 keeps Avocado's, WaterBottle's and BoomBox's levels free of "
-            "folds, at many more faces); 0: off"},
+     .doc = "where an open part's border lies within this fraction of the bounding-box diagonal of another "
+            "part (a rim on a body), no collapse may take it more than contact_slack farther from the other "
+            "parts: decimated apart they leave a gap that shows the open part's inside; 0: off"},
+    {.name = "contact_slack", .type = SC_PARAM_NUMBER, .def = 1e-5, .min = 0, .max = 1,
+     .doc = "with contact_distance: how much farther (fraction of the bounding-box diagonal) an open part's "
+            "border in contact may end up from the other parts than in the input"},
     {.name = "refuse_crossings", .type = SC_PARAM_BOOL, .def = 1,
      .doc = "refuse collapses that push a face through another it shares no vertex with (parts decimated "
             "through each other show back faces); crossings of the input stay"},
@@ -3457,7 +3710,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quad
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 8,
+    .version = 9,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
