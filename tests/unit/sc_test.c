@@ -18,6 +18,21 @@ static struct { const char *name; sc_test_fn fn; } tests[SC_TEST_MAX];
 static int ntests;
 static int current_failed;
 
+/* The directories the running test made (sc_test_tempdir): removed when it
+ * passes, kept (and named) when it fails. */
+#define SC_TEST_MAX_DIRS 64
+static char *temp_dirs[SC_TEST_MAX_DIRS];
+static int ntemp_dirs;
+
+static void temp_dirs_done(bool keep) {
+    for (int i = 0; i < ntemp_dirs; i++) {
+        if (keep) printf("     kept %s\n", temp_dirs[i]);
+        else sc_test_system("rm -rf '%s'", temp_dirs[i]);
+        free(temp_dirs[i]);
+    }
+    ntemp_dirs = 0;
+}
+
 void sc_test_register(const char *name, sc_test_fn fn) {
     if (ntests < SC_TEST_MAX) {
         tests[ntests].name = name;
@@ -43,6 +58,7 @@ int sc_test_main(void) {
         if (only && !strstr(tests[i].name, only)) continue;
         current_failed = 0;
         tests[i].fn();
+        temp_dirs_done(current_failed > 0);
         if (current_failed) {
             failed++;
             printf("FAIL %s\n", tests[i].name);
@@ -66,6 +82,10 @@ char *sc_test_tempdir(const char *tag) {
     if (!mkdtemp(path)) {
         free(path);
         return NULL;
+    }
+    if (ntemp_dirs < SC_TEST_MAX_DIRS) {
+        char *copy = malloc(strlen(path) + 1);
+        if (copy) temp_dirs[ntemp_dirs++] = strcpy(copy, path);
     }
     return path;
 }

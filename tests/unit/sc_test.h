@@ -21,7 +21,8 @@ void sc_test_register(const char *name, sc_test_fn fn);
 void sc_test_fail(const char *file, int line, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 int sc_test_main(void);
-/* A fresh empty directory under the system temp dir (caller frees). */
+/* A fresh empty directory under the system temp dir (caller frees the
+ * path); removed with everything in it once the test passes. */
 char *sc_test_tempdir(const char *tag);
 /* Path of a file in the source tree (caller frees). */
 char *sc_test_source_path(const char *rel);
