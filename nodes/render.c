@@ -14,7 +14,11 @@
  *      displaced       base position + slot "displacement" at the vertex uv;
  *      tessellated<L>  TCS/TES at uniform level L (tess_levels), the TES
  *                      sampling the geometry image (or, without one, adding
- *                      the displacement) at every generated vertex.
+ *                      the displacement) at every generated vertex. The
+ *                      pass is tessellated once, its triangles captured with
+ *                      transform feedback and drawn from every view
+ *                      (llvmpipe evaluates tessellation on one thread; the
+ *                      captured floats give the same pictures).
  *    Every pass colours with the "color" slot when the material has one. A
  *    mode whose texture a material lacks is skipped, with the metric
  *    lod<k>.<mode>.skipped = 1. All sampling is bilinear without mipmaps, in
@@ -237,12 +241,22 @@ typedef struct uploaded {
     GLuint texture;
 } uploaded;
 
+/* A tessellated pass's surface, captured once (capture_surface) and drawn
+ * from every view: llvmpipe evaluates tessellation on one thread, and a
+ * pass's views all see the same surface. Group g's triangles are the
+ * vertices [first[g], first[g] + count[g]) of the buffer, in draw order. */
+typedef struct captured {
+    GLuint vao, vbo;
+    int32_t *first, *count;   /* per group of the level */
+} captured;
+
 typedef struct renderer {
     sc_gl *gl;
     sc_gl_target target;
     int32_t size;
     GLuint programs[3][2][2];   /* [pos][tessellated][welded] */
     GLuint seam_programs[3];
+    GLuint capture_programs[3]; /* [pos]: a tessellated pass's surface, captured */
     GLuint samplers[3][3];      /* [wrap_u][wrap_v] */
     uploaded *textures;
     int32_t ntextures;
@@ -250,6 +264,7 @@ typedef struct renderer {
     int32_t *cracks;            /* size*size: the crack pixels of the current picture */
     float *depth;               /* size*size */
     seam_trace trace;           /* the current pass's seam sides as drawn */
+    captured surface;           /* the current tessellated pass's surface */
     int subpixel_bits;          /* GL_SUBPIXEL_BITS: the rasteriser's vertex grid is 2^-bits pixels */
     double subpixel;            /* that grid step in pixels, 0 when unknown */
     double t_render, t_gap;
@@ -458,7 +473,11 @@ static int get_texture(renderer *R, const sc_value *image, GLuint *out, sc_error
     return SC_OK;
 }
 
-static int build_program(renderer *R, int pos, bool tess, bool seam, bool weld, GLuint *out, sc_error *err) {
+/* What a program is for: drawing a pass, probing seam points (seam_vs), or
+ * capturing a tessellated pass's surface once. */
+enum { PROGRAM_DRAW, PROGRAM_SEAM, PROGRAM_CAPTURE };
+
+static int build_program(renderer *R, int purpose, int pos, bool tess, bool weld, GLuint *out, sc_error *err) {
     static const char *const pos_defines[3] = {"#define SC_POS 0\n", "#define SC_POS 1\n", "#define SC_POS 2\n"};
     const char *version = "#version 450 core\n";
     const char *tess_define = tess ? (weld ? "#define SC_TESS 1\n#define SC_WELD 1\n" : "#define SC_TESS 1\n")
@@ -475,11 +494,12 @@ static int build_program(renderer *R, int pos, bool tess, bool seam, bool weld, 
     }
     sc_gl_stage stages[4];
     int n = 0;
-    char label[64];
-    snprintf(label, sizeof label, "%s%s%s (%s)", seam ? "seam probe" : "render", tess ? ", tessellated" : "",
+    char label[96];
+    static const char *const purposes[3] = {"render", "seam probe", "surface capture"};
+    snprintf(label, sizeof label, "%s%s%s (%s)", purposes[purpose], tess ? ", tessellated" : "",
              weld ? ", welded" : "",
              pos == POS_BASE ? "base" : pos == POS_GEOMETRY ? "geometry image" : "displacement");
-    if (seam) {
+    if (purpose == PROGRAM_SEAM) {
         stages[n++] = (sc_gl_stage){GL_VERTEX_SHADER, names[4], {version, pos_defines[pos], common, src[4], NULL}};
         const char *const feedback[] = {"f_pos"};
         return sc_gl_program(label, stages, n, feedback, 1, out, err);
@@ -494,26 +514,49 @@ static int build_program(renderer *R, int pos, bool tess, bool seam, bool weld, 
     }
     stages[n++] = (sc_gl_stage){GL_FRAGMENT_SHADER, names[3],
                                 {version, pos_defines[pos], tess_define, common, src[3], NULL}};
-    const char *const feedback[] = {"v_world", "f_coord", "f_patch"};
-    return sc_gl_program(label, stages, n, tess ? feedback : NULL, tess ? 3 : 0, out, err);
+    /* a tessellated program also serves the seam-gap capture (v_world,
+     * f_coord, f_patch); the surface capture takes what the fragment stage
+     * reads (v_world, v_uv) */
+    const char *const seam_feedback[] = {"v_world", "f_coord", "f_patch"};
+    const char *const surface_feedback[] = {"v_world", "v_uv"};
+    if (purpose == PROGRAM_CAPTURE) return sc_gl_program(label, stages, n, surface_feedback, 2, out, err);
+    return sc_gl_program(label, stages, n, tess ? seam_feedback : NULL, tess ? 3 : 0, out, err);
 }
 
 static int get_program(renderer *R, int pos, bool tess, bool weld, GLuint *out, sc_error *err) {
     if (!R->programs[pos][tess][weld]) {
-        int rc = build_program(R, pos, tess, false, weld, &R->programs[pos][tess][weld], err);
+        int rc = build_program(R, PROGRAM_DRAW, pos, tess, weld, &R->programs[pos][tess][weld], err);
         if (rc != SC_OK) return rc;
     }
     *out = R->programs[pos][tess][weld];
     return SC_OK;
 }
 
+/* The program that captures a tessellated pass's surface (pos: its source). */
+static int get_capture_program(renderer *R, int pos, GLuint *out, sc_error *err) {
+    if (!R->capture_programs[pos]) {
+        int rc = build_program(R, PROGRAM_CAPTURE, pos, true, false, &R->capture_programs[pos], err);
+        if (rc != SC_OK) return rc;
+    }
+    *out = R->capture_programs[pos];
+    return SC_OK;
+}
+
 static int get_seam_program(renderer *R, int pos, GLuint *out, sc_error *err) {
     if (!R->seam_programs[pos]) {
-        int rc = build_program(R, pos, false, true, false, &R->seam_programs[pos], err);
+        int rc = build_program(R, PROGRAM_SEAM, pos, false, false, &R->seam_programs[pos], err);
         if (rc != SC_OK) return rc;
     }
     *out = R->seam_programs[pos];
     return SC_OK;
+}
+
+static void captured_free(captured *C) {
+    if (C->vao) glDeleteVertexArrays(1, &C->vao);
+    if (C->vbo) glDeleteBuffers(1, &C->vbo);
+    free(C->first);
+    free(C->count);
+    memset(C, 0, sizeof *C);
 }
 
 static void renderer_free(renderer *R) {
@@ -521,12 +564,14 @@ static void renderer_free(renderer *R) {
     free(R->trace.run_start);
     R->trace = (seam_trace){0};
     if (!R->gl) return;
+    captured_free(&R->surface);
     sc_gl_target_destroy(&R->target);
     for (int p = 0; p < 3; p++) {
         for (int t = 0; t < 2; t++)
             for (int w = 0; w < 2; w++)
                 if (R->programs[p][t][w]) glDeleteProgram(R->programs[p][t][w]);
         if (R->seam_programs[p]) glDeleteProgram(R->seam_programs[p]);
+        if (R->capture_programs[p]) glDeleteProgram(R->capture_programs[p]);
         for (int q = 0; q < 3; q++)
             if (R->samplers[p][q]) glDeleteSamplers(1, &R->samplers[p][q]);
     }
@@ -747,9 +792,15 @@ static void draw_patches(int32_t first, int32_t count, int level) {
         glDrawArrays(GL_PATCHES, first + i, count - i < chunk ? count - i : chunk);
 }
 
-static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, bool weld, sc_error *err) {
+/* Draw the pass from view v: the level's own triangles or patches, or, with
+ * C, the pass's captured surface through the textured mode's program (base
+ * positions are where a capture's points already are: the same floats, so
+ * the same picture). */
+static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, bool weld, const captured *C,
+                sc_error *err) {
     GLuint program = 0;
-    int rc = get_program(R, ps->pos, ps->level > 0, weld, &program, err);
+    int rc = C ? get_program(R, POS_BASE, false, false, &program, err)
+               : get_program(R, ps->pos, ps->level > 0, weld, &program, err);
     if (rc != SC_OK) return rc;
     glBindFramebuffer(GL_FRAMEBUFFER, R->target.fbo);
     glViewport(0, 0, R->size, R->size);
@@ -770,6 +821,15 @@ static int draw(renderer *R, const level_gl *L, const pass *ps, const view *v, b
     glUniform3fv(glGetUniformLocation(program, "u_light"), 1, v->light);
     glUniform3fv(glGetUniformLocation(program, "u_eye_dir"), 1, v->eye);
     glUniform1f(glGetUniformLocation(program, "u_back_bias"), 1e-5f);
+    if (C) {
+        glBindVertexArray(C->vao);
+        for (int32_t g = 0; g < L->ngroups; g++) {
+            bind_material(&L->materials[L->groups[g].material], program);
+            glDrawArrays(GL_TRIANGLES, C->first[g], C->count[g]);
+        }
+        glBindVertexArray(0);
+        return sc_gl_check("drawing a captured surface", err);
+    }
     if (ps->level > 0) {
         glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
         glUniform1i(glGetUniformLocation(program, "u_patch_base"), 0);
@@ -888,8 +948,9 @@ static int capture_begin(capture *c, size_t bytes, GLenum primitive, sc_error *e
     return sc_gl_check("starting transform feedback", err);
 }
 
-/* Ends the capture, maps the data; *written = primitives written, *overflow
- * when some did not fit. The caller frees *out. */
+/* Ends the capture; *written = primitives written, *overflow when some did
+ * not fit. With out, the data is read back (the caller frees *out) and the
+ * buffer deleted; without, the buffer stays in c->buffer, the caller's. */
 static int capture_end(capture *c, void **out, GLuint *written, bool *overflow, sc_error *err) {
     glEndTransformFeedback();
     glEndQuery(GL_PRIMITIVES_GENERATED);
@@ -900,17 +961,90 @@ static int capture_end(capture *c, void **out, GLuint *written, bool *overflow, 
     glGetQueryObjectuiv(c->q_generated, GL_QUERY_RESULT, &g);
     *written = w;
     *overflow = g > w;
-    *out = malloc(c->bytes);
-    if (*out) glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, (GLsizeiptr)c->bytes, *out);
+    void *data = out ? malloc(c->bytes) : NULL;
+    if (data) glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, (GLsizeiptr)c->bytes, data);
     glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
-    glDeleteBuffers(1, &c->buffer);
+    if (out) {
+        glDeleteBuffers(1, &c->buffer);
+        c->buffer = 0;
+    }
     glDeleteQueries(1, &c->q_written);
     glDeleteQueries(1, &c->q_generated);
-    if (!*out) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (out && !data) return sc_fail(err, SC_ENOMEM, "out of memory");
     int rc = sc_gl_check("transform feedback", err);
-    if (rc != SC_OK) {
-        free(*out);
-        *out = NULL;
+    if (rc != SC_OK) free(data), data = NULL;
+    if (out) *out = data;
+    return rc;
+}
+
+/* Capture pass ps's tessellated surface into R->surface (see captured):
+ * the level's patches, group by group as draw() sends them, through the
+ * pass's own stages, with the evaluated points and uvs (v_world, v_uv)
+ * recorded. Every patch splits alike (one level for all), so a one-patch
+ * capture sizes the buffer exactly. */
+static int capture_surface(renderer *R, const level_gl *L, const pass *ps, sc_error *err) {
+    captured *C = &R->surface;
+    GLuint program = 0;
+    int rc = get_capture_program(R, ps->pos, &program, err);
+    if (rc != SC_OK) return rc;
+    const size_t vertex_bytes = 5 * sizeof(float);
+    int64_t patches = 0;
+    for (int32_t g = 0; g < L->ngroups; g++) patches += L->groups[g].count / 3;
+    C->first = calloc((size_t)L->ngroups + 1, sizeof *C->first);
+    C->count = calloc((size_t)L->ngroups + 1, sizeof *C->count);
+    if (!C->first || !C->count) return sc_fail(err, SC_ENOMEM, "out of memory");
+    if (patches == 0) return SC_OK;
+    glUseProgram(program);
+    glUniform1f(glGetUniformLocation(program, "u_level"), (float)ps->level);
+    glUniform1i(glGetUniformLocation(program, "u_patch_base"), 0);
+    glPatchParameteri(GL_PATCH_VERTICES, 3);
+    glBindVertexArray(L->vao);
+    /* one patch: the triangles every patch gives */
+    int32_t g0 = 0;
+    while (L->groups[g0].count < 3) g0++;
+    capture cap;
+    GLuint per_patch = 0, written = 0;
+    bool overflow = false;
+    size_t bound = 3 * (size_t)ps->level * (size_t)ps->level / 2 + 4;
+    rc = capture_begin(&cap, bound * 3 * vertex_bytes, GL_TRIANGLES, err);
+    if (rc == SC_OK) {
+        bind_material(&L->materials[L->groups[g0].material], program);
+        glDrawArrays(GL_PATCHES, L->groups[g0].first, 3);
+        rc = capture_end(&cap, NULL, &per_patch, &overflow, err);
+        glDeleteBuffers(1, &cap.buffer);
+    }
+    if (rc == SC_OK && (overflow || per_patch == 0))
+        rc = sc_fail(err, SC_EIO, "OpenGL: a tessellated patch captured %u triangles%s", per_patch,
+                     overflow ? ", more than the tessellation gives" : "");
+    size_t total = (size_t)patches * per_patch * 3;
+    if (rc == SC_OK && total > INT32_MAX) rc = sc_fail(err, SC_ENOMEM, "the tessellated surface is too large");
+    if (rc == SC_OK) rc = capture_begin(&cap, total * vertex_bytes, GL_TRIANGLES, err);
+    if (rc == SC_OK) {
+        int32_t at = 0;
+        for (int32_t g = 0; g < L->ngroups; g++) {
+            bind_material(&L->materials[L->groups[g].material], program);
+            draw_patches(L->groups[g].first, L->groups[g].count, ps->level);
+            C->first[g] = at;
+            C->count[g] = L->groups[g].count / 3 * (int32_t)per_patch * 3;
+            at += C->count[g];
+        }
+        rc = capture_end(&cap, NULL, &written, &overflow, err);
+        C->vbo = cap.buffer;   /* the capture is the vertex buffer */
+    }
+    glBindVertexArray(0);
+    if (rc == SC_OK && (overflow || (size_t)written * 3 != total))
+        rc = sc_fail(err, SC_EIO, "OpenGL: the tessellated surface captured %u of %zu triangles", written,
+                     total / 3);
+    if (rc == SC_OK) {
+        glGenVertexArrays(1, &C->vao);
+        glBindVertexArray(C->vao);
+        glBindBuffer(GL_ARRAY_BUFFER, C->vbo);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, (GLsizei)vertex_bytes, (void *)0);
+        glEnableVertexAttribArray(1);
+        glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, (GLsizei)vertex_bytes, (void *)(3 * sizeof(float)));
+        glBindVertexArray(0);
+        rc = sc_gl_check("drawing from a captured surface", err);
     }
     return rc;
 }
@@ -1582,9 +1716,17 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
      * and no hole the reference lacks (its topology): nothing to see
      * through, so back faces come from folds */
     bool no_opening = gap.gap == 0 && J->reference && topology_equal(&L->topo, &J->reference_topology);
+    captured_free(&R->surface);
+    if (ps->level > 0) {
+        t0 = sc_now();
+        rc = capture_surface(R, L, ps, err);
+        R->t_render += sc_now() - t0;
+        if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s: capturing the tessellated surface", k->human,
+                                                ps->name);
+    }
     for (int v = 0; v < J->nviews; v++) {
         t0 = sc_now();
-        rc = draw(R, L, ps, &J->views[v], false, err);
+        rc = draw(R, L, ps, &J->views[v], false, R->surface.vao ? &R->surface : NULL, err);
         if (rc == SC_OK) rc = read_target(R, err);
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s, view %s", k->human, ps->name, J->views[v].name);
@@ -1613,7 +1755,7 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
              * a grid step, and a seam that narrow opens no more than a lone
              * pixel (a pinhole), so this pixel is the fold's edge */
             t0 = sc_now();
-            rc = draw(R, L, ps, &J->views[v], true, err);
+            rc = draw(R, L, ps, &J->views[v], true, NULL, err);
             if (rc == SC_OK) rc = read_target(R, err);
             R->t_render += sc_now() - t0;
             if (rc != SC_OK) {
@@ -1639,6 +1781,7 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         total += cracks;
         if (cracks > worst) worst = cracks, worst_view = v;
     }
+    captured_free(&R->surface);
     *gap_out = gap;
     o->crack_total += (double)total;
     o->pinhole_total += (double)pinholes;
@@ -1698,7 +1841,7 @@ static int render_reference(renderer *R, const sc_atlas *ref, job *J, outcome *o
     int v = 0;
     for (; v < J->nviews && rc == SC_OK; v++) {
         double t0 = sc_now();
-        rc = draw(R, &L, &ps, &J->views[v], false, err);
+        rc = draw(R, &L, &ps, &J->views[v], false, NULL, err);
         if (rc == SC_OK) rc = read_target(R, err);
         R->t_render += sc_now() - t0;
         if (rc != SC_OK) break;
