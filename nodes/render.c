@@ -36,6 +36,11 @@
  *    paired with the other side's point of nearest edge parameter. The gap is
  *    the largest distance between paired points over the level's
  *    bounding-box diagonal; max_vertex_gap is the same at t = 0 and 1 only.
+ *    Beside it, for the passes whose positions come from maps,
+ *    lod<k>.<pass>.map_seam_gap is the gap the maps themselves hold at the
+ *    same parameters, each side sampled in double at its exact uv: the GPU's
+ *    gap less its float32 sampling, which grows with how steeply a map
+ *    changes across a chart's border. A failing max_seam_gap names both.
  *  - Crack pixels: front faces shaded, back faces pure red, no culling; the
  *    alpha channel tells background (0), front (1) and back faces (1/2)
  *    apart, so a red texture never counts. A closed mesh (no boundary, no
@@ -977,6 +982,63 @@ static int capture_end(capture *c, void **out, GLuint *written, bool *overflow, 
     return rc;
 }
 
+/* The position maps of a pass, one per material (NULL where it has none):
+ * "geometry_image" or "displacement". */
+static const sc_texture **position_maps(const level_gl *L, int pos) {
+    const sc_mesh *m = L->mesh;
+    const char *slot = pos == POS_GEOMETRY ? "geometry_image" : "displacement";
+    const sc_texture **maps = calloc((size_t)m->nmat + 1, sizeof *maps);
+    for (int32_t mat = 0; maps && mat < m->nmat; mat++) {
+        int i = sc_atlas_find_texture(L->atlas, mat, slot);
+        maps[mat] = i >= 0 ? &L->atlas->textures[i] : NULL;
+    }
+    return maps;
+}
+
+/* The maps' own gap at t along seam edge e (relative to the diagonal; -1
+ * when a side has no map): each side's map sampled bilinearly (its wrap
+ * modes, GL's texel centres) at that side's exact uv, in double. The
+ * displacement pass adds the base point, which both sides share. */
+static double map_point_gap(const level_gl *L, const sc_texture *const *maps, int32_t e, double t) {
+    const sc_mesh *m = L->mesh;
+    const sc_seam_edge *se = &L->seams.seams[e];
+    double at[2][3];
+    for (int s = 0; s < 2; s++) {
+        const sc_texture *tex = maps[m->FM[se->side[s].face]];
+        if (!tex) return -1;
+        const double *u0 = m->U + 2 * se->side[s].uv0, *u1 = m->U + 2 * se->side[s].uv1;
+        const sc_image_data *im = tex->image->as.image;
+        sc_seam_grid g = {im->width, im->height, tex->wrap_u, tex->wrap_v};
+        int32_t id[4];
+        double w[4];
+        sc_seam_taps(&g, (1 - t) * u0[0] + t * u1[0], (1 - t) * u0[1] + t * u1[1], id, w);
+        for (int c = 0; c < 3; c++) {
+            double v = 0;
+            for (int k = 0; k < 4; k++) v += w[k] * sc_seam_texel(im, id[k], c);
+            at[s][c] = v;
+        }
+    }
+    double d[3] = {at[0][0] - at[1][0], at[0][1] - at[1][1], at[0][2] - at[1][2]};
+    return sc_norm3(d) / L->diag;
+}
+
+/* The maps' own seam gap over a pass's points: t = i / steps along every
+ * seam edge. The GPU's gap (seam_gap_points, seam_gap_tess) adds the
+ * rounding of float32 uvs, which grows with how steeply a map changes
+ * across a chart's border; this one is what the maps themselves hold. */
+static int map_seam_gap(const level_gl *L, int pos, int steps, gap_result *res, sc_error *err) {
+    const sc_texture **maps = position_maps(L, pos);
+    if (!maps) return sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t e = 0; e < L->seams.nseams; e++)
+        for (int i = 0; i <= steps; i++) {
+            double t = i == steps ? 1.0 : (double)i / steps, d = map_point_gap(L, maps, e, t);
+            if (d < 0) break;   /* a side without the map: the pass skips its material */
+            gap_consider(res, d, t, e);
+        }
+    free(maps);
+    return SC_OK;
+}
+
 /* Capture pass ps's tessellated surface into R->surface (see captured):
  * the level's patches, group by group as draw() sends them, through the
  * pass's own stages, with the evaluated points and uvs (v_world, v_uv)
@@ -1692,16 +1754,27 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     trace_clear(&R->trace);
     int rc = ps->level > 0 ? seam_gap_tess(R, L, ps, &gap, err)
                            : seam_gap_points(R, L, ps, J->seam_points, &gap, err);
+    gap_result map_gap = {0, 0, -1, 0};
+    if (rc == SC_OK && ps->pos != POS_BASE)
+        rc = map_seam_gap(L, ps->pos, ps->level > 0 ? ps->level : J->seam_points - 1, &map_gap, err);
     R->t_gap += sc_now() - t0;
     if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s: seam gap", k->human, ps->name);
     if (J->max_gap >= 0 && gap.gap > J->max_gap) {
         const sc_seam_edge *se = &L->seams.seams[gap.edge];
+        /* how much of it the maps hold, and how much is the GPU's float32 uv */
+        char own[200] = "";
+        const sc_texture **maps = ps->pos != POS_BASE ? position_maps(L, ps->pos) : NULL;
+        double d = maps ? map_point_gap(L, maps, gap.edge, gap.edge_t) : -1;
+        free(maps);
+        if (d >= 0)
+            snprintf(own, sizeof own, "; the maps themselves differ by %.3g there: the rest comes from the GPU's "
+                     "sampling (float32 uvs, its filtering) where a map changes steeply across a chart's border", d);
         return sc_fail(err, SC_EINPUT,
                        "max_seam_gap: %s, mode %s, every view: the seam gap is %.3g of the bounding-box "
                        "diagonal, over the limit %.3g (seam edge between vertices %d and %d, faces %d and %d, "
-                       "at t = %.3g)",
+                       "at t = %.3g%s)",
                        k->human, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
-                       gap.edge_t);
+                       gap.edge_t, own);
     }
     int64_t total = 0, worst = -1, pinholes = 0, folds = 0;
     int worst_view = 0;
@@ -1792,7 +1865,8 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         metricf(o, (double)pinholes, "%s.%s.pinhole_pixels", k->metric, ps->name) ||
         metricf(o, (double)folds, "%s.%s.fold_pixels", k->metric, ps->name) ||
         metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
-        metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name))
+        metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name) ||
+        (ps->pos != POS_BASE && metricf(o, map_gap.gap, "%s.%s.map_seam_gap", k->metric, ps->name)))
         return sc_fail(err, SC_ENOMEM, "out of memory");
     /* folds at the level's own vertices are decimation's; those of the
      * positions maps give (geometry image, displacement) are the maps' */
@@ -2385,7 +2459,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 18,
+    .version = 19,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

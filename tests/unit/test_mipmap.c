@@ -233,7 +233,8 @@ done:
  * image beside the middle of a seam edge, moved by 0.5, opens that seam:
  * the render node's tessellated mode, which samples the map between the
  * vertices, counts crack pixels, and the seam gap it measures is that of
- * the moved texel. The same level unmoved has none (the test above). */
+ * the moved texel, on the GPU and in the map itself. The same level
+ * unmoved has none (the test above). */
 SC_TEST(a_one_texel_crack_shows_at_every_mip_level) {
     if (sc_test_sanitized()) {
         printf("  skipped under the sanitizer (the test above runs the same code)\n");
@@ -274,10 +275,12 @@ SC_TEST(a_one_texel_crack_shows_at_every_mip_level) {
         sc_test_run rr = sc_test_run_node(&sc_node_render, rp, "lods", level, "reference", atlas);
         SC_CHECK_MSG(rr.rc == SC_OK, "render: %s", rr.err.message);
         double cracks = sc_ctx_metric_value(rr.ctx, "crack_pixels"), gap = sc_ctx_metric_value(rr.ctx, "max_seam_gap");
-        printf("     mip %d (%d^2): texel (%d, %d) moved: %g crack pixels, seam gap %.3g\n", m, (int)src->width,
-               (int)i, (int)j, cracks, gap);
+        double own = sc_ctx_metric_value(rr.ctx, "lod0.tessellated2.map_seam_gap");
+        printf("     mip %d (%d^2): texel (%d, %d) moved: %g crack pixels, seam gap %.3g (in the map: %.3g)\n", m,
+               (int)src->width, (int)i, (int)j, cracks, gap, own);
         SC_CHECK_MSG(cracks > 0, "mip %d: %g crack pixels", m, cracks);
         SC_CHECK_MSG(gap > 1e-3, "mip %d: seam gap %g", m, gap);
+        SC_CHECK_MSG(own > 1e-3, "mip %d: the map's own seam gap %g", m, own);
         sc_ctx_free(rr.ctx);
         sc_value_release(level);
     }

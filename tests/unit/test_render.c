@@ -298,6 +298,10 @@ SC_TEST(seam_free_geometry_image_has_no_gap) {
         SC_CHECK_MSG(M(&r, name) <= 1e-6, "%s = %g", name, M(&r, name));
         snprintf(name, sizeof name, "lod0.%s.crack_pixels", modes[i]);
         SC_CHECK_MSG(M(&r, name) == 0, "%s = %g", name, M(&r, name));
+        /* the maps' own gap, sampled in double: the charts meet exactly */
+        snprintf(name, sizeof name, "lod0.%s.map_seam_gap", modes[i]);
+        if (i == 0) SC_CHECK_MSG(isnan(M(&r, name)), "%s = %g (base positions have no map)", name, M(&r, name));
+        else SC_CHECK_MSG(M(&r, name) <= 1e-12, "%s = %g", name, M(&r, name));
     }
     SC_CHECK(M(&r, "crack_pixels") == 0);
     SC_CHECK(M(&r, "max_seam_gap") <= 1e-6);
@@ -340,6 +344,10 @@ SC_TEST(geometry_image_with_seams_has_gap_and_cracks) {
     /* neighbouring charts are offset by 0.02 per axis: 0.0346 / diagonal 3.46 */
     SC_CHECK_MSG(M(&r, "lod0.geometry_image.max_seam_gap") > 1e-3, "%g", M(&r, "lod0.geometry_image.max_seam_gap"));
     SC_CHECK_NEAR(M(&r, "lod0.geometry_image.max_seam_gap"), 0.02 * 5 * sqrt(3.0) / (2 * sqrt(3.0)), 1e-5);
+    /* the maps' own gap is that offset too, as float32 texels hold it: it is
+     * in the maps */
+    SC_CHECK_NEAR(M(&r, "lod0.geometry_image.map_seam_gap"), 0.02 * 5 * sqrt(3.0) / (2 * sqrt(3.0)), 1e-7);
+    SC_CHECK(M(&r, "lod0.tessellated4.map_seam_gap") > 1e-3);
     SC_CHECK(M(&r, "lod0.geometry_image.max_vertex_gap") > 1e-3);
     SC_CHECK(M(&r, "lod0.displaced.max_seam_gap") > 1e-3);
     SC_CHECK(M(&r, "lod0.tessellated4.max_seam_gap") > 1e-3);
@@ -592,6 +600,8 @@ SC_TEST(displacement_with_seams_fails_the_gap_limit) {
                                                 "max_seam_gap", "1e-6", NULL});
     SC_CHECK(r.rc != SC_OK);
     SC_CHECK_MSG(strstr(r.err.message, "max_seam_gap: lod 0, mode displaced") != NULL, "%s", r.err.message);
+    /* and how much of the gap the maps hold: all of it, here */
+    SC_CHECK_MSG(strstr(r.err.message, "the maps themselves differ by") != NULL, "%s", r.err.message);
     sc_ctx_free(r.ctx);
     sc_value_release(lods);
     sc_value_release(good);
