@@ -1914,10 +1914,10 @@ static bool contacts_ok(state *st, const collapse_plan *p) {
             if (same_part && !moves && !w_moves) continue;   /* an edge of this part the plan leaves */
             const double *y = w_moves ? p->xyz : st->pos + 3 * w;
             double reach_e = max2(reach, st->contact_reach[w]), rise_e = max2(rise, st->contact_rise[w]);
+            bool unmoved = !moves && !w_moves;   /* then compared with before, as far as 4 reach */
             for (int t = 1; t < 4; t++) {
                 double s[3];
                 for (int k = 0; k < 3; k++) s[k] = x[k] + 0.25 * t * (y[k] - x[k]);
-                bool unmoved = !moves && !w_moves;   /* then compared with before, as far as 4 reach */
                 if (unmoved && box_distance(lo, hi, s) > 4 * reach_e) continue;
                 if (!contact_point_ok(st, p, s, st->part[v], reach_e, rise_e, unmoved)) return false;
             }
@@ -3685,11 +3685,12 @@ static const sc_param_desc params[] = {
      .doc = "largest angle (degrees) a face's normal may turn in one collapse (90: refuse flips only)"},
     {.name = "contact_distance", .type = SC_PARAM_NUMBER, .def = 0, .min = 0, .max = 1,
      .doc = "where an open part's border lies within this fraction of the bounding-box diagonal of another "
-            "part (a rim on a body), no collapse may take it more than contact_slack farther from the other "
-            "parts: decimated apart they leave a gap that shows the open part's inside; 0: off"},
+            "part (a rim on a body), no collapse may take it, or a point of its edges, more than contact_slack "
+            "farther from the other parts or higher over their nearest face: decimated apart they leave a gap "
+            "that shows the open part's inside; 0: off"},
     {.name = "contact_slack", .type = SC_PARAM_NUMBER, .def = 1e-5, .min = 0, .max = 1,
-     .doc = "with contact_distance: how much farther (fraction of the bounding-box diagonal) an open part's "
-            "border in contact may end up from the other parts than in the input"},
+     .doc = "with contact_distance: how much farther from the other parts, or higher over them (fraction of "
+            "the bounding-box diagonal), an open part's border in contact may end up than in the input"},
     {.name = "refuse_crossings", .type = SC_PARAM_BOOL, .def = 1,
      .doc = "refuse collapses that push a face through another it shares no vertex with (parts decimated "
             "through each other show back faces); crossings of the input stay"},
