@@ -47,10 +47,12 @@
  *    both below it are box-averaged (DATA maps as above) but not erased
  *    (counted: levels_not_erased); their seam energies are reported like any
  *    other level's.
- *  - Level 0 already erased. A level-0 texture whose largest seam gap is
- *    within what its storage holds (`level0_gap` times its largest magnitude
- *    for float, one step for 8/16-bit; or `gap_tolerance`) is kept as it is:
- *    it comes erased from upstream (bake_displacement erases every map on
+ *  - Level 0 already erased. A level-0 texture whose largest seam gap,
+ *    measured as the erasure filters it (sRGB colour in linear light with
+ *    filter_space linear), is within what its storage holds (`level0_gap`
+ *    times its largest magnitude for float, one step for 8/16-bit; or
+ *    `gap_tolerance`) is kept as it is (a chain's level 0 is then the very
+ *    texture the graph saves): it comes erased from upstream (bake_displacement erases every map on
  *    these seams or more). Erasing it again buys nothing and costs much: it
  *    leaves the gaps about where they were but moves texels (mipmap's erase
  *    keeps erase_seams's E_C1 term, which the bake leaves out for
@@ -448,10 +450,13 @@ static sc_image_data *data_down(const sc_image_data *src, int32_t **band_io) {
 /* Whether level 0 of a chain is seam-free already: its largest sampled seam
  * gap (sc_seam_energy) within `gap_tolerance`, or within what its storage
  * holds: `level0_gap` times its largest magnitude (float), one step (8/16
- * bit). level0_gap = 0: never (every level 0 is erased). */
+ * bit). The gap is measured on `filtered`, the level as the erasure filters
+ * it (float_view: sRGB colour in linear light by default), the tolerance
+ * from `im`, the level as stored. level0_gap = 0: never (every level 0 is
+ * erased). */
 static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, const sc_texture *tex,
-                             const sc_image_data *im, double gap_tolerance, double level0_gap, int threads,
-                             bool *clean, sc_error *err) {
+                             const sc_image_data *im, const sc_image_data *filtered, double gap_tolerance,
+                             double level0_gap, int threads, bool *clean, sc_error *err) {
     *clean = false;
     if (!(level0_gap > 0)) return SC_OK;
     double tol = gap_tolerance;
@@ -470,7 +475,7 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
     }
     sc_seam_grid g = {im->width, im->height, tex->wrap_u, tex->wrap_v};
     double energy = 0, gap = 0;
-    int rc = sc_seam_energy(mesh, seams, &g, im, threads, &energy, &gap, err);
+    int rc = sc_seam_energy(mesh, seams, &g, filtered, threads, &energy, &gap, err);
     if (rc == SC_OK) *clean = gap <= tol;
     return rc;
 }
@@ -522,7 +527,12 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
         bool erase = level->width >= es->min_size || level->height >= es->min_size;
         bool clean = !erase;
         if (!erase) counts->unerased++;
+        sc_value *fv = NULL;   /* the level as the erasure filters it */
         if (erase && m == 0 && es->level0_gap > 0) {
+            fv = float_view(in[i], es);
+            if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        if (rc == SC_OK && erase && m == 0 && es->level0_gap > 0) {
             if (seams_material != t->material) {
                 if (seams_material >= 0) sc_seam_set_free(&seams);
                 seams_material = -1;
@@ -530,18 +540,20 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
                 if (rc == SC_OK) seams_material = t->material;
             }
             if (rc == SC_OK)
-                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, es->gap_tolerance, es->level0_gap,
-                                       es->threads,
-                                       &clean, err);
+                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, fv->as.image, es->gap_tolerance,
+                                       es->level0_gap, es->threads, &clean, err);
         }
         if (rc == SC_OK && clean) {
-            sc_value *fv = float_view(in[i], es);
+            if (!fv) fv = float_view(in[i], es);
             if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
             chains[i]->f32[m] = fv, chains[i]->native[m] = fv ? sc_value_retain(in[i]) : NULL;
             if (erase) counts->passed++;
-        } else if (rc == SC_OK) {
-            maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
-            which[nerase++] = i;
+        } else {
+            sc_value_release(fv);
+            if (rc == SC_OK) {
+                maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
+                which[nerase++] = i;
+            }
         }
     }
     if (seams_material >= 0) sc_seam_set_free(&seams);
@@ -1116,7 +1128,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imag
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 12,
+    .version = 13,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
