@@ -389,6 +389,22 @@ done:
     sc_value_release(atlas);
 }
 
+/* The procedural sphere's mesh with `colour` (taken over) as its one
+ * texture; NULL when the sphere is not made. */
+static sc_value *sphere_with_colour(sc_image_data *colour) {
+    const char *pp[] = {"resolution", "16", "texture_size", "64", NULL};
+    sc_test_run r = sc_test_run_node(&sc_node_procedural, pp, NULL, NULL, NULL, NULL);
+    sc_value *sphere = take(&r, 0, "procedural");
+    if (!sphere) {
+        sc_image_free(colour);
+        return NULL;
+    }
+    sc_atlas *a = sc_atlas_new(sc_value_retain(sphere->as.atlas->mesh));
+    sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_new_image(colour));
+    sc_value_release(sphere);
+    return sc_value_new_atlas(a);
+}
+
 /* The seam gap of an 8-bit sRGB colour texture's seams: decoded to linear
  * light (as GPUs filter it) or as its encoded values. */
 static double colour_gap(const sc_atlas *a, bool linear) {
@@ -413,10 +429,6 @@ static double colour_gap(const sc_atlas *a, bool linear) {
  * values, it was erased again: Avocado's level 0 then differed from its
  * saved colour in 27k texels, by up to 19 steps). */
 SC_TEST(a_colour_erased_in_linear_light_is_level_0_as_it_is) {
-    const char *pp[] = {"resolution", "16", "texture_size", "64", NULL};
-    sc_test_run r = sc_test_run_node(&sc_node_procedural, pp, NULL, NULL, NULL, NULL);
-    sc_value *procedural = take(&r, 0, "procedural");
-    if (!procedural) return;
     /* a colour of high contrast everywhere, seams included: noise */
     sc_image_data *noise = sc_image_alloc(128, 128, 3, SC_PIXEL_U8);
     noise->colorspace = SC_COLOR_SRGB;
@@ -425,11 +437,9 @@ SC_TEST(a_colour_erased_in_linear_light_is_level_0_as_it_is) {
         state = state * 1664525u + 1013904223u;
         ((uint8_t *)noise->pixels)[i] = (uint8_t)(state >> 24);
     }
-    sc_atlas *a = sc_atlas_new(sc_value_retain(procedural->as.atlas->mesh));
-    sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_new_image(noise));
-    sc_value *sphere = sc_value_new_atlas(a);
-    sc_value_release(procedural);
-    r = sc_test_run_node(&sc_node_erase_seams, NULL, "atlas", sphere, NULL, NULL);
+    sc_value *sphere = sphere_with_colour(noise);
+    if (!sphere) return;
+    sc_test_run r = sc_test_run_node(&sc_node_erase_seams, NULL, "atlas", sphere, NULL, NULL);
     sc_value *erased = take(&r, 1, "erase_seams");
     if (!erased) {
         sc_value_release(sphere);
@@ -462,19 +472,14 @@ SC_TEST(a_colour_erased_in_linear_light_is_level_0_as_it_is) {
  * bytes; the next level is still built from its float values. Every level
  * of a flat grey is that grey. */
 SC_TEST(levels_passed_through_as_8bit_feed_the_next_level) {
-    const char *pp[] = {"resolution", "16", "texture_size", "64", NULL};
-    sc_test_run r = sc_test_run_node(&sc_node_procedural, pp, NULL, NULL, NULL, NULL);
-    sc_value *sphere = take(&r, 0, "procedural");
-    if (!sphere) return;
     sc_image_data *grey = sc_image_alloc(64, 64, 3, SC_PIXEL_U8);
     grey->colorspace = SC_COLOR_SRGB;
     memset(grey->pixels, 128, 64 * 64 * 3);
-    sc_atlas *a = sc_atlas_new(sc_value_retain(sphere->as.atlas->mesh));
-    sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_new_image(grey));
-    sc_value *atlas = sc_value_new_atlas(a);
+    sc_value *atlas = sphere_with_colour(grey);
+    if (!atlas) return;
     /* level 0 goes to the kernel too, which passes each level through */
     const char *mp[] = {"level0_gap", "0", "gap_tolerance", "1e-3", NULL};
-    r = sc_test_run_node(&sc_node_mipmap, mp, "atlas", atlas, NULL, NULL);
+    sc_test_run r = sc_test_run_node(&sc_node_mipmap, mp, "atlas", atlas, NULL, NULL);
     SC_CHECK_MSG(r.rc == SC_OK, "mipmap: %s", r.err.message);
     if (r.rc == SC_OK) {
         const sc_lods *levels = sc_ctx_output(r.ctx, 0)->as.lods;
@@ -491,7 +496,6 @@ SC_TEST(levels_passed_through_as_8bit_feed_the_next_level) {
     }
     sc_ctx_free(r.ctx);
     sc_value_release(atlas);
-    sc_value_release(sphere);
 }
 
 /* erase_min_size: levels with both sides below it are averaged, not erased,
