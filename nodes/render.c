@@ -39,8 +39,9 @@
  *    Beside it, for the passes whose positions come from maps,
  *    lod<k>.<pass>.map_seam_gap is the gap the maps themselves hold at the
  *    same parameters, each side sampled in double at its exact uv: the GPU's
- *    gap less its float32 sampling, which grows with how steeply a map
- *    changes across a chart's border. A failing max_seam_gap names both.
+ *    gap less the rounding of its own sampling (float32 uvs, its filtering),
+ *    which grows with how steeply a map changes across a chart's border. A
+ *    failing max_seam_gap names both.
  *  - Crack pixels: front faces shaded, back faces pure red, no culling; the
  *    alpha channel tells background (0), front (1) and back faces (1/2)
  *    apart, so a red texture never counts. A closed mesh (no boundary, no
@@ -998,7 +999,8 @@ static const sc_texture **position_maps(const level_gl *L, int pos) {
 /* The maps' own gap at t along seam edge e (relative to the diagonal; -1
  * when a side has no map): each side's map sampled bilinearly (its wrap
  * modes, GL's texel centres) at that side's exact uv, in double. The
- * displacement pass adds the base point, which both sides share. */
+ * displacement pass adds the same base point to both sides, so the maps'
+ * difference is its gap too. */
 static double map_point_gap(const level_gl *L, const sc_texture *const *maps, int32_t e, double t) {
     const sc_mesh *m = L->mesh;
     const sc_seam_edge *se = &L->seams.seams[e];
@@ -1024,8 +1026,9 @@ static double map_point_gap(const level_gl *L, const sc_texture *const *maps, in
 
 /* The maps' own seam gap over a pass's points: t = i / steps along every
  * seam edge. The GPU's gap (seam_gap_points, seam_gap_tess) adds the
- * rounding of float32 uvs, which grows with how steeply a map changes
- * across a chart's border; this one is what the maps themselves hold. */
+ * rounding of its sampling (float32 uvs, its filtering), which grows with
+ * how steeply a map changes across a chart's border; this one is what the
+ * maps themselves hold. */
 static int map_seam_gap(const level_gl *L, int pos, int steps, gap_result *res, sc_error *err) {
     const sc_texture **maps = position_maps(L, pos);
     if (!maps) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1761,7 +1764,7 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     if (rc != SC_OK) return sc_error_prefix(err, "%s, mode %s: seam gap", k->human, ps->name);
     if (J->max_gap >= 0 && gap.gap > J->max_gap) {
         const sc_seam_edge *se = &L->seams.seams[gap.edge];
-        /* how much of it the maps hold, and how much is the GPU's float32 uv */
+        /* how much of it the maps hold; the rest is the GPU's sampling */
         char own[200] = "";
         const sc_texture **maps = ps->pos != POS_BASE ? position_maps(L, ps->pos) : NULL;
         double d = maps ? map_point_gap(L, maps, gap.edge, gap.edge_t) : -1;
