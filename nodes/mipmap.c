@@ -52,11 +52,12 @@
  *    filter_space linear), is within what its storage holds (`level0_gap`
  *    times its largest magnitude for float, one step for 8/16-bit; or
  *    `gap_tolerance`) is kept as it is (a chain's level 0 is then the very
- *    texture the graph saves): it comes erased from upstream (bake_displacement erases every map on
- *    these seams or more). Erasing it again buys nothing and costs much: it
- *    leaves the gaps about where they were but moves texels (mipmap's erase
- *    keeps erase_seams's E_C1 term, which the bake leaves out for
- *    positions), at a large share of the node's erase time.
+ *    texture the graph saves): it comes erased from upstream
+ *    (bake_displacement erases every map on these seams or more). Erasing
+ *    it again buys nothing and costs much: it leaves the gaps about where
+ *    they were but moves texels (mipmap's erase keeps erase_seams's E_C1
+ *    term, which the bake leaves out for positions), at a large share of
+ *    the node's erase time.
  *  - Levels of detail. With `lods`, every level of detail gets its own chains,
  *    erased on its own seams, except a texture that is the very same image
  *    (same slot, material and digest) on every level: its chain is built once
