@@ -802,22 +802,44 @@ sc_value *sc_value_deserialize(const void *bytes, size_t n, const sc_digest *exp
     return v;
 }
 
+typedef struct quantize_job {
+    const sc_image_data *f;
+    sc_image_data *q;
+    bool encode;   /* linear colour through the transfer curve */
+    double maxv;
+} quantize_job;
+
+#define QUANTIZE_ROWS 64
+
+static int quantize_rows(void *ud, int32_t chunk) {
+    const quantize_job *j = ud;
+    const sc_image_data *f = j->f;
+    const int32_t C = f->channels;
+    const int32_t y0 = chunk * QUANTIZE_ROWS, y1 = y0 + QUANTIZE_ROWS < f->height ? y0 + QUANTIZE_ROWS : f->height;
+    const size_t k0 = (size_t)y0 * f->width * C, k1 = (size_t)y1 * f->width * C;
+    const float *px = f->pixels;
+    for (size_t k = k0; k < k1; k++) {
+        float x = j->encode && !sc_channel_is_alpha(C, (int32_t)(k % (size_t)C)) ? sc_linear_to_srgb(px[k]) : px[k];
+        long v = lrint((x > 0 ? (x < 1 ? x : 1) : 0) * j->maxv);
+        if (j->q->pixel == SC_PIXEL_U8) ((uint8_t *)j->q->pixels)[k] = (uint8_t)v;
+        else ((uint16_t *)j->q->pixels)[k] = (uint16_t)v;
+    }
+    return SC_OK;
+}
+
 sc_image_data *sc_image_quantize(const sc_image_data *f, sc_pixel pixel, sc_colorspace space) {
+    return sc_image_quantize_threads(f, pixel, space, 1);
+}
+
+sc_image_data *sc_image_quantize_threads(const sc_image_data *f, sc_pixel pixel, sc_colorspace space, int threads) {
     sc_image_data *q = sc_image_alloc(f->width, f->height, f->channels, pixel);
     if (!q) return NULL;
     q->colorspace = space;
     memcpy(q->format, f->format, sizeof q->format);
-    bool encode = f->colorspace == SC_COLOR_LINEAR && space == SC_COLOR_SRGB;
-    double maxv = pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
-    size_t n = (size_t)f->width * f->height * f->channels;
-    const float *px = f->pixels;
-    for (size_t k = 0; k < n; k++) {
-        float x = encode && !sc_channel_is_alpha(f->channels, (int32_t)(k % (size_t)f->channels))
-                      ? sc_linear_to_srgb(px[k])
-                      : px[k];
-        long v = lrint((x > 0 ? (x < 1 ? x : 1) : 0) * maxv);
-        if (pixel == SC_PIXEL_U8) ((uint8_t *)q->pixels)[k] = (uint8_t)v;
-        else ((uint16_t *)q->pixels)[k] = (uint16_t)v;
-    }
+    quantize_job j = {f, q, f->colorspace == SC_COLOR_LINEAR && space == SC_COLOR_SRGB,
+                      pixel == SC_PIXEL_U8 ? 255.0 : 65535.0};
+    int32_t chunks = (f->height + QUANTIZE_ROWS - 1) / QUANTIZE_ROWS;
+    if (sc_parallel(threads, chunks, quantize_rows, &j) != SC_OK)
+        for (int32_t c = 0; c < chunks; c++) quantize_rows(&j, c);
     return q;
 }

@@ -117,8 +117,10 @@ bool sc_channel_is_alpha(int32_t channels, int32_t c);
 sc_image_data *sc_image_to_linear_f32(const sc_image_data *im, int threads);
 /* An f32 image rounded to nearest in `pixel` (u8 or u16, clamped to [0, 1],
  * NaN -> 0), tagged `space`; linear colour stored as SC_COLOR_SRGB goes
- * through the transfer curve (alpha as is). NULL when out of memory. */
+ * through the transfer curve (alpha as is). NULL when out of memory.
+ * _threads: the same bytes, on that many threads. */
 sc_image_data *sc_image_quantize(const sc_image_data *f, sc_pixel pixel, sc_colorspace space);
+sc_image_data *sc_image_quantize_threads(const sc_image_data *f, sc_pixel pixel, sc_colorspace space, int threads);
 
 /* ---------------------------------------------------------------- atlas */
 

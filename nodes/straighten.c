@@ -781,24 +781,32 @@ static double triangle_distance(const double t[3][2], double px, double py) {
     return best;
 }
 
-/* Re-render one texture (material `material`) from the old uv U to the new Unew. */
-static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_moved, const sc_texture *tex,
-                        int32_t pad, sc_image_data **out, sc_error *err) {
-    const sc_image_data *src = tex->image->as.image;
-    const int32_t W = src->width, H = src->height, C = src->channels;
-    /* resampled as stored (the erasure after it works as filtered): rendered
-     * appearance keeps closer so (docs/notes/straighten.md) */
-    sc_image_data *old = sc_image_to_f32(src);
-    sc_image_data *dst = sc_image_to_f32(src);
-    size_t npx = (size_t)W * H;
-    float *best = sc_alloc_array(npx, sizeof(float));
-    int32_t *owner = sc_alloc_array(npx, sizeof(int32_t));
-    int32_t *lattice = sc_alloc_array(npx * 2, sizeof(int32_t));
-    if (!old || !dst || !best || !owner || !lattice) {
-        sc_image_free(old), sc_image_free(dst), free(best), free(owner), free(lattice);
-        return sc_fail(err, SC_ENOMEM, "straighten: out of memory for the %s texture", tex->name);
-    }
-    for (size_t i = 0; i < npx; i++) best[i] = FLT_MAX, owner[i] = -1;
+/* One texture's re-rendering, split into bands of rows that render side by
+ * side: a band claims its own texels (every face in order, as one pass
+ * would) and then samples them, so the result does not depend on the
+ * split. */
+typedef struct warp_job {
+    const sc_mesh *m;
+    const double *Unew;
+    const bool *face_moved;
+    const sc_texture *tex;
+    int32_t pad, W, H, C, rows;   /* rows: a band's */
+    const float *op;              /* the old texture, f32 */
+    float *dp;                    /* the new one: a copy, warped where a moved face claims */
+    float *best;                  /* per texel: the claiming face's distance */
+    int32_t *owner, *lattice;     /* per texel: the claiming face, and the lattice point it claimed */
+} warp_job;
+
+static int warp_band(void *ud, int32_t band) {
+    const warp_job *J = ud;
+    const sc_mesh *m = J->m;
+    const double *Unew = J->Unew;
+    const sc_texture *tex = J->tex;
+    const int32_t W = J->W, H = J->H, C = J->C, pad = J->pad;
+    const int32_t row0 = band * J->rows, row1 = row0 + J->rows < H ? row0 + J->rows : H;
+    float *best = J->best;
+    int32_t *owner = J->owner, *lattice = J->lattice;
+    for (size_t i = (size_t)row0 * W; i < (size_t)row1 * W; i++) best[i] = FLT_MAX, owner[i] = -1;
     for (int32_t f = 0; f < m->nf; f++) {
         if (m->FM[f] != tex->material) continue;
         const int32_t *fu = m->FU + 3 * f;
@@ -813,14 +821,10 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
         if (hi[0] - lo[0] > 2.0 * W + 2 * pad || hi[1] - lo[1] > 2.0 * H + 2 * pad) continue;
         int64_t i0 = (int64_t)ceil(lo[0] - pad), i1 = (int64_t)floor(hi[0] + pad);
         int64_t j0 = (int64_t)ceil(lo[1] - pad), j1 = (int64_t)floor(hi[1] + pad);
+        if (tex->wrap_v == SC_WRAP_CLAMP) j0 = j0 > row0 ? j0 : row0, j1 = j1 < row1 - 1 ? j1 : row1 - 1;
         for (int64_t j = j0; j <= j1; j++) {
-            int32_t jj;
-            if (tex->wrap_v == SC_WRAP_CLAMP) {
-                if (j < 0 || j >= H) continue;
-                jj = (int32_t)j;
-            } else {
-                jj = sc_seam_wrap(j, H, tex->wrap_v);
-            }
+            int32_t jj = tex->wrap_v == SC_WRAP_CLAMP ? (int32_t)j : sc_seam_wrap(j, H, tex->wrap_v);
+            if (jj < row0 || jj >= row1) continue;
             for (int64_t i = i0; i <= i1; i++) {
                 int32_t ii;
                 if (tex->wrap_u == SC_WRAP_CLAMP) {
@@ -842,11 +846,10 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
         }
     }
     const sc_seam_grid grid = {W, H, tex->wrap_u, tex->wrap_v};
-    float *op = old->pixels, *dp = dst->pixels;
     double sample[4];
-    for (size_t id = 0; id < npx; id++) {
+    for (size_t id = (size_t)row0 * W; id < (size_t)row1 * W; id++) {
         int32_t f = owner[id];
-        if (f < 0 || !face_moved[f]) continue;
+        if (f < 0 || !J->face_moved[f]) continue;
         const int32_t *fu = m->FU + 3 * f;
         double u = (lattice[2 * id] + 0.5) / W, v = (lattice[2 * id + 1] + 0.5) / H;
         const double *a = Unew + 2 * fu[0], *b = Unew + 2 * fu[1], *c = Unew + 2 * fu[2];
@@ -855,9 +858,39 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
         double l0 = sc_orient2(b, c, p) / area, l1 = sc_orient2(c, a, p) / area, l2 = 1.0 - l0 - l1;
         double ou = l0 * m->U[2 * fu[0]] + l1 * m->U[2 * fu[1]] + l2 * m->U[2 * fu[2]];
         double ov = l0 * m->U[2 * fu[0] + 1] + l1 * m->U[2 * fu[1] + 1] + l2 * m->U[2 * fu[2] + 1];
-        sc_seam_sample(&grid, op, C, ou, ov, sample);
-        for (int32_t k = 0; k < C; k++) dp[id * C + k] = (float)sample[k];
+        sc_seam_sample(&grid, J->op, C, ou, ov, sample);
+        for (int32_t k = 0; k < C; k++) J->dp[id * C + k] = (float)sample[k];
     }
+    return SC_OK;
+}
+
+#define WARP_BAND_ROWS 64
+
+/* Re-render one texture (material `material`) from the old uv U to the new
+ * Unew, on `threads` threads. */
+static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_moved, const sc_texture *tex,
+                        int32_t pad, int threads, sc_image_data **out, sc_error *err) {
+    const sc_image_data *src = tex->image->as.image;
+    const int32_t W = src->width, H = src->height, C = src->channels;
+    /* resampled as stored (the erasure after it works as filtered): rendered
+     * appearance keeps closer so (docs/notes/straighten.md) */
+    sc_image_data *old = sc_image_to_f32_threads(src, threads);
+    sc_image_data *dst = sc_image_alloc(W, H, C, SC_PIXEL_F32);
+    size_t npx = (size_t)W * H;
+    float *best = sc_alloc_array(npx, sizeof(float));
+    int32_t *owner = sc_alloc_array(npx, sizeof(int32_t));
+    int32_t *lattice = sc_alloc_array(npx * 2, sizeof(int32_t));
+    if (!old || !dst || !best || !owner || !lattice) {
+        sc_image_free(old), sc_image_free(dst), free(best), free(owner), free(lattice);
+        return sc_fail(err, SC_ENOMEM, "straighten: out of memory for the %s texture", tex->name);
+    }
+    dst->colorspace = old->colorspace;
+    memcpy(dst->format, old->format, sizeof dst->format);
+    memcpy(dst->pixels, old->pixels, npx * (size_t)C * sizeof(float));
+    warp_job J = {m, Unew, face_moved, tex, pad, W, H, C, WARP_BAND_ROWS, old->pixels, dst->pixels, best, owner, lattice};
+    int32_t bands = (H + WARP_BAND_ROWS - 1) / WARP_BAND_ROWS;
+    if (sc_parallel(threads, bands, warp_band, &J) != SC_OK)
+        for (int32_t b = 0; b < bands; b++) warp_band(&J, b);
     sc_image_free(old), free(best), free(owner), free(lattice);
     *out = dst;
     return SC_OK;
@@ -871,7 +904,7 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U);
  * moved uv (warped texels and kept ones alike: a kept face's frame can turn
  * with a moved neighbour's). */
 static int warp_tangent_texture(const sc_mesh *m, const double *Unew, const bool *face_moved, const sc_texture *tex,
-                                int32_t pad, sc_image_data **out, sc_error *err) {
+                                int32_t pad, int threads, sc_image_data **out, sc_error *err) {
     const sc_image_data *img = tex->image->as.image;
     const sc_seam_grid g = {img->width, img->height, tex->wrap_u, tex->wrap_v};
     sc_tangent_frames f_old = {0}, f_new = {0};
@@ -881,19 +914,19 @@ static int warp_tangent_texture(const sc_mesh *m, const double *Unew, const bool
     sc_image_data *warped = NULL;
     int rc = moved ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     if (rc == SC_OK) rc = sc_tangent_frames_build(m, &f_old, err);
-    if (rc == SC_OK) rc = sc_tangent_texels_build(m, tex->material, &g, SC_TANGENT_BAND, &x_old, err);
+    if (rc == SC_OK) rc = sc_tangent_texels_build(m, tex->material, &g, SC_TANGENT_BAND, threads, &x_old, err);
     if (rc == SC_OK) rc = sc_tangent_frames_build(moved, &f_new, err);
-    if (rc == SC_OK) rc = sc_tangent_texels_build(moved, tex->material, &g, SC_TANGENT_BAND, &x_new, err);
+    if (rc == SC_OK) rc = sc_tangent_texels_build(moved, tex->material, &g, SC_TANGENT_BAND, threads, &x_new, err);
     if (rc == SC_OK) {
-        sc_image_data *o = sc_tangent_to_object(img, &f_old, &x_old);
+        sc_image_data *o = sc_tangent_to_object(img, &f_old, &x_old, threads);
         if (!o || !(object = sc_value_new_image(o))) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     }
     if (rc == SC_OK) {
         sc_texture in_object = *tex;
         in_object.image = object;
-        rc = warp_texture(m, Unew, face_moved, &in_object, pad, &warped, err);
+        rc = warp_texture(m, Unew, face_moved, &in_object, pad, threads, &warped, err);
     }
-    if (rc == SC_OK && !(*out = sc_tangent_from_object(warped, img, &f_new, &x_new)))
+    if (rc == SC_OK && !(*out = sc_tangent_from_object(warped, img, &f_new, &x_new, threads)))
         rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     sc_image_free(warped);
     sc_value_release(object);
@@ -1102,6 +1135,7 @@ static int warp_step(job *J, int steps, sc_error *err) {
 typedef struct render_list {
     const job *J;
     int32_t pad;
+    int threads;             /* each texture's own (warp_texture) */
     int32_t *which, count;   /* the textures re-rendered (indices) */
     sc_image_data **im;     /* per entry of which */
     bool *tangent;
@@ -1114,8 +1148,9 @@ static int render_one(void *ud, int32_t k) {
     const sc_texture *tex = &J->atlas->textures[L->which[k]];
     int rc = sc_erase_takes_tangent_space(J->mesh, tex, J->normals, &L->tangent[k], &L->errs[k]);
     if (rc == SC_OK)
-        rc = L->tangent[k] ? warp_tangent_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, &L->im[k], &L->errs[k])
-                           : warp_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, &L->im[k], &L->errs[k]);
+        rc = L->tangent[k] ? warp_tangent_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, L->threads, &L->im[k],
+                                                  &L->errs[k])
+                           : warp_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, L->threads, &L->im[k], &L->errs[k]);
     return rc;
 }
 
@@ -1124,7 +1159,7 @@ static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err)
     const sc_mesh *m = J->mesh;
     *rendered = 0;
     int32_t *source = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *source);   /* the texture it copies, or -1 */
-    render_list L = {.J = J, .pad = pad, .which = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.which)};
+    render_list L = {.J = J, .pad = pad, .threads = sc_ctx_threads(J->ctx), .which = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.which)};
     L.im = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.im);
     L.tangent = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.tangent);
     L.errs = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.errs);

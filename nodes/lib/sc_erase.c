@@ -1398,8 +1398,8 @@ static sc_image_data *copy_image(const sc_image_data *img) {
 
 /* Float image f rounded to nearest in like's pixel type, colour space and
  * format tag. */
-static sc_image_data *quantised_like(const sc_image_data *f, const sc_image_data *like) {
-    sc_image_data *q = sc_image_quantize(f, like->pixel, like->colorspace);
+static sc_image_data *quantised_like(const sc_image_data *f, const sc_image_data *like, int threads) {
+    sc_image_data *q = sc_image_quantize_threads(f, like->pixel, like->colorspace, threads);
     if (q) memcpy(q->format, like->format, sizeof q->format);
     return q;
 }
@@ -1414,7 +1414,7 @@ static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
     const int32_t C = img->channels;
     /* the input's own bytes where nothing was solved; a native_like image
      * lends only its type, so every texel is rounded from the solution */
-    if (!(t->nat = t->like ? quantised_like(t->fv->as.image, img) : copy_image(img)))
+    if (!(t->nat = t->like ? quantised_like(t->fv->as.image, img, r->o->threads) : copy_image(img)))
         return sc_fail(err, SC_ENOMEM, "out of memory");
     double maxv = img->pixel == SC_PIXEL_U8 ? 255.0 : 65535.0;
     for (int32_t i = 0; i < r->n && !t->like; i++)
@@ -1771,7 +1771,7 @@ void sc_erase_defaults(sc_erase_options *o) {
  * image), or the input's passed through (its native result in the type of
  * native_like[i] where that is another image). */
 static int collect_results(const sc_texture *textures, int32_t ntex, const tex_state *st,
-                           const sc_image_data *const *native_like, int32_t erased, sc_erase_result *res,
+                           const sc_image_data *const *native_like, int32_t erased, int threads, sc_erase_result *res,
                            sc_error *err) {
     res->count = ntex;
     res->erased = erased;
@@ -1787,8 +1787,8 @@ static int collect_results(const sc_texture *textures, int32_t ntex, const tex_s
             res->native[i] = sc_value_retain(own ? st[src].native : textures[i].image);
         } else {
             /* passed through, in native_like's type */
-            sc_image_data *f = img->pixel == SC_PIXEL_F32 ? NULL : sc_image_to_f32(img);
-            sc_image_data *q = quantised_like(f ? f : img, native_like[i]);
+            sc_image_data *f = img->pixel == SC_PIXEL_F32 ? NULL : sc_image_to_f32_threads(img, threads);
+            sc_image_data *q = quantised_like(f ? f : img, native_like[i], threads);
             sc_image_free(f);
             if (!q || !(res->native[i] = sc_value_new_image(q))) return sc_fail(err, SC_ENOMEM, "out of memory");
         }
@@ -1879,14 +1879,15 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
      * map re-rendered from an 8-bit one) is measured as it would be written
      * if left, rounded the same way */
     const sc_image_data *to = like && like->pixel != SC_PIXEL_F32 ? like : img;
-    sc_image_data *as_left = img->pixel == SC_PIXEL_F32 && to->pixel != SC_PIXEL_F32 ? quantised_like(img, to) : NULL;
+    sc_image_data *as_left =
+        img->pixel == SC_PIXEL_F32 && to->pixel != SC_PIXEL_F32 ? quantised_like(img, to, threads) : NULL;
     int rc = img->pixel == SC_PIXEL_F32 && to->pixel != SC_PIXEL_F32 && !as_left
                  ? sc_fail(err, SC_ENOMEM, "out of memory")
-                 : sc_tangent_texels_build(m, t->material, &g, SC_TANGENT_BAND, &tx, err);
+                 : sc_tangent_texels_build(m, t->material, &g, SC_TANGENT_BAND, threads, &tx, err);
     if (rc == SC_OK)
         rc = sc_tangent_seam_gap(m, seams, &g, frames, as_left ? as_left : img, &gap_before, &mean_before, err);
     if (rc == SC_OK) {
-        sc_image_data *obj = sc_tangent_to_object(img, frames, &tx);
+        sc_image_data *obj = sc_tangent_to_object(img, frames, &tx, threads);
         sc_value *objv = obj ? sc_value_new_image(obj) : NULL;
         if (!objv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         sc_erase_options so = *eo;
@@ -1897,10 +1898,10 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         if (rc == SC_OK) rc = sc_erase(m, &st, 1, &so, threads, &sub, err);
         sc_value_release(objv);
     }
-    if (rc == SC_OK && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx)))
+    if (rc == SC_OK && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx, threads)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK) {
-        sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to);
+        sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to, threads);
         s->f32 = sc_value_new_image(back), back = NULL;
         s->native = to->pixel == SC_PIXEL_F32 ? sc_value_retain(s->f32) : nat ? sc_value_new_image(nat) : NULL;
         if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
@@ -2132,7 +2133,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             metric(&res->metrics, st[i].prefix, "same_image_as_slot", st[i].same_as);
         }
     emit_totals(&res->metrics, &tot, several);
-    rc = collect_results(inputs, ntex, st, o.native_like ? stored : NULL, tot.erased, res, err);
+    rc = collect_results(inputs, ntex, st, o.native_like ? stored : NULL, tot.erased, o.threads, res, err);
 
 done:
     if (st)

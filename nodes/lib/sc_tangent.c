@@ -239,7 +239,57 @@ static double nearest_on_triangle(const double x[3], const double y[3], double p
     return best;
 }
 
-int sc_tangent_texels_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g, double band,
+/* sc_tangent_texels_build's work, in bands of rows side by side: a band
+ * takes every face in order for its own texels, as one pass would. */
+typedef struct texels_job {
+    const sc_mesh *m;
+    int32_t material;
+    const sc_seam_grid *g;
+    double band;
+    sc_tangent_texels *out;
+    float *dist;
+} texels_job;
+
+#define TEXELS_BAND_ROWS 64
+
+static int texels_band(void *ud, int32_t chunk) {
+    const texels_job *J = ud;
+    const sc_mesh *m = J->m;
+    const sc_seam_grid *g = J->g;
+    sc_tangent_texels *out = J->out;
+    const int32_t W = g->width, H = g->height;
+    const int32_t row0 = chunk * TEXELS_BAND_ROWS, row1 = row0 + TEXELS_BAND_ROWS < H ? row0 + TEXELS_BAND_ROWS : H;
+    const double band = J->band;
+    float *dist = J->dist;
+    for (size_t i = (size_t)row0 * W; i < (size_t)row1 * W; i++) out->face[i] = -1, dist[i] = INFINITY;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (J->material >= 0 && m->FM[f] != J->material) continue;
+        double x[3], y[3];
+        for (int c = 0; c < 3; c++) {
+            const double *U = m->U + 2 * (size_t)m->FU[3 * f + c];
+            x[c] = U[0] * W - 0.5, y[c] = U[1] * H - 0.5;
+        }
+        double x0 = fmin(x[0], fmin(x[1], x[2])) - band, x1 = fmax(x[0], fmax(x[1], x[2])) + band;
+        double y0 = fmin(y[0], fmin(y[1], y[2])) - band, y1 = fmax(y[0], fmax(y[1], y[2])) + band;
+        if (!(x1 - x0 < 4.0 * W + 2 * band && y1 - y0 < 4.0 * H + 2 * band)) continue;   /* uv far beyond the tile */
+        for (int64_t j = (int64_t)ceil(y0); j <= (int64_t)floor(y1); j++) {
+            int32_t jj = sc_seam_wrap(j, H, g->wrap_v);
+            if (jj < row0 || jj >= row1) continue;
+            for (int64_t i = (int64_t)ceil(x0); i <= (int64_t)floor(x1); i++) {
+                double b[3] = {1, 0, 0};
+                double d2 = nearest_on_triangle(x, y, (double)i, (double)j, b);
+                if (d2 > band * band) continue;
+                size_t id = (size_t)jj * W + sc_seam_wrap(i, W, g->wrap_u);
+                if (!(d2 < dist[id])) continue;
+                dist[id] = (float)d2, out->face[id] = f;
+                out->bary[2 * id] = (float)b[1], out->bary[2 * id + 1] = (float)b[2];
+            }
+        }
+    }
+    return SC_OK;
+}
+
+int sc_tangent_texels_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g, double band, int threads,
                             sc_tangent_texels *out, sc_error *err) {
     const int32_t W = g->width, H = g->height;
     size_t n = (size_t)W * H;
@@ -250,28 +300,10 @@ int sc_tangent_texels_build(const sc_mesh *m, int32_t material, const sc_seam_gr
         sc_tangent_texels_free(out);
         return sc_fail(err, SC_ENOMEM, "tangent texels (%dx%d): out of memory", W, H);
     }
-    for (size_t i = 0; i < n; i++) out->face[i] = -1, dist[i] = INFINITY;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (material >= 0 && m->FM[f] != material) continue;
-        double x[3], y[3];
-        for (int c = 0; c < 3; c++) {
-            const double *U = m->U + 2 * (size_t)m->FU[3 * f + c];
-            x[c] = U[0] * W - 0.5, y[c] = U[1] * H - 0.5;
-        }
-        double x0 = fmin(x[0], fmin(x[1], x[2])) - band, x1 = fmax(x[0], fmax(x[1], x[2])) + band;
-        double y0 = fmin(y[0], fmin(y[1], y[2])) - band, y1 = fmax(y[0], fmax(y[1], y[2])) + band;
-        if (!(x1 - x0 < 4.0 * W + 2 * band && y1 - y0 < 4.0 * H + 2 * band)) continue;   /* uv far beyond the tile */
-        for (int64_t j = (int64_t)ceil(y0); j <= (int64_t)floor(y1); j++)
-            for (int64_t i = (int64_t)ceil(x0); i <= (int64_t)floor(x1); i++) {
-                double b[3] = {1, 0, 0};
-                double d2 = nearest_on_triangle(x, y, (double)i, (double)j, b);
-                if (d2 > band * band) continue;
-                size_t id = (size_t)sc_seam_wrap(j, H, g->wrap_v) * W + sc_seam_wrap(i, W, g->wrap_u);
-                if (!(d2 < dist[id])) continue;
-                dist[id] = (float)d2, out->face[id] = f;
-                out->bary[2 * id] = (float)b[1], out->bary[2 * id + 1] = (float)b[2];
-            }
-    }
+    texels_job J = {m, material, g, band, out, dist};
+    int32_t chunks = (H + TEXELS_BAND_ROWS - 1) / TEXELS_BAND_ROWS;
+    if (sc_parallel(threads, chunks, texels_band, &J) != SC_OK)
+        for (int32_t c = 0; c < chunks; c++) texels_band(&J, c);
     free(dist);
     return SC_OK;
 }
@@ -293,53 +325,84 @@ static void texel_frame(const sc_tangent_frames *f, const sc_tangent_texels *tx,
     sc_tangent_frame_at(f, tx->face[id], b, M[0], M[1], M[2]);
 }
 
-sc_image_data *sc_tangent_to_object(const sc_image_data *img, const sc_tangent_frames *f,
-                                    const sc_tangent_texels *tx) {
-    if (img->channels < 3 || img->width != tx->width || img->height != tx->height) return NULL;
-    bool is_signed = sc_tangent_signed(img);
-    sc_image_data *o = sc_image_to_f32(img);
-    if (!o) return NULL;
-    o->colorspace = SC_COLOR_DATA;
-    const int32_t C = o->channels;
-    float *p = o->pixels;
-    for (size_t id = 0; id < (size_t)o->width * o->height; id++) {
-        float *px = p + id * C;
+/* A per-texel conversion between tangent and object space, in chunks of
+ * texels on several threads (each texel depends on its own values alone). */
+typedef struct frames_job {
+    const sc_tangent_frames *f;
+    const sc_tangent_texels *tx;
+    const float *src;   /* from_object: the object-space field */
+    float *dst;         /* the converted image, in place for to_object */
+    int32_t C;
+    size_t texels;
+    bool is_signed;
+} frames_job;
+
+#define FRAMES_CHUNK ((size_t)1 << 16)
+
+static int to_object_chunk(void *ud, int32_t chunk) {
+    const frames_job *J = ud;
+    size_t id0 = (size_t)chunk * FRAMES_CHUNK, id1 = id0 + FRAMES_CHUNK < J->texels ? id0 + FRAMES_CHUNK : J->texels;
+    for (size_t id = id0; id < id1; id++) {
+        float *px = J->dst + id * J->C;
         double t[3];
-        for (int c = 0; c < 3; c++) t[c] = is_signed ? px[c] : 2.0 * px[c] - 1.0;
+        for (int c = 0; c < 3; c++) t[c] = J->is_signed ? px[c] : 2.0 * px[c] - 1.0;
         double M[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-        if (tx->face[id] >= 0) texel_frame(f, tx, id, M);
+        if (J->tx->face[id] >= 0) texel_frame(J->f, J->tx, id, M);
         for (int d = 0; d < 3; d++) px[d] = (float)(t[0] * M[0][d] + t[1] * M[1][d] + t[2] * M[2][d]);
     }
-    return o;
+    return SC_OK;
 }
 
-sc_image_data *sc_tangent_from_object(const sc_image_data *obj, const sc_image_data *like,
-                                      const sc_tangent_frames *f, const sc_tangent_texels *tx) {
-    if (obj->pixel != SC_PIXEL_F32 || obj->channels != like->channels || obj->width != like->width ||
-        obj->height != like->height || obj->width != tx->width || obj->height != tx->height)
-        return NULL;
-    bool is_signed = sc_tangent_signed(like);
-    sc_image_data *out = sc_image_to_f32(like);
-    if (!out) return NULL;
-    const int32_t C = out->channels;
-    const float *src = obj->pixels;
-    float *dst = out->pixels;
-    for (size_t id = 0; id < (size_t)out->width * out->height; id++) {
-        const float *o = src + id * C;
-        float *px = dst + id * C;
+static int from_object_chunk(void *ud, int32_t chunk) {
+    const frames_job *J = ud;
+    size_t id0 = (size_t)chunk * FRAMES_CHUNK, id1 = id0 + FRAMES_CHUNK < J->texels ? id0 + FRAMES_CHUNK : J->texels;
+    for (size_t id = id0; id < id1; id++) {
+        const float *o = J->src + id * J->C;
+        float *px = J->dst + id * J->C;
         double n[3] = {o[0], o[1], o[2]}, t[3] = {n[0], n[1], n[2]};
-        if (tx->face[id] >= 0) {
+        if (J->tx->face[id] >= 0) {
             double M[3][3], c01[3], c12[3], c20[3];
-            texel_frame(f, tx, id, M);   /* columns T, B, N: t = M^-1 n by Cramer's rule */
+            texel_frame(J->f, J->tx, id, M);   /* columns T, B, N: t = M^-1 n by Cramer's rule */
             cross3(M[1], M[2], c12), cross3(M[2], M[0], c20), cross3(M[0], M[1], c01);
             double det = dot3(M[0], c12);
             if (fabs(det) > 1e-12) t[0] = dot3(n, c12) / det, t[1] = dot3(n, c20) / det, t[2] = dot3(n, c01) / det;
         }
         double big = fmax(fabs(t[0]), fmax(fabs(t[1]), fabs(t[2])));
         double s = big > 1 ? 1 / big : 1;
-        for (int c = 0; c < 3; c++) px[c] = (float)(is_signed ? s * t[c] : 0.5 * (s * t[c] + 1.0));
-        for (int c = 3; c < C; c++) px[c] = o[c];
+        for (int c = 0; c < 3; c++) px[c] = (float)(J->is_signed ? s * t[c] : 0.5 * (s * t[c] + 1.0));
+        for (int c = 3; c < J->C; c++) px[c] = o[c];
     }
+    return SC_OK;
+}
+
+static void run_frames_job(frames_job *J, int threads, int (*fn)(void *, int32_t)) {
+    int32_t chunks = (int32_t)((J->texels + FRAMES_CHUNK - 1) / FRAMES_CHUNK);
+    if (sc_parallel(threads, chunks, fn, J) != SC_OK)
+        for (int32_t c = 0; c < chunks; c++) fn(J, c);
+}
+
+sc_image_data *sc_tangent_to_object(const sc_image_data *img, const sc_tangent_frames *f,
+                                    const sc_tangent_texels *tx, int threads) {
+    if (img->channels < 3 || img->width != tx->width || img->height != tx->height) return NULL;
+    bool is_signed = sc_tangent_signed(img);
+    sc_image_data *o = sc_image_to_f32_threads(img, threads);
+    if (!o) return NULL;
+    o->colorspace = SC_COLOR_DATA;
+    frames_job J = {f, tx, NULL, o->pixels, o->channels, (size_t)o->width * o->height, is_signed};
+    run_frames_job(&J, threads, to_object_chunk);
+    return o;
+}
+
+sc_image_data *sc_tangent_from_object(const sc_image_data *obj, const sc_image_data *like,
+                                      const sc_tangent_frames *f, const sc_tangent_texels *tx, int threads) {
+    if (obj->pixel != SC_PIXEL_F32 || obj->channels != like->channels || obj->width != like->width ||
+        obj->height != like->height || obj->width != tx->width || obj->height != tx->height)
+        return NULL;
+    bool is_signed = sc_tangent_signed(like);
+    sc_image_data *out = sc_image_to_f32_threads(like, threads);
+    if (!out) return NULL;
+    frames_job J = {f, tx, obj->pixels, out->pixels, out->channels, (size_t)out->width * out->height, is_signed};
+    run_frames_job(&J, threads, from_object_chunk);
     return out;
 }
 

@@ -73,14 +73,14 @@ void sc_tangent_frame_at(const sc_tangent_frames *f, int32_t face, const double 
  * `material` whose uv triangle holds the texel centre, else the nearest one
  * within `band` texels (the frame at the nearest point of the triangle);
  * face -1 for texels further from every face. Texels are taken through the
- * grid's wrap modes. */
+ * grid's wrap modes, on `threads` threads (the result is the same). */
 typedef struct sc_tangent_texels {
     int32_t width, height;
     int32_t *face;     /* per texel */
     float *bary;       /* 2 per texel: barycentrics of corners 1 and 2 */
 } sc_tangent_texels;
 
-int sc_tangent_texels_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g, double band,
+int sc_tangent_texels_build(const sc_mesh *m, int32_t material, const sc_seam_grid *g, double band, int threads,
                             sc_tangent_texels *out, sc_error *err);
 void sc_tangent_texels_free(sc_tangent_texels *t);
 
@@ -90,16 +90,17 @@ bool sc_tangent_signed(const sc_image_data *img);
 
 /* The object-space normal field of tangent-space map img (any pixel type):
  * f32, signed, n = t.x T + t.y B + t.z N per texel with a face, t itself
- * elsewhere; channels past the third copied. NULL when out of memory. */
+ * elsewhere; channels past the third copied. NULL when out of memory.
+ * threads: how many work on it (the result is the same). */
 sc_image_data *sc_tangent_to_object(const sc_image_data *img, const sc_tangent_frames *f,
-                                    const sc_tangent_texels *tx);
+                                    const sc_tangent_texels *tx, int threads);
 
 /* Back: per texel with a face, t solving [T B N] t = n, scaled into the unit
  * cube where it leaves it; elsewhere n itself. f32 in the encoding of
  * `like` (0..1 unless like is signed), with like's other channels and tags.
  * NULL when out of memory or when sizes differ. */
 sc_image_data *sc_tangent_from_object(const sc_image_data *obj, const sc_image_data *like,
-                                      const sc_tangent_frames *f, const sc_tangent_texels *tx);
+                                      const sc_tangent_frames *f, const sc_tangent_texels *tx, int threads);
 
 /* The gap between the two sides' reconstructed unit normals along every
  * seam of `seams` (faces of one material), sampled as the grid is sampled

@@ -1624,7 +1624,7 @@ SC_TEST(tangent_space_normal_map_is_continuous_after_erasure) {
     const int W = 512;
     sc_seam_grid g = {W, W, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
     sc_tangent_texels tx;
-    SC_CHECK(sc_tangent_texels_build(m, 0, &g, 3.0, &tx, &err) == SC_OK);
+    SC_CHECK(sc_tangent_texels_build(m, 0, &g, 3.0, 2, &tx, &err) == SC_OK);
     sc_image_data *map = sc_image_alloc(W, W, 3, SC_PIXEL_U8);
     map->colorspace = SC_COLOR_DATA;
     uint8_t *px = map->pixels;

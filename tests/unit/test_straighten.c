@@ -316,7 +316,7 @@ static sc_value *with_tangent_map(const sc_value *atlas, int W) {
     sc_tangent_texels tx;
     sc_seam_grid g = {W, W, SC_WRAP_CLAMP, SC_WRAP_CLAMP};
     SC_CHECK(sc_tangent_frames_build(m, &fr, &err) == SC_OK);
-    SC_CHECK(sc_tangent_texels_build(m, 0, &g, 3.0, &tx, &err) == SC_OK);
+    SC_CHECK(sc_tangent_texels_build(m, 0, &g, 3.0, 2, &tx, &err) == SC_OK);
     sc_image_data *map = sc_image_alloc(W, W, 3, SC_PIXEL_F32);
     map->colorspace = SC_COLOR_DATA;
     float *px = map->pixels;
