@@ -73,11 +73,14 @@
  *    mip/[lod<k>_]<material>_<slot>_level<m>.png (8/16-bit textures).
  *  - Work. Groups (each source's chains, and the shared ones) are built side
  *    by side, as many at once as there are threads, each using every thread
- *    in its own parallel parts (labelling, the erase kernel, the files'
- *    tiles), so one group's serial stretches (box averages, ring growth,
- *    push-pull, the erase kernel's setup) overlap another's work; the shared
- *    group, the largest (every level's seams), starts first. A group encodes
- *    its chains' files once its levels are erased. Each chain, level and file
+ *    in its own parallel parts (labelling, the erase kernel, its files), so
+ *    one group's serial stretches (box averages, ring growth, push-pull, the
+ *    erase kernel's setup) overlap another's work; the shared group, the
+ *    largest (every level's seams), starts first. A group encodes its chains'
+ *    files once its levels are erased, each file (a PNG level, a whole EXR
+ *    chain) on its own thread, the largest first: the shared group holds
+ *    every 8-bit chain, whose files would otherwise follow one another on
+ *    one core. Each chain, level and file
  *    depends on its own inputs alone and the report takes the files in chain
  *    order, so neither the order groups finish in nor the thread count shows
  *    in the results. seconds_groups is that stage's wall time; seconds_erase
@@ -604,38 +607,77 @@ static int add_buffer(sc_report *r, const char *path, sc_buf *b, sc_error *err) 
 }
 
 /* The files of one chain, encoded into `files` (one buffer per file, the
- * paths alongside), apart from the report so that chains encode side by
+ * paths alongside), apart from the report so that files encode side by
  * side. */
 typedef struct chain_files {
     int n;
     char path[MAX_MIP][320];
     sc_buf buf[MAX_MIP];
+    int rc[MAX_MIP];
+    sc_error err[MAX_MIP];
 } chain_files;
 
-static int encode_files(const chain *ch, const sc_mesh *mesh, int threads, chain_files *out, sc_error *err) {
+/* One file to encode: a PNG chain's level m, or a float chain's whole EXR
+ * (m = -1); bytes, its size to schedule by. */
+typedef struct file_item {
+    chain *ch;
+    chain_files *out;
+    int m;
+    size_t bytes;
+} file_item;
+
+/* Name chain ch's files in out and list them in items (appended at *n). */
+static void list_files(chain *ch, const sc_mesh *mesh, chain_files *out, file_item *items, int32_t *n) {
     char mat[96], slot[96], prefix[32] = "";
     clean_name(mesh->materials[ch->tex->material], mat, sizeof mat);
     clean_name(ch->tex->name, slot, sizeof slot);
     if (ch->source >= 0) snprintf(prefix, sizeof prefix, "lod%d_", ch->source);
-    int rc = SC_OK;
-    const sc_image_data *top = ch->native[0]->as.image;
-    if (top->pixel == SC_PIXEL_F32) {
-        const sc_image_data *levels[MAX_MIP];
-        for (int m = 0; m < ch->count; m++) levels[m] = ch->native[m]->as.image;
-        sc_buf_init(&out->buf[0]);
-        out->n = 1;
-        rc = sc_image_encode_exr_mip_threads(levels, ch->count, threads, &out->buf[0], err);
-        snprintf(out->path[0], sizeof out->path[0], "mip/%s%s_%s.exr", prefix, mat, slot);
+    bool exr = ch->native[0]->as.image->pixel == SC_PIXEL_F32;
+    out->n = exr ? 1 : ch->count;
+    for (int i = 0; i < out->n; i++) {
+        sc_buf_init(&out->buf[i]);
+        out->rc[i] = SC_OK;
+        if (exr) snprintf(out->path[i], sizeof out->path[i], "mip/%s%s_%s.exr", prefix, mat, slot);
+        else snprintf(out->path[i], sizeof out->path[i], "mip/%s%s_%s_level%d.png", prefix, mat, slot, i);
+    }
+    if (exr) {
+        size_t bytes = 0;
+        for (int m = 0; m < ch->count; m++) {
+            const sc_image_data *im = ch->native[m]->as.image;
+            bytes += (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
+        }
+        items[(*n)++] = (file_item){ch, out, -1, bytes};
     } else {
-        for (int m = 0; m < ch->count && rc == SC_OK; m++) {
-            sc_buf_init(&out->buf[m]);
-            out->n = m + 1;
-            rc = sc_image_encode_png(ch->native[m]->as.image, 0, &out->buf[m], err);
-            snprintf(out->path[m], sizeof out->path[m], "mip/%s%s_%s_level%d.png", prefix, mat, slot, m);
+        for (int m = 0; m < ch->count; m++) {
+            const sc_image_data *im = ch->native[m]->as.image;
+            size_t bytes = (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
+            items[(*n)++] = (file_item){ch, out, m, bytes};
         }
     }
-    if (rc != SC_OK) sc_error_prefix(err, "writing the chain of '%s'", ch->tex->name);
-    return rc;
+}
+
+static int encode_item(void *ud, int32_t i) {
+    const file_item *it = (const file_item *)ud + i;
+    const chain *ch = it->ch;
+    int k = it->m < 0 ? 0 : it->m;
+    int *rc = &it->out->rc[k];
+    sc_error *err = &it->out->err[k];
+    if (it->m >= 0) {
+        *rc = sc_image_encode_png(ch->native[it->m]->as.image, 0, &it->out->buf[k], err);
+    } else {
+        const sc_image_data *levels[MAX_MIP];
+        for (int m = 0; m < ch->count; m++) levels[m] = ch->native[m]->as.image;
+        *rc = sc_image_encode_exr_mip(levels, ch->count, &it->out->buf[k], err);
+    }
+    if (*rc != SC_OK) sc_error_prefix(err, "writing the chain of '%s'", ch->tex->name);
+    return SC_OK;
+}
+
+static int larger_first(const void *a, const void *b) {
+    const file_item *x = a, *y = b;
+    if (x->bytes != y->bytes) return x->bytes < y->bytes ? 1 : -1;
+    if (x->ch != y->ch) return x->ch < y->ch ? -1 : 1;
+    return (x->m > y->m) - (x->m < y->m);
 }
 
 /* Every chain's files into the report, in chain order (the order groups
@@ -721,7 +763,8 @@ static int build_group(void *ud, int32_t item) {
                 sc_pixel px = ch->tex->image->as.image->pixel;
                 sc_image_data *q = NULL;   /* 8/16-bit colour is stored sRGB-encoded */
                 if (f && px != SC_PIXEL_F32)
-                    q = sc_image_quantize(f, px, f->colorspace == SC_COLOR_LINEAR ? SC_COLOR_SRGB : f->colorspace);
+                    q = sc_image_quantize_threads(f, px, f->colorspace == SC_COLOR_LINEAR ? SC_COLOR_SRGB : f->colorspace,
+                                                  es->threads);
                 if (q) sc_image_free(f), f = q;
                 else if (px != SC_PIXEL_F32) sc_image_free(f), f = NULL;
                 in = f ? sc_value_new_image(f) : NULL;
@@ -736,12 +779,24 @@ static int build_group(void *ud, int32_t item) {
         }
         for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
     }
+    /* the files: every one of the group on its own, the largest first, side by side */
     double t1 = sc_now();
-    for (int32_t c = 0; c < J->nchains && rc == SC_OK; c++) {
-        const chain *ch = &chains[c];
-        if (ch->group != g) continue;
-        rc = encode_files(ch, J->src[ch->source >= 0 ? ch->source : 0]->mesh->as.mesh, es->threads, &J->files[c],
-                          err);
+    int32_t nitems = 0, cap = 0;
+    for (int32_t c = 0; c < J->nchains; c++) cap += chains[c].group == g ? MAX_MIP : 0;
+    file_item *items = rc == SC_OK && cap > 0 ? calloc((size_t)cap, sizeof *items) : NULL;
+    if (rc == SC_OK && cap > 0 && !items) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    for (int32_t c = 0; c < J->nchains && items; c++)
+        if (chains[c].group == g)
+            list_files(&chains[c], J->src[chains[c].source >= 0 ? chains[c].source : 0]->mesh->as.mesh,
+                       &J->files[c], items, &nitems);
+    if (items) {
+        qsort(items, (size_t)nitems, sizeof *items, larger_first);
+        if (sc_parallel(es->threads, nitems, encode_item, items) != SC_OK)
+            for (int32_t i = 0; i < nitems; i++) encode_item(items, i);
+        for (int32_t c = 0; c < J->nchains && rc == SC_OK; c++)   /* the first failure in chain order */
+            for (int i = 0; chains[c].group == g && i < J->files[c].n && rc == SC_OK; i++)
+                if (J->files[c].rc[i] != SC_OK) *err = J->files[c].err[i], rc = J->files[c].rc[i];
+        free(items);
     }
     res->seconds_erase = t_erase, res->seconds_files = sc_now() - t1;
     free(members), free(inputs);
