@@ -6,6 +6,10 @@
  *   WAITING --inputs' digests known--> key --hit--> CACHED (digests, no bytes)
  *                                          \-miss-> NEED_RUN --inputs loaded--> RUNNING --> DONE
  *
+ * Nodes ready to cook start in the order of the longest chain of consumers
+ * after them, then graph order (start_order_build): with fewer job slots than
+ * ready nodes, the critical path goes first.
+ *
  * Only the loop thread touches node states; worker threads run a node (or
  * load a cached node's outputs) on data nobody else changes meanwhile, and
  * hand the result back in the after-work callback. Every call into the cache
@@ -109,6 +113,7 @@ typedef struct engine {
     char base_dir[PATH_MAX];   /* paths in keys and records are relative to it */
     claim *claims;             /* output file names taken so far */
     int nclaims, claim_cap;
+    int *start_order;          /* the nodes, longest chain after them first (start_order_build) */
 } engine;
 
 const char *sc_status_name(sc_node_status s) {
@@ -1325,7 +1330,8 @@ static void pump(engine *e) {
                 progress = true;
             }
         }
-        for (int i = 0; i < e->g->count; i++) {
+        for (int r = 0; r < e->g->count; r++) {
+            int i = e->start_order ? e->start_order[r] : r;   /* none: out of memory, stopping */
             if (e->rt[i].state != ST_NEED_RUN) continue;
             if (e->stop) {
                 set_terminal(e, i, ST_SKIPPED);
@@ -1345,6 +1351,40 @@ static void pump(engine *e) {
         sc_cache_commit(e->cache, &ignored);
         uv_mutex_unlock(&e->cache_lock);
     }
+}
+
+/* The order in which nodes ready to cook start: the longest chain of
+ * consumers after a node first (the critical path), then graph order. With
+ * fewer job slots than ready nodes, a node many others wait on starts before
+ * a leaf (the main job's bake_displacement before its save and first crack
+ * check, which nothing reads). */
+typedef struct start_rank {
+    int chain, index;
+} start_rank;
+
+static int longer_chain_first(const void *a, const void *b) {
+    const start_rank *x = a, *y = b;
+    if (x->chain != y->chain) return y->chain - x->chain;
+    return x->index - y->index;
+}
+
+static int *start_order_build(const sc_graph *g) {
+    start_rank *rank = calloc((size_t)g->count + 1, sizeof *rank);
+    int *order = calloc((size_t)g->count + 1, sizeof *order);
+    if (!rank || !order) {
+        free(rank), free(order);
+        return NULL;
+    }
+    for (int i = 0; i < g->count; i++) rank[i] = (start_rank){1, i};
+    for (int i = g->count - 1; i >= 0; i--)   /* producers come before consumers */
+        for (int port = 0; port < g->nodes[i].desc->ninputs; port++) {
+            int p = g->nodes[i].input_node[port];
+            if (p >= 0 && rank[p].chain < rank[i].chain + 1) rank[p].chain = rank[i].chain + 1;
+        }
+    qsort(rank, (size_t)g->count, sizeof *rank, longer_chain_first);
+    for (int i = 0; i < g->count; i++) order[i] = rank[i].index;
+    free(rank);
+    return order;
 }
 
 /* ---------------------------------------------------------------- the run */
@@ -1394,6 +1434,10 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
         for (int k = 0; k < g->nodes[i].desc->noutputs; k++)
             if (g->nodes[i].desc->outputs[k].kind == SC_KIND_REPORT || e.rt[i].pending_consumers == 0)
                 e.rt[i].kept[k] = true;
+    if (!e.stop && !(e.start_order = start_order_build(g))) {
+        e.stop = true;
+        e.first_rc = sc_fail(&e.first_err, SC_ENOMEM, "out of memory");
+    }
     if (!realpath(g->file, e.graph_path)) snprintf(e.graph_path, sizeof e.graph_path, "%s", g->file);
     char *graph_dir = sc_path_dirname(e.graph_path);
     if (!opt->base_dir || !realpath(opt->base_dir, e.base_dir))
@@ -1439,7 +1483,7 @@ int sc_engine_run(const sc_graph *g, sc_cache *cache, const sc_engine_options *o
         free(e.rt[i].values), free(e.rt[i].meshes), free(e.rt[i].kept), free(e.rt[i].canon);
         forget_files(&e.rt[i]);
     }
-    free(e.rt);
+    free(e.rt), free(e.start_order);
     for (int k = 0; k < e.claim_cap; k++) free(e.claims[k].path);
     free(e.claims);
     if (!opt->dry_run) {

@@ -1,7 +1,8 @@
 /* test_engine.c - what enters an action key, seen through whole cooks: the
  * kernels a node lists (and the ones they build on) re-key exactly the nodes
- * that use them, and a node that asks for a parameter or port its descriptor
- * does not declare fails its run. */
+ * that use them, a node that asks for a parameter or port its descriptor
+ * does not declare fails its run, and with one job slot the node others wait
+ * on cooks before a leaf declared ahead of it. */
 #include "sc_engine.h"
 #include "sc_registry.h"
 #include "sc_test.h"
@@ -21,6 +22,8 @@ static sc_kernel kernel_top = {"test_top", 1, built_on_base};
 static const sc_port_desc image_port[] = {{.name = "image", .kind = SC_KIND_IMAGE}};
 
 static int runs_source, runs_plain, runs_base, runs_top;
+static char cooked_order[16];   /* the first letter of each node type, in the order they ran */
+static int ncooked;
 
 static sc_value *one_texel(float v) {
     sc_image_data *img = sc_image_alloc(1, 1, 1, SC_PIXEL_F32);
@@ -37,8 +40,9 @@ static int emit(sc_ctx *ctx, sc_error *err, float v) {
     return SC_OK;
 }
 
-static int pass_on(sc_ctx *ctx, sc_error *err, int *runs) {
+static int pass_on(sc_ctx *ctx, sc_error *err, int *runs, char letter) {
     (*runs)++;
+    if (ncooked < (int)sizeof cooked_order - 1) cooked_order[ncooked++] = letter;
     return emit(ctx, err, ((const float *)sc_ctx_image(ctx, "image")->pixels)[0]);
 }
 
@@ -46,9 +50,9 @@ static int run_source(sc_ctx *ctx, sc_error *err) {
     runs_source++;
     return emit(ctx, err, 1.0f);
 }
-static int run_plain(sc_ctx *ctx, sc_error *err) { return pass_on(ctx, err, &runs_plain); }
-static int run_base(sc_ctx *ctx, sc_error *err) { return pass_on(ctx, err, &runs_base); }
-static int run_top(sc_ctx *ctx, sc_error *err) { return pass_on(ctx, err, &runs_top); }
+static int run_plain(sc_ctx *ctx, sc_error *err) { return pass_on(ctx, err, &runs_plain, 'p'); }
+static int run_base(sc_ctx *ctx, sc_error *err) { return pass_on(ctx, err, &runs_base, 'b'); }
+static int run_top(sc_ctx *ctx, sc_error *err) { return pass_on(ctx, err, &runs_top, 't'); }
 
 static const sc_kernel *const uses_base[] = {&kernel_base, NULL};
 static const sc_kernel *const uses_top[] = {&kernel_top, NULL};
@@ -122,6 +126,39 @@ SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
     kernel_base.version = 1, kernel_top.version = 1;
     cook(cache, ran);
     CHECK_RAN(ran, 0, 0, 0, 0);
+    sc_cache_close(cache);
+    sc_test_system("rm -rf '%s'", dir);
+    free(dir);
+}
+
+/* source -> plain (a leaf, declared first) and source -> with_base ->
+ * with_top: with one job slot, once the source has cooked, with_base (which
+ * with_top waits on) starts before the leaf; then the leaf and with_top, each
+ * the end of its chain, in graph order. */
+SC_TEST(the_node_others_wait_on_starts_before_a_leaf) {
+    char *dir = sc_test_tempdir("order");
+    sc_cache *cache = NULL;
+    sc_error err = {0};
+    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    if (!cache) return;
+    sc_graph *g = sc_graph_new("order.lua");
+    int s = sc_graph_add(g, &source, "order.lua", 1);
+    int leaf = sc_graph_add(g, &plain, "order.lua", 2);
+    int mid = sc_graph_add(g, &with_base, "order.lua", 3);
+    int top = sc_graph_add(g, &with_top, "order.lua", 4);
+    const int from[3][2] = {{leaf, s}, {mid, s}, {top, mid}};
+    for (int k = 0; k < 3; k++) {
+        g->nodes[from[k][0]].input_node[0] = from[k][1];
+        g->nodes[from[k][0]].input_port[0] = 0;
+    }
+    ncooked = 0;
+    memset(cooked_order, 0, sizeof cooked_order);
+    sc_engine_options opt = {.jobs = 1};
+    sc_run *r = NULL;
+    SC_CHECK_MSG(sc_engine_run(g, cache, &opt, &r, &err) == SC_OK, "cook: %s", err.message);
+    SC_CHECK_MSG(strcmp(cooked_order, "bpt") == 0, "cooked in the order '%s', expected 'bpt'", cooked_order);
+    sc_run_free(r);
+    sc_graph_free(g);
     sc_cache_close(cache);
     sc_test_system("rm -rf '%s'", dir);
     free(dir);
@@ -239,7 +276,7 @@ static int run_wrong_type(sc_ctx *ctx, sc_error *err) {
 
 static int run_bad_port(sc_ctx *ctx, sc_error *err) {
     (void)sc_ctx_input(ctx, "imge");
-    return pass_on(ctx, err, &runs_plain);
+    return pass_on(ctx, err, &runs_plain, 'p');
 }
 
 static int run_declared(sc_ctx *ctx, sc_error *err) { return emit(ctx, err, (float)sc_ctx_integer(ctx, "size")); }
