@@ -345,6 +345,8 @@ typedef struct face_grid {
     float *fan_box;                /* its boxes: 6 rows of fan_cap (lo x, y, z, hi x, y, z) */
     int32_t *met;                  /* scratch: the fan faces (or cell items) a box meets */
     int32_t fan_cap, met_cap;
+    struct fan_entry *old_fan;     /* scratch: a query's faces around keep and gone as they are, */
+    int32_t nold, old_cap;         /* prepared at its first crossing (crossed_before) */
 } face_grid;
 
 /* A triangle ready for crossing tests: its corners, its normal (not unit),
@@ -1369,6 +1371,7 @@ static void grid_free(face_grid *g) {
     int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
     for (int64_t c = 0; g->items && c < cells; c++) free(g->items[c]);
     free(g->items), free(g->len), free(g->cap), free(g->seen), free(g->fan), free(g->fan_box), free(g->met);
+    free(g->old_fan);
     memset(g, 0, sizeof *g);
 }
 
@@ -1536,22 +1539,42 @@ static bool shares_vertex(const int32_t *a, const int32_t *b) {
     return same != 0;
 }
 
-/* Whether face g (outside the fan) crosses a face around keep or gone now. */
-static bool crossed_before(const state *st, const collapse_plan *p, int32_t g) {
-    const double *Q[3], *P[3];
-    crossing_triangle TQ, TP;
-    face_points(st, g, Q);
-    crossing_prepare(Q, &TQ);
+/* The faces around keep and gone as they are now, prepared for crossing
+ * tests into the grid's old_fan (once per query, at its first crossing);
+ * false when out of memory. */
+static bool old_fan_prepare(state *st, const collapse_plan *p) {
+    face_grid *grid = &st->grid;
+    int32_t need = st->vf_len[p->keep] + st->vf_len[p->gone];
+    if (need > grid->old_cap) {
+        fan_entry *old = realloc(grid->old_fan, (size_t)need * sizeof *old);
+        if (!old) return false;
+        grid->old_fan = old, grid->old_cap = need;
+    }
+    grid->nold = 0;
     for (int side = 0; side < 2; side++) {
         int32_t n;
         const int32_t *list = vfaces(st, side ? p->gone : p->keep, &n);
         for (int32_t i = 0; i < n; i++) {
             int32_t f = list[i];
-            if (!st->falive[f] || shares_vertex(st->fv + 3 * f, st->fv + 3 * g)) continue;
+            if (!st->falive[f]) continue;
+            fan_entry *e = &grid->old_fan[grid->nold++];
+            const double *P[3];
             face_points(st, f, P);
-            crossing_prepare(P, &TP);
-            if (triangles_cross(&TP, &TQ)) return true;
+            crossing_prepare(P, &e->T);
+            for (int k = 0; k < 3; k++) e->v[k] = st->fv[3 * f + k];
         }
+    }
+    return true;
+}
+
+/* Whether face g (outside the fan; TG, prepared) crosses a face around
+ * keep or gone now (the grid's old_fan, prepared). */
+static bool crossed_before(const state *st, int32_t g, const crossing_triangle *TG) {
+    const face_grid *grid = &st->grid;
+    for (int32_t i = 0; i < grid->nold; i++) {
+        const fan_entry *e = &grid->old_fan[i];
+        if (shares_vertex(e->v, st->fv + 3 * g)) continue;
+        if (triangles_cross(&e->T, TG)) return true;
     }
     return false;
 }
@@ -1601,6 +1624,7 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
     if (++grid->stamp == 0) memset(grid->seen, 0, (size_t)st->nf * sizeof *grid->seen), grid->stamp = 1;
     int32_t c0[3], c1[3];
     grid_range(grid, all_lo, all_hi, c0, c1);
+    bool old_prepared = false;
     for (int32_t i = c0[0]; i <= c1[0]; i++)
         for (int32_t j = c0[1]; j <= c1[1]; j++)
             for (int32_t k = c0[2]; k <= c1[2]; k++) {
@@ -1627,6 +1651,7 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
                     if (shares_vertex(it->v, fan_ends)) continue;   /* a face of the fan */
                     crossing_triangle TG;
                     bool prepared = false;
+                    int before = -1;   /* whether g crossed the old fan: unknown until it crosses the new */
                     const double *Q[3] = {NULL, NULL, NULL};
                     double g_size = 0;
                     int32_t nmet = boxes_meeting(grid->fan_box, stride, nfan, it->lo, it->hi, fan_met);
@@ -1644,7 +1669,16 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
                             crossing_prepare(Q, &TG);
                             prepared = true;
                         }
-                        if (triangles_cross(&e->T, &TG) && !crossed_before(st, p, g)) return false;
+                        if (!triangles_cross(&e->T, &TG)) continue;
+                        if (before < 0) {
+                            if (!old_prepared && !old_fan_prepare(st, p)) {
+                                st->out_of_memory = true;
+                                return false;
+                            }
+                            old_prepared = true;
+                            before = crossed_before(st, g, &TG);
+                        }
+                        if (!before) return false;
                     }
                 }
             }
