@@ -181,15 +181,32 @@ static int to_f32_chunk(void *ud, int32_t chunk) {
     const int32_t C = j->in->channels;
     bool colour[4];   /* per channel: through the sRGB curve */
     for (int32_t c = 0; c < C && c < 4; c++) colour[c] = j->linear && !sc_channel_is_alpha(C, c);
+    bool any_colour = false;
+    for (int32_t c = 0; c < C && c < 4; c++) any_colour |= colour[c];
+    if (!any_colour) {   /* every sample as stored: loops the compiler vectorises */
+        if (j->in->pixel == SC_PIXEL_F32) {
+            memcpy(dst + k0, (const float *)j->in->pixels + k0, (k1 - k0) * sizeof *dst);
+        } else if (j->in->pixel == SC_PIXEL_U8) {
+            const uint8_t *src = j->in->pixels;
+            for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 255.0f);
+        } else {
+            const uint16_t *src = j->in->pixels;
+            for (size_t k = k0; k < k1; k++) dst[k] = src[k] * (1.0f / 65535.0f);
+        }
+        return SC_OK;
+    }
     int32_t c = (int32_t)(k0 % (size_t)C);   /* the channel of sample k */
     if (j->in->pixel == SC_PIXEL_F32) {
         const float *src = j->in->pixels;
         for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1)
             dst[k] = colour[c] ? sc_srgb_to_linear(src[k]) : src[k];
     } else if (j->in->pixel == SC_PIXEL_U8) {
+        float plain[256];   /* a channel as stored */
+        for (int v = 0; v < 256; v++) plain[v] = v * (1.0f / 255.0f);
+        const float *table[4];
+        for (int32_t ch = 0; ch < C && ch < 4; ch++) table[ch] = colour[ch] ? j->lut : plain;
         const uint8_t *src = j->in->pixels;
-        for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1)
-            dst[k] = colour[c] ? j->lut[src[k]] : src[k] * (1.0f / 255.0f);
+        for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1) dst[k] = table[c][src[k]];
     } else {
         const uint16_t *src = j->in->pixels;
         for (size_t k = k0; k < k1; k++, c = c + 1 == C ? 0 : c + 1)

@@ -243,6 +243,44 @@ SC_TEST(image_limits_and_texels) {
     sc_image_free(im), sc_image_free(f);
 }
 
+/* Every pixel type and channel count, as stored and in linear light, on an
+ * image whose samples span several of the conversion's chunks (a chunk
+ * boundary falls inside a pixel): each sample equals its own conversion,
+ * alpha as stored. */
+SC_TEST(float_conversion_of_every_sample) {
+    const sc_pixel pixels[] = {SC_PIXEL_U8, SC_PIXEL_U16, SC_PIXEL_F32};
+    for (int pi = 0; pi < 3; pi++)
+        for (int32_t C = 1; C <= 4; C++) {
+            sc_image_data *im = sc_image_alloc(1031, 347, C, pixels[pi]);
+            if (!im) continue;
+            size_t n = (size_t)im->width * im->height * (size_t)C;
+            for (size_t k = 0; k < n; k++) {
+                uint32_t h = (uint32_t)(k * 2654435761u);
+                if (pixels[pi] == SC_PIXEL_U8) ((uint8_t *)im->pixels)[k] = (uint8_t)(h >> 24);
+                else if (pixels[pi] == SC_PIXEL_U16) ((uint16_t *)im->pixels)[k] = (uint16_t)(h >> 16);
+                else ((float *)im->pixels)[k] = (float)(h >> 8) / 16777216.0f;
+            }
+            for (int linear = 0; linear < 2; linear++) {
+                im->colorspace = linear ? SC_COLOR_SRGB : SC_COLOR_LINEAR;
+                sc_image_data *f = linear ? sc_image_to_linear_f32(im, 2) : sc_image_to_f32_threads(im, 2);
+                SC_CHECK(f != NULL);
+                if (!f) continue;
+                size_t wrong = 0;
+                for (size_t k = 0; k < n; k++) {
+                    int32_t c = (int32_t)(k % (size_t)C);
+                    float v = sc_image_texel(im, (int32_t)(k / (size_t)C % (size_t)im->width),
+                                             (int32_t)(k / (size_t)C / (size_t)im->width), c);
+                    float want = linear && !sc_channel_is_alpha(C, c) ? sc_srgb_to_linear(v) : v;
+                    wrong += ((const float *)f->pixels)[k] != want;
+                }
+                SC_CHECK_MSG(wrong == 0, "pixel %d, %d channels, %s: %zu samples differ", (int)pixels[pi], C,
+                             linear ? "linear" : "as stored", wrong);
+                sc_image_free(f);
+            }
+            sc_image_free(im);
+        }
+}
+
 SC_TEST(number_text_is_exact_and_shortest) {
     double samples[] = {0.1, 1.0 / 3.0, 1e-300, 123456789.0, -2.5, 5e-324, 1.7976931348623157e308};
     for (int i = 0; i < (int)(sizeof samples / sizeof *samples); i++) {
