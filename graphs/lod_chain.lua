@@ -143,8 +143,10 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- unerased keep their seams, and check_maps's seam-gap limit says so.
 local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16),
                      erase_min_size = param("erase_min_size", 1), filter_space = filter_space }
+-- Its levels have the uv of the textured check's, whose uv pictures are in
+-- render/: with pictures=all it also draws that uv over each mip level.
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps", pictures = pictures,
-        size = param("map_render_size", 256), views = param("map_views", 6),
+        uv_pictures = pictures == "all", size = param("map_render_size", 256), views = param("map_views", 6),
         modes = "geometry_image,displaced,tessellated",
         max_crack_pixels = param("max_crack_pixels", 0),
         max_seam_gap = param("max_map_seam_gap", 1e-5) }

@@ -119,7 +119,8 @@
  *    for each view with crack pixels (every view with pictures = all),
  *    render/lod<k>_uv.png (the colour texture with the level's uv
  *    silhouettes over it: seams red, boundaries yellow, foldovers magenta;
- *    lod<k>_uv_<material>.png with several materials),
+ *    lod<k>_uv_<material>.png with several materials; none with
+ *    uv_pictures = 0),
  *    render/reference_<view>.png when a reference is given (pictures = all), and the
  *    deterministic metrics. Shading works in linear light, as an engine's:
  *    sRGB colour textures are sampled through sRGB formats (decoded before
@@ -1694,6 +1695,7 @@ typedef struct job {
     bool max_folds_from_reference;
     double pixels_per_unit;   /* view scale: size / (2 radius) */
     bool all_pictures;        /* every view's picture; else contact sheets and views with crack candidates */
+    bool uv_pictures;         /* each pictured level's uv picture too */
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
     topology reference_topology;   /* when reference is not NULL */
 } job;
@@ -2154,7 +2156,7 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
         snprintf(path, sizeof path, "%s/%s_sheet.png", o->folder, k->file);
         rc = add_png(o, R, path, sh.rgba, sh.width, sh.height, true, err);
     }
-    for (int32_t g = 0; g < L.ngroups && rc == SC_OK && pictures; g++)
+    for (int32_t g = 0; g < L.ngroups && rc == SC_OK && pictures && J->uv_pictures; g++)
         rc = uv_picture(R, &L, k, L.groups[g].material, o, err);
     free(sh.rgba);
     level_free(&L);
@@ -2280,6 +2282,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     J.max_map_folds = sc_ctx_number(ctx, "max_map_fold_pixels");
     J.max_gap = sc_ctx_number(ctx, "max_seam_gap");
     J.all_pictures = strcmp(sc_ctx_string(ctx, "pictures"), "all") == 0;
+    J.uv_pictures = sc_ctx_bool(ctx, "uv_pictures");
     if (check_folder(sc_ctx_string(ctx, "folder"), err) != SC_OK) return sc_error_prefix(err, "folder");
 
     /* one framing for every level and the reference */
@@ -2417,6 +2420,9 @@ static const sc_param_desc params[] = {
             "another level's only where it shows cracks, or folds that max_map_fold_pixels bounds), plus the "
             "picture of every view with crack candidates; all: every view's picture, every level's sheet and the "
             "reference's too"},
+    {.name = "uv_pictures", .type = SC_PARAM_BOOL, .def = 1,
+     .doc = "with each pictured level's sheet, its uv picture; 0 leaves them to another check of the same "
+            "levels (the main job's map check, whose levels have the textured check's uv)"},
     {.name = "views", .type = SC_PARAM_INTEGER, .def = 10, .min = 1, .max = 64,
      .doc = "views per LOD and mode: 6 axis views, then oblique ones"},
     {.name = "size", .type = SC_PARAM_INTEGER, .def = 512, .min = 16, .max = 4096,

@@ -159,10 +159,10 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
 
     /* the render's pictures of a chain: one contact sheet and uv picture per
      * LOD, its first mip level's (no level here shows a crack or fold); every
-     * level's with pictures = all */
-    for (int all = 0; all < 2; all++) {
-        const char *pp[] = {"modes", "geometry_image", "views", "1", "size", "32", "pictures", all ? "all" : "sheets",
-                            NULL};
+     * level's with pictures = all; the sheets alone with uv_pictures = 0 */
+    for (int all = 0; all < 3; all++) {
+        const char *pp[] = {"modes", "geometry_image", "views", "1", "size", "32", "pictures", all == 1 ? "all" : "sheets",
+                            "uv_pictures", all == 2 ? "0" : "1", NULL};
         sc_test_run pr = sc_test_run_node(&sc_node_render, pp, "lods", levels, "reference", atlas);
         SC_CHECK_MSG(pr.rc == SC_OK, "render: %s", pr.err.message);
         if (pr.rc == SC_OK) {
@@ -172,8 +172,9 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
                 sheets += strstr(pics->files[i].path, "_mip") && strstr(pics->files[i].path, "_sheet.png");
                 uv += strstr(pics->files[i].path, "_mip") && strstr(pics->files[i].path, "_uv.png");
             }
-            SC_CHECK_MSG(sheets == (all ? nlod * nmip : nlod) && uv == sheets, "pictures = %s: %d sheets, %d uv",
-                         all ? "all" : "sheets", sheets, uv);
+            SC_CHECK_MSG(sheets == (all == 1 ? nlod * nmip : nlod) && uv == (all == 2 ? 0 : sheets),
+                         "pictures = %s, uv_pictures = %d: %d sheets, %d uv", all == 1 ? "all" : "sheets", all != 2,
+                         sheets, uv);
             SC_CHECK(find_file(pics, "render/lod0_mip0_sheet.png") != NULL);
             SC_CHECK((find_file(pics, "render/lod0_mip1_sheet.png") != NULL) == (all == 1));
         }
