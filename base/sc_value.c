@@ -15,6 +15,7 @@
 #include "sc_value.h"
 
 #include <math.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
@@ -424,7 +425,7 @@ static void put_str(sink *s, const char *str) {
     put(s, str, n);
 }
 
-static void put_digest(sink *s, const sc_value *v) { put(s, v->digest.bytes, 32); }
+static void put_digest(sink *s, const sc_value *v) { put(s, sc_value_digest(v)->bytes, 32); }
 
 static void encode(const sc_value *v, sink *s) {
     put(s, "SCV", 3);
@@ -507,20 +508,40 @@ int sc_value_serialize(const sc_value *v, sc_buf *out) {
 
 /* ---------------------------------------------------------------- values */
 
+enum { DIGEST_PENDING, DIGEST_COMPUTING, DIGEST_KNOWN };
+
+/* The value around payload; its hasher is made now, so that computing the
+ * digest later cannot fail. */
 static sc_value *seal(sc_kind kind, void *payload) {
     sc_value *v = calloc(1, sizeof *v);
     if (!v) return NULL;
     v->kind = kind;
     v->refs = 1;
     v->as.mesh = payload;   /* all union members are pointers */
-    sink s = {NULL, sc_hasher_new()};
-    if (!s.hasher) {
+    v->digest_state = DIGEST_PENDING;
+    v->hasher = sc_hasher_new();
+    if (!v->hasher) {
         free(v);
         return NULL;
     }
-    encode(v, &s);
-    sc_hasher_final(s.hasher, &v->digest);
     return v;
+}
+
+const sc_digest *sc_value_digest(const sc_value *cv) {
+    sc_value *v = (sc_value *)cv;   /* the digest is computed once, the payload only read */
+    if (__atomic_load_n(&v->digest_state, __ATOMIC_ACQUIRE) == DIGEST_KNOWN) return &v->known_digest;
+    int pending = DIGEST_PENDING;
+    if (__atomic_compare_exchange_n(&v->digest_state, &pending, DIGEST_COMPUTING, false, __ATOMIC_ACQ_REL,
+                                    __ATOMIC_ACQUIRE)) {
+        sink s = {NULL, v->hasher};
+        encode(v, &s);   /* parts' digests first, through this function */
+        sc_hasher_final(v->hasher, &v->known_digest);
+        v->hasher = NULL;
+        __atomic_store_n(&v->digest_state, DIGEST_KNOWN, __ATOMIC_RELEASE);
+    } else {
+        while (__atomic_load_n(&v->digest_state, __ATOMIC_ACQUIRE) != DIGEST_KNOWN) sched_yield();
+    }
+    return &v->known_digest;
 }
 
 static void free_payload(sc_kind kind, void *payload) {
@@ -570,6 +591,10 @@ sc_value *sc_value_retain(sc_value *v) {
 void sc_value_release(sc_value *v) {
     if (!v) return;
     if (__atomic_fetch_sub(&v->refs, 1, __ATOMIC_ACQ_REL) != 1) return;
+    if (v->hasher) {   /* never asked for its digest */
+        sc_digest unused;
+        sc_hasher_final(v->hasher, &unused);
+    }
     free_payload(v->kind, v->as.mesh);
     free(v);
 }
@@ -811,7 +836,7 @@ sc_value *sc_value_deserialize(const void *bytes, size_t n, const sc_digest *exp
         sc_fail(err, SC_ENOMEM, "out of memory");
         return NULL;
     }
-    if (expect && !sc_digest_equal(&v->digest, expect)) {
+    if (expect && !sc_digest_equal(sc_value_digest(v), expect)) {
         sc_value_release(v);
         sc_fail(err, SC_EMISS, "value does not match its digest");
         return NULL;

@@ -19,10 +19,13 @@
  * Image readers and writers flip rows at the file boundary.
  *
  * Lifecycle: build the plain struct (sc_mesh, sc_image_data, ...), then wrap it
- * with sc_value_new_*, which takes ownership, freezes it and computes its
- * digest (SHA-256 of the canonical serialisation; parts are referenced by
- * their digests). Values are reference counted: sc_value_retain/_release.
- * A value is never modified after it is made.
+ * with sc_value_new_*, which takes ownership and freezes it. Its digest
+ * (SHA-256 of the canonical serialisation; parts are referenced by their
+ * digests) is computed when first asked for (sc_value_digest): a node's
+ * scratch images, never compared or stored, are never hashed; the engine
+ * asks for every output's as the node finishes. Values are reference
+ * counted: sc_value_retain/_release. A value is never modified after it is
+ * made.
  */
 #ifndef SC_VALUE_H
 #define SC_VALUE_H
@@ -191,7 +194,9 @@ typedef struct sc_bytes {
 struct sc_value {
     sc_kind kind;
     int refs;                 /* atomic; use retain/release */
-    sc_digest digest;         /* SHA-256 of the canonical serialisation */
+    int digest_state;         /* atomic; private to sc_value_digest */
+    sc_hasher *hasher;        /* private: made with the value, used by its first sc_value_digest */
+    sc_digest known_digest;   /* private: read it through sc_value_digest */
     union {
         sc_mesh *mesh;
         sc_image_data *image;
@@ -214,6 +219,11 @@ sc_value *sc_value_new_bytes(void *data, size_t size);   /* takes malloc'd data 
 
 sc_value *sc_value_retain(sc_value *v);
 void sc_value_release(sc_value *v);   /* NULL is fine */
+
+/* The SHA-256 of v's canonical serialisation. Computed at the first call
+ * (from any thread; a second caller meanwhile waits for it), so that the
+ * values a node makes and drops on its way are never hashed. */
+const sc_digest *sc_value_digest(const sc_value *v);
 
 /* Helpers to build composite values. Each returns 0 or SC_ENOMEM. */
 sc_atlas *sc_atlas_new(sc_value *mesh);   /* takes the reference to mesh */

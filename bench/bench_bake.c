@@ -158,11 +158,11 @@ static int run_asset(void *ud, int out) {
     if (bake && mip && getenv("SC_BENCH_DIGESTS")) {   /* to check that a change keeps the bytes */
         char h[65];
         for (int o = 0; o < 2; o++) {
-            sc_digest_hex(&sc_ctx_output(bake, o)->digest, h);
+            sc_digest_hex(sc_value_digest(sc_ctx_output(bake, o)), h);
             printf("       digest bake.%d %s\n", o, h);
         }
         for (int o = 0; o < 2; o++) {
-            sc_digest_hex(&sc_ctx_output(mip, o)->digest, h);
+            sc_digest_hex(sc_value_digest(sc_ctx_output(mip, o)), h);
             printf("       digest mipmap.%d %s\n", o, h);
         }
     }

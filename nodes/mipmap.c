@@ -807,7 +807,7 @@ static int build_group(void *ud, int32_t item) {
 
 static bool same_texture(const sc_texture *a, const sc_texture *b) {
     return a->material == b->material && strcmp(a->name, b->name) == 0 &&
-           sc_digest_equal(&a->image->digest, &b->image->digest) && a->wrap_u == b->wrap_u && a->wrap_v == b->wrap_v;
+           sc_digest_equal(sc_value_digest(a->image), sc_value_digest(b->image)) && a->wrap_u == b->wrap_u && a->wrap_v == b->wrap_v;
 }
 
 /* What run's steps share: the sources, their chains and what they made. */
@@ -881,7 +881,7 @@ static void make_chains(mip_run *r, const sc_lods *lods) {
     for (int32_t k = 0; k < nsrc; k++) {
         int32_t j = -1;
         for (int32_t i = 0; lods && i < k && j < 0; i++)
-            if (sc_digest_equal(&lods->levels[i]->digest, &lods->levels[k]->digest)) j = i;
+            if (sc_digest_equal(sc_value_digest(lods->levels[i]), sc_value_digest(lods->levels[k]))) j = i;
         r->repeats[k] = j;
         for (int32_t t = 0; t < src[k]->ntex; t++) {
             if (r->map[r->first_tex[k] + t]) continue;

@@ -463,7 +463,7 @@ static int get_sampler(renderer *R, sc_wrap wu, sc_wrap wv, GLuint *out, sc_erro
 
 static int get_texture(renderer *R, const sc_value *image, GLuint *out, sc_error *err) {
     for (int32_t i = 0; i < R->ntextures; i++)
-        if (sc_digest_equal(&R->textures[i].digest, &image->digest)) {
+        if (sc_digest_equal(&R->textures[i].digest, sc_value_digest(image))) {
             *out = R->textures[i].texture;
             return SC_OK;
         }
@@ -473,7 +473,7 @@ static int get_texture(renderer *R, const sc_value *image, GLuint *out, sc_error
     GLuint tex = 0;
     int rc = sc_gl_texture(image->as.image, &tex, err);
     if (rc != SC_OK) return rc;
-    t[R->ntextures].digest = image->digest;
+    t[R->ntextures].digest = *sc_value_digest(image);
     t[R->ntextures].texture = tex;
     R->ntextures++;
     *out = tex;
@@ -2196,7 +2196,7 @@ static void add_drawn_vertices(const sc_atlas *a, double lo[3], double hi[3]) {
  * the same slots, each half the size (rounded down, at least 1) or, where its
  * chain has ended, the same size, and at least one of them halved. */
 static bool is_mip_of(const sc_atlas *b, const sc_atlas *a) {
-    if (!sc_digest_equal(&a->mesh->digest, &b->mesh->digest) || a->ntex != b->ntex || a->ntex == 0) return false;
+    if (!sc_digest_equal(sc_value_digest(a->mesh), sc_value_digest(b->mesh)) || a->ntex != b->ntex || a->ntex == 0) return false;
     bool halved = false;
     for (int32_t t = 0; t < a->ntex; t++) {
         const sc_image_data *ia = a->textures[t].image->as.image, *ib = b->textures[t].image->as.image;
@@ -2220,7 +2220,7 @@ typedef struct level_tally {
  * or -1. */
 static int32_t same_level_before(const sc_lods *lods, int32_t k) {
     for (int32_t j = 0; lods && j < k; j++)
-        if (sc_digest_equal(&lods->levels[j]->digest, &lods->levels[k]->digest)) return j;
+        if (sc_digest_equal(sc_value_digest(lods->levels[j]), sc_value_digest(lods->levels[k]))) return j;
     return -1;
 }
 

@@ -300,7 +300,7 @@ static int save_image(saver *s, const sc_value *image, const seam_place *at, con
     for (int e = 0; e < 2 && exts[e]; e++) {
         int found = -1;
         for (int i = 0; i < s->nfiles; i++)
-            if (sc_digest_equal(&s->files[i].digest, &image->digest) && strcmp(s->files[i].ext, exts[e]) == 0)
+            if (sc_digest_equal(&s->files[i].digest, sc_value_digest(image)) && strcmp(s->files[i].ext, exts[e]) == 0)
                 found = i;
         if (found >= 0) {
             if (e == 0) *path = s->files[found].path;
@@ -330,7 +330,7 @@ static int save_image(saver *s, const sc_value *image, const seam_place *at, con
             return rc;
         }
         w = &s->files[s->nfiles++];
-        w->digest = image->digest;
+        w->digest = *sc_value_digest(image);
         snprintf(w->ext, sizeof w->ext, "%s", exts[e]);
         w->path = file;
         if (e == 0) *path = file;

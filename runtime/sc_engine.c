@@ -185,17 +185,17 @@ static void store_value(void *ud, sc_value *v) {
         }
         s->blobs = b, s->cap = cap;
     }
-    s->blobs[s->nblobs++] = v->digest;
-    if (sc_cache_has_blob(s->cache, &v->digest)) return;
+    s->blobs[s->nblobs++] = *sc_value_digest(v);
+    if (sc_cache_has_blob(s->cache, sc_value_digest(v))) return;
     sc_buf buf;
     sc_buf_init(&buf);
     if (sc_value_serialize(v, &buf) != SC_OK)
         s->rc = sc_fail(s->err, SC_ENOMEM, "out of memory serialising a %s", sc_kind_name(v->kind));
     else
-        s->rc = sc_cache_write_blob_file(s->cache, &v->digest, buf.data, buf.len, s->err);
+        s->rc = sc_cache_write_blob_file(s->cache, sc_value_digest(v), buf.data, buf.len, s->err);
     if (s->rc == SC_OK) {
         uv_mutex_lock(s->lock);
-        s->rc = sc_cache_put_blob(s->cache, &v->digest, buf.data, buf.len, s->err);
+        s->rc = sc_cache_put_blob(s->cache, sc_value_digest(v), buf.data, buf.len, s->err);
         uv_mutex_unlock(s->lock);
     }
     sc_buf_free(&buf);
@@ -617,7 +617,7 @@ static sc_value *bytes_in_memory(engine *e, int i, const sc_digest *d) {
         const sc_value *v = e->rt[i].values[k];
         if (!v || v->kind != SC_KIND_REPORT) continue;
         for (int f = 0; f < v->as.report->nfiles; f++)
-            if (sc_digest_equal(&v->as.report->files[f].bytes->digest, d))
+            if (sc_digest_equal(sc_value_digest(v->as.report->files[f].bytes), d))
                 return sc_value_retain(v->as.report->files[f].bytes);
     }
     return NULL;
@@ -685,7 +685,7 @@ static int files_from_values(engine *e, int i) {
         for (int f = 0; f < rep->nfiles; f++) {
             report_file *rf = &rt->files[rt->nfiles++];
             rf->path = sc_strdup(rep->files[f].path);
-            rf->value = rep->files[f].bytes->digest;
+            rf->value = *sc_value_digest(rep->files[f].bytes);
             sc_digest_bytes(rep->files[f].bytes->as.bytes->data, rep->files[f].bytes->as.bytes->size,
                             &rf->content);
         }
@@ -992,6 +992,57 @@ typedef struct job {
     int ndeps;
 } job;
 
+/* Values whose digests are to be computed side by side (digest_outputs). */
+typedef struct value_list {
+    sc_value **items;
+    int32_t count, cap;
+    bool failed;
+} value_list;
+
+static void value_list_add(void *ud, sc_value *v) {
+    value_list *l = ud;
+    if (l->count == l->cap) {
+        int32_t cap = l->cap ? 2 * l->cap : 16;
+        sc_value **items = realloc(l->items, (size_t)cap * sizeof *items);
+        if (!items) {
+            l->failed = true;
+            return;
+        }
+        l->items = items, l->cap = cap;
+    }
+    l->items[l->count++] = v;
+}
+
+static int digest_one(void *ud, int32_t i) {
+    sc_value_digest(((sc_value *const *)ud)[i]);
+    return SC_OK;
+}
+
+/* Every output's digest, computed on the worker that cooked it, so that the
+ * loop thread only reads them: the parts (an atlas's mesh and images, a
+ * lods' atlases and theirs, a report's files) side by side on `threads`,
+ * then the values made of them. */
+static void digest_outputs(sc_ctx *ctx, int noutputs, int threads) {
+    value_list parts = {0};
+    for (int k = 0; k < noutputs; k++) {
+        sc_value *v = sc_ctx_output(ctx, k);
+        if (!v) continue;
+        int32_t from = parts.count;
+        sc_value_parts(v, value_list_add, &parts);
+        for (int32_t i = from, to = parts.count; i < to; i++) sc_value_parts(parts.items[i], value_list_add, &parts);
+    }
+    /* deepest first: a part's own parts are hashed before it asks for them */
+    for (int32_t i = 0, j = parts.count - 1; i < j; i++, j--) {
+        sc_value *t = parts.items[i];
+        parts.items[i] = parts.items[j], parts.items[j] = t;
+    }
+    if (!parts.failed && parts.count > 0 && sc_parallel(threads, parts.count, digest_one, parts.items) != SC_OK)
+        for (int32_t i = 0; i < parts.count; i++) sc_value_digest(parts.items[i]);
+    free(parts.items);
+    for (int k = 0; k < noutputs; k++)
+        if (sc_ctx_output(ctx, k)) sc_value_digest(sc_ctx_output(ctx, k));
+}
+
 static void run_work(uv_work_t *req) {
     job *j = req->data;
     engine *e = j->e;
@@ -1015,6 +1066,7 @@ static void run_work(uv_work_t *req) {
     }
     sc_ctx_set_threads(j->ctx, e->opt->jobs);
     j->rc = sc_ctx_run(j->ctx, &j->err);
+    if (j->rc == SC_OK) digest_outputs(j->ctx, n->desc->noutputs, e->opt->jobs);
     j->seconds = sc_now() - t;
 }
 
@@ -1072,8 +1124,8 @@ static void run_done(uv_work_t *req, int status) {
             sc_value *v = sc_ctx_output(j->ctx, k);
             rt->values[k] = sc_value_retain(v);
             r->outputs[k].kind = v->kind;
-            r->outputs[k].digest = v->digest;
-            if (v->kind == SC_KIND_ATLAS) r->outputs[k].mesh = v->as.atlas->mesh->digest;
+            r->outputs[k].digest = *sc_value_digest(v);
+            if (v->kind == SC_KIND_ATLAS) r->outputs[k].mesh = *sc_value_digest(v->as.atlas->mesh);
         }
         r->metrics_json = metrics_json(j->ctx);
         keep_warnings(r, j->ctx);

@@ -1206,8 +1206,8 @@ SC_TEST(node_global_preset_and_weights) {
         check_erased(c1, "global", 1e-4);
         check_erased(c2, "outside+lerp", 1e-4);
         /* an explicit w_change overrides the preset: the same as local */
-        SC_CHECK(sc_digest_equal(&sc_ctx_output(c3, 0)->digest, &sc_ctx_output(c4, 0)->digest));
-        SC_CHECK(!sc_digest_equal(&sc_ctx_output(c1, 0)->digest, &sc_ctx_output(c4, 0)->digest));
+        SC_CHECK(sc_digest_equal(sc_value_digest(sc_ctx_output(c3, 0)), sc_value_digest(sc_ctx_output(c4, 0))));
+        SC_CHECK(!sc_digest_equal(sc_value_digest(sc_ctx_output(c1, 0)), sc_value_digest(sc_ctx_output(c4, 0))));
     }
     sc_ctx_free(c1), sc_ctx_free(c2), sc_ctx_free(c3), sc_ctx_free(c4);
     sc_value_release(atlas);
@@ -1221,7 +1221,7 @@ SC_TEST(node_same_output_for_any_thread_count) {
     SC_CHECK(a && b);
     if (a && b) {
         for (int port = 0; port < 2; port++)
-            SC_CHECK(sc_digest_equal(&sc_ctx_output(a, port)->digest, &sc_ctx_output(b, port)->digest));
+            SC_CHECK(sc_digest_equal(sc_value_digest(sc_ctx_output(a, port)), sc_value_digest(sc_ctx_output(b, port))));
     }
     sc_ctx_free(a), sc_ctx_free(b);
     sc_value_release(atlas);
@@ -1715,7 +1715,7 @@ static void schur_against_cholmod(const char *what, sc_value *atlas, const char 
     SC_CHECK_MSG(s && c && s1, "%s: %s", what, err.message);
     if (s && c && s1) {
         SC_CHECK_MSG(sc_ctx_metric_value(s, "pcg_iterations") >= 1, "%s: the schur solver did not run", what);
-        SC_CHECK(sc_digest_equal(&sc_ctx_output(s, 0)->digest, &sc_ctx_output(s1, 0)->digest));
+        SC_CHECK(sc_digest_equal(sc_value_digest(sc_ctx_output(s, 0)), sc_value_digest(sc_ctx_output(s1, 0))));
         const sc_atlas *a = atlas->as.atlas;
         for (int i = 0; i < a->ntex; i++) {
             if (sc_ctx_output(s, 0)->as.atlas->textures[i].image == a->textures[i].image) continue;
@@ -1795,7 +1795,7 @@ SC_TEST(node_auto_solver_falls_back_to_cholmod) {
     SC_CHECK_MSG(a && c && it, "cube: %s", err.message);
     if (a && c && it) {
         SC_CHECK(sc_ctx_metric_value(a, "solver_fallbacks") == 1);
-        SC_CHECK(sc_digest_equal(&sc_ctx_output(a, 0)->digest, &sc_ctx_output(c, 0)->digest));
+        SC_CHECK(sc_digest_equal(sc_value_digest(sc_ctx_output(a, 0)), sc_value_digest(sc_ctx_output(c, 0))));
         SC_CHECK(sc_ctx_metric_value(it, "pcg_iterations") >= 2);   /* converged on its own */
         SC_CHECK(!(sc_ctx_metric_value(it, "solver_fallbacks") > 0));
     }
@@ -1832,7 +1832,7 @@ SC_TEST(node_auto_solver_takes_cholmod_without_clusters) {
         SC_CHECK(sc_ctx_metric_value(s, "interface_unknowns") == sc_ctx_metric_value(s, "unknowns"));
         SC_CHECK(isnan(sc_ctx_metric_value(au, "interface_unknowns")));
         SC_CHECK(!(sc_ctx_metric_value(au, "solver_fallbacks") > 0));
-        SC_CHECK(sc_digest_equal(&sc_ctx_output(au, 0)->digest, &sc_ctx_output(c, 0)->digest));
+        SC_CHECK(sc_digest_equal(sc_value_digest(sc_ctx_output(au, 0)), sc_value_digest(sc_ctx_output(c, 0))));
         SC_CHECK(sc_ctx_metric_value(au, "seam_energy_after") <= 1e-6 * sc_ctx_metric_value(au, "seam_energy_before"));
     }
     sc_ctx_free(au), sc_ctx_free(c), sc_ctx_free(s);

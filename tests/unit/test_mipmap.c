@@ -315,7 +315,7 @@ SC_TEST(a_repeated_level_takes_the_chains_of_the_first) {
         int nmip = la->count / in->count;
         SC_CHECK_INT(lb->count, (in->count + 1) * nmip);
         for (int m = 0; m < nmip && lb->count == (in->count + 1) * nmip; m++)
-            SC_CHECK(sc_digest_equal(&lb->levels[k * nmip + m]->digest, &la->levels[nmip + m]->digest));
+            SC_CHECK(sc_digest_equal(sc_value_digest(lb->levels[k * nmip + m]), sc_value_digest(la->levels[nmip + m])));
         char e1[64], ek[64];
         snprintf(e1, sizeof e1, "lod1.level0.seam_energy");
         snprintf(ek, sizeof ek, "lod%d.level0.seam_energy", k);

@@ -731,7 +731,7 @@ static void *thread_render(void *ud) {
     r.rc = sc_ctx_run(r.ctx, &r.err);
     if (r.rc == SC_OK) r.report = sc_ctx_output(r.ctx, 0);
     j->rc = r.rc;
-    if (r.rc == SC_OK) j->digest = r.report->digest;
+    if (r.rc == SC_OK) j->digest = *sc_value_digest(r.report);
     sc_ctx_free(r.ctx);
     return NULL;
 }

@@ -39,7 +39,7 @@ typedef struct table {
 static sc_value *resolve(void *ud, const sc_digest *d, sc_error *err) {
     table *t = ud;
     for (int i = 0; i < t->n; i++)
-        if (sc_digest_equal(&t->v[i]->digest, d)) return sc_value_retain(t->v[i]);
+        if (sc_digest_equal(sc_value_digest(t->v[i]), d)) return sc_value_retain(t->v[i]);
     sc_fail(err, SC_EMISS, "no such part");
     return NULL;
 }
@@ -49,7 +49,7 @@ static sc_value *round_trip(const sc_value *v, table *t) {
     sc_buf_init(&b);
     SC_CHECK_INT(sc_value_serialize(v, &b), SC_OK);
     sc_error err = {0};
-    sc_value *back = sc_value_deserialize(b.data, b.len, &v->digest, resolve, t, &err);
+    sc_value *back = sc_value_deserialize(b.data, b.len, sc_value_digest(v), resolve, t, &err);
     SC_CHECK_MSG(back != NULL, "deserialize failed: %s", err.message);
     sc_buf_free(&b);
     return back;
@@ -114,12 +114,12 @@ SC_TEST(digest_is_sha256_of_canonical_bytes) {
     sc_value_serialize(m, &b);
     sc_digest d;
     sc_digest_bytes(b.data, b.len, &d);
-    SC_CHECK(sc_digest_equal(&d, &m->digest));
+    SC_CHECK(sc_digest_equal(&d, sc_value_digest(m)));
     sc_buf_free(&b);
     /* the same content gives the same digest; other content another */
     sc_value *same = make_mesh(0), *other = make_mesh(1e-300);
-    SC_CHECK(sc_digest_equal(&same->digest, &m->digest));
-    SC_CHECK(!sc_digest_equal(&other->digest, &m->digest));
+    SC_CHECK(sc_digest_equal(sc_value_digest(same), sc_value_digest(m)));
+    SC_CHECK(!sc_digest_equal(sc_value_digest(other), sc_value_digest(m)));
     sc_value_release(m), sc_value_release(same), sc_value_release(other);
 }
 
@@ -134,7 +134,7 @@ SC_TEST(round_trips_are_exact) {
     t.v[t.n++] = atlas;
     for (int i = 0; i < t.n; i++) {
         sc_value *back = round_trip(t.v[i], &t);
-        if (back) SC_CHECK(sc_digest_equal(&back->digest, &t.v[i]->digest));
+        if (back) SC_CHECK(sc_digest_equal(sc_value_digest(back), sc_value_digest(t.v[i])));
         if (back && back->kind == SC_KIND_ATLAS) {
             const sc_texture *tex = &back->as.atlas->textures[0];
             SC_CHECK_STR(tex->name, "color");
@@ -165,7 +165,7 @@ SC_TEST(parts_are_shared_not_copied) {
     sc_atlas_add_texture(a2, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_retain(image));
     sc_value *atlas2 = sc_value_new_atlas(a2);
     SC_CHECK(atlas1->as.atlas->textures[0].image == atlas2->as.atlas->textures[0].image);
-    SC_CHECK(!sc_digest_equal(&atlas1->digest, &atlas2->digest));
+    SC_CHECK(!sc_digest_equal(sc_value_digest(atlas1), sc_value_digest(atlas2)));
     /* an atlas's bytes are small: parts appear as digests only */
     sc_buf b;
     sc_buf_init(&b);
@@ -192,7 +192,7 @@ SC_TEST(malformed_bytes_are_rejected) {
     }
     /* a flipped byte no longer matches the digest (or no longer parses) */
     b.data[b.len - 5] ^= 0x40;
-    sc_value *v = sc_value_deserialize(b.data, b.len, &m->digest, NULL, NULL, &err);
+    sc_value *v = sc_value_deserialize(b.data, b.len, sc_value_digest(m), NULL, NULL, &err);
     SC_CHECK(v == NULL);
     sc_value_release(v);
     /* an index out of range inside otherwise valid bytes */
