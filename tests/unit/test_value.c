@@ -281,6 +281,45 @@ SC_TEST(float_conversion_of_every_sample) {
         }
 }
 
+/* Threads that ask for one atlas's digest at once (its image's too, which
+ * the atlas's asks for in turn) all get the SHA-256 of its canonical bytes;
+ * a value dropped before anyone asked is freed with its hasher (the
+ * sanitizer build checks the leak). */
+typedef struct digest_race {
+    sc_value *atlas, *image;
+    sc_digest seen[8];
+} digest_race;
+
+static int ask_digest(void *ud, int32_t i) {
+    digest_race *r = ud;
+    r->seen[i] = *sc_value_digest(i % 2 ? r->image : r->atlas);
+    return SC_OK;
+}
+
+SC_TEST(digests_asked_at_once_agree) {
+    sc_image_data *im = sc_image_alloc(512, 512, 4, SC_PIXEL_F32);
+    SC_CHECK(im != NULL);
+    if (!im) return;
+    for (size_t k = 0; k < (size_t)512 * 512 * 4; k++) ((float *)im->pixels)[k] = (float)(k % 977) / 977.0f;
+    digest_race r = {0};
+    r.image = sc_value_new_image(im);
+    sc_atlas *a = sc_atlas_new(make_mesh(0));
+    SC_CHECK(a && sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_retain(r.image)) == SC_OK);
+    r.atlas = sc_value_new_atlas(a);
+    SC_CHECK(sc_parallel(4, 8, ask_digest, &r) == SC_OK);
+    sc_digest want[2];
+    for (int w = 0; w < 2; w++) {
+        sc_buf b;
+        sc_buf_init(&b);
+        sc_value_serialize(w ? r.image : r.atlas, &b);
+        sc_digest_bytes(b.data, b.len, &want[w]);
+        sc_buf_free(&b);
+    }
+    for (int i = 0; i < 8; i++) SC_CHECK_MSG(sc_digest_equal(&r.seen[i], &want[i % 2]), "thread %d", i);
+    sc_value_release(r.atlas), sc_value_release(r.image);
+    sc_value_release(sc_value_new_image(sc_image_alloc(4, 4, 1, SC_PIXEL_U8)));
+}
+
 SC_TEST(number_text_is_exact_and_shortest) {
     double samples[] = {0.1, 1.0 / 3.0, 1e-300, 123456789.0, -2.5, 5e-324, 1.7976931348623157e308};
     for (int i = 0; i < (int)(sizeof samples / sizeof *samples); i++) {
