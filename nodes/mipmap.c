@@ -971,11 +971,7 @@ static int source_energies(const mip_run *r, int32_t k, int threads, double *ene
                 sc_seam_grid g = {im->width, im->height, ch->tex->wrap_u, ch->tex->wrap_v};
                 double e = 0, gp = 0;
                 /* measured as filtered: sRGB colour decoded to linear light in linear mode */
-                sc_image_data *seen = r->linear && im->colorspace == SC_COLOR_SRGB ? sc_image_to_linear_f32(im, threads)
-                                                                                  : NULL;
-                if (r->linear && im->colorspace == SC_COLOR_SRGB && !seen) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-                if (rc == SC_OK) rc = sc_seam_energy(mesh, &seams, &g, seen ? seen : im, threads, &e, &gp, err);
-                sc_image_free(seen);
+                rc = sc_seam_energies_decoded(mesh, &seams, &g, &im, &r->linear, 1, threads, &e, &gp, err);
                 energy[m] = fmax(energy[m], e), gap[m] = fmax(gap[m], gp);
             }
         }

@@ -245,12 +245,9 @@ typedef struct seam_place {
  * sRGB colour decoded to linear light, anything else as stored. */
 static int seen_seams(const seam_place *at, const sc_seam_set *seams, const sc_image_data *im, double *energy,
                       double *gap, sc_error *err) {
-    sc_image_data *seen = im->colorspace == SC_COLOR_SRGB ? sc_image_to_linear_f32(im, 1) : NULL;
-    if (im->colorspace == SC_COLOR_SRGB && !seen) return sc_fail(err, SC_ENOMEM, "out of memory");
     sc_seam_grid g = {im->width, im->height, at->tex->wrap_u, at->tex->wrap_v};
-    int rc = sc_seam_energy(at->mesh, seams, &g, seen ? seen : im, 1, energy, gap, err);
-    sc_image_free(seen);
-    return rc;
+    const bool decode = true;   /* sRGB images only */
+    return sc_seam_energies_decoded(at->mesh, seams, &g, &im, &decode, 1, 1, energy, gap, err);
 }
 
 /* Metrics describe files: the file's bytes decoded the way a reader does,

@@ -623,9 +623,9 @@ typedef struct measure_job {
     const sc_seam_set *seams;
     const sc_seam_grid *g;
     int threads;
-    const sc_image_data *f32, *naive;  /* naive: NULL when not quantised; as the consumer decodes it */
+    const sc_image_data *f32, *naive;  /* naive: NULL when not quantised */
     const sc_image_data *optimal;      /* the optimal rounding's image (round's bytes) */
-    bool decode;                       /* measure the optimal bytes decoded to linear light */
+    bool decode;                       /* measure naive and optimal as the consumer decodes them (linear light) */
     round_job *round;                  /* NULL: no optimal rounding */
     int32_t *src, *chan;               /* per channel: the channel it copies, or -1; the channels rounded */
     int threads_energy;
@@ -638,9 +638,10 @@ static int measure_task(void *ud, int32_t chunk) {
     measure_job *j = ud;
     if (chunk == 0) {
         const sc_image_data *imgs[2] = {j->f32, j->naive};
+        const bool decode[2] = {false, j->decode};
         double e[2] = {0, 0}, gap[2] = {0, 0};
-        j->rc[0] = sc_seam_energies(j->m, j->seams, j->g, imgs, j->naive ? 2 : 1, j->threads_energy, e, gap,
-                                    &j->err[0]);
+        j->rc[0] = sc_seam_energies_decoded(j->m, j->seams, j->g, imgs, decode, j->naive ? 2 : 1, j->threads_energy,
+                                            e, gap, &j->err[0]);
         j->e_float = e[0], j->g_float = gap[0], j->e_naive = e[1], j->g_naive = gap[1];
         return j->rc[0];
     }
@@ -657,11 +658,8 @@ static int measure_task(void *ud, int32_t chunk) {
                 b[c] = b[j->src[c]];
             }
     if (rc) return j->rc[1] = sc_fail(&j->err[1], rc, "out of memory rounding to 8 bits");
-    sc_image_data *view = j->decode ? sc_image_to_linear_f32(j->optimal, j->threads) : NULL;
-    if (j->decode && !view) return j->rc[1] = sc_fail(&j->err[1], SC_ENOMEM, "out of memory rounding to 8 bits");
-    j->rc[1] = sc_seam_energy(j->m, j->seams, j->g, view ? view : j->optimal, j->threads, &j->e_optimal,
-                              &j->g_optimal, &j->err[1]);
-    sc_image_free(view);
+    j->rc[1] = sc_seam_energies_decoded(j->m, j->seams, j->g, &j->optimal, &j->decode, 1, j->threads,
+                                        &j->e_optimal, &j->g_optimal, &j->err[1]);
     return j->rc[1];
 }
 
@@ -1445,13 +1443,10 @@ static int prepare_rounding(group_run *r, texture_out *t, sc_error *err) {
  * float result itself. */
 static int measure_and_round(group_run *r, texture_out *t, double tq0, sc_error *err) {
     const options *o = r->o;
-    sc_image_data *nat_view = t->nat && t->decode ? sc_image_to_linear_f32(t->nat, o->threads) : NULL;
-    if (t->nat && t->decode && !nat_view) return sc_fail(err, SC_ENOMEM, "out of memory");
-    measure_job mj = {r->m, r->seams, &r->gr->grid, o->threads, t->fv->as.image, nat_view ? nat_view : t->nat,
+    measure_job mj = {r->m, r->seams, &r->gr->grid, o->threads, t->fv->as.image, t->nat,
                       t->opt, t->decode, t->opt ? &t->rj : NULL, t->src, t->chan, 0};
     mj.threads_energy = t->opt && o->threads > 1 ? o->threads - 1 : o->threads;
     sc_seam_parallel(t->opt && o->threads > 1 ? 2 : 1, t->opt ? 2 : 1, measure_task, &mj);
-    sc_image_free(nat_view);
     if (mj.rc[0] || mj.rc[1]) {
         if (err) *err = mj.err[mj.rc[0] ? 0 : 1];
         return mj.rc[0] ? mj.rc[0] : mj.rc[1];

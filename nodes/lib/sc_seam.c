@@ -1289,11 +1289,49 @@ int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
 
 /* ---------------------------------------------------------------- energy */
 
+/* How the energies read an image's texels: as stored, or with its sRGB
+ * colour channels (alpha excepted) decoded to linear light, through a table
+ * for 8 and 16 bits, the values sc_image_to_linear_f32 gives. */
+typedef struct texel_reader {
+    const float *table;                   /* u8/u16 decoded: stored value -> linear light; else NULL */
+    bool decode[SC_SEAM_MAX_CHANNELS];    /* per channel: through the sRGB curve */
+    bool any;                             /* some channel is */
+} texel_reader;
+
+static inline double read_texel(const sc_image_data *img, const texel_reader *r, int32_t id, int32_t c) {
+    if (!r->any || c >= SC_SEAM_MAX_CHANNELS || !r->decode[c]) return sc_seam_texel(img, id, c);
+    size_t k = (size_t)id * (size_t)img->channels + (size_t)c;
+    switch (img->pixel) {
+    case SC_PIXEL_U8: return r->table[((const uint8_t *)img->pixels)[k]];
+    case SC_PIXEL_U16: return r->table[((const uint16_t *)img->pixels)[k]];
+    default: return sc_srgb_to_linear(((const float *)img->pixels)[k]);
+    }
+}
+
+/* The reader of img, decoded when `decode` and img is sRGB; false when out
+ * of memory. Free with reader_free. */
+static bool reader_make(const sc_image_data *img, bool decode, texel_reader *r) {
+    memset(r, 0, sizeof *r);
+    if (!decode || img->colorspace != SC_COLOR_SRGB) return true;
+    for (int32_t c = 0; c < img->channels && c < SC_SEAM_MAX_CHANNELS; c++)
+        r->any |= r->decode[c] = !sc_channel_is_alpha(img->channels, c);
+    int32_t levels = img->pixel == SC_PIXEL_U8 ? 256 : img->pixel == SC_PIXEL_U16 ? 65536 : 0;
+    if (!r->any || levels == 0) return true;
+    float *table = malloc((size_t)levels * sizeof *table);
+    if (!table) return false;
+    for (int32_t v = 0; v < levels; v++) table[v] = sc_srgb_to_linear(v * (1.0f / (float)(levels - 1)));
+    r->table = table;
+    return true;
+}
+
+static void reader_free(texel_reader *r) { free((void *)r->table); }
+
 typedef struct energy_job {
     const sc_mesh *m;
     const sc_seam_set *s;
     const sc_seam_grid *g;
     const sc_image_data *const *imgs;
+    texel_reader read[SC_SEAM_ENERGY_IMAGES];
     int32_t same[SC_SEAM_ENERGY_IMAGES][SC_SEAM_MAX_CHANNELS];   /* sc_seam_same_channels of each image */
     int count;
     double *d;   /* per image, per seam */
@@ -1337,8 +1375,9 @@ int32_t sc_seam_same_channels(const sc_image_data *img, int32_t src[SC_SEAM_MAX_
  * largest sampled gap, for each of `count` images of the grid's size: the
  * pieces are found once and read in every image. */
 static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
-                            const sc_image_data *const *imgs, const int32_t (*same)[SC_SEAM_MAX_CHANNELS],
-                            int count, walk *w, double *d_out, double *gap_out, bool *ok) {
+                            const sc_image_data *const *imgs, const texel_reader *read,
+                            const int32_t (*same)[SC_SEAM_MAX_CHANNELS], int count, walk *w, double *d_out,
+                            double *gap_out, bool *ok) {
     const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
     const double *b0 = uvp(m, e->side[1].uv0), *b1 = uvp(m, e->side[1].uv1);
     int32_t n = sc_seam_crossings(g, a0, a1, b0, b1, &w->gm, &w->gcap);
@@ -1365,7 +1404,7 @@ static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_se
                 double q[3] = {0, 0, 0};
                 for (int side = 0; side < 2; side++)
                     for (int k = 0; k < 4; k++) {
-                        double p = sc_seam_texel(img, cp[side].id[k], c);
+                        double p = read_texel(img, &read[im], cp[side].id[k], c);
                         double sg = side ? -1.0 : 1.0;
                         for (int x = 0; x < 3; x++) q[x] += sg * cp[side].q[k][x] * p;
                     }
@@ -1458,7 +1497,8 @@ double sc_seam_edge_energy(const sc_mesh *m, const sc_seam_edge *e, const sc_sea
     bool ok;
     double d, gap;
     const int32_t none[1][SC_SEAM_MAX_CHANNELS] = {{-1, -1, -1, -1}};
-    edge_energy_gap(m, e, g, &img, none, 1, &w, &d, &gap, &ok);
+    const texel_reader stored = {0};
+    edge_energy_gap(m, e, g, &img, &stored, none, 1, &w, &d, &gap, &ok);
     free(w.gm);
     return ok ? d : NAN;
 }
@@ -1472,7 +1512,8 @@ static int energy_chunk(void *ud, int32_t chunk) {
     for (int32_t i = i0; i < i1; i++) {
         bool ok;
         double d[SC_SEAM_ENERGY_IMAGES], gap[SC_SEAM_ENERGY_IMAGES];
-        edge_energy_gap(job->m, &job->s->seams[i], job->g, job->imgs, job->same, job->count, &w, d, gap, &ok);
+        edge_energy_gap(job->m, &job->s->seams[i], job->g, job->imgs, job->read, job->same, job->count, &w, d, gap,
+                        &ok);
         for (int im = 0; im < job->count; im++) {
             job->d[(size_t)im * job->s->nseams + i] = d[im];
             job->gap[(size_t)im * job->s->nseams + i] = gap[im];
@@ -1490,6 +1531,12 @@ static int energy_chunk(void *ud, int32_t chunk) {
 int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
                      const sc_image_data *const *imgs, int count, int threads, double *energy,
                      double *max_gap, sc_error *err) {
+    return sc_seam_energies_decoded(m, s, g, imgs, NULL, count, threads, energy, max_gap, err);
+}
+
+int sc_seam_energies_decoded(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                             const sc_image_data *const *imgs, const bool *decode, int count, int threads,
+                             double *energy, double *max_gap, sc_error *err) {
     if (count < 1 || count > SC_SEAM_ENERGY_IMAGES)
         return sc_fail(err, SC_EINPUT, "seam energy of %d images at once (1 to %d)", count,
                        SC_SEAM_ENERGY_IMAGES);
@@ -1499,12 +1546,21 @@ int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
     }
     if (s->nseams == 0) return SC_OK;
     energy_job job = {.m = m, .s = s, .g = g, .imgs = imgs, .count = count, .failed_face = -1};
-    for (int im = 0; im < count; im++) sc_seam_same_channels(imgs[im], job.same[im]);
+    bool readers = true;
+    for (int im = 0; im < count; im++) {
+        readers &= reader_make(imgs[im], decode && decode[im], &job.read[im]);
+        sc_seam_same_channels(imgs[im], job.same[im]);
+        /* a decoded channel equals a stored one only by chance: measured apart (the same bits) */
+        for (int32_t c = 0; c < SC_SEAM_MAX_CHANNELS; c++)
+            if (job.same[im][c] >= 0 && job.read[im].decode[c] != job.read[im].decode[job.same[im][c]])
+                job.same[im][c] = -1;
+    }
     size_t len = (size_t)s->nseams * (size_t)count;
-    job.d = sc_alloc_array(len, sizeof *job.d);
-    job.gap = sc_alloc_array(len, sizeof *job.gap);
+    job.d = readers ? sc_alloc_array(len, sizeof *job.d) : NULL;
+    job.gap = readers ? sc_alloc_array(len, sizeof *job.gap) : NULL;
     if (!job.d || !job.gap) {
         free(job.d), free(job.gap);
+        for (int im = 0; im < count; im++) reader_free(&job.read[im]);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     int32_t nchunks = (s->nseams + ITEMS_PER_CHUNK - 1) / ITEMS_PER_CHUNK;
@@ -1527,6 +1583,7 @@ int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
         sc_fail(err, rc, "out of memory");
     }
     free(job.d), free(job.gap);
+    for (int im = 0; im < count; im++) reader_free(&job.read[im]);
     return rc;
 }
 

@@ -278,6 +278,14 @@ int sc_seam_energies(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
                      const sc_image_data *const *imgs, int count, int threads, double *energy,
                      double *max_gap, sc_error *err);
 
+/* The same, with image i's sRGB colour channels (alpha excepted) measured
+ * in linear light where decode[i] (decode NULL: none): the energies of
+ * sc_image_to_linear_f32(imgs[i]) to the bit, each tap decoded as it is
+ * read instead of the whole image first. */
+int sc_seam_energies_decoded(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g,
+                             const sc_image_data *const *imgs, const bool *decode, int count, int threads,
+                             double *energy, double *max_gap, sc_error *err);
+
 /* The trace of the normalised seam operator M of eq. 9 (the sum of its
  * diagonal over all texels), exactly. */
 int sc_seam_trace(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid *g, int threads,

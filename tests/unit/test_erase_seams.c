@@ -1098,6 +1098,48 @@ SC_TEST(same_channels_and_grey_energy) {
     sc_mesh_free(m);
 }
 
+/* Energies measured in linear light tap by tap are those of the image
+ * converted first (sc_image_to_linear_f32), to the bit, for sRGB images of
+ * every pixel type, with alpha as stored and grey stored as RGB (the
+ * channel shortcut); a data image is read as stored however asked. */
+SC_TEST(decoded_energies_are_those_of_the_converted_image) {
+    sc_mesh *m = cube_mesh(17, true);
+    sc_seam_set s;
+    sc_error err = {0};
+    SC_CHECK_INT(sc_seam_find(m, 0, &s, &err), SC_OK);
+    sc_seam_grid g = {64, 64, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
+    const sc_pixel pixels[] = {SC_PIXEL_U8, SC_PIXEL_U16, SC_PIXEL_F32};
+    for (int pi = 0; pi < 3; pi++)
+        for (int32_t C = 1; C <= 4; C++)
+            for (int srgb = 0; srgb < 2; srgb++) {
+                sc_image_data *im = pixels[pi] == SC_PIXEL_U16 ? sc_image_alloc(64, 64, C, SC_PIXEL_U16)
+                                                               : noise_image(64, 64, C, pixels[pi], -1);
+                if (pixels[pi] == SC_PIXEL_U16)
+                    for (size_t k = 0; k < (size_t)64 * 64 * (size_t)C; k++)
+                        ((uint16_t *)im->pixels)[k] = (uint16_t)lrint((0.1 + 0.8 * rnd()) * 65535);
+                if (C >= 3) /* channel 1 copies channel 0: grey stored as RGB */
+                    for (int t = 0; t < 64 * 64; t++) {
+                        size_t k = (size_t)t * (size_t)C, bytes = (size_t)pixels[pi];
+                        memcpy((uint8_t *)im->pixels + (k + 1) * bytes, (uint8_t *)im->pixels + k * bytes, bytes);
+                    }
+                im->colorspace = srgb ? SC_COLOR_SRGB : SC_COLOR_DATA;
+                sc_image_data *lin = sc_image_to_linear_f32(im, 1);
+                const sc_image_data *imgs[2] = {im, im};
+                const bool decode[2] = {true, false};
+                double e[2], gap[2], e_lin = 0, gap_lin = 0, e_stored = 0, gap_stored = 0;
+                SC_CHECK_INT(sc_seam_energies_decoded(m, &s, &g, imgs, decode, 2, 2, e, gap, &err), SC_OK);
+                SC_CHECK_INT(sc_seam_energy(m, &s, &g, lin, 2, &e_lin, &gap_lin, &err), SC_OK);
+                SC_CHECK_INT(sc_seam_energy(m, &s, &g, im, 2, &e_stored, &gap_stored, &err), SC_OK);
+                SC_CHECK_MSG(e[0] == e_lin && gap[0] == gap_lin, "pixel %d, %d channels, %s: %.17g %.17g against %.17g %.17g",
+                             (int)pixels[pi], C, srgb ? "sRGB" : "data", e[0], gap[0], e_lin, gap_lin);
+                SC_CHECK(e[1] == e_stored && gap[1] == gap_stored);
+                SC_CHECK(e_lin > 0 && (srgb ? e_lin != e_stored : e_lin == e_stored));
+                sc_image_free(lin), sc_image_free(im);
+            }
+    sc_seam_set_free(&s);
+    sc_mesh_free(m);
+}
+
 /* ================================================================ the node, synthetic */
 
 static void check_erased(sc_ctx *ctx, const char *what, double gap_limit) {
