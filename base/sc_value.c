@@ -230,16 +230,21 @@ sc_image_data *sc_image_to_f32_threads(const sc_image_data *im, int threads) {
     return out;
 }
 
+float *sc_srgb_decode_table(sc_pixel pixel) {
+    int32_t levels = pixel == SC_PIXEL_U8 ? 256 : pixel == SC_PIXEL_U16 ? 65536 : 0;
+    float *table = levels ? malloc((size_t)levels * sizeof *table) : NULL;
+    for (int32_t v = 0; table && v < levels; v++) table[v] = sc_srgb_to_linear(v * (1.0f / (float)(levels - 1)));
+    return table;
+}
+
 sc_image_data *sc_image_to_linear_f32(const sc_image_data *im, int threads) {
     if (im->colorspace != SC_COLOR_SRGB) return sc_image_to_f32_threads(im, threads);
     sc_image_data *out = sc_image_alloc(im->width, im->height, im->channels, SC_PIXEL_F32);
-    int32_t levels = im->pixel == SC_PIXEL_U8 ? 256 : im->pixel == SC_PIXEL_U16 ? 65536 : 0;
-    float *lut = levels ? malloc((size_t)levels * sizeof *lut) : NULL;
-    if (!out || (levels && !lut)) {
+    float *lut = im->pixel != SC_PIXEL_F32 ? sc_srgb_decode_table(im->pixel) : NULL;
+    if (!out || (im->pixel != SC_PIXEL_F32 && !lut)) {
         sc_image_free(out), free(lut);
         return NULL;
     }
-    for (int32_t v = 0; v < levels; v++) lut[v] = sc_srgb_to_linear(v * (1.0f / (float)(levels - 1)));
     out->colorspace = SC_COLOR_LINEAR;
     memcpy(out->format, im->format, sizeof out->format);
     to_f32_job j = {im, out->pixels, (size_t)im->width * (size_t)im->height * (size_t)im->channels, lut, true};

@@ -114,6 +114,10 @@ float sc_linear_to_srgb(float c);
 /* Whether channel c of an image of `channels` channels is alpha (the second
  * of two, the fourth of four): coverage, linear in every colour space. */
 bool sc_channel_is_alpha(int32_t channels, int32_t c);
+/* Every stored value of an 8 or 16-bit colour channel in linear light, the
+ * values sc_image_to_linear_f32 gives: a malloc'd table of 256 or 65536
+ * floats, indexed by the stored value; NULL for f32 or when out of memory. */
+float *sc_srgb_decode_table(sc_pixel pixel);
 /* A linear-light f32 copy of an SC_COLOR_SRGB image (colour channels through
  * the transfer curve, alpha as is), tagged SC_COLOR_LINEAR; any other
  * colour space: sc_image_to_f32_threads. NULL when out of memory. */

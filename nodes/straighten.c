@@ -993,10 +993,12 @@ static int erase_atlas(sc_ctx *ctx, const sc_value *atlas, const sc_atlas *input
 
 /* Appearance: old texture at old uv against new texture at new uv. */
 static void appearance_error(const sc_mesh *m, const double *Unew, const sc_texture *old_tex,
-                             const sc_image_data *old32, const sc_image_data *new32, double *sum2, double *count) {
-    const sc_seam_grid g_old = {old32->width, old32->height, old_tex->wrap_u, old_tex->wrap_v};
-    const sc_seam_grid g_new = {new32->width, new32->height, old_tex->wrap_u, old_tex->wrap_v};
-    const int32_t C = old32->channels;
+                             const sc_image_data *old_img, const sc_seam_reader *old_read,
+                             const sc_image_data *new_img, const sc_seam_reader *new_read, double *sum2,
+                             double *count) {
+    const sc_seam_grid g_old = {old_img->width, old_img->height, old_tex->wrap_u, old_tex->wrap_v};
+    const sc_seam_grid g_new = {new_img->width, new_img->height, old_tex->wrap_u, old_tex->wrap_v};
+    const int32_t C = old_img->channels;
     double a[4], b[4];
     for (int32_t f = 0; f < m->nf; f++) {
         if (m->FM[f] != old_tex->material) continue;
@@ -1008,8 +1010,8 @@ static void appearance_error(const sc_mesh *m, const double *Unew, const sc_text
                 double vo = l0 * m->U[2 * fu[0] + 1] + l1 * m->U[2 * fu[1] + 1] + l2 * m->U[2 * fu[2] + 1];
                 double un = l0 * Unew[2 * fu[0]] + l1 * Unew[2 * fu[1]] + l2 * Unew[2 * fu[2]];
                 double vn = l0 * Unew[2 * fu[0] + 1] + l1 * Unew[2 * fu[1] + 1] + l2 * Unew[2 * fu[2] + 1];
-                sc_seam_sample(&g_old, old32->pixels, C, uo, vo, a);
-                sc_seam_sample(&g_new, new32->pixels, C, un, vn, b);
+                sc_seam_sample_read(&g_old, old_img, old_read, uo, vo, a);
+                sc_seam_sample_read(&g_new, new_img, new_read, un, vn, b);
                 for (int32_t c = 0; c < C; c++) *sum2 += (a[c] - b[c]) * (a[c] - b[c]);
                 *count += C;
             }
@@ -1228,12 +1230,14 @@ static int appearance_step(const job *J, const sc_atlas *result, sc_error *err) 
         const sc_texture *tex = &atlas->textures[i];
         int k = sc_atlas_find_texture(result, tex->material, tex->name);
         if (k < 0) continue;
-        /* compared as seen: sRGB colour in linear light */
-        sc_image_data *a = sc_image_to_linear_f32(tex->image->as.image, 1);
-        sc_image_data *b = sc_image_to_linear_f32(result->textures[k].image->as.image, 1);
-        if (!a || !b) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
-        else appearance_error(J->mesh, J->Uout, tex, a, b, &sum2, &count);
-        sc_image_free(a), sc_image_free(b);
+        /* compared as seen: sRGB colour in linear light, each tap decoded as it is read */
+        const sc_image_data *a = tex->image->as.image, *b = result->textures[k].image->as.image;
+        sc_seam_reader ra, rb;
+        bool readers = sc_seam_reader_make(a, true, &ra);
+        readers &= sc_seam_reader_make(b, true, &rb);
+        if (!readers) rc = sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+        else appearance_error(J->mesh, J->Uout, tex, a, &ra, b, &rb, &sum2, &count);
+        sc_seam_reader_free(&ra), sc_seam_reader_free(&rb);
     }
     if (rc == SC_OK && count > 0)
         sc_ctx_metric(J->ctx, "psnr", sum2 > 0 ? 10.0 * log10(count / sum2) : 200.0);

@@ -1289,49 +1289,39 @@ int sc_seam_assemble(const sc_mesh *m, const sc_seam_set *s, const sc_seam_grid 
 
 /* ---------------------------------------------------------------- energy */
 
-/* How the energies read an image's texels: as stored, or with its sRGB
- * colour channels (alpha excepted) decoded to linear light, through a table
- * for 8 and 16 bits, the values sc_image_to_linear_f32 gives. */
-typedef struct texel_reader {
-    const float *table;                   /* u8/u16 decoded: stored value -> linear light; else NULL */
-    bool decode[SC_SEAM_MAX_CHANNELS];    /* per channel: through the sRGB curve */
-    bool any;                             /* some channel is */
-} texel_reader;
-
-static inline double read_texel(const sc_image_data *img, const texel_reader *r, int32_t id, int32_t c) {
-    if (!r->any || c >= SC_SEAM_MAX_CHANNELS || !r->decode[c]) return sc_seam_texel(img, id, c);
-    size_t k = (size_t)id * (size_t)img->channels + (size_t)c;
-    switch (img->pixel) {
-    case SC_PIXEL_U8: return r->table[((const uint8_t *)img->pixels)[k]];
-    case SC_PIXEL_U16: return r->table[((const uint16_t *)img->pixels)[k]];
-    default: return sc_srgb_to_linear(((const float *)img->pixels)[k]);
-    }
-}
-
-/* The reader of img, decoded when `decode` and img is sRGB; false when out
- * of memory. Free with reader_free. */
-static bool reader_make(const sc_image_data *img, bool decode, texel_reader *r) {
+bool sc_seam_reader_make(const sc_image_data *img, bool decode, sc_seam_reader *r) {
     memset(r, 0, sizeof *r);
     if (!decode || img->colorspace != SC_COLOR_SRGB) return true;
     for (int32_t c = 0; c < img->channels && c < SC_SEAM_MAX_CHANNELS; c++)
         r->any |= r->decode[c] = !sc_channel_is_alpha(img->channels, c);
-    int32_t levels = img->pixel == SC_PIXEL_U8 ? 256 : img->pixel == SC_PIXEL_U16 ? 65536 : 0;
-    if (!r->any || levels == 0) return true;
-    float *table = malloc((size_t)levels * sizeof *table);
-    if (!table) return false;
-    for (int32_t v = 0; v < levels; v++) table[v] = sc_srgb_to_linear(v * (1.0f / (float)(levels - 1)));
-    r->table = table;
-    return true;
+    if (!r->any || img->pixel == SC_PIXEL_F32) return true;
+    r->table = sc_srgb_decode_table(img->pixel);
+    return r->table != NULL;
 }
 
-static void reader_free(texel_reader *r) { free((void *)r->table); }
+void sc_seam_reader_free(sc_seam_reader *r) {
+    free(r->table);
+    r->table = NULL;
+}
+
+void sc_seam_sample_read(const sc_seam_grid *g, const sc_image_data *img, const sc_seam_reader *r, double u,
+                         double v, double *out) {
+    int32_t id[4];
+    double w[4];
+    sc_seam_taps(g, u, v, id, w);
+    for (int32_t c = 0; c < img->channels; c++) {
+        double s = 0;
+        for (int k = 0; k < 4; k++) s += w[k] * sc_seam_read(img, r, id[k], c);
+        out[c] = s;
+    }
+}
 
 typedef struct energy_job {
     const sc_mesh *m;
     const sc_seam_set *s;
     const sc_seam_grid *g;
     const sc_image_data *const *imgs;
-    texel_reader read[SC_SEAM_ENERGY_IMAGES];
+    sc_seam_reader read[SC_SEAM_ENERGY_IMAGES];
     int32_t same[SC_SEAM_ENERGY_IMAGES][SC_SEAM_MAX_CHANNELS];   /* sc_seam_same_channels of each image */
     int count;
     double *d;   /* per image, per seam */
@@ -1375,7 +1365,7 @@ int32_t sc_seam_same_channels(const sc_image_data *img, int32_t src[SC_SEAM_MAX_
  * largest sampled gap, for each of `count` images of the grid's size: the
  * pieces are found once and read in every image. */
 static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_seam_grid *g,
-                            const sc_image_data *const *imgs, const texel_reader *read,
+                            const sc_image_data *const *imgs, const sc_seam_reader *read,
                             const int32_t (*same)[SC_SEAM_MAX_CHANNELS], int count, walk *w, double *d_out,
                             double *gap_out, bool *ok) {
     const double *a0 = uvp(m, e->side[0].uv0), *a1 = uvp(m, e->side[0].uv1);
@@ -1404,7 +1394,7 @@ static void edge_energy_gap(const sc_mesh *m, const sc_seam_edge *e, const sc_se
                 double q[3] = {0, 0, 0};
                 for (int side = 0; side < 2; side++)
                     for (int k = 0; k < 4; k++) {
-                        double p = read_texel(img, &read[im], cp[side].id[k], c);
+                        double p = sc_seam_read(img, &read[im], cp[side].id[k], c);
                         double sg = side ? -1.0 : 1.0;
                         for (int x = 0; x < 3; x++) q[x] += sg * cp[side].q[k][x] * p;
                     }
@@ -1497,7 +1487,7 @@ double sc_seam_edge_energy(const sc_mesh *m, const sc_seam_edge *e, const sc_sea
     bool ok;
     double d, gap;
     const int32_t none[1][SC_SEAM_MAX_CHANNELS] = {{-1, -1, -1, -1}};
-    const texel_reader stored = {0};
+    const sc_seam_reader stored = {0};
     edge_energy_gap(m, e, g, &img, &stored, none, 1, &w, &d, &gap, &ok);
     free(w.gm);
     return ok ? d : NAN;
@@ -1548,7 +1538,7 @@ int sc_seam_energies_decoded(const sc_mesh *m, const sc_seam_set *s, const sc_se
     energy_job job = {.m = m, .s = s, .g = g, .imgs = imgs, .count = count, .failed_face = -1};
     bool readers = true;
     for (int im = 0; im < count; im++) {
-        readers &= reader_make(imgs[im], decode && decode[im], &job.read[im]);
+        readers &= sc_seam_reader_make(imgs[im], decode && decode[im], &job.read[im]);
         sc_seam_same_channels(imgs[im], job.same[im]);
         /* a decoded channel equals a stored one only by chance: measured apart (the same bits) */
         for (int32_t c = 0; c < SC_SEAM_MAX_CHANNELS; c++)
@@ -1560,7 +1550,7 @@ int sc_seam_energies_decoded(const sc_mesh *m, const sc_seam_set *s, const sc_se
     job.gap = readers ? sc_alloc_array(len, sizeof *job.gap) : NULL;
     if (!job.d || !job.gap) {
         free(job.d), free(job.gap);
-        for (int im = 0; im < count; im++) reader_free(&job.read[im]);
+        for (int im = 0; im < count; im++) sc_seam_reader_free(&job.read[im]);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     int32_t nchunks = (s->nseams + ITEMS_PER_CHUNK - 1) / ITEMS_PER_CHUNK;
@@ -1583,7 +1573,7 @@ int sc_seam_energies_decoded(const sc_mesh *m, const sc_seam_set *s, const sc_se
         sc_fail(err, rc, "out of memory");
     }
     free(job.d), free(job.gap);
-    for (int im = 0; im < count; im++) reader_free(&job.read[im]);
+    for (int im = 0; im < count; im++) sc_seam_reader_free(&job.read[im]);
     return rc;
 }
 

@@ -306,6 +306,36 @@ static inline double sc_seam_texel(const sc_image_data *img, int32_t id, int32_t
     }
 }
 
+/* How an image's texels are read: as stored, or with its sRGB colour
+ * channels (alpha excepted) decoded to linear light as they are read (a
+ * table for 8 and 16 bits), the values sc_image_to_linear_f32 gives, to the
+ * bit, without converting the whole image. */
+typedef struct sc_seam_reader {
+    float *table;                          /* u8/u16 decoded: stored value -> linear light; else NULL */
+    bool decode[SC_SEAM_MAX_CHANNELS];     /* per channel: through the sRGB curve */
+    bool any;                              /* some channel is */
+} sc_seam_reader;
+
+/* The reader of img: decoded when `decode` and img is SC_COLOR_SRGB, else as
+ * stored. false when out of memory. Free with sc_seam_reader_free. */
+bool sc_seam_reader_make(const sc_image_data *img, bool decode, sc_seam_reader *r);
+void sc_seam_reader_free(sc_seam_reader *r);
+
+static inline double sc_seam_read(const sc_image_data *img, const sc_seam_reader *r, int32_t id, int32_t c) {
+    if (!r->any || c >= SC_SEAM_MAX_CHANNELS || !r->decode[c]) return sc_seam_texel(img, id, c);
+    size_t k = (size_t)id * (size_t)img->channels + (size_t)c;
+    switch (img->pixel) {
+    case SC_PIXEL_U8: return r->table[((const uint8_t *)img->pixels)[k]];
+    case SC_PIXEL_U16: return r->table[((const uint16_t *)img->pixels)[k]];
+    default: return sc_srgb_to_linear(((const float *)img->pixels)[k]);
+    }
+}
+
+/* Bilinear sample of img, read through r, at uv into out[c]: sc_seam_sample
+ * of the image r reads, to the bit. */
+void sc_seam_sample_read(const sc_seam_grid *g, const sc_image_data *img, const sc_seam_reader *r, double u,
+                         double v, double *out);
+
 /* ---------------------------------------------------------------- threads */
 
 /* sc_parallel (sc_base.h) under its older name. */

@@ -1098,11 +1098,11 @@ SC_TEST(same_channels_and_grey_energy) {
     sc_mesh_free(m);
 }
 
-/* Energies measured in linear light tap by tap are those of the image
- * converted first (sc_image_to_linear_f32), to the bit, for sRGB images of
- * every pixel type, with alpha as stored and grey stored as RGB (the
- * channel shortcut); a data image is read as stored however asked. */
-SC_TEST(decoded_energies_are_those_of_the_converted_image) {
+/* Energies and bilinear samples read in linear light tap by tap are those
+ * of the image converted first (sc_image_to_linear_f32), to the bit, for
+ * sRGB images of every pixel type, with alpha as stored and grey stored as
+ * RGB (the channel shortcut); a data image is read as stored however asked. */
+SC_TEST(decoded_reads_are_those_of_the_converted_image) {
     sc_mesh *m = cube_mesh(17, true);
     sc_seam_set s;
     sc_error err = {0};
@@ -1134,6 +1134,18 @@ SC_TEST(decoded_energies_are_those_of_the_converted_image) {
                              (int)pixels[pi], C, srgb ? "sRGB" : "data", e[0], gap[0], e_lin, gap_lin);
                 SC_CHECK(e[1] == e_stored && gap[1] == gap_stored);
                 SC_CHECK(e_lin > 0 && (srgb ? e_lin != e_stored : e_lin == e_stored));
+                /* bilinear samples read through the reader: those of the converted image */
+                sc_seam_reader reader;
+                SC_CHECK(sc_seam_reader_make(im, true, &reader));
+                int differ = 0;
+                for (int k = 0; k < 200; k++) {
+                    double u = rnd() * 1.2 - 0.1, v = rnd() * 1.2 - 0.1, a[4], b[4];
+                    sc_seam_sample_read(&g, im, &reader, u, v, a);
+                    sc_seam_sample(&g, lin->pixels, C, u, v, b);
+                    for (int32_t c = 0; c < C; c++) differ += a[c] != b[c];
+                }
+                SC_CHECK_MSG(differ == 0, "%d samples differ", differ);
+                sc_seam_reader_free(&reader);
                 sc_image_free(lin), sc_image_free(im);
             }
     sc_seam_set_free(&s);
