@@ -791,8 +791,9 @@ typedef struct warp_job {
     const bool *face_moved;
     const sc_texture *tex;
     int32_t pad, W, H, C, rows;   /* rows: a band's */
-    const float *op;              /* the old texture, f32 */
-    float *dp;                    /* the new one: a copy, warped where a moved face claims */
+    const sc_image_data *src;     /* the old texture, */
+    const sc_seam_reader *read;   /* read as stored */
+    float *dp;                    /* the new one: its f32 copy, warped where a moved face claims */
     float *best;                  /* per texel: the claiming face's distance */
     int32_t *owner, *lattice;     /* per texel: the claiming face, and the lattice point it claimed */
 } warp_job;
@@ -858,7 +859,7 @@ static int warp_band(void *ud, int32_t band) {
         double l0 = sc_orient2(b, c, p) / area, l1 = sc_orient2(c, a, p) / area, l2 = 1.0 - l0 - l1;
         double ou = l0 * m->U[2 * fu[0]] + l1 * m->U[2 * fu[1]] + l2 * m->U[2 * fu[2]];
         double ov = l0 * m->U[2 * fu[0] + 1] + l1 * m->U[2 * fu[1] + 1] + l2 * m->U[2 * fu[2] + 1];
-        sc_seam_sample(&grid, J->op, C, ou, ov, sample);
+        sc_seam_sample_read(&grid, J->src, J->read, ou, ov, sample);
         for (int32_t k = 0; k < C; k++) J->dp[id * C + k] = (float)sample[k];
     }
     return SC_OK;
@@ -873,25 +874,26 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
     const sc_image_data *src = tex->image->as.image;
     const int32_t W = src->width, H = src->height, C = src->channels;
     /* resampled as stored (the erasure after it works as filtered): rendered
-     * appearance keeps closer so (docs/notes/straighten.md) */
-    sc_image_data *old = sc_image_to_f32_threads(src, threads);
-    sc_image_data *dst = sc_image_alloc(W, H, C, SC_PIXEL_F32);
+     * appearance keeps closer so (docs/notes/straighten.md); the new texture
+     * starts as the old one's f32 copy, and moved faces' texels sample the
+     * old one where it is, read tap by tap */
+    sc_image_data *dst = sc_image_to_f32_threads(src, threads);
     size_t npx = (size_t)W * H;
     float *best = sc_alloc_array(npx, sizeof(float));
     int32_t *owner = sc_alloc_array(npx, sizeof(int32_t));
     int32_t *lattice = sc_alloc_array(npx * 2, sizeof(int32_t));
-    if (!old || !dst || !best || !owner || !lattice) {
-        sc_image_free(old), sc_image_free(dst), free(best), free(owner), free(lattice);
+    sc_seam_reader as_stored;
+    sc_seam_reader_make(src, false, &as_stored);   /* as stored: nothing to allocate */
+    if (!dst || !best || !owner || !lattice) {
+        sc_image_free(dst), free(best), free(owner), free(lattice);
         return sc_fail(err, SC_ENOMEM, "straighten: out of memory for the %s texture", tex->name);
     }
-    dst->colorspace = old->colorspace;
-    memcpy(dst->format, old->format, sizeof dst->format);
-    memcpy(dst->pixels, old->pixels, npx * (size_t)C * sizeof(float));
-    warp_job J = {m, Unew, face_moved, tex, pad, W, H, C, WARP_BAND_ROWS, old->pixels, dst->pixels, best, owner, lattice};
+    warp_job J = {m, Unew, face_moved, tex, pad, W, H, C, WARP_BAND_ROWS, src, &as_stored, dst->pixels, best, owner,
+                  lattice};
     int32_t bands = (H + WARP_BAND_ROWS - 1) / WARP_BAND_ROWS;
     if (sc_parallel(threads, bands, warp_band, &J) != SC_OK)
         for (int32_t b = 0; b < bands; b++) warp_band(&J, b);
-    sc_image_free(old), free(best), free(owner), free(lattice);
+    free(best), free(owner), free(lattice);
     *out = dst;
     return SC_OK;
 }
