@@ -2155,7 +2155,8 @@ static int fit_level(bake_run *b, int32_t k, sc_error *err) {
     int rc = SC_OK;
     b->same_as[k] = -1;
     for (int32_t j = 0; lods && j < k && b->same_as[k] < 0; j++)   /* the first of equal levels */
-        if (sc_digest_equal(sc_value_digest(lods->levels[j]->as.atlas->mesh), sc_value_digest(lods->levels[k]->as.atlas->mesh)))
+        if (sc_digest_equal(sc_value_digest(lods->levels[j]->as.atlas->mesh),
+                            sc_value_digest(lods->levels[k]->as.atlas->mesh)))
             b->same_as[k] = j;
     if (b->same_as[k] >= 0) {   /* its maps are taken once the jobs are done */
         b->job_of[k] = b->job_of[b->same_as[k]];

@@ -626,6 +626,10 @@ typedef struct file_item {
     size_t bytes;
 } file_item;
 
+static size_t pixel_bytes(const sc_image_data *im) {
+    return (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
+}
+
 /* Name chain ch's files in out and list them in items (appended at *n). */
 static void list_files(chain *ch, const sc_mesh *mesh, chain_files *out, file_item *items, int32_t *n) {
     char mat[96], slot[96], prefix[32] = "";
@@ -642,17 +646,11 @@ static void list_files(chain *ch, const sc_mesh *mesh, chain_files *out, file_it
     }
     if (exr) {
         size_t bytes = 0;
-        for (int m = 0; m < ch->count; m++) {
-            const sc_image_data *im = ch->native[m]->as.image;
-            bytes += (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
-        }
+        for (int m = 0; m < ch->count; m++) bytes += pixel_bytes(ch->native[m]->as.image);
         items[(*n)++] = (file_item){ch, out, -1, bytes};
     } else {
-        for (int m = 0; m < ch->count; m++) {
-            const sc_image_data *im = ch->native[m]->as.image;
-            size_t bytes = (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
-            items[(*n)++] = (file_item){ch, out, m, bytes};
-        }
+        for (int m = 0; m < ch->count; m++)
+            items[(*n)++] = (file_item){ch, out, m, pixel_bytes(ch->native[m]->as.image)};
     }
 }
 
@@ -763,7 +761,8 @@ static int build_group(void *ud, int32_t item) {
                 sc_pixel px = ch->tex->image->as.image->pixel;
                 sc_image_data *q = NULL;   /* 8/16-bit colour is stored sRGB-encoded */
                 if (f && px != SC_PIXEL_F32)
-                    q = sc_image_quantize_threads(f, px, f->colorspace == SC_COLOR_LINEAR ? SC_COLOR_SRGB : f->colorspace,
+                    q = sc_image_quantize_threads(f, px,
+                                                  f->colorspace == SC_COLOR_LINEAR ? SC_COLOR_SRGB : f->colorspace,
                                                   es->threads);
                 if (q) sc_image_free(f), f = q;
                 else if (px != SC_PIXEL_F32) sc_image_free(f), f = NULL;
@@ -807,7 +806,8 @@ static int build_group(void *ud, int32_t item) {
 
 static bool same_texture(const sc_texture *a, const sc_texture *b) {
     return a->material == b->material && strcmp(a->name, b->name) == 0 &&
-           sc_digest_equal(sc_value_digest(a->image), sc_value_digest(b->image)) && a->wrap_u == b->wrap_u && a->wrap_v == b->wrap_v;
+           sc_digest_equal(sc_value_digest(a->image), sc_value_digest(b->image)) && a->wrap_u == b->wrap_u &&
+           a->wrap_v == b->wrap_v;
 }
 
 /* What run's steps share: the sources, their chains and what they made. */

@@ -2196,7 +2196,8 @@ static void add_drawn_vertices(const sc_atlas *a, double lo[3], double hi[3]) {
  * the same slots, each half the size (rounded down, at least 1) or, where its
  * chain has ended, the same size, and at least one of them halved. */
 static bool is_mip_of(const sc_atlas *b, const sc_atlas *a) {
-    if (!sc_digest_equal(sc_value_digest(a->mesh), sc_value_digest(b->mesh)) || a->ntex != b->ntex || a->ntex == 0) return false;
+    if (!sc_digest_equal(sc_value_digest(a->mesh), sc_value_digest(b->mesh)) || a->ntex != b->ntex || a->ntex == 0)
+        return false;
     bool halved = false;
     for (int32_t t = 0; t < a->ntex; t++) {
         const sc_image_data *ia = a->textures[t].image->as.image, *ib = b->textures[t].image->as.image;

@@ -882,8 +882,7 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
     float *best = sc_alloc_array(npx, sizeof(float));
     int32_t *owner = sc_alloc_array(npx, sizeof(int32_t));
     int32_t *lattice = sc_alloc_array(npx * 2, sizeof(int32_t));
-    sc_seam_reader as_stored;
-    sc_seam_reader_make(src, false, &as_stored);   /* as stored: nothing to allocate */
+    const sc_seam_reader as_stored = {0};
     if (!dst || !best || !owner || !lattice) {
         sc_image_free(dst), free(best), free(owner), free(lattice);
         return sc_fail(err, SC_ENOMEM, "straighten: out of memory for the %s texture", tex->name);
@@ -1154,7 +1153,8 @@ static int render_one(void *ud, int32_t k) {
     if (rc == SC_OK)
         rc = L->tangent[k] ? warp_tangent_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, L->threads, &L->im[k],
                                                   &L->errs[k])
-                           : warp_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, L->threads, &L->im[k], &L->errs[k]);
+                           : warp_texture(J->mesh, J->Uout, J->face_moved, tex, L->pad, L->threads, &L->im[k],
+                                          &L->errs[k]);
     return rc;
 }
 
@@ -1163,7 +1163,8 @@ static int render_signals(job *J, int32_t pad, int32_t *rendered, sc_error *err)
     const sc_mesh *m = J->mesh;
     *rendered = 0;
     int32_t *source = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *source);   /* the texture it copies, or -1 */
-    render_list L = {.J = J, .pad = pad, .threads = sc_ctx_threads(J->ctx), .which = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.which)};
+    render_list L = {.J = J, .pad = pad, .threads = sc_ctx_threads(J->ctx),
+                     .which = sc_alloc_array((size_t)atlas->ntex + 1, sizeof *L.which)};
     L.im = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.im);
     L.tangent = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.tangent);
     L.errs = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *L.errs);

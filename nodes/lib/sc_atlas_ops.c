@@ -69,7 +69,8 @@ sc_value *sc_atlas_ops_mesh_union_distinct(const sc_value *const *meshes, int n)
     int distinct = 0;
     for (int i = 0; i < n; i++) {
         bool seen = false;
-        for (int j = 0; j < i && !seen; j++) seen = sc_digest_equal(sc_value_digest(meshes[j]), sc_value_digest(meshes[i]));
+        for (int j = 0; j < i && !seen; j++)
+            seen = sc_digest_equal(sc_value_digest(meshes[j]), sc_value_digest(meshes[i]));
         if (!seen) ms[distinct++] = meshes[i]->as.mesh;
     }
     sc_value *u = sc_atlas_ops_mesh_union(ms, distinct);

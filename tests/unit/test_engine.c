@@ -100,11 +100,26 @@ static void cook(sc_cache *cache, int ran[4]) {
                  "ran source %d plain %d with_base %d with_top %d, expected %d %d %d %d", ran[0], ran[1], \
                  ran[2], ran[3], a, b, c, d)
 
-SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
-    char *dir = sc_test_tempdir("kernels");
+/* A fresh cache in a test folder of its own, named for `what`; NULL (the
+ * failure checked) when it cannot be opened. */
+static sc_cache *fresh_cache(const char *what, char **dir) {
+    *dir = sc_test_tempdir(what);
     sc_cache *cache = NULL;
     sc_error err = {0};
-    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    SC_CHECK_MSG(sc_cache_open(*dir, &cache, &err) == SC_OK, "cache: %s", err.message);
+    if (!cache) free(*dir), *dir = NULL;
+    return cache;
+}
+
+static void fresh_cache_close(sc_cache *cache, char *dir) {
+    sc_cache_close(cache);
+    sc_test_system("rm -rf '%s'", dir);
+    free(dir);
+}
+
+SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
+    char *dir;
+    sc_cache *cache = fresh_cache("kernels", &dir);
     if (!cache) return;
     int ran[4];
     kernel_base.version = 1, kernel_top.version = 1;
@@ -126,9 +141,7 @@ SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
     kernel_base.version = 1, kernel_top.version = 1;
     cook(cache, ran);
     CHECK_RAN(ran, 0, 0, 0, 0);
-    sc_cache_close(cache);
-    sc_test_system("rm -rf '%s'", dir);
-    free(dir);
+    fresh_cache_close(cache, dir);
 }
 
 /* source -> plain (a leaf, declared first) and source -> with_base ->
@@ -136,11 +149,10 @@ SC_TEST(bumping_a_kernel_recooks_exactly_the_nodes_that_use_it) {
  * with_top waits on) starts before the leaf; then the leaf and with_top, each
  * the end of its chain, in graph order. */
 SC_TEST(the_node_others_wait_on_starts_before_a_leaf) {
-    char *dir = sc_test_tempdir("order");
-    sc_cache *cache = NULL;
-    sc_error err = {0};
-    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    char *dir;
+    sc_cache *cache = fresh_cache("order", &dir);
     if (!cache) return;
+    sc_error err = {0};
     sc_graph *g = sc_graph_new("order.lua");
     int s = sc_graph_add(g, &source, "order.lua", 1);
     int leaf = sc_graph_add(g, &plain, "order.lua", 2);
@@ -159,9 +171,7 @@ SC_TEST(the_node_others_wait_on_starts_before_a_leaf) {
     SC_CHECK_MSG(strcmp(cooked_order, "bpt") == 0, "cooked in the order '%s', expected 'bpt'", cooked_order);
     sc_run_free(r);
     sc_graph_free(g);
-    sc_cache_close(cache);
-    sc_test_system("rm -rf '%s'", dir);
-    free(dir);
+    fresh_cache_close(cache, dir);
 }
 
 /* Outputs reach the cache after their consumers may have started: a node
@@ -170,11 +180,10 @@ SC_TEST(the_node_others_wait_on_starts_before_a_leaf) {
  * failed, not cooked, and leaves no cache entry: with the store mended,
  * every node cooks again. */
 SC_TEST(outputs_that_cannot_be_stored_fail_the_run_and_record_nothing) {
-    char *dir = sc_test_tempdir("unstored");
-    sc_cache *cache = NULL;
-    sc_error err = {0};
-    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    char *dir;
+    sc_cache *cache = fresh_cache("unstored", &dir);
     if (!cache) return;
+    sc_error err = {0};
     kernel_base.version = 1, kernel_top.version = 1;
     SC_CHECK_INT(sc_test_system("cd '%s/objects' && for i in $(seq 0 255); do touch $(printf %%02x $i); done", dir), 0);
     for (int jobs = 1; jobs <= 2; jobs++) {
@@ -196,9 +205,7 @@ SC_TEST(outputs_that_cannot_be_stored_fail_the_run_and_record_nothing) {
     int ran[4];
     cook(cache, ran);
     CHECK_RAN(ran, 1, 1, 1, 1);
-    sc_cache_close(cache);
-    sc_test_system("rm -rf '%s'", dir);
-    free(dir);
+    fresh_cache_close(cache, dir);
 }
 
 /* A kernel's platform text enters the keys of exactly the nodes that reach
@@ -208,10 +215,8 @@ static const char *platform_now = "driver 1";
 static const char *test_platform(void) { return platform_now; }
 
 SC_TEST(a_platform_text_keys_the_nodes_that_reach_it) {
-    char *dir = sc_test_tempdir("kernels");
-    sc_cache *cache = NULL;
-    sc_error err = {0};
-    SC_CHECK(sc_cache_open(dir, &cache, &err) == SC_OK);
+    char *dir;
+    sc_cache *cache = fresh_cache("kernels", &dir);
     if (!cache) return;
     int ran[4];
     kernel_base.version = 1, kernel_top.version = 1;
@@ -226,9 +231,7 @@ SC_TEST(a_platform_text_keys_the_nodes_that_reach_it) {
     cook(cache, ran);
     CHECK_RAN(ran, 0, 0, 0, 0);
     kernel_base.platform = NULL;
-    sc_cache_close(cache);
-    sc_test_system("rm -rf '%s'", dir);
-    free(dir);
+    fresh_cache_close(cache, dir);
 }
 
 /* The kernels d reaches, breadth first, repeats kept (at most 64). */

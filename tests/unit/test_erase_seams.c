@@ -1130,7 +1130,8 @@ SC_TEST(decoded_reads_are_those_of_the_converted_image) {
                 SC_CHECK_INT(sc_seam_energies_decoded(m, &s, &g, imgs, decode, 2, 2, e, gap, &err), SC_OK);
                 SC_CHECK_INT(sc_seam_energy(m, &s, &g, lin, 2, &e_lin, &gap_lin, &err), SC_OK);
                 SC_CHECK_INT(sc_seam_energy(m, &s, &g, im, 2, &e_stored, &gap_stored, &err), SC_OK);
-                SC_CHECK_MSG(e[0] == e_lin && gap[0] == gap_lin, "pixel %d, %d channels, %s: %.17g %.17g against %.17g %.17g",
+                SC_CHECK_MSG(e[0] == e_lin && gap[0] == gap_lin,
+                             "pixel %d, %d channels, %s: %.17g %.17g against %.17g %.17g",
                              (int)pixels[pi], C, srgb ? "sRGB" : "data", e[0], gap[0], e_lin, gap_lin);
                 SC_CHECK(e[1] == e_stored && gap[1] == gap_stored);
                 SC_CHECK(e_lin > 0 && (srgb ? e_lin != e_stored : e_lin == e_stored));

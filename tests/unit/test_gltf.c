@@ -642,7 +642,8 @@ SC_TEST(corpus_gltf_match_stats_and_welded_objs) {
     double t1 = sc_now();
     sc_ctx *three = run_load(avocado, &e1, "threads", "3", NULL);
     double t2 = sc_now();
-    SC_CHECK(one && three && sc_digest_equal(sc_value_digest(sc_ctx_output(one, 0)), sc_value_digest(sc_ctx_output(three, 0))));
+    SC_CHECK(one && three &&
+             sc_digest_equal(sc_value_digest(sc_ctx_output(one, 0)), sc_value_digest(sc_ctx_output(three, 0))));
     printf("Avocado.gltf, 3 textures: %.3f s on 1 thread, %.3f s on 3\n", t1 - t0, t2 - t1);
     sc_ctx_free(one), sc_ctx_free(three);
     /* BoomBox's glTF names a map the corpus lacks: it loads without it, and

@@ -161,8 +161,8 @@ SC_TEST(every_lod_every_mip_level_is_seam_free_and_renders_without_cracks) {
      * LOD, its first mip level's (no level here shows a crack or fold); every
      * level's with pictures = all; the sheets alone with uv_pictures = 0 */
     for (int all = 0; all < 3; all++) {
-        const char *pp[] = {"modes", "geometry_image", "views", "1", "size", "32", "pictures", all == 1 ? "all" : "sheets",
-                            "uv_pictures", all == 2 ? "0" : "1", NULL};
+        const char *pp[] = {"modes", "geometry_image", "views", "1", "size", "32",
+                            "pictures", all == 1 ? "all" : "sheets", "uv_pictures", all == 2 ? "0" : "1", NULL};
         sc_test_run pr = sc_test_run_node(&sc_node_render, pp, "lods", levels, "reference", atlas);
         SC_CHECK_MSG(pr.rc == SC_OK, "render: %s", pr.err.message);
         if (pr.rc == SC_OK) {

@@ -347,7 +347,8 @@ SC_TEST(load_atlas_obj_node) {
         SC_CHECK_INT(sc_ctx_ndeps(ctx), 5);   /* obj, mtl, three textures */
         /* decoding on several threads gives the very same atlas */
         sc_ctx *parallel = run_load(path, &err, "threads", "3", NULL);
-        SC_CHECK(parallel && sc_digest_equal(sc_value_digest(sc_ctx_output(parallel, 0)), sc_value_digest(sc_ctx_output(ctx, 0))));
+        SC_CHECK(parallel &&
+                 sc_digest_equal(sc_value_digest(sc_ctx_output(parallel, 0)), sc_value_digest(sc_ctx_output(ctx, 0))));
         sc_ctx_free(parallel);
         sc_ctx_free(ctx);
     }

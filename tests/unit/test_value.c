@@ -304,7 +304,8 @@ SC_TEST(digests_asked_at_once_agree) {
     digest_race r = {0};
     r.image = sc_value_new_image(im);
     sc_atlas *a = sc_atlas_new(make_mesh(0));
-    SC_CHECK(a && sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_retain(r.image)) == SC_OK);
+    SC_CHECK(a && sc_atlas_add_texture(a, "color", 0, SC_WRAP_REPEAT, SC_WRAP_REPEAT, "", sc_value_retain(r.image)) ==
+                      SC_OK);
     r.atlas = sc_value_new_atlas(a);
     SC_CHECK(sc_parallel(4, 8, ask_digest, &r) == SC_OK);
     sc_digest want[2];
