@@ -82,8 +82,9 @@
  * another face it shares no vertex with, unless it passed through it before
  * (the input's own crossings stay): two parts close together, decimated
  * apart, push through each other and show back faces (a bottle's cap ring
- * through its body). Faces live in a uniform grid of cells about twice the
- * mean edge long, built again whenever the faces fall to a quarter. With
+ * through its body). Faces live in a loose uniform grid of cells about
+ * twice the mean edge long, each face in the one cell holding its box's
+ * centre, built again whenever the faces fall to a quarter. With
  * contact_distance, an open part's border vertex within that distance of
  * another connected part is in contact: no collapse may leave it (or the
  * vertex it merges into), or a point of a border edge between two
@@ -329,21 +330,39 @@ typedef struct collapse_plan {
  * cell's memory. */
 typedef struct grid_item {
     int32_t face, v[3];   /* the face and its vertices, */
-    float lo[3], hi[3];   /* its box (float, rounded outwards) */
+    float lo[3], hi[3];   /* its box (float, rounded outwards), */
+    uint32_t epoch;       /* and the face's epoch when put: stale once it differs */
 } grid_item;
 
-/* Live faces by the cells of a uniform grid their bounding boxes overlap
- * (refuse_crossings). */
+/* The items whose box centre falls in one cell, and the union of their
+ * boxes (stale ones included until the cell drops them). */
+typedef struct grid_cell {
+    grid_item *items;
+    int32_t len, cap;
+    float lo[3], hi[3];
+} grid_cell;
+
+/* Live faces in a loose uniform grid (refuse_crossings, contact): each face
+ * is in one cell, the one holding its box's centre, or in `big` when its
+ * box is more than a cell across. A query visits the cells within `reach`
+ * (the largest half-side of a cell item's box) of its box, and only those
+ * whose union box meets it, so it meets every face once and no face is
+ * spread over cells. A face that moves or goes only steps its epoch: its
+ * old item stays, stale, until its cell fills up and drops it, and queries
+ * skip stale items. */
 typedef struct face_grid {
-    double lo[3], inv_cell;
+    double lo[3], cell, inv_cell;
     int32_t n[3];
-    grid_item **items;             /* per cell */
-    int32_t *len, *cap;            /* per cell */
+    grid_cell *cells;
+    grid_cell big;                 /* faces more than a cell across */
+    double reach;                  /* the largest half-side of a cell item's box */
     int32_t built_faces;           /* live faces when built */
-    uint32_t *seen, stamp;         /* per face: the last query that met it */
+    uint32_t *epoch;               /* per face: bumped when it moves or goes */
+    const grid_item **found;       /* scratch: the items a query meets */
+    int32_t found_cap;
     struct fan_entry *fan;         /* scratch: the new fan of a query */
     float *fan_box;                /* its boxes: 6 rows of fan_cap (lo x, y, z, hi x, y, z) */
-    int32_t *met;                  /* scratch: the fan faces (or cell items) a box meets */
+    int32_t *met;                  /* scratch: the fan faces a box meets */
     int32_t fan_cap, met_cap;
     struct fan_entry *old_fan;     /* scratch: a query's faces around keep and gone as they are, */
     int32_t nold, old_cap;         /* prepared at its first crossing (crossed_before) */
@@ -1369,9 +1388,9 @@ static bool one_side(const crossing_triangle *A, const double *const Q[3], doubl
 
 static void grid_free(face_grid *g) {
     int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
-    for (int64_t c = 0; g->items && c < cells; c++) free(g->items[c]);
-    free(g->items), free(g->len), free(g->cap), free(g->seen), free(g->fan), free(g->fan_box), free(g->met);
-    free(g->old_fan);
+    for (int64_t c = 0; g->cells && c < cells; c++) free(g->cells[c].items);
+    free(g->cells), free(g->big.items), free(g->epoch), free(g->found);
+    free(g->fan), free(g->fan_box), free(g->met), free(g->old_fan);
     memset(g, 0, sizeof *g);
 }
 
@@ -1427,16 +1446,10 @@ static int32_t boxes_meeting(const float *rows, int32_t stride, int32_t n, const
     return count;
 }
 
-/* Which items of a cell meet the box (lo, hi), the same way. */
-static int32_t items_meeting(const grid_item *items, int32_t n, const float lo[3], const float hi[3], int32_t *met) {
-    int32_t count = 0;
-    for (int32_t x = 0; x < n; x++) {
-        const grid_item *it = &items[x];
-        met[count] = x;
-        count += !(it->lo[0] > hi[0]) & !(it->hi[0] < lo[0]) & !(it->lo[1] > hi[1]) & !(it->hi[1] < lo[1]) &
-                 !(it->lo[2] > hi[2]) & !(it->hi[2] < lo[2]);
-    }
-    return count;
+/* Whether box (alo, ahi) meets box (lo, hi), without branches. */
+static inline bool box_meets(const float alo[3], const float ahi[3], const float lo[3], const float hi[3]) {
+    return !(alo[0] > hi[0]) & !(ahi[0] < lo[0]) & !(alo[1] > hi[1]) & !(ahi[1] < lo[1]) & !(alo[2] > hi[2]) &
+           !(ahi[2] < lo[2]);
 }
 
 /* x rounded to float downwards (upwards): a rounding past x is taken back
@@ -1455,47 +1468,93 @@ static void face_points(const state *st, int32_t f, const double *P[3]) {
     for (int k = 0; k < 3; k++) P[k] = st->pos + 3 * st->fv[3 * f + k];
 }
 
-/* Add (add) or take out face f at its current positions; false when out of memory. */
+/* The cell's live items, stale ones dropped (order kept), and their box. */
+static void cell_compact(const face_grid *g, grid_cell *c) {
+    int32_t n = 0;
+    for (int k = 0; k < 3; k++) c->lo[k] = INFINITY, c->hi[k] = -INFINITY;
+    for (int32_t x = 0; x < c->len; x++) {
+        const grid_item *it = &c->items[x];
+        if (it->epoch != g->epoch[it->face]) continue;
+        for (int k = 0; k < 3; k++) c->lo[k] = fminf(c->lo[k], it->lo[k]), c->hi[k] = fmaxf(c->hi[k], it->hi[k]);
+        c->items[n++] = *it;
+    }
+    c->len = n;
+}
+
+/* Add (add) or take out face f at its current positions; false when out of
+ * memory. Taking out makes f's item stale. */
 static bool grid_put(state *st, int32_t f, bool add) {
     face_grid *g = &st->grid;
-    if (!g->items) return true;
+    if (!g->cells) return true;
+    if (!add) {
+        g->epoch[f]++;
+        return true;
+    }
     const double *P[3];
-    double lo[3], hi[3];
-    int32_t c0[3], c1[3];
+    double lo[3], hi[3], centre[3], half = 0;
     face_points(st, f, P);
     triangle_box(P, lo, hi);
-    grid_item item = {.face = f};
-    if (add)
-        for (int k = 0; k < 3; k++) {
-            item.v[k] = st->fv[3 * f + k];
-            item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
+    grid_item item = {.face = f, .epoch = g->epoch[f]};
+    for (int k = 0; k < 3; k++) {
+        item.v[k] = st->fv[3 * f + k];
+        item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
+        /* of the float box, which queries compare: its centre is within `half` of every box it meets */
+        centre[k] = 0.5 * ((double)item.lo[k] + item.hi[k]);
+        half = fmax(half, 0.5 * ((double)item.hi[k] - item.lo[k]));
+    }
+    grid_cell *c = &g->big;
+    if (half <= g->cell) {   /* else big: one long face would widen every query */
+        int32_t c0[3], c1[3];
+        grid_range(g, centre, centre, c0, c1);
+        c = &g->cells[((int64_t)c0[2] * g->n[1] + c0[1]) * g->n[0] + c0[0]];
+        g->reach = fmax(g->reach, half);
+    }
+    if (c->len == c->cap) {   /* full: drop the stale, and grow unless half is free then */
+        cell_compact(g, c);
+        if (c->len == c->cap || c->len > c->cap / 2) {
+            int32_t cap = c->cap ? 2 * c->cap : 4;
+            grid_item *items = realloc(c->items, (size_t)cap * sizeof *items);
+            if (!items) return false;
+            c->items = items, c->cap = cap;
         }
-    grid_range(g, lo, hi, c0, c1);
-    for (int32_t i = c0[0]; i <= c1[0]; i++)
-        for (int32_t j = c0[1]; j <= c1[1]; j++)
-            for (int32_t k = c0[2]; k <= c1[2]; k++) {
-                int64_t c = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
-                if (add) {
-                    if (g->len[c] == g->cap[c]) {
-                        int32_t cap = g->cap[c] ? 2 * g->cap[c] : 4;
-                        grid_item *items = realloc(g->items[c], (size_t)cap * sizeof *items);
-                        if (!items) return false;
-                        g->items[c] = items, g->cap[c] = cap;
-                    }
-                    g->items[c][g->len[c]++] = item;
-                } else {
-                    for (int32_t x = 0; x < g->len[c]; x++)
-                        if (g->items[c][x].face == f) {
-                            g->items[c][x] = g->items[c][--g->len[c]];
-                            break;
-                        }
-                }
-            }
+    }
+    c->items[c->len++] = item;
+    for (int k = 0; k < 3; k++) c->lo[k] = fminf(c->lo[k], item.lo[k]), c->hi[k] = fmaxf(c->hi[k], item.hi[k]);
     return true;
 }
 
+/* The live items whose boxes meet (lo, hi) into g->found; their count, -1
+ * out of memory. */
+static int32_t grid_query(face_grid *g, const float lo[3], const float hi[3]) {
+    double qlo[3], qhi[3];
+    int32_t c0[3], c1[3], n = 0;
+    double reach = g->reach * (1 + 1e-9);   /* past the rounding of the sums below */
+    for (int k = 0; k < 3; k++) qlo[k] = (double)lo[k] - reach, qhi[k] = (double)hi[k] + reach;
+    grid_range(g, qlo, qhi, c0, c1);
+    for (int32_t k = c0[2]; k <= c1[2] + 1; k++) {
+        bool big = k > c1[2];   /* the last round: the big faces */
+        for (int32_t j = big ? 0 : c0[1]; j <= (big ? 0 : c1[1]); j++)
+            for (int32_t i = big ? 0 : c0[0]; i <= (big ? 0 : c1[0]); i++) {
+                const grid_cell *c = big ? &g->big : &g->cells[((int64_t)k * g->n[1] + j) * g->n[0] + i];
+                if (c->len == 0 || !box_meets(c->lo, c->hi, lo, hi)) continue;
+                if (n + c->len > g->found_cap) {
+                    int32_t cap = 2 * (n + c->len);
+                    const grid_item **found = realloc(g->found, (size_t)cap * sizeof *found);
+                    if (!found) return -1;
+                    g->found = found, g->found_cap = cap;
+                }
+                for (int32_t x = 0; x < c->len; x++) {
+                    const grid_item *it = &c->items[x];
+                    g->found[n] = it;
+                    n += box_meets(it->lo, it->hi, lo, hi) && it->epoch == g->epoch[it->face];
+                }
+            }
+    }
+    return n;
+}
+
 /* The grid over the live faces: cells twice their mean edge long, at most
- * about four cells per face. */
+ * about four per face. */
 static bool grid_build(state *st) {
     face_grid *g = &st->grid;
     grid_free(g);
@@ -1520,13 +1579,14 @@ static bool grid_build(state *st) {
         g->lo[d] = lo[d];
         g->n[d] = (int32_t)fmin(fmax(ceil((hi[d] - lo[d]) / cell), 1), 1 << 20);
     }
-    g->inv_cell = 1 / cell;
+    g->cell = cell, g->inv_cell = 1 / cell;
     int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
-    g->items = calloc((size_t)cells, sizeof *g->items);
-    g->len = calloc((size_t)cells, sizeof *g->len);
-    g->cap = calloc((size_t)cells, sizeof *g->cap);
-    g->seen = calloc((size_t)st->nf, sizeof *g->seen);
-    if (!g->items || !g->len || !g->cap || !g->seen) return false;
+    g->cells = calloc((size_t)cells, sizeof *g->cells);
+    g->epoch = calloc((size_t)st->nf, sizeof *g->epoch);
+    if (!g->cells || !g->epoch) return false;
+    for (int64_t c = 0; c < cells; c++)
+        for (int k = 0; k < 3; k++) g->cells[c].lo[k] = INFINITY, g->cells[c].hi[k] = -INFINITY;
+    for (int k = 0; k < 3; k++) g->big.lo[k] = INFINITY, g->big.hi[k] = -INFINITY;
     g->built_faces = st->nf_alive;
     for (int32_t f = 0; f < st->nf; f++)
         if (st->falive[f] && !grid_put(st, f, true)) return false;
@@ -1579,13 +1639,20 @@ static bool crossed_before(const state *st, int32_t g, const crossing_triangle *
     return false;
 }
 
+static bool grow_met(face_grid *grid, int32_t need) {
+    int32_t *met = realloc(grid->met, (size_t)2 * need * sizeof *met);
+    if (!met) return false;
+    grid->met = met, grid->met_cap = 2 * need;
+    return true;
+}
+
 /* No face around the collapse passes through a face it shares no vertex
- * with, after plan p, unless it did before. The grid is walked once over the
- * box of the new fan; each face met is tested against the fan's faces whose
- * boxes it meets. */
+ * with, after plan p, unless it did before. The grid is asked once for the
+ * faces meeting the box of the new fan; each is tested against the fan's
+ * faces whose boxes it meets. */
 static bool crossings_ok(state *st, const collapse_plan *p) {
     face_grid *grid = &st->grid;
-    if (!grid->items) return true;
+    if (!grid->cells) return true;
     int32_t need = st->vf_len[p->keep] + st->vf_len[p->gone];
     if (need > grid->fan_cap) {
         fan_entry *fan = realloc(grid->fan, (size_t)need * sizeof *fan);
@@ -1621,67 +1688,48 @@ static bool crossings_ok(state *st, const collapse_plan *p) {
     /* boxes compare as floats: rounded outwards, they only let more through */
     float lo[3], hi[3];
     for (int k = 0; k < 3; k++) lo[k] = float_below(all_lo[k]), hi[k] = float_above(all_hi[k]);
-    if (++grid->stamp == 0) memset(grid->seen, 0, (size_t)st->nf * sizeof *grid->seen), grid->stamp = 1;
-    int32_t c0[3], c1[3];
-    grid_range(grid, all_lo, all_hi, c0, c1);
+    int32_t nfound = grid_query(grid, lo, hi);
+    if (nfound < 0 || (nfan + 4 > grid->met_cap && !grow_met(grid, nfan + 4))) {
+        st->out_of_memory = true;
+        return false;
+    }
     bool old_prepared = false;
-    for (int32_t i = c0[0]; i <= c1[0]; i++)
-        for (int32_t j = c0[1]; j <= c1[1]; j++)
-            for (int32_t k = c0[2]; k <= c1[2]; k++) {
-                int64_t c = ((int64_t)k * grid->n[1] + j) * grid->n[0] + i;
-                const grid_item *items = grid->items[c];
-                int32_t len = grid->len[c];
-                /* met holds the cell's items that meet, then the fan faces each meets */
-                if (len + nfan + 4 > grid->met_cap) {
-                    int32_t cap = 2 * (len + nfan + 4);
-                    int32_t *met = realloc(grid->met, (size_t)cap * sizeof *met);
-                    if (!met) {
-                        st->out_of_memory = true;
-                        return false;
-                    }
-                    grid->met = met, grid->met_cap = cap;
-                }
-                int32_t nitems = items_meeting(items, len, lo, hi, grid->met);
-                int32_t *fan_met = grid->met + nitems;
-                for (int32_t x = 0; x < nitems; x++) {
-                    const grid_item *it = &items[grid->met[x]];
-                    int32_t g = it->face;
-                    if (grid->seen[g] == grid->stamp) continue;
-                    grid->seen[g] = grid->stamp;
-                    if (shares_vertex(it->v, fan_ends)) continue;   /* a face of the fan */
-                    crossing_triangle TG;
-                    bool prepared = false;
-                    int before = -1;   /* whether g crossed the old fan: unknown until it crosses the new */
-                    const double *Q[3] = {NULL, NULL, NULL};
-                    double g_size = 0;
-                    int32_t nmet = boxes_meeting(grid->fan_box, stride, nfan, it->lo, it->hi, fan_met);
-                    for (int32_t m = 0; m < nmet; m++) {
-                        const fan_entry *e = &grid->fan[fan_met[m]];
-                        if (shares_vertex(e->v, it->v)) continue;
-                        if (!Q[0]) {
-                            face_points(st, g, Q);
-                            /* at least g's longest edge: the sum of its box's sides */
-                            g_size = ((double)it->hi[0] - it->lo[0]) + ((double)it->hi[1] - it->lo[1]) +
-                                     ((double)it->hi[2] - it->lo[2]);
-                        }
-                        if (one_side(&e->T, Q, g_size)) continue;
-                        if (!prepared) {
-                            crossing_prepare(Q, &TG);
-                            prepared = true;
-                        }
-                        if (!triangles_cross(&e->T, &TG)) continue;
-                        if (before < 0) {
-                            if (!old_prepared && !old_fan_prepare(st, p)) {
-                                st->out_of_memory = true;
-                                return false;
-                            }
-                            old_prepared = true;
-                            before = crossed_before(st, g, &TG);
-                        }
-                        if (!before) return false;
-                    }
-                }
+    for (int32_t x = 0; x < nfound; x++) {
+        const grid_item *it = grid->found[x];
+        int32_t g = it->face;
+        if (shares_vertex(it->v, fan_ends)) continue;   /* a face of the fan */
+        crossing_triangle TG;
+        bool prepared = false;
+        int before = -1;   /* whether g crossed the old fan: unknown until it crosses the new */
+        const double *Q[3] = {NULL, NULL, NULL};
+        double g_size = 0;
+        int32_t nmet = boxes_meeting(grid->fan_box, stride, nfan, it->lo, it->hi, grid->met);
+        for (int32_t m = 0; m < nmet; m++) {
+            const fan_entry *e = &grid->fan[grid->met[m]];
+            if (shares_vertex(e->v, it->v)) continue;
+            if (!Q[0]) {
+                face_points(st, g, Q);
+                /* at least g's longest edge: the sum of its box's sides */
+                g_size = ((double)it->hi[0] - it->lo[0]) + ((double)it->hi[1] - it->lo[1]) +
+                         ((double)it->hi[2] - it->lo[2]);
             }
+            if (one_side(&e->T, Q, g_size)) continue;
+            if (!prepared) {
+                crossing_prepare(Q, &TG);
+                prepared = true;
+            }
+            if (!triangles_cross(&e->T, &TG)) continue;
+            if (before < 0) {
+                if (!old_prepared && !old_fan_prepare(st, p)) {
+                    st->out_of_memory = true;
+                    return false;
+                }
+                old_prepared = true;
+                before = crossed_before(st, g, &TG);
+            }
+            if (!before) return false;
+        }
+    }
     return true;
 }
 
@@ -1716,35 +1764,28 @@ static void nearer_face(const double x[3], const double *const P[3], double *d, 
  * x's height over it in *side. */
 static void other_part_nearest(state *st, const double x[3], int32_t own, double reach, int32_t keep, int32_t gone,
                                double *d, double *side) {
-    const face_grid *g = &st->grid;
-    double lo[3] = {x[0] - reach, x[1] - reach, x[2] - reach}, hi[3] = {x[0] + reach, x[1] + reach, x[2] + reach};
-    int32_t c0[3], c1[3];
-    grid_range(g, lo, hi, c0, c1);
+    face_grid *g = &st->grid;
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = float_below(x[k] - reach), hi[k] = float_above(x[k] + reach);
     *d = INFINITY, *side = 0;
-    for (int32_t i = c0[0]; i <= c1[0]; i++)
-        for (int32_t j = c0[1]; j <= c1[1]; j++)
-            for (int32_t k = c0[2]; k <= c1[2]; k++) {
-                int64_t cell = ((int64_t)k * g->n[1] + j) * g->n[0] + i;
-                for (int32_t n = 0; n < g->len[cell]; n++) {
-                    const grid_item *it = &g->items[cell][n];
-                    if (st->part[it->v[0]] == own) continue;
-                    if (it->lo[0] > hi[0] || it->hi[0] < lo[0] || it->lo[1] > hi[1] || it->hi[1] < lo[1] ||
-                        it->lo[2] > hi[2] || it->hi[2] < lo[2])
-                        continue;
-                    bool in_fan = false;
-                    for (int e = 0; e < 3; e++) in_fan |= it->v[e] == keep || it->v[e] == gone;
-                    if (in_fan) continue;
-                    double box2 = 0;   /* x's distance to the face's box: no nearer point inside */
-                    for (int e = 0; e < 3; e++) {
-                        double out = fmax(fmax((double)it->lo[e] - x[e], x[e] - (double)it->hi[e]), 0);
-                        box2 += out * out;
-                    }
-                    if (box2 > *d * *d * (1 + 1e-8)) continue;   /* (a face as near stays: nearer_face) */
-                    const double *P[3];
-                    face_points(st, it->face, P);
-                    nearer_face(x, P, d, side);
-                }
-            }
+    int32_t nfound = grid_query(g, lo, hi);
+    if (nfound < 0) st->out_of_memory = true;
+    for (int32_t n = 0; n < nfound; n++) {
+        const grid_item *it = g->found[n];
+        if (st->part[it->v[0]] == own) continue;
+        bool in_fan = false;
+        for (int e = 0; e < 3; e++) in_fan |= it->v[e] == keep || it->v[e] == gone;
+        if (in_fan) continue;
+        double box2 = 0;   /* x's distance to the face's box: no nearer point inside */
+        for (int e = 0; e < 3; e++) {
+            double out = fmax(fmax((double)it->lo[e] - x[e], x[e] - (double)it->hi[e]), 0);
+            box2 += out * out;
+        }
+        if (box2 > *d * *d * (1 + 1e-8)) continue;   /* (a face as near stays: nearer_face) */
+        const double *P[3];
+        face_points(st, it->face, P);
+        nearer_face(x, P, d, side);
+    }
     if (!(*d <= reach)) *d = INFINITY, *side = 0;
 }
 
@@ -2066,7 +2107,7 @@ static bool merge_lists(state *st, int32_t keep, int32_t gone) {
 
 static bool apply_plan(state *st, const collapse_plan *p) {
     int32_t keep = p->keep, gone = p->gone;
-    if (st->grid.items)   /* the fans' faces move (or go): out of the grid at their old places */
+    if (st->grid.cells)   /* the fans' faces move (or go): out of the grid at their old places */
         for (int side = 0; side < 2; side++) {
             int32_t n;
             const int32_t *list = vfaces(st, side ? gone : keep, &n);
@@ -2121,7 +2162,7 @@ static bool apply_plan(state *st, const collapse_plan *p) {
         st->fz[3 * f + k] = z;
     }
     if (!merge_lists(st, keep, gone)) return false;
-    if (st->grid.items) {
+    if (st->grid.cells) {
         list = vfaces(st, keep, &n);
         for (int32_t i = 0; i < n; i++)
             if (st->falive[list[i]] && !grid_put(st, list[i], true)) return false;
@@ -3366,7 +3407,7 @@ static bool decimate_to(state *st, int64_t target) {
          * one cost more than dropping them in bulk) */
         int64_t edge_bound = (3 * (int64_t)st->nf_alive + st->border_edges) / 2;
         if (st->heap_len > edge_bound * 5 / 4 + 1024) heap_compact(st);
-        if (st->grid.items && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
+        if (st->grid.cells && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
             st->out_of_memory = true;
             break;
         }
