@@ -5,8 +5,12 @@
 #   bench/bench_main_job.sh [SEAMCOOK [ASSET ...]]
 #
 # SEAMCOOK defaults to build/seamcook; ASSETs are paths under the corpus
-# (../shared/corpus or $SC_CORPUS), Avocado/Avocado.gltf and
-# WaterBottle/WaterBottle.gltf by default. For each asset:
+# (../shared/corpus or $SC_CORPUS), each optionally followed by
+# ",texture=PATH" (also under the corpus) for a model that names no texture
+# of its own. By default: Avocado/Avocado.gltf (682 faces),
+# WaterBottle/WaterBottle.gltf, and blub/blub.obj with its 2048^2
+# blub_texture.png (14,208 faces: the size class of an 18k-face asset at
+# 2048^2). For each asset:
 #
 # 1. `seamcook run graphs/lod_chain.lua --set mesh=ASSET` with the defaults,
 #    each time into a fresh cache and output folder, RUNS times (3; $RUNS):
@@ -29,7 +33,8 @@ shift || true
 corpus=${SC_CORPUS:-$root/../shared/corpus}
 runs=${RUNS:-3}
 assets=("$@")
-[ ${#assets[@]} -gt 0 ] || assets=(Avocado/Avocado.gltf WaterBottle/WaterBottle.gltf)
+[ ${#assets[@]} -gt 0 ] ||
+  assets=(Avocado/Avocado.gltf WaterBottle/WaterBottle.gltf blub/blub.obj,texture=blub/blub_texture.png)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
@@ -41,18 +46,21 @@ fi
 
 now() { date +%s.%N; }
 
-for asset in "${assets[@]}"; do
+for spec in "${assets[@]}"; do
+  asset=${spec%%,*}
+  texture=()
+  case $spec in *,texture=*) texture=(--set texture="$corpus/${spec#*,texture=}") ;; esac
   if [ ! -e "$corpus/$asset" ]; then
     echo "$asset: not found under $corpus: skipped"
     continue
   fi
-  echo "== $asset"
+  echo "== $spec"
   best="" best_dir=""
   for r in $(seq 1 "$runs"); do
     dir=$work/run$r
     rm -rf "$dir"
     t0=$(now)
-    "$bin" run "$root/graphs/lod_chain.lua" --set mesh="$corpus/$asset" --cache "$dir/cache" --out "$dir/out" -q \
+    "$bin" run "$root/graphs/lod_chain.lua" --set mesh="$corpus/$asset" "${texture[@]}" --cache "$dir/cache" --out "$dir/out" -q \
       2>"$dir.err"
     rc=$?
     t=$(echo "$(now) - $t0" | bc)
