@@ -1151,6 +1151,45 @@ SC_TEST(refused_crossings_keep_nested_parts_apart) {
     sc_value_release(both), sc_value_release(outer), sc_value_release(inner);
 }
 
+/* A lens around a flat square of two faces, each far wider than the grid's
+ * cells (which follow the lens's short edges): the crossing check finds such
+ * faces in the grid's list of wide faces. Decimated far, the top cap
+ * flattens through the square unless crossings are refused. */
+SC_TEST(refused_crossings_see_faces_wider_than_a_cell) {
+    sc_value *lens = thin_lens(10, 40, 0.06);
+    if (!lens) return;
+    sc_mesh *square = sc_mesh_alloc(4, 4, 0, 2, 1);
+    static const double corner[4][2] = {{-0.6, -0.6}, {0.6, -0.6}, {0.6, 0.6}, {-0.6, 0.6}};
+    for (int i = 0; i < 4; i++) {   /* at height 0.03, inside the lens (its caps are 0.032 high there) */
+        square->V[3 * i] = corner[i][0], square->V[3 * i + 1] = 0.03, square->V[3 * i + 2] = corner[i][1];
+        square->U[2 * i] = 0.05 + 0.04 * (corner[i][0] + 0.6), square->U[2 * i + 1] = 0.9 + 0.04 * (corner[i][1] + 0.6);
+    }
+    static const int32_t faces[2][3] = {{0, 1, 2}, {0, 2, 3}};
+    for (int f = 0; f < 2; f++)
+        for (int k = 0; k < 3; k++) square->FV[3 * f + k] = square->FU[3 * f + k] = faces[f][k];
+    sc_value *both = two_parts(lens->as.mesh, square);
+    sc_mesh_free(square);
+    SC_CHECK_INT(crossing_pairs(both->as.mesh), 0);
+    int crossings[2] = {-1, -1};
+    for (int refuse = 0; refuse < 2; refuse++) {
+        const char *params[] = {"faces", "24", "seam_mode", "free", "hausdorff_samples", "0", "max_error", "0",
+                                "refuse_crossings", refuse ? "true" : "false", NULL};
+        node_run r = run_node(&sc_node_decimate, params, "mesh", both);
+        SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
+        if (r.rc == SC_OK) {
+            const sc_mesh *lvl = level_mesh(r.out, 0);
+            crossings[refuse] = crossing_pairs(lvl);
+            printf("     lens around a square at %d faces, crossings %s: %d crossing pairs\n", lvl->nf,
+                   refuse ? "refused" : "allowed", crossings[refuse]);
+        }
+        run_free(&r);
+    }
+    SC_CHECK_MSG(crossings[0] > 0, "the lens did not cross the square without the check (%d): the test shows nothing",
+                 crossings[0]);
+    SC_CHECK_INT(crossings[1], 0);
+    sc_value_release(both), sc_value_release(lens);
+}
+
 /* The first nf faces of m, with only the vertices and uv they use. */
 static sc_value *first_faces(const sc_mesh *m, int nf) {
     int *vmap = malloc(sizeof(int) * (size_t)m->nv), *umap = malloc(sizeof(int) * (size_t)m->nu), nv = 0, nu = 0;
