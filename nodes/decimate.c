@@ -1481,15 +1481,12 @@ static void cell_compact(const face_grid *g, grid_cell *c) {
     c->len = n;
 }
 
-/* Add (add) or take out face f at its current positions; false when out of
- * memory. Taking out makes f's item stale. */
-static bool grid_put(state *st, int32_t f, bool add) {
+/* Take face f out of the grid: its item goes stale. */
+static void grid_take_out(face_grid *g, int32_t f) { g->epoch[f]++; }
+
+/* Put face f in the grid at its current positions; false when out of memory. */
+static bool grid_put(state *st, int32_t f) {
     face_grid *g = &st->grid;
-    if (!g->cells) return true;
-    if (!add) {
-        g->epoch[f]++;
-        return true;
-    }
     const double *P[3];
     double lo[3], hi[3], centre[3], half = 0;
     face_points(st, f, P);
@@ -1523,34 +1520,37 @@ static bool grid_put(state *st, int32_t f, bool add) {
     return true;
 }
 
-/* The live items whose boxes meet (lo, hi) into g->found; their count, -1
- * out of memory. */
+/* Cell c's live items whose boxes meet (lo, hi), appended to g->found at
+ * *n; false when out of memory. */
+static bool cell_query(face_grid *g, const grid_cell *c, const float lo[3], const float hi[3], int32_t *n) {
+    if (c->len == 0 || !box_meets(c->lo, c->hi, lo, hi)) return true;
+    if (*n + c->len > g->found_cap) {
+        int32_t cap = 2 * (*n + c->len);
+        const grid_item **found = realloc(g->found, (size_t)cap * sizeof *found);
+        if (!found) return false;
+        g->found = found, g->found_cap = cap;
+    }
+    for (int32_t x = 0; x < c->len; x++) {
+        const grid_item *it = &c->items[x];
+        g->found[*n] = it;
+        *n += box_meets(it->lo, it->hi, lo, hi) && it->epoch == g->epoch[it->face];
+    }
+    return true;
+}
+
+/* The live items whose boxes meet (lo, hi) into g->found: those of the
+ * cells within reach, then the big faces; their count, -1 out of memory. */
 static int32_t grid_query(face_grid *g, const float lo[3], const float hi[3]) {
     double qlo[3], qhi[3];
     int32_t c0[3], c1[3], n = 0;
     double reach = g->reach * (1 + 1e-9);   /* past the rounding of the sums below */
     for (int k = 0; k < 3; k++) qlo[k] = (double)lo[k] - reach, qhi[k] = (double)hi[k] + reach;
     grid_range(g, qlo, qhi, c0, c1);
-    for (int32_t k = c0[2]; k <= c1[2] + 1; k++) {
-        bool big = k > c1[2];   /* the last round: the big faces */
-        for (int32_t j = big ? 0 : c0[1]; j <= (big ? 0 : c1[1]); j++)
-            for (int32_t i = big ? 0 : c0[0]; i <= (big ? 0 : c1[0]); i++) {
-                const grid_cell *c = big ? &g->big : &g->cells[((int64_t)k * g->n[1] + j) * g->n[0] + i];
-                if (c->len == 0 || !box_meets(c->lo, c->hi, lo, hi)) continue;
-                if (n + c->len > g->found_cap) {
-                    int32_t cap = 2 * (n + c->len);
-                    const grid_item **found = realloc(g->found, (size_t)cap * sizeof *found);
-                    if (!found) return -1;
-                    g->found = found, g->found_cap = cap;
-                }
-                for (int32_t x = 0; x < c->len; x++) {
-                    const grid_item *it = &c->items[x];
-                    g->found[n] = it;
-                    n += box_meets(it->lo, it->hi, lo, hi) && it->epoch == g->epoch[it->face];
-                }
-            }
-    }
-    return n;
+    for (int32_t k = c0[2]; k <= c1[2]; k++)
+        for (int32_t j = c0[1]; j <= c1[1]; j++)
+            for (int32_t i = c0[0]; i <= c1[0]; i++)
+                if (!cell_query(g, &g->cells[((int64_t)k * g->n[1] + j) * g->n[0] + i], lo, hi, &n)) return -1;
+    return cell_query(g, &g->big, lo, hi, &n) ? n : -1;
 }
 
 /* The grid over the live faces: cells twice their mean edge long, at most
@@ -1589,7 +1589,7 @@ static bool grid_build(state *st) {
     for (int k = 0; k < 3; k++) g->big.lo[k] = INFINITY, g->big.hi[k] = -INFINITY;
     g->built_faces = st->nf_alive;
     for (int32_t f = 0; f < st->nf; f++)
-        if (st->falive[f] && !grid_put(st, f, true)) return false;
+        if (st->falive[f] && !grid_put(st, f)) return false;
     return true;
 }
 
@@ -2112,7 +2112,7 @@ static bool apply_plan(state *st, const collapse_plan *p) {
             int32_t n;
             const int32_t *list = vfaces(st, side ? gone : keep, &n);
             for (int32_t i = 0; i < n; i++)
-                if (st->falive[list[i]]) grid_put(st, list[i], false);
+                if (st->falive[list[i]]) grid_take_out(&st->grid, list[i]);
         }
     for (int i = 0; i < p->nfaces; i++) {
         int32_t f = p->faces[i];
@@ -2165,7 +2165,7 @@ static bool apply_plan(state *st, const collapse_plan *p) {
     if (st->grid.cells) {
         list = vfaces(st, keep, &n);
         for (int32_t i = 0; i < n; i++)
-            if (st->falive[list[i]] && !grid_put(st, list[i], true)) return false;
+            if (st->falive[list[i]] && !grid_put(st, list[i])) return false;
     }
     if (st->vflags[gone] & V_CONTACT) {   /* keep stands where gone's contact was: the stricter limits */
         bool both = st->vflags[keep] & V_CONTACT;

@@ -1121,6 +1121,30 @@ static int crossing_pairs(const sc_mesh *m) {
     return count;
 }
 
+/* Decimate `both` (no crossing pair, checked) to `faces` in seam_mode free,
+ * crossings allowed and then refused: the level allowed to cross must show
+ * crossing pairs (counted by brute force), the refused one none. */
+static void crossings_refused(const sc_value *both, const char *faces, const char *what) {
+    SC_CHECK_INT(crossing_pairs(both->as.mesh), 0);
+    int crossings[2] = {-1, -1};
+    for (int refuse = 0; refuse < 2; refuse++) {
+        const char *params[] = {"faces", faces, "seam_mode", "free", "hausdorff_samples", "0", "max_error", "0",
+                                "refuse_crossings", refuse ? "true" : "false", NULL};
+        node_run r = run_node(&sc_node_decimate, params, "mesh", (sc_value *)both);
+        SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
+        if (r.rc == SC_OK) {
+            const sc_mesh *lvl = level_mesh(r.out, 0);
+            crossings[refuse] = crossing_pairs(lvl);
+            printf("     %s at %d faces, crossings %s: %d crossing pairs\n", what, lvl->nf,
+                   refuse ? "refused" : "allowed", crossings[refuse]);
+        }
+        run_free(&r);
+    }
+    SC_CHECK_MSG(crossings[0] > 0, "%s did not cross without the check (%d): the test shows nothing", what,
+                 crossings[0]);
+    SC_CHECK_INT(crossings[1], 0);
+}
+
 /* A thin lens inside another, 0.01 apart at the middle: decimated far, the
  * outer caps flatten through the inner ones unless crossings are refused;
  * refused, the level has none (counted by brute force), as the input. */
@@ -1130,24 +1154,7 @@ SC_TEST(refused_crossings_keep_nested_parts_apart) {
     sc_mesh *in_scaled = inner->as.mesh;   /* inner lens: 0.97 of the radius */
     for (int v = 0; v < in_scaled->nv; v++) in_scaled->V[3 * v] *= 0.97, in_scaled->V[3 * v + 2] *= 0.97;
     sc_value *both = two_parts(outer->as.mesh, inner->as.mesh);
-    SC_CHECK_INT(crossing_pairs(both->as.mesh), 0);
-    int crossings[2] = {-1, -1};
-    for (int refuse = 0; refuse < 2; refuse++) {
-        const char *params[] = {"faces", "120", "seam_mode", "free", "hausdorff_samples", "0",
-                                "refuse_crossings", refuse ? "true" : "false", NULL};
-        node_run r = run_node(&sc_node_decimate, params, "mesh", both);
-        SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
-        if (r.rc == SC_OK) {
-            const sc_mesh *lvl = level_mesh(r.out, 0);
-            crossings[refuse] = crossing_pairs(lvl);
-            printf("     nested lenses at %d faces, crossings %s: %d crossing pairs\n", lvl->nf,
-                   refuse ? "refused" : "allowed", crossings[refuse]);
-        }
-        run_free(&r);
-    }
-    SC_CHECK_MSG(crossings[0] > 0, "the nested lenses did not cross without the check (%d): the test shows nothing",
-                 crossings[0]);
-    SC_CHECK_INT(crossings[1], 0);
+    crossings_refused(both, "120", "nested lenses");
     sc_value_release(both), sc_value_release(outer), sc_value_release(inner);
 }
 
@@ -1169,24 +1176,7 @@ SC_TEST(refused_crossings_see_faces_wider_than_a_cell) {
         for (int k = 0; k < 3; k++) square->FV[3 * f + k] = square->FU[3 * f + k] = faces[f][k];
     sc_value *both = two_parts(lens->as.mesh, square);
     sc_mesh_free(square);
-    SC_CHECK_INT(crossing_pairs(both->as.mesh), 0);
-    int crossings[2] = {-1, -1};
-    for (int refuse = 0; refuse < 2; refuse++) {
-        const char *params[] = {"faces", "24", "seam_mode", "free", "hausdorff_samples", "0", "max_error", "0",
-                                "refuse_crossings", refuse ? "true" : "false", NULL};
-        node_run r = run_node(&sc_node_decimate, params, "mesh", both);
-        SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
-        if (r.rc == SC_OK) {
-            const sc_mesh *lvl = level_mesh(r.out, 0);
-            crossings[refuse] = crossing_pairs(lvl);
-            printf("     lens around a square at %d faces, crossings %s: %d crossing pairs\n", lvl->nf,
-                   refuse ? "refused" : "allowed", crossings[refuse]);
-        }
-        run_free(&r);
-    }
-    SC_CHECK_MSG(crossings[0] > 0, "the lens did not cross the square without the check (%d): the test shows nothing",
-                 crossings[0]);
-    SC_CHECK_INT(crossings[1], 0);
+    crossings_refused(both, "24", "lens around a square");
     sc_value_release(both), sc_value_release(lens);
 }
 
