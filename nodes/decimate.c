@@ -1318,6 +1318,13 @@ static bool creases_ok(state *st, const collapse_plan *p) {
 
 /* ---------------------------------------------------------------- crossings */
 
+/* min and max of finite values (and infinities), inlined: fmin and fmax are
+ * library calls here, and the crossing tests make millions. */
+static inline double min2(double a, double b) { return a < b ? a : b; }
+static inline double max2(double a, double b) { return a > b ? a : b; }
+static inline float min2f(float a, float b) { return a < b ? a : b; }
+static inline float max2f(float a, float b) { return a > b ? a : b; }
+
 /* The signed distances d of T's corners from the plane through o with
  * normal n of length len, those within eps set to 0; how many lie above and
  * below. */
@@ -1338,7 +1345,7 @@ static void crossing_prepare(const double *const P[3], crossing_triangle *t) {
     sc_triangle_normal(P[0], P[1], P[2], t->n);
     t->len = sc_norm3(t->n);
     t->longest = 0;
-    for (int k = 0; k < 3; k++) t->longest = fmax(t->longest, sc_dist3(P[k], P[(k + 1) % 3]));
+    for (int k = 0; k < 3; k++) t->longest = max2(t->longest, sc_dist3(P[k], P[(k + 1) % 3]));
 }
 
 /* Whether triangles A and B cross: each meets the other's plane, and the
@@ -1346,7 +1353,7 @@ static void crossing_prepare(const double *const P[3], crossing_triangle *t) {
  * a billionth of their size. Triangles in one plane, or that only touch,
  * do not cross. */
 static bool triangles_cross(const crossing_triangle *A, const crossing_triangle *B) {
-    double da[3], db[3], eps = 1e-9 * fmax(A->longest, B->longest);
+    double da[3], db[3], eps = 1e-9 * max2(A->longest, B->longest);
     if (!(A->len > 0 && B->len > 0)) return false;
     int above, below;
     plane_sides(A->P, B->P[0], B->n, B->len, eps, da, &above, &below);
@@ -1364,15 +1371,15 @@ static bool triangles_cross(const crossing_triangle *A, const crossing_triangle 
         double lo = INFINITY, hi = -INFINITY;
         for (int k = 0; k < 3; k++) {
             int j = (k + 1) % 3;
-            if (d[k] == 0) lo = fmin(lo, T[k][axis]), hi = fmax(hi, T[k][axis]);
+            if (d[k] == 0) lo = min2(lo, T[k][axis]), hi = max2(hi, T[k][axis]);
             if ((d[k] > 0 && d[j] < 0) || (d[k] < 0 && d[j] > 0)) {
                 double x = T[k][axis] + (T[j][axis] - T[k][axis]) * d[k] / (d[k] - d[j]);
-                lo = fmin(lo, x), hi = fmax(hi, x);
+                lo = min2(lo, x), hi = max2(hi, x);
             }
         }
         seg[t][0] = lo, seg[t][1] = hi;
     }
-    return fmin(seg[0][1], seg[1][1]) - fmax(seg[0][0], seg[1][0]) > eps;
+    return min2(seg[0][1], seg[1][1]) - max2(seg[0][0], seg[1][0]) > eps;
 }
 
 /* Whether Q's corners all lie on one side of A's plane, farther from it than
@@ -1382,7 +1389,7 @@ static bool one_side(const crossing_triangle *A, const double *const Q[3], doubl
     if (!(A->len > 0)) return true;
     double d[3];
     int above, below;
-    plane_sides(Q, A->P[0], A->n, A->len, 1e-9 * fmax(A->longest, q_size), d, &above, &below);
+    plane_sides(Q, A->P[0], A->n, A->len, 1e-9 * max2(A->longest, q_size), d, &above, &below);
     return above == 3 || below == 3;
 }
 
@@ -1402,9 +1409,6 @@ static void grid_range(const face_grid *g, const double lo[3], const double hi[3
         c1[k] = !(b >= 0) ? 0 : b >= g->n[k] ? g->n[k] - 1 : (int32_t)b;
     }
 }
-
-static inline double min2(double a, double b) { return a < b ? a : b; }
-static inline double max2(double a, double b) { return a > b ? a : b; }
 
 static void triangle_box(const double *const P[3], double lo[3], double hi[3]) {
     for (int k = 0; k < 3; k++) {
@@ -1475,7 +1479,7 @@ static void cell_compact(const face_grid *g, grid_cell *c) {
     for (int32_t x = 0; x < c->len; x++) {
         const grid_item *it = &c->items[x];
         if (it->epoch != g->epoch[it->face]) continue;
-        for (int k = 0; k < 3; k++) c->lo[k] = fminf(c->lo[k], it->lo[k]), c->hi[k] = fmaxf(c->hi[k], it->hi[k]);
+        for (int k = 0; k < 3; k++) c->lo[k] = min2f(c->lo[k], it->lo[k]), c->hi[k] = max2f(c->hi[k], it->hi[k]);
         c->items[n++] = *it;
     }
     c->len = n;
@@ -1497,14 +1501,14 @@ static bool grid_put(state *st, int32_t f) {
         item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
         /* of the float box, which queries compare: its centre is within `half` of every box it meets */
         centre[k] = 0.5 * ((double)item.lo[k] + item.hi[k]);
-        half = fmax(half, 0.5 * ((double)item.hi[k] - item.lo[k]));
+        half = max2(half, 0.5 * ((double)item.hi[k] - item.lo[k]));
     }
     grid_cell *c = &g->big;
     if (half <= g->cell) {   /* else big: one long face would widen every query */
         int32_t c0[3], c1[3];
         grid_range(g, centre, centre, c0, c1);
         c = &g->cells[((int64_t)c0[2] * g->n[1] + c0[1]) * g->n[0] + c0[0]];
-        g->reach = fmax(g->reach, half);
+        g->reach = max2(g->reach, half);
     }
     if (c->len == c->cap) {   /* full: drop the stale, and grow unless half is free then */
         cell_compact(g, c);
@@ -1516,7 +1520,7 @@ static bool grid_put(state *st, int32_t f) {
         }
     }
     c->items[c->len++] = item;
-    for (int k = 0; k < 3; k++) c->lo[k] = fminf(c->lo[k], item.lo[k]), c->hi[k] = fmaxf(c->hi[k], item.hi[k]);
+    for (int k = 0; k < 3; k++) c->lo[k] = min2f(c->lo[k], item.lo[k]), c->hi[k] = max2f(c->hi[k], item.hi[k]);
     return true;
 }
 
@@ -1565,7 +1569,7 @@ static bool grid_build(state *st) {
         const double *P[3];
         face_points(st, f, P);
         for (int k = 0; k < 3; k++) {
-            for (int d = 0; d < 3; d++) lo[d] = fmin(lo[d], P[k][d]), hi[d] = fmax(hi[d], P[k][d]);
+            for (int d = 0; d < 3; d++) lo[d] = min2(lo[d], P[k][d]), hi[d] = max2(hi[d], P[k][d]);
             edges += sc_dist3(P[k], P[(k + 1) % 3]), nedges++;
         }
     }
