@@ -1758,8 +1758,8 @@ static void nearer_face(const double x[3], const double *const P[3], double *d, 
     double len = sc_norm3(n);
     double h = len > 0 ? sc_dot3(r, n) / len : 0;
     bool tie = dist >= *d * (1 - 1e-9);
-    *side = tie ? fmax(*side, h) : h;
-    *d = fmin(*d, dist);
+    *side = tie ? max2(*side, h) : h;
+    *d = min2(*d, dist);
 }
 
 /* The nearest face to x of another part than `own` within `reach` (grid
@@ -1782,7 +1782,7 @@ static void other_part_nearest(state *st, const double x[3], int32_t own, double
         if (in_fan) continue;
         double box2 = 0;   /* x's distance to the face's box: no nearer point inside */
         for (int e = 0; e < 3; e++) {
-            double out = fmax(fmax((double)it->lo[e] - x[e], x[e] - (double)it->hi[e]), 0);
+            double out = max2(max2((double)it->lo[e] - x[e], x[e] - (double)it->hi[e]), 0);
             box2 += out * out;
         }
         if (box2 > *d * *d * (1 + 1e-8)) continue;   /* (a face as near stays: nearer_face) */
