@@ -19,6 +19,14 @@
  *                      transform feedback and drawn from every view
  *                      (llvmpipe evaluates tessellation on one thread; the
  *                      captured floats give the same pictures).
+ *    A tessellated pass other than the lowest level whose triangles outnumber
+ *    a view's pixels (max_triangles_per_pixel) is probed, not drawn, when
+ *    max_seam_gap is at or under the rasteriser's vertex grid and
+ *    max_map_fold_pixels is off (probe_suffices): its seam gap is measured
+ *    at its own tessellated points and bounded like any pass's, while its
+ *    views, sixteen triangles to a pixel at level 8 on a few thousand faces,
+ *    could show no opening that the gap limit lets through
+ *    (lod<k>.<pass>.drawn says which).
  *    Every pass colours with the "color" slot when the material has one. A
  *    mode whose texture a material lacks is skipped, with the metric
  *    lod<k>.<mode>.skipped = 1. All sampling is bilinear without mipmaps, in
@@ -188,6 +196,7 @@ typedef struct pass {
     int pos;           /* POS_* */
     int level;         /* tessellation level, 0 for none */
     char name[32];     /* "textured", "tessellated4" */
+    bool probe_only;   /* its seam gap measured and bounded, no view drawn (finer than the pixels) */
 } pass;
 
 typedef struct view {
@@ -1694,6 +1703,7 @@ typedef struct job {
     double fold_allowance;    /* max_fold_pixels = -1: this times the reference's back-face pixels */
     bool max_folds_from_reference;
     double pixels_per_unit;   /* view scale: size / (2 radius) */
+    double max_triangles_per_pixel;   /* a finer tessellated pass is probed, not drawn; 0: draw every pass */
     bool all_pictures;        /* every view's picture; else contact sheets and views with crack candidates */
     bool uv_pictures;         /* each pictured level's uv picture too */
     uint8_t *reference;   /* nviews masks of size*size (1: near a reference back face), or NULL */
@@ -1781,6 +1791,17 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                        k->human, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
                        gap.edge_t, own);
     }
+    if (ps->probe_only) {
+        *gap_out = gap;
+        o->gap_max = fmax(o->gap_max, gap.gap);
+        o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
+        if (metricf(o, 0, "%s.%s.drawn", k->metric, ps->name) ||
+            metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
+            metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name) ||
+            metricf(o, map_gap.gap, "%s.%s.map_seam_gap", k->metric, ps->name))
+            return sc_fail(err, SC_ENOMEM, "out of memory");
+        return SC_OK;
+    }
     int64_t total = 0, worst = -1, pinholes = 0, folds = 0;
     int worst_view = 0;
     double gap_pixels = gap.gap * L->diag * J->pixels_per_unit;
@@ -1866,7 +1887,8 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
     o->fold_total += (double)folds;
     o->gap_max = fmax(o->gap_max, gap.gap);
     o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
-    if (metricf(o, (double)total, "%s.%s.crack_pixels", k->metric, ps->name) ||
+    if ((ps->level > 0 && metricf(o, 1, "%s.%s.drawn", k->metric, ps->name)) ||
+        metricf(o, (double)total, "%s.%s.crack_pixels", k->metric, ps->name) ||
         metricf(o, (double)pinholes, "%s.%s.pinhole_pixels", k->metric, ps->name) ||
         metricf(o, (double)folds, "%s.%s.fold_pixels", k->metric, ps->name) ||
         metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
@@ -1895,6 +1917,22 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                                                      : " (open mesh and no reference connected: every back "
                                                        "face counts)");
     return SC_OK;
+}
+
+/* Whether a tessellated pass at `level` may be probed without being drawn:
+ * its triangles outnumber the pixels (max_triangles_per_pixel per pixel of
+ * a view), and what its pictures could add, the probe bounds. Its views
+ * would show a seam opening where the two sides' tessellated points lie
+ * apart; the probe measures those very points (the pass's own program and
+ * level), and max_seam_gap, at or under the rasteriser's vertex grid here,
+ * fails every gap wide enough to move a vertex by a grid step, below which
+ * an opening shows as lone pinholes at most. The other gates that read
+ * pictures (folds of the maps) are off, as they are by default. */
+static bool probe_suffices(const renderer *R, const level_gl *L, const job *J, int level) {
+    if (!(J->max_triangles_per_pixel > 0) || J->max_gap < 0 || J->max_map_folds >= 0 || !(R->subpixel > 0))
+        return false;
+    double triangles = (double)L->mesh->nf * level * level, pixels = (double)J->size * J->size;
+    return triangles > J->max_triangles_per_pixel * pixels && J->max_gap * L->diag * J->pixels_per_unit <= R->subpixel;
 }
 
 /* Render the reference from every view: masks of back faces, dilated, and
@@ -2107,10 +2145,13 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
             rc = check_position_texture(&L, who, tess_pos, err);
             if (rc == SC_OK)
                 rc = metricf(o, tess_pos == POS_GEOMETRY ? 1 : 2, "%s.tessellated.source", k->metric);
+            int lowest = levels[0];
+            for (int i = 1; i < nlevels; i++) lowest = levels[i] < lowest ? levels[i] : lowest;
             for (int i = 0; i < nlevels && rc == SC_OK; i++) {
                 pass *p = &passes[npasses++];
-                *p = (pass){MODE_TESSELLATED, tess_pos, levels[i], ""};
+                *p = (pass){MODE_TESSELLATED, tess_pos, levels[i], "", false};
                 snprintf(p->name, sizeof p->name, "tessellated%d", levels[i]);
+                p->probe_only = levels[i] != lowest && probe_suffices(R, &L, J, levels[i]);
             }
         }
     }
@@ -2118,14 +2159,17 @@ static int run_level(renderer *R, const sc_atlas *atlas, const level_label *k, c
         level_free(&L);
         return rc == SC_ENOMEM ? sc_fail(err, SC_ENOMEM, "out of memory") : rc;
     }
+    int ndrawn = 0;
+    for (int p = 0; p < npasses; p++) ndrawn += !passes[p].probe_only;
     sheet sh = {0};
-    rc = sheet_init(&sh, J->size, J->nviews, npasses > 0 ? npasses : 1, err);
+    rc = sheet_init(&sh, J->size, J->nviews, ndrawn > 0 ? ndrawn : 1, err);
     double tess_cracks = 0, tess_gap = 0, tess_vgap = 0, level_gap = 0;
     const double cracks_before = o->crack_total, folds_before = o->fold_total;
-    for (int p = 0; p < npasses && rc == SC_OK; p++) {
+    for (int p = 0, row = 0; p < npasses && rc == SC_OK; p++) {
         double before = o->crack_total;
         gap_result gap = {0, 0, -1, 0};
-        rc = run_pass(R, &L, k, &passes[p], J, o, &sh, p, &gap, err);
+        rc = run_pass(R, &L, k, &passes[p], J, o, &sh, row, &gap, err);
+        row += !passes[p].probe_only;
         level_gap = fmax(level_gap, gap.gap);
         if (rc == SC_OK && passes[p].level > 0) {
             tess_cracks += o->crack_total - before;
@@ -2304,6 +2348,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     make_views(views, J.nviews, center, radius);
     J.views = views;
     J.pixels_per_unit = J.size / (2.0 * radius);
+    J.max_triangles_per_pixel = sc_ctx_number(ctx, "max_triangles_per_pixel");
 
     encoder enc;
     encoder_start(&enc, sc_ctx_threads(ctx));
@@ -2432,6 +2477,10 @@ static const sc_param_desc params[] = {
      .doc = "points per seam half-edge in the GPU seam-gap check (untessellated modes)"},
     {.name = "tess_levels", .type = SC_PARAM_NUMBERS, .def_string = "1,2,4,8", .min = 1, .max = 64,
      .doc = "uniform tessellation levels of the tessellated mode", .check_list = check_tess_levels},
+    {.name = "max_triangles_per_pixel", .type = SC_PARAM_NUMBER, .def = 1, .min = 0, .max = 1e9,
+     .doc = "a tessellated level (not the lowest) whose triangles outnumber this many per pixel of a view "
+            "is probed, not drawn: its seam gap is measured and bounded, with max_seam_gap at or under the "
+            "rasteriser's vertex grid and max_map_fold_pixels off; 0: every level is drawn"},
     {.name = "folder", .type = SC_PARAM_STRING, .def_string = "render",
      .doc = "folder of the report's pictures under --out (two render nodes in one graph need two)",
      .check_text = check_folder},
@@ -2469,7 +2518,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_gl, 
 
 const sc_node_desc sc_node_render = {
     .type = "render",
-    .version = 19,
+    .version = 20,
     .summary = "renders every LOD headless (EGL, llvmpipe) in every mode and checks for cracks",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -361,6 +361,82 @@ SC_TEST(geometry_image_with_seams_has_gap_and_cracks) {
     cube_textures_free(&tex);
 }
 
+/* The flat cube's geometry image with two texels moved by `by` in z: those
+ * on both sides of face 0's chart border b = 0 (x = 1, its seam with face 5,
+ * z = -1) halfway along that border's third edge (a = 5/16) of the 8 x 8
+ * grid, which the tessellated points of level 1 (the edge's ends) do not
+ * reach and those of level 8 do. Moved up (+z), face 0 draws back from the
+ * seam there and opens a notch onto the cube's inside. */
+static cube_textures cube_with_moved_texels(float by) {
+    cube_textures t = cube_textures_make(0);
+    const sc_image_data *src = t.geometry->as.image;
+    sc_image_data *moved = sc_image_alloc(src->width, src->height, src->channels, src->pixel);
+    SC_CHECK(moved != NULL);
+    if (!moved) return t;
+    memcpy(moved->pixels, src->pixels, (size_t)src->width * src->height * src->channels * (size_t)src->pixel);
+    moved->colorspace = src->colorspace;
+    int32_t i = PAD + (int32_t)floor(0.3125 * (CELL - 2 * PAD)), j = PAD;
+    for (int32_t y = j - 1; y <= j; y++)   /* the border row and the padding row below it */
+        ((float *)moved->pixels)[((size_t)y * src->width + i) * src->channels + 2] += by;
+    sc_value_release(t.geometry);
+    t.geometry = sc_value_new_image(moved);
+    return t;
+}
+
+/* A tessellated level with more triangles than a view has pixels is probed,
+ * not drawn, when the seam-gap limit is at or under the rasteriser's vertex
+ * grid: its seam gap is still measured at its own points and bounded. The
+ * flat cube of 8 x 8 cells a side (768 faces) at 128 x 128 pixels: level 8
+ * makes 49,152 triangles, level 1 768. Texels moved beside a seam, which
+ * only level 8's points reach: drawn (no gap limit), level 8 shows the
+ * crack and level 1 does not; probed (a limit), level 8 fails the node on
+ * its gap, without a single view of it drawn. */
+SC_TEST(levels_finer_than_the_pixels_are_probed_and_still_fail) {
+    const char *drawn[] = {"size", "128", "views", "14", "modes", "tessellated", "tess_levels", "1,8", NULL};
+    const char *probed[] = {"size", "128", "views", "14", "modes", "tessellated", "tess_levels", "1,8",
+                            "max_seam_gap", "1e-5", NULL};
+    cube_textures clean = cube_textures_make(0);
+    sc_value *cube = cube_atlas(8, 0, &clean);
+    run_result r = render(NULL, cube, NULL, probed);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    SC_CHECK(M(&r, "lod0.tessellated1.drawn") == 1 && M(&r, "lod0.tessellated8.drawn") == 0);
+    SC_CHECK(M(&r, "renders") == 14);   /* level 1's views only */
+    SC_CHECK_MSG(M(&r, "lod0.tessellated8.max_seam_gap") <= 1e-6, "%g", M(&r, "lod0.tessellated8.max_seam_gap"));
+    SC_CHECK(isnan(M(&r, "lod0.tessellated8.crack_pixels")));
+    SC_CHECK(!has_file(&r, "render/lod0_tessellated8_posx.png"));
+    sc_ctx_free(r.ctx);
+    /* with no gap limit, or a limit above the vertex grid, every level is drawn */
+    r = render(NULL, cube, NULL, drawn);
+    SC_CHECK_MSG(r.rc == SC_OK && M(&r, "lod0.tessellated8.drawn") == 1 && M(&r, "renders") == 28, "%s",
+                 r.err.message);
+    sc_ctx_free(r.ctx);
+    const char *coarse_limit[] = {"size", "128", "views", "14", "modes", "tessellated", "tess_levels", "1,8",
+                                  "max_seam_gap", "1e-3", NULL};
+    r = render(NULL, cube, NULL, coarse_limit);
+    SC_CHECK_MSG(r.rc == SC_OK && M(&r, "lod0.tessellated8.drawn") == 1, "%s", r.err.message);
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&clean);
+
+    cube_textures moved = cube_with_moved_texels(0.3f);
+    cube = cube_atlas(8, 0, &moved);
+    r = render(NULL, cube, NULL, drawn);
+    SC_CHECK_MSG(r.rc == SC_OK, "%s", r.err.message);
+    printf("     drawn: level 1 %g crack pixels (gap %.3g), level 8 %g (gap %.3g)\n",
+           M(&r, "lod0.tessellated1.crack_pixels"), M(&r, "lod0.tessellated1.max_seam_gap"),
+           M(&r, "lod0.tessellated8.crack_pixels"), M(&r, "lod0.tessellated8.max_seam_gap"));
+    SC_CHECK(M(&r, "lod0.tessellated1.crack_pixels") == 0 && M(&r, "lod0.tessellated1.max_seam_gap") <= 1e-6);
+    SC_CHECK(M(&r, "lod0.tessellated8.crack_pixels") > 0 && M(&r, "lod0.tessellated8.max_seam_gap") > 1e-2);
+    sc_ctx_free(r.ctx);
+    r = render(NULL, cube, NULL, probed);
+    SC_CHECK(r.rc != SC_OK);
+    SC_CHECK_MSG(strstr(r.err.message, "max_seam_gap") && strstr(r.err.message, "tessellated8"), "%s",
+                 r.err.message);
+    sc_ctx_free(r.ctx);
+    sc_value_release(cube);
+    cube_textures_free(&moved);
+}
+
 /* Seams open by less than a pixel still crack, and welding closes them: the
  * crack check draws a pass again with every seam welded shut when its gap
  * is under a pixel, and takes a crack pixel for a fold only if the welded
