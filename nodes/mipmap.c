@@ -80,7 +80,8 @@
  *    files once its levels are erased, each file (a PNG level, a whole EXR
  *    chain) on its own thread, the largest first: the shared group holds
  *    every 8-bit chain, whose files would otherwise follow one another on
- *    one core. Each chain, level and file
+ *    one core. A PNG level goes through sc_image_value_encode_png: a level
+ *    0 kept as it is, the texture save writes, is deflated once. Each chain, level and file
  *    depends on its own inputs alone and the report takes the files in chain
  *    order, so neither the order groups finish in nor the thread count shows
  *    in the results. seconds_groups is that stage's wall time; seconds_erase
@@ -661,7 +662,7 @@ static int encode_item(void *ud, int32_t i) {
     int *rc = &it->out->rc[k];
     sc_error *err = &it->out->err[k];
     if (it->m >= 0) {
-        *rc = sc_image_encode_png(ch->native[it->m]->as.image, 0, &it->out->buf[k], err);
+        *rc = sc_image_value_encode_png(ch->native[it->m], 0, &it->out->buf[k], err);
     } else {
         const sc_image_data *levels[MAX_MIP];
         for (int m = 0; m < ch->count; m++) levels[m] = ch->native[m]->as.image;

@@ -205,8 +205,9 @@ static const char *texture_ext(const sc_image_data *im, const char *format) {
     return im->pixel == SC_PIXEL_F32 ? "exr" : "png";
 }
 
-static int encode(const sc_image_data *im, const char *ext, sc_buf *out, sc_error *err) {
-    if (strcmp(ext, "png") == 0) return sc_image_encode_png(im, 0, out, err);
+static int encode(const sc_value *image, const char *ext, sc_buf *out, sc_error *err) {
+    const sc_image_data *im = image->as.image;
+    if (strcmp(ext, "png") == 0) return sc_image_value_encode_png(image, 0, out, err);
     if (strcmp(ext, "jpg") == 0) return sc_image_encode_jpeg(im, 95, out, err);
     return sc_image_encode_exr(im, out, err);
 }
@@ -313,7 +314,7 @@ static int save_image(saver *s, const sc_value *image, const seam_place *at, con
         s->files = w;
         sc_buf b;
         sc_buf_init(&b);
-        int rc = encode(im, exts[e], &b, err);
+        int rc = encode(image, exts[e], &b, err);
         if (rc == SC_OK && at) rc = measure_file(s, at, im, file, &b, err);
         if (rc == SC_OK) {
             s->bytes += (int64_t)b.len;

@@ -1,4 +1,6 @@
-/* sc_imageio.c - the C side of image I/O: loads the codec module on first use.
+/* sc_imageio.c - the C side of image I/O: loads the codec module on first use,
+ * and keeps the latest large PNG encodings of image values, so that one
+ * texture written by two nodes of a cook is deflated once.
  *
  * Design note: see sc_imageio_codecs.h for why the codecs are a module. The
  * module is looked for, in order: $SEAMCOOK_IMAGEIO_MODULE; beside the running
@@ -15,6 +17,7 @@
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 #include "sc_imageio_codecs.h"
@@ -94,6 +97,75 @@ int sc_image_decode(const char *name, const void *bytes, size_t size, sc_image_d
 
 int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error *err) {
     return sc_imageio_png_encode(im, bits, out, err);
+}
+
+/* Remembered PNG encodings: a few, oldest first, under one lock held only
+ * to look up, copy or insert (the encoding itself runs outside it; two
+ * threads that miss at once both encode the same bytes, and one is kept). */
+#define REMEMBERED 16
+typedef struct remembered {
+    sc_digest digest;
+    int bits;
+    uint8_t *bytes;
+    size_t len;
+} remembered;
+static pthread_mutex_t remember_lock = PTHREAD_MUTEX_INITIALIZER;
+static remembered kept[REMEMBERED];
+static int nkept;
+static size_t kept_bytes;
+static int64_t remembered_hits;
+
+static int find_kept(const sc_digest *d, int bits) {
+    for (int i = 0; i < nkept; i++)
+        if (kept[i].bits == bits && sc_digest_equal(&kept[i].digest, d)) return i;
+    return -1;
+}
+
+static void drop_oldest(void) {
+    kept_bytes -= kept[0].len;
+    free(kept[0].bytes);
+    memmove(kept, kept + 1, sizeof *kept * (size_t)(nkept - 1));
+    nkept--;
+}
+
+int sc_image_value_encode_png(const sc_value *image, int bits, sc_buf *out, sc_error *err) {
+    if (image->kind != SC_KIND_IMAGE) return sc_fail(err, SC_EUSAGE, "encoding a PNG: not an image value");
+    const sc_image_data *im = image->as.image;
+    size_t pixels = (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
+    if (pixels < SC_IMAGE_REMEMBER_MIN) return sc_image_encode_png(im, bits, out, err);
+    const sc_digest *d = sc_value_digest(image);
+    pthread_mutex_lock(&remember_lock);
+    int at = find_kept(d, bits);
+    if (at >= 0) {
+        sc_buf_append(out, kept[at].bytes, kept[at].len);
+        remembered_hits++;
+    }
+    pthread_mutex_unlock(&remember_lock);
+    if (at >= 0) return out->failed ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
+    size_t start = out->len;
+    int rc = sc_image_encode_png(im, bits, out, err);
+    size_t len = out->len - start;
+    if (rc != SC_OK || out->failed || len > SC_IMAGE_REMEMBER_MAX) return rc;
+    uint8_t *copy = malloc(len);
+    if (!copy) return SC_OK;   /* only the memory is missed */
+    memcpy(copy, out->data + start, len);
+    pthread_mutex_lock(&remember_lock);
+    if (find_kept(d, bits) >= 0) {
+        free(copy);
+    } else {
+        while (nkept > 0 && (nkept == REMEMBERED || kept_bytes + len > SC_IMAGE_REMEMBER_MAX)) drop_oldest();
+        kept[nkept++] = (remembered){*d, bits, copy, len};
+        kept_bytes += len;
+    }
+    pthread_mutex_unlock(&remember_lock);
+    return SC_OK;
+}
+
+int64_t sc_image_remembered_hits(void) {
+    pthread_mutex_lock(&remember_lock);
+    int64_t hits = remembered_hits;
+    pthread_mutex_unlock(&remember_lock);
+    return hits;
 }
 
 int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err) {

@@ -52,6 +52,19 @@ int sc_image_encode_png(const sc_image_data *im, int bits, sc_buf *out, sc_error
 int sc_image_encode_jpeg(const sc_image_data *im, int quality, sc_buf *out, sc_error *err);
 int sc_image_encode_exr(const sc_image_data *im, sc_buf *out, sc_error *err);
 
+/* sc_image_encode_png of an image value, remembered for the process: the
+ * PNG of the same image (its digest) at the same bits is deflated once and
+ * copied after that, as nodes that run one after another write one texture
+ * twice (save's top level and mipmap's level 0 of a chain). Images under
+ * SC_IMAGE_REMEMBER_MIN bytes of pixels are encoded every time; the bytes
+ * kept stay under SC_IMAGE_REMEMBER_MAX, the oldest dropped first. */
+#define SC_IMAGE_REMEMBER_MIN ((size_t)1 << 20)
+#define SC_IMAGE_REMEMBER_MAX ((size_t)64 << 20)
+int sc_image_value_encode_png(const sc_value *image, int bits, sc_buf *out, sc_error *err);
+
+/* How many sc_image_value_encode_png calls so far copied a kept encoding. */
+int64_t sc_image_remembered_hits(void);
+
 /* A tiled (64 x 64), mip-mapped OpenEXR holding every level in one file,
  * float32, ZIP-compressed (written through the OpenEXR C API, deflated by
  * libdeflate: sc_imageio_exr.c), channels named as in sc_image_encode_exr.

@@ -406,6 +406,52 @@ SC_TEST(encoders_write_no_time_stamps) {
     sc_image_free(im);
 }
 
+/* An image value's PNG is deflated once per process: the same pixels again
+ * (another value with the same digest) copy the kept bytes, which are the
+ * encoder's own; other pixels, another bit depth or a small image encode
+ * anew. The hit counter is the library's, so the counts are differences. */
+static bool same_bytes(const sc_buf *a, const sc_buf *b) {
+    return a->len == b->len && memcmp(a->data, b->data, a->len) == 0;
+}
+
+SC_TEST(png_of_an_image_value_is_encoded_once) {
+    sc_error err = {0};
+    sc_image_data *im = gradient_u8(1024, 512, 3);   /* 1.5 MB of pixels */
+    sc_image_data *twin = gradient_u8(1024, 512, 3);
+    sc_image_data *other = gradient_u8(1024, 512, 3);
+    ((uint8_t *)other->pixels)[12345] ^= 1;
+    sc_image_data *small = gradient_u8(64, 64, 3);
+    sc_buf direct;
+    sc_buf_init(&direct);
+    SC_CHECK(sc_image_encode_png(im, 0, &direct, &err) == SC_OK);
+    sc_value *v = sc_value_new_image(im), *t = sc_value_new_image(twin), *o = sc_value_new_image(other),
+             *s = sc_value_new_image(small);
+    sc_buf b[6];
+    for (int k = 0; k < 6; k++) sc_buf_init(&b[k]);
+    int64_t h0 = sc_image_remembered_hits();
+    SC_CHECK(sc_image_value_encode_png(v, 0, &b[0], &err) == SC_OK);   /* the first: deflated */
+    int64_t h1 = sc_image_remembered_hits();
+    SC_CHECK(sc_image_value_encode_png(v, 0, &b[1], &err) == SC_OK);   /* kept */
+    SC_CHECK(sc_image_value_encode_png(t, 0, &b[2], &err) == SC_OK);   /* the same digest: kept */
+    int64_t h2 = sc_image_remembered_hits();
+    SC_CHECK(sc_image_value_encode_png(o, 0, &b[3], &err) == SC_OK);   /* one bit apart: deflated */
+    SC_CHECK(sc_image_value_encode_png(v, 16, &b[4], &err) == SC_OK);  /* 16 bits: deflated */
+    SC_CHECK(sc_image_value_encode_png(s, 0, &b[5], &err) == SC_OK);
+    SC_CHECK(sc_image_value_encode_png(s, 0, &b[5], &err) == SC_OK);   /* small: never kept */
+    int64_t h3 = sc_image_remembered_hits();
+    SC_CHECK_MSG(h1 == h0 && h2 - h1 == 2 && h3 == h2, "hits %lld %lld %lld %lld", (long long)h0,
+                 (long long)h1, (long long)h2, (long long)h3);
+    SC_CHECK(same_bytes(&b[0], &direct) && same_bytes(&b[1], &direct) && same_bytes(&b[2], &direct));
+    SC_CHECK(!same_bytes(&b[3], &direct) && !same_bytes(&b[4], &direct));
+    sc_image_data *back = NULL;
+    SC_CHECK(sc_image_decode("other.png", b[3].data, b[3].len, &back, &err) == SC_OK);
+    SC_CHECK(back && memcmp(back->pixels, other->pixels, (size_t)1024 * 512 * 3) == 0);
+    sc_image_free(back);
+    for (int k = 0; k < 6; k++) sc_buf_free(&b[k]);
+    sc_buf_free(&direct);
+    sc_value_release(v), sc_value_release(t), sc_value_release(o), sc_value_release(s);
+}
+
 /* A mip chain of float images written as one tiled EXR reads back level
  * for level, bit for bit, and the bytes do not depend on the run. */
 static int float_chain(int32_t w, int32_t h, sc_image_data **lv, int most) {
