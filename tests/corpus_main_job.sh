@@ -1,17 +1,23 @@
 #!/bin/bash
-# corpus_main_job.sh SEAMCOOK OUT ASSET [--set ...] - the main job
-# (graphs/lod_chain.lua) on a corpus asset, every check it carries failing
-# the run. The corpus is ../shared/corpus beside the project (or
-# $SC_CORPUS); without it the test is skipped (exit status 77).
+# corpus_main_job.sh SEAMCOOK OUT ASSET [--texture TEXTURE] [--set ...] - the
+# main job (graphs/lod_chain.lua) on a corpus asset, every check it carries
+# failing the run; TEXTURE, also under the corpus, for a model that names
+# none. The corpus is ../shared/corpus beside the project (or $SC_CORPUS);
+# without it the test is skipped (exit status 77).
 set -u
 bin=$1 out=$2 asset=$3
 shift 3
 root=$(cd "$(dirname "$0")/.." && pwd)
 corpus=${SC_CORPUS:-$root/../shared/corpus}
+texture=()
+if [ "${1:-}" = --texture ]; then
+  texture=(--set texture="$corpus/$2")
+  shift 2
+fi
 if [ ! -e "$corpus/$asset" ]; then
   echo "corpus asset $corpus/$asset not found: skipped"
   exit 77
 fi
 rm -rf "$out"
-exec "$bin" run "$root/graphs/lod_chain.lua" --set mesh="$corpus/$asset" "$@" \
+exec "$bin" run "$root/graphs/lod_chain.lua" --set mesh="$corpus/$asset" "${texture[@]}" "$@" \
   --cache "$out/cache" --out "$out/out" -q

@@ -114,8 +114,10 @@
  *
  * Passing through. A texture whose material has no seam edge, or whose
  * largest sampled seam gap is within o->gap_tolerance (default 1e-4) or one
- * step of its 8/16-bit encoding, is passed on as the same value; when
- * nothing changes, sc_erase_result_atlas returns the input atlas itself.
+ * step of its 8/16-bit encoding, is passed on as the same value (its
+ * native result rounded to native_like's type where that is another);
+ * when every result is the input's own image, sc_erase_result_atlas
+ * returns the input atlas itself.
  * This is what makes a re-run on an erased texture change nothing: the
  * penalty leaves near-null directions of M (relative eigenvalues ~1e-10)
  * partly free, and a forced second solve would keep easing them.
@@ -1681,8 +1683,10 @@ static void make_prefix(const sc_mesh *m, const sc_texture *t, bool several, cha
 }
 
 sc_value *sc_erase_result_atlas(const sc_value *atlas, const sc_erase_result *res, bool native) {
-    if (res->erased == 0) return sc_value_retain((sc_value *)atlas);
     const sc_atlas *a = atlas->as.atlas;
+    bool own = true;   /* every texture the atlas's own image: nothing erased, nothing converted */
+    for (int32_t i = 0; i < a->ntex && own; i++) own = (native ? res->native[i] : res->f32[i]) == a->textures[i].image;
+    if (own) return sc_value_retain((sc_value *)atlas);
     sc_atlas *o = sc_atlas_new(sc_value_retain(a->mesh));
     if (!o) return NULL;
     for (int32_t i = 0; i < a->ntex; i++) {

@@ -25,7 +25,7 @@
 #include "sc_value.h"
 
 /* Bump whenever sc_erase's output bytes for the same inputs can change. */
-#define SC_ERASE_VERSION 5
+#define SC_ERASE_VERSION 6
 extern const sc_kernel sc_kernel_erase;
 
 /* The paper's weights: the defaults of erase_seams's parameters. */
@@ -144,7 +144,8 @@ int sc_erase_takes_tangent_space(const sc_mesh *mesh, const sc_texture *t, sc_er
 
 /* The atlas `atlas` (an ATLAS value whose textures were given to sc_erase)
  * with each texture's image replaced by the result's f32 or native image: a
- * new reference, the atlas itself when nothing was erased; NULL when out of
+ * new reference, the atlas itself when every such image is the atlas's own
+ * (nothing erased, nor rounded to native_like's type); NULL when out of
  * memory. */
 sc_value *sc_erase_result_atlas(const sc_value *atlas, const sc_erase_result *res, bool native);
 

@@ -299,6 +299,39 @@ SC_TEST(synthetic_seam_straightened) {
     sc_value_release(atlas);
 }
 
+/* An 8-bit texture whose seams need no erasing after the warp (one colour
+ * everywhere) still comes out of atlas_native in 8 bits, the warp's float
+ * image rounded back to the input's type, as an erased one would: the
+ * main job saves atlas_native, and an 8-bit input is written as 8-bit PNG. */
+SC_TEST(an_already_seam_free_texture_keeps_its_pixel_type) {
+    sc_value *grid = make_cut_grid(16, true);
+    const sc_atlas *g = grid->as.atlas;
+    sc_image_data *im = sc_image_alloc(128, 128, 3, SC_PIXEL_U8);
+    memset(im->pixels, 200, (size_t)128 * 128 * 3);
+    im->colorspace = SC_COLOR_SRGB;
+    sc_atlas *a = sc_atlas_new(sc_value_retain(g->mesh));
+    sc_atlas_add_texture(a, "color", 0, SC_WRAP_CLAMP, SC_WRAP_CLAMP, "", sc_value_new_image(im));
+    sc_value *atlas = sc_value_new_atlas(a);
+    sc_value_release(grid);
+    sc_error err = {0};
+    sc_ctx *ctx = run_straighten(atlas, NULL, &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        SC_CHECK(sc_ctx_metric_value(ctx, "moved_uv_vertices") > 0);
+        SC_CHECK(sc_ctx_metric_value(ctx, "erase.textures_unchanged") == 1);
+        const sc_image_data *native = sc_ctx_output(ctx, 1)->as.atlas->textures[0].image->as.image;
+        SC_CHECK_MSG(native->pixel == SC_PIXEL_U8 && native->colorspace == SC_COLOR_SRGB, "pixel %d, colour space %d",
+                     (int)native->pixel, (int)native->colorspace);
+        int64_t off = 0;
+        for (size_t k = 0; native->pixel == SC_PIXEL_U8 && k < (size_t)128 * 128 * 3; k++)
+            off += ((const uint8_t *)native->pixels)[k] != 200;
+        SC_CHECK_MSG(off == 0, "%lld samples not 200", (long long)off);
+        SC_CHECK(sc_ctx_output(ctx, 0)->as.atlas->textures[0].image->as.image->pixel == SC_PIXEL_F32);
+    }
+    sc_ctx_free(ctx);
+    sc_value_release(atlas);
+}
+
 /* The object-space field of the tangent-space test map: the shading
  * normal N tipped toward +x. */
 static void tipped(const double N[3], double n[3]) {
