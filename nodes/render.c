@@ -23,10 +23,9 @@
  *    a view's pixels (max_triangles_per_pixel) is probed, not drawn, when
  *    max_seam_gap is at or under the rasteriser's vertex grid and
  *    max_map_fold_pixels is off (probe_suffices): its seam gap is measured
- *    at its own tessellated points and bounded like any pass's, while its
- *    views, sixteen triangles to a pixel at level 8 on a few thousand faces,
- *    could show no opening that the gap limit lets through
- *    (lod<k>.<pass>.drawn says which).
+ *    at its own tessellated points and bounded like any pass's, where its
+ *    views draw sixteen triangles to a pixel at level 8 on a few thousand
+ *    faces (lod<k>.<pass>.drawn says which were drawn).
  *    Every pass colours with the "color" slot when the material has one. A
  *    mode whose texture a material lacks is skipped, with the metric
  *    lod<k>.<mode>.skipped = 1. All sampling is bilinear without mipmaps, in
@@ -1925,9 +1924,11 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
  * would show a seam opening where the two sides' tessellated points lie
  * apart; the probe measures those very points (the pass's own program and
  * level), and max_seam_gap, at or under the rasteriser's vertex grid here,
- * fails every gap wide enough to move a vertex by a grid step, below which
- * an opening shows as lone pinholes at most. The other gates that read
- * pictures (folds of the maps) are off, as they are by default. */
+ * fails every gap wide enough to move a vertex by a grid step. A narrower
+ * opening shows as lone pinholes, or as a line where it runs along a row of
+ * pixel centres, which the drawn levels still count on the same seams. The
+ * other gates that read pictures (folds of the maps) are off, as they are
+ * by default. */
 static bool probe_suffices(const renderer *R, const level_gl *L, const job *J, int level) {
     if (!(J->max_triangles_per_pixel > 0) || J->max_gap < 0 || J->max_map_folds >= 0 || !(R->subpixel > 0))
         return false;
