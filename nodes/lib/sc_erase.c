@@ -1770,10 +1770,8 @@ void sc_erase_defaults(sc_erase_options *o) {
  * image), or the input's passed through (its native result in the type of
  * native_like[i] where that is another image). */
 static int collect_results(const sc_texture *textures, int32_t ntex, const tex_state *st,
-                           const sc_image_data *const *native_like, int32_t erased, int threads, sc_erase_result *res,
-                           sc_error *err) {
+                           const sc_image_data *const *native_like, int threads, sc_erase_result *res, sc_error *err) {
     res->count = ntex;
-    res->erased = erased;
     res->f32 = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *res->f32);
     res->native = sc_calloc_array(ntex ? (size_t)ntex : 1, sizeof *res->native);
     if (!res->f32 || !res->native || res->metrics.failed) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -2132,7 +2130,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
             metric(&res->metrics, st[i].prefix, "same_image_as_slot", st[i].same_as);
         }
     emit_totals(&res->metrics, &tot, several);
-    rc = collect_results(inputs, ntex, st, o.native_like ? stored : NULL, tot.erased, o.threads, res, err);
+    rc = collect_results(inputs, ntex, st, o.native_like ? stored : NULL, o.threads, res, err);
 
 done:
     if (st)

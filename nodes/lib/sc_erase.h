@@ -112,7 +112,6 @@ typedef struct sc_erase_result {
     int32_t count;          /* = the number of textures given */
     sc_value **f32;         /* per texture: the erased f32 image, or the input image passed through */
     sc_value **native;      /* per texture: the same in the input's pixel type (quantised once) */
-    int32_t erased;         /* textures changed; 0: every image is the input's */
     sc_metric_list metrics; /* what erase_seams reports, in its order */
 } sc_erase_result;
 
