@@ -1761,6 +1761,17 @@ static int64_t count_cracks(renderer *R, const level_gl *L, const job *J, int v,
     return count;
 }
 
+/* A pass's seam gaps into the node's totals and its metrics; non-zero when
+ * out of memory. */
+static int gap_metrics(outcome *o, const level_label *k, const pass *ps, const gap_result *gap,
+                       const gap_result *map_gap) {
+    o->gap_max = fmax(o->gap_max, gap->gap);
+    o->vertex_gap_max = fmax(o->vertex_gap_max, gap->vertex_gap);
+    return metricf(o, gap->gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
+           metricf(o, gap->vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name) ||
+           (ps->pos != POS_BASE && metricf(o, map_gap->gap, "%s.%s.map_seam_gap", k->metric, ps->name));
+}
+
 static int run_pass(renderer *R, const level_gl *L, const level_label *k, const pass *ps, const job *J, outcome *o,
                     sheet *sh, int32_t row, gap_result *gap_out, sc_error *err) {
     double t0 = sc_now();
@@ -1790,17 +1801,11 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
                        k->human, ps->name, gap.gap, J->max_gap, se->v0, se->v1, se->side[0].face, se->side[1].face,
                        gap.edge_t, own);
     }
-    if (ps->probe_only) {
-        *gap_out = gap;
-        o->gap_max = fmax(o->gap_max, gap.gap);
-        o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
-        if (metricf(o, 0, "%s.%s.drawn", k->metric, ps->name) ||
-            metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
-            metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name) ||
-            metricf(o, map_gap.gap, "%s.%s.map_seam_gap", k->metric, ps->name))
-            return sc_fail(err, SC_ENOMEM, "out of memory");
-        return SC_OK;
-    }
+    *gap_out = gap;
+    if (ps->probe_only)
+        return metricf(o, 0, "%s.%s.drawn", k->metric, ps->name) || gap_metrics(o, k, ps, &gap, &map_gap)
+                   ? sc_fail(err, SC_ENOMEM, "out of memory")
+                   : SC_OK;
     int64_t total = 0, worst = -1, pinholes = 0, folds = 0;
     int worst_view = 0;
     double gap_pixels = gap.gap * L->diag * J->pixels_per_unit;
@@ -1880,19 +1885,13 @@ static int run_pass(renderer *R, const level_gl *L, const level_label *k, const 
         if (cracks > worst) worst = cracks, worst_view = v;
     }
     captured_free(&R->surface);
-    *gap_out = gap;
     o->crack_total += (double)total;
     o->pinhole_total += (double)pinholes;
     o->fold_total += (double)folds;
-    o->gap_max = fmax(o->gap_max, gap.gap);
-    o->vertex_gap_max = fmax(o->vertex_gap_max, gap.vertex_gap);
     if ((ps->level > 0 && metricf(o, 1, "%s.%s.drawn", k->metric, ps->name)) ||
         metricf(o, (double)total, "%s.%s.crack_pixels", k->metric, ps->name) ||
         metricf(o, (double)pinholes, "%s.%s.pinhole_pixels", k->metric, ps->name) ||
-        metricf(o, (double)folds, "%s.%s.fold_pixels", k->metric, ps->name) ||
-        metricf(o, gap.gap, "%s.%s.max_seam_gap", k->metric, ps->name) ||
-        metricf(o, gap.vertex_gap, "%s.%s.max_vertex_gap", k->metric, ps->name) ||
-        (ps->pos != POS_BASE && metricf(o, map_gap.gap, "%s.%s.map_seam_gap", k->metric, ps->name)))
+        metricf(o, (double)folds, "%s.%s.fold_pixels", k->metric, ps->name) || gap_metrics(o, k, ps, &gap, &map_gap))
         return sc_fail(err, SC_ENOMEM, "out of memory");
     /* folds at the level's own vertices are decimation's; those of the
      * positions maps give (geometry image, displacement) are the maps' */
