@@ -81,12 +81,12 @@
  *    chain) on its own thread, the largest first: the shared group holds
  *    every 8-bit chain, whose files would otherwise follow one another on
  *    one core. A PNG level goes through sc_image_value_encode_png: a level
- *    0 kept as it is, the texture save writes, is deflated once. Each chain, level and file
- *    depends on its own inputs alone and the report takes the files in chain
- *    order, so neither the order groups finish in nor the thread count shows
- *    in the results. seconds_groups is that stage's wall time; seconds_erase
- *    and seconds_files the time in the erase kernel and in encoding, summed
- *    over the groups.
+ *    0 kept as it is, the texture save writes, is deflated once. Each
+ *    chain, level and file depends on its own inputs alone and the report
+ *    takes the files in chain order, so neither the order groups finish in
+ *    nor the thread count shows in the results. seconds_groups is that
+ *    stage's wall time; seconds_erase and seconds_files the time in the
+ *    erase kernel and in encoding, summed over the groups.
  *  - Metrics: [lod<k>.]level<m>.seam_energy and .max_seam_gap (the largest
  *    over the textures: sc_seam_energy on that LOD's mesh, of the level as
  *    stored and decoded as filtered: sRGB colour in linear light in linear
