@@ -28,14 +28,18 @@ end
 
 -- A new atlas when the input's cannot serve the chain (Purnomo et al. 2004):
 -- auto re-chartifies when its uv share texels (mirrored or overlapping
--- charts), are missing, or hold more charts than decimation can collapse;
--- always / never force it. The quad atlas is seam-free by construction and
--- its chart borders are straight, so the nodes below keep working on it.
+-- charts), are missing, hold more charts than decimation can collapse, or
+-- come within a texel of each other on the maps baked below (bake_size: one
+-- texel would hold two parts of the surface, so the maps' seams land off
+-- it); always / never force it. The quad atlas is seam-free by construction
+-- and its chart borders are straight, so the nodes below keep working on it.
 local ratios = param("ratios", {0.5, 0.1, 0.01})   -- --set ratios=0.5,0.1
 local min_ratio = 1
 for _, r in ipairs(ratios) do min_ratio = math.min(min_ratio, r) end
+local bake_size = param("bake_size", 1024)
 local chartified = quad_chartify{ name = "chartify", atlas = asset, mode = param("chartify", "auto"),
-                                  texture_size = param("chart_texture_size", 0), min_ratio = min_ratio }
+                                  texture_size = param("chart_texture_size", 0), min_ratio = min_ratio,
+                                  map_size = bake_size }
 asset = chartified.atlas
 
 -- Gradient-domain filtering (Prada et al. 2018), off by default: smooth=BETA
@@ -127,7 +131,7 @@ render{ name = "check", lods = chain, reference = shared,
 -- every map (§9), and the same crack check on every LOD at every mip level,
 -- with positions fetched from the maps and tessellated.
 local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
-                                 size = param("bake_size", 1024) }
+                                 size = bake_size }
 -- mip_min: the chains stop once the largest texture is at most mip_min^2
 -- (a smaller map's chain stops as many levels down). Geometry fetched from a
 -- level stays fold-free while the gutters between charts span 2 texels or

@@ -4,9 +4,12 @@
  *
  * mode "always" re-chartifies; "never" passes the atlas through; "auto"
  * re-chartifies when the input atlas cannot serve the chain as it is: its
- * uv share texels (overlapping or mirrored charts), it has no uv, or it is
+ * uv share texels (overlapping or mirrored charts), it has no uv, it is
  * fragmented into more charts than seam-aware decimation can keep
- * collapsing (`max_charts`). The node measures those on the input and
+ * collapsing (`max_charts`), or two of its charts lie within a texel of
+ * each other on the maps the chain bakes (`map_size`: a texel there would
+ * hold the surface of both, and the seams of the geometry and displacement
+ * maps land off the surface). The node measures those on the input and
  * reports them, so a run says why it chose.
  *
  * Outputs: `atlas` (level 0) and `levels`, one atlas per mip level whose uv
@@ -44,19 +47,42 @@ static int32_t count_charts(const sc_mesh *m, int32_t *parent) {
     return n;
 }
 
-/* Fraction of the covered texels that two or more faces cover (each
- * material on its largest texture's grid, sc_seam_coverage), and the number
- * of uv charts. */
-static int measure_input(const sc_atlas *a, int threads, double *shared_fraction, int32_t *charts, sc_error *err) {
+/* What auto decides on, measured on the input. */
+typedef struct input_measures {
+    double shared_fraction;   /* of the covered texels, those two or more faces cover */
+    int32_t charts;           /* uv charts */
+    int64_t tap_reached, tap_met;   /* on map_size^2 grids: texels a chart's taps reach, two charts' */
+} input_measures;
+
+/* The chart of every face: the root of its first uv index (parent from
+ * count_charts). */
+static int32_t *face_charts(const sc_mesh *m, int32_t *parent) {
+    int32_t *chart = malloc((size_t)(m->nf > 0 ? m->nf : 1) * sizeof *chart);
+    for (int32_t f = 0; chart && f < m->nf; f++) {
+        int32_t x = m->FU[3 * f];
+        while (parent[x] != x) x = parent[x];
+        chart[f] = x;
+    }
+    return chart;
+}
+
+/* Shared texels (each material on its largest texture's grid,
+ * sc_seam_coverage), charts, and with map_size > 0 the texels two charts'
+ * bilinear taps reach on a map_size^2 grid (sc_seam_taps_meet, the largest
+ * texture's wrap modes). */
+static int measure_input(const sc_atlas *a, int32_t map_size, int threads, input_measures *out, sc_error *err) {
     const sc_mesh *m = a->mesh->as.mesh;
-    *shared_fraction = 0, *charts = 0;
+    *out = (input_measures){0};
     if (m->nu <= 0) return SC_OK;
     int32_t *parent = malloc((size_t)m->nu * sizeof *parent);
     if (!parent) return sc_fail(err, SC_ENOMEM, "out of memory");
-    *charts = count_charts(m, parent);
+    out->charts = count_charts(m, parent);
+    int32_t *chart = map_size > 0 ? face_charts(m, parent) : NULL;
     free(parent);
+    if (map_size > 0 && !chart) return sc_fail(err, SC_ENOMEM, "out of memory");
     double covered = 0, shared = 0;
-    for (int32_t mat = 0; mat < m->nmat; mat++) {
+    int rc = SC_OK;
+    for (int32_t mat = 0; mat < m->nmat && rc == SC_OK; mat++) {
         sc_seam_grid g = {1024, 1024, SC_WRAP_REPEAT, SC_WRAP_REPEAT};
         int64_t best = 0;
         for (int32_t t = 0; t < a->ntex; t++) {
@@ -66,13 +92,20 @@ static int measure_input(const sc_atlas *a, int threads, double *shared_fraction
             g = (sc_seam_grid){im->width, im->height, a->textures[t].wrap_u, a->textures[t].wrap_v};
         }
         sc_seam_coverage c;
-        int rc = sc_seam_coverage_build(m, mat, &g, threads, &c, err);
-        if (rc) return rc;
+        rc = sc_seam_coverage_build(m, mat, &g, threads, &c, err);
+        if (rc) break;
         covered += (double)c.ncovered, shared += (double)c.nshared;
         sc_seam_coverage_free(&c);
+        if (map_size > 0) {
+            sc_seam_grid mg = {map_size, map_size, g.wrap_u, g.wrap_v};
+            int64_t reached, met;
+            rc = sc_seam_taps_meet(m, mat, &mg, chart, &reached, &met, err);
+            out->tap_reached += reached, out->tap_met += met;
+        }
     }
-    *shared_fraction = covered > 0 ? shared / covered : 0;
-    return SC_OK;
+    free(chart);
+    out->shared_fraction = covered > 0 ? shared / covered : 0;
+    return rc;
 }
 
 static int pass_through(sc_ctx *ctx, const sc_value *in) {
@@ -129,17 +162,23 @@ static int run(sc_ctx *ctx, sc_error *err) {
         const sc_image_data *im = a->textures[t].image->as.image;
         if ((int64_t)im->width * im->height > (int64_t)tex_w * tex_h) tex_w = im->width, tex_h = im->height;
     }
-    double shared = 0;
-    int32_t charts = 0;
+    input_measures in_m = {0};
+    int32_t map_size = (int32_t)sc_ctx_integer(ctx, "map_size");
     if (strcmp(mode, "auto") == 0 || strcmp(mode, "always") == 0) {
-        int rc = measure_input(a, sc_ctx_threads(ctx), &shared, &charts, err);
+        int rc = measure_input(a, map_size, sc_ctx_threads(ctx), &in_m, err);
         if (rc) return rc;
     }
     int32_t max_charts = (int32_t)sc_ctx_integer(ctx, "max_charts");
     bool chartify = strcmp(mode, "always") == 0 ||
-                    (strcmp(mode, "auto") == 0 && (m->nu <= 0 || shared > 0.001 || charts > max_charts));
-    sc_ctx_metric(ctx, "input_shared_texel_fraction", shared);
-    sc_ctx_metric(ctx, "input_charts", charts);
+                    (strcmp(mode, "auto") == 0 && (m->nu <= 0 || in_m.shared_fraction > 0.001 ||
+                                                   in_m.charts > max_charts || in_m.tap_met > 0));
+    sc_ctx_metric(ctx, "input_shared_texel_fraction", in_m.shared_fraction);
+    sc_ctx_metric(ctx, "input_charts", in_m.charts);
+    if (map_size > 0) {
+        sc_ctx_metric(ctx, "input_tap_met_texels", (double)in_m.tap_met);
+        sc_ctx_metric(ctx, "input_tap_met_fraction",
+                      in_m.tap_reached > 0 ? (double)in_m.tap_met / (double)in_m.tap_reached : 0);
+    }
     sc_ctx_metric(ctx, "chartified", chartify);
     if (!chartify) return pass_through(ctx, in) ? sc_fail(err, SC_ENOMEM, "out of memory") : SC_OK;
 
@@ -188,9 +227,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
 static const sc_param_desc params[] = {
     {.name = "mode", .type = SC_PARAM_ENUM, .def_string = "always", .choices = mode_choices,
      .doc = "always: re-chartify; never: pass the atlas through; auto: re-chartify when the uv share texels, are "
-            "missing, or hold more than max_charts charts"},
+            "missing, hold more than max_charts charts, or come within a texel of each other at map_size"},
     {.name = "max_charts", .type = SC_PARAM_INTEGER, .def = 256, .min = 1, .max = 1e9,
      .doc = "auto: more uv charts than this re-chartify (decimation stalls on many non-collinear seams)"},
+    {.name = "map_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
+     .doc = "auto: re-chartify when two uv charts' bilinear taps reach one texel of a map_size^2 map (the "
+            "size the chain bakes its geometry and displacement maps at); 0: not measured"},
     {.name = "texture_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
      .doc = "the larger side of level 0 in texels; 0: the input's largest texture (1024 without one)"},
     {.name = "chart_texels", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 16385,
@@ -226,7 +268,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_quad, &sc_kernel_seam, NUL
 
 const sc_node_desc sc_node_quad_chartify = {
     .type = "quad_chartify",
-    .version = 1,
+    .version = 2,
     .summary = "a seamless quad-chart atlas, seam-free at every mip level (Purnomo et al. 2004)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -382,6 +382,66 @@ void sc_seam_coverage_free(sc_seam_coverage *c) {
     c->ncovered = c->nshared = 0;
 }
 
+/* ---------------------------------------------------------------- taps */
+
+int sc_seam_taps_meet(const sc_mesh *m, int32_t material, const sc_seam_grid *g, const int32_t *chart,
+                      int64_t *reached, int64_t *met, sc_error *err) {
+    *reached = 0, *met = 0;
+    const int32_t W = g->width, H = g->height;
+    int32_t *owner = sc_alloc_array((size_t)W * (size_t)H, sizeof *owner);   /* first chart, or -1 */
+    uint8_t *twice = sc_calloc_array((size_t)W * (size_t)H, 1);
+    if (!owner || !twice) {
+        free(owner), free(twice);
+        return sc_fail(err, SC_ENOMEM, "out of memory for a %dx%d tap mask", (int)W, (int)H);
+    }
+    for (size_t i = 0; i < (size_t)W * (size_t)H; i++) owner[i] = -1;
+    for (int32_t f = 0; f < m->nf; f++) {
+        if (material >= 0 && m->FM[f] != material) continue;
+        double P[3][2];   /* texel space: texel (i, j) has its centre at (i, j) */
+        for (int k = 0; k < 3; k++) {
+            const double *uv = &m->U[2 * m->FU[3 * f + k]];
+            P[k][0] = uv[0] * W - 0.5;
+            P[k][1] = uv[1] * H - 0.5;
+        }
+        double area = sc_orient2(P[0], P[1], P[2]);
+        if (!(area != 0)) continue;
+        const double *A = P[0], *B = area > 0 ? P[1] : P[2], *C = area > 0 ? P[2] : P[1];
+        double xmin = fmin(A[0], fmin(B[0], C[0])), xmax = fmax(A[0], fmax(B[0], C[0]));
+        double ymin = fmin(A[1], fmin(B[1], C[1])), ymax = fmax(A[1], fmax(B[1], C[1]));
+        if (!isfinite(xmin) || !isfinite(xmax) || !isfinite(ymin) || !isfinite(ymax)) continue;
+        if (xmax - xmin > 64.0 * W || ymax - ymin > 64.0 * H) {
+            free(owner), free(twice);
+            return sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 textures", (int)f);
+        }
+        const double *E[3][2] = {{A, B}, {B, C}, {C, A}};
+        /* the integers within one of the triangle's range, in x and in y
+         * (a separating axis of the square and the triangle: none there) */
+        for (double y = floor(ymin); y <= ceil(ymax); y++)
+            for (double x = floor(xmin); x <= ceil(xmax); x++) {
+                /* the open square of half-side 1 around (x, y) meets the
+                 * triangle unless one edge has the whole square outside */
+                bool in = true;
+                for (int e = 0; e < 3 && in; e++) {
+                    const double *a = E[e][0], *b = E[e][1];
+                    double dx = b[0] - a[0], dy = b[1] - a[1];
+                    in = dx * (y - a[1]) - dy * (x - a[0]) + fabs(dx) + fabs(dy) > 0;
+                }
+                if (!in) continue;
+                size_t id = (size_t)sc_seam_wrap((int64_t)y, H, g->wrap_v) * (size_t)W +
+                            (size_t)sc_seam_wrap((int64_t)x, W, g->wrap_u);
+                if (owner[id] < 0) {
+                    owner[id] = chart[f];
+                    (*reached)++;
+                } else if (owner[id] != chart[f] && !twice[id]) {
+                    twice[id] = 1;
+                    (*met)++;
+                }
+            }
+    }
+    free(owner), free(twice);
+    return SC_OK;
+}
+
 /* ---------------------------------------------------------------- pieces */
 
 static bool grow_gammas(double **buf, int32_t *cap, int64_t need) {

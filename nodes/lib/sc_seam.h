@@ -173,6 +173,17 @@ int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_gri
                            sc_seam_coverage *out, sc_error *err);
 void sc_seam_coverage_free(sc_seam_coverage *c);
 
+/* Where two uv charts reach the same texel through their bilinear taps: a
+ * texel is reached by a face when a point of its uv triangle lies less than
+ * one texel from the texel's centre in u and in v (the point's four taps
+ * include it), taken through the wrap modes; chart[f] names face f's chart.
+ * Such a texel would have to hold the surface of both charts, so a map of
+ * this grid cannot be right there for either. Faces of zero uv area reach
+ * nothing (a rasteriser draws none of their points). *reached: texels some
+ * chart reaches; *met: texels two or more charts reach. */
+int sc_seam_taps_meet(const sc_mesh *m, int32_t material, const sc_seam_grid *g, const int32_t *chart,
+                      int64_t *reached, int64_t *met, sc_error *err);
+
 /* ---------------------------------------------------------------- pieces */
 
 /* The splitting of eq. 5: the sorted parameters gamma in [0, 1] (0 and 1

@@ -936,6 +936,119 @@ SC_TEST(coverage_partitions_texels) {
     sc_mesh_free(m);
 }
 
+/* Two rectangular charts (two triangles each) in texel space, where texel
+ * i has its centre at x = i. */
+static sc_mesh *two_rectangles(const double r[2][4], int W, int H) {
+    sc_mesh *m = sc_mesh_alloc(8, 8, 0, 4, 1);
+    for (int c = 0; c < 2; c++) {
+        const double x[4] = {r[c][0], r[c][2], r[c][2], r[c][0]}, y[4] = {r[c][1], r[c][1], r[c][3], r[c][3]};
+        for (int k = 0; k < 4; k++) {
+            m->V[3 * (4 * c + k)] = x[k], m->V[3 * (4 * c + k) + 1] = y[k];
+            uv_of(x[k], y[k], W, H, &m->U[2 * (4 * c + k)]);
+        }
+        const int32_t F[6] = {4 * c, 4 * c + 1, 4 * c + 2, 4 * c, 4 * c + 2, 4 * c + 3};
+        memcpy(m->FV + 6 * c, F, sizeof F);
+        memcpy(m->FU + 6 * c, F, sizeof F);
+    }
+    m->materials[0] = sc_strdup("m");
+    return m;
+}
+
+/* Texels both rectangles reach, counted from the rectangles themselves: a
+ * rectangle reaches texel i in x when x0 < i + 1 and x1 > i - 1 (and so in
+ * y), through the wrap modes. */
+static int64_t rectangles_meet(const double r[2][4], const sc_seam_grid *g) {
+    uint8_t *mark = calloc((size_t)g->width * (size_t)g->height, 1);
+    int64_t met = 0;
+    for (int c = 0; c < 2; c++)
+        for (int64_t j = (int64_t)floor(r[c][1]) - 1; j <= (int64_t)ceil(r[c][3]) + 1; j++)
+            for (int64_t i = (int64_t)floor(r[c][0]) - 1; i <= (int64_t)ceil(r[c][2]) + 1; i++) {
+                if (!(r[c][0] < i + 1 && r[c][2] > i - 1 && r[c][1] < j + 1 && r[c][3] > j - 1)) continue;
+                size_t id = (size_t)sc_seam_wrap(j, g->height, g->wrap_v) * (size_t)g->width +
+                            (size_t)sc_seam_wrap(i, g->width, g->wrap_u);
+                if (mark[id] & (1 << c)) continue;
+                mark[id] |= (uint8_t)(1 << c);
+                met += mark[id] == 3;
+            }
+    free(mark);
+    return met;
+}
+
+SC_TEST(two_charts_meet_where_their_taps_reach_one_texel) {
+    const int32_t chart[4] = {0, 0, 1, 1};
+    sc_error err = {0};
+    sc_seam_grid g = {16, 16, SC_WRAP_CLAMP, SC_WRAP_CLAMP};
+    int64_t reached, met;
+    /* two texels apart: texel 6 is exactly one texel from each, a tap of weight 0 */
+    const double apart[2][4] = {{2, 2, 5, 6}, {7, 2, 10, 6}};
+    sc_mesh *m = two_rectangles(apart, 16, 16);
+    SC_CHECK_INT(sc_seam_taps_meet(m, 0, &g, chart, &reached, &met, &err), SC_OK);
+    SC_CHECK_INT(met, 0);
+    SC_CHECK_INT(reached, 2 * 4 * 5);   /* columns 2..5 and 7..10, rows 2..6 */
+    sc_mesh_free(m);
+    /* closer by 0.02: texel 6 is within reach of both, on rows 2..6 */
+    const double close[2][4] = {{2, 2, 5.01, 6}, {6.99, 2, 10, 6}};
+    m = two_rectangles(close, 16, 16);
+    SC_CHECK_INT(sc_seam_taps_meet(m, 0, &g, chart, &reached, &met, &err), SC_OK);
+    SC_CHECK_INT(met, 5);
+    SC_CHECK_INT(met, rectangles_meet(close, &g));
+    /* one chart: nothing meets */
+    const int32_t one[4] = {0, 0, 0, 0};
+    SC_CHECK_INT(sc_seam_taps_meet(m, 0, &g, one, &reached, &met, &err), SC_OK);
+    SC_CHECK_INT(met, 0);
+    sc_mesh_free(m);
+    /* across the texture's border: they meet through repeat, not through clamp */
+    const double border[2][4] = {{0.5, 4, 3, 8}, {12, 4, 15.2, 8}};
+    m = two_rectangles(border, 16, 16);
+    SC_CHECK_INT(sc_seam_taps_meet(m, 0, &g, chart, &reached, &met, &err), SC_OK);
+    SC_CHECK_INT(met, 0);
+    g.wrap_u = SC_WRAP_REPEAT;
+    SC_CHECK_INT(sc_seam_taps_meet(m, 0, &g, chart, &reached, &met, &err), SC_OK);
+    SC_CHECK(met > 0);
+    SC_CHECK_INT(met, rectangles_meet(border, &g));
+    sc_mesh_free(m);
+    /* random rectangles and wrap modes against the count from the rectangles */
+    for (int k = 0; k < 300; k++) {
+        double r[2][4];
+        for (int c = 0; c < 2; c++) {
+            double x = -3 + 20 * rnd(), y = -3 + 20 * rnd();
+            r[c][0] = x, r[c][1] = y, r[c][2] = x + 0.2 + 5 * rnd(), r[c][3] = y + 0.2 + 5 * rnd();
+        }
+        sc_seam_grid gr = {16, 12, (sc_wrap)(k % 3), (sc_wrap)((k / 3) % 3)};
+        m = two_rectangles(r, 16, 12);
+        SC_CHECK_INT(sc_seam_taps_meet(m, 0, &gr, chart, &reached, &met, &err), SC_OK);
+        SC_CHECK_INT(met, rectangles_meet(r, &gr));
+        sc_mesh_free(m);
+    }
+    /* a slanted side: the triangle (a, b), (a + s, b), (a, b + s) reaches
+     * texel (i, j) when a - 1 < i < a + s + 1, b - 1 < j < b + s + 1 and
+     * (i - 1) + (j - 1) < a + b + s; beside it a rectangle, as above */
+    for (int k = 0; k < 300; k++) {
+        double a = 1 + 6 * rnd(), b = 1 + 6 * rnd(), sd = 1 + 4 * rnd();
+        if (k == 0) a = 0, b = 0, sd = 4;   /* texel (3, 3): its square's corner touches the side */
+        double r[2][4] = {{0}, {fmax(0.5, a + sd / 2 - 3 * rnd()), fmax(0.5, b + sd / 2 - 3 * rnd()), 0, 0}};
+        if (k == 0) r[1][0] = r[1][1] = 3.5;
+        r[1][2] = r[1][0] + 2.5, r[1][3] = r[1][1] + 2.5;
+        sc_mesh *t = two_rectangles(r, 16, 16);
+        const double tri[3][2] = {{a, b}, {a + sd, b}, {a, b + sd}};
+        for (int v = 0; v < 3; v++) uv_of(tri[v][0], tri[v][1], 16, 16, &t->U[2 * v]);
+        t->FU[0] = 0, t->FU[1] = 1, t->FU[2] = 2;
+        t->FU[3] = t->FU[4] = t->FU[5] = 0;   /* the rectangle's second slot of chart 0: no area */
+        sc_seam_grid gc = {16, 16, SC_WRAP_CLAMP, SC_WRAP_CLAMP};
+        SC_CHECK_INT(sc_seam_taps_meet(t, 0, &gc, chart, &reached, &met, &err), SC_OK);
+        int64_t expect = 0;
+        for (int j = 0; j < 16; j++)
+            for (int i = 0; i < 16; i++) {
+                bool by_tri = a - 1 < i && i < a + sd + 1 && b - 1 < j && j < b + sd + 1 && i + j - 2 < a + b + sd;
+                bool by_rect = r[1][0] < i + 1 && r[1][2] > i - 1 && r[1][1] < j + 1 && r[1][3] > j - 1;
+                expect += by_tri && by_rect;
+            }
+        if (k == 0) SC_CHECK_INT(expect, 0);   /* (3, 3) is the rectangle's, and touches the side only */
+        SC_CHECK_INT(met, expect);
+        sc_mesh_free(t);
+    }
+}
+
 SC_TEST(seam_finding_kinds) {
     sc_mesh *m = cube_mesh(0, false);
     sc_seam_set s;
