@@ -961,14 +961,17 @@ static sc_mesh *mesh_with_uv(const sc_mesh *in, const double *U) {
 
 /* Erase the re-rendered atlas: the float result (*out) and, in each input
  * texture's own pixel type and encoding, its optimal rounding (*native).
+ * The textures re-rendered here (made[i]) take their solutions in place.
  * The kernel's metrics go to ctx prefixed "erase." (seam energies, rounding
  * floors, tangent-space maps' normal gaps). */
-static int erase_atlas(sc_ctx *ctx, const sc_value *atlas, const sc_atlas *input, sc_erase_filter_space space,
-                       sc_erase_normal_space normals, int threads, sc_value **out, sc_value **native, sc_error *err) {
+static int erase_atlas(sc_ctx *ctx, const sc_value *atlas, const sc_atlas *input, const bool *made,
+                       sc_erase_filter_space space, sc_erase_normal_space normals, int threads, sc_value **out,
+                       sc_value **native, sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
     o.filter_space = space;
     o.normal_space = normals;
+    o.inputs_private = made;
     const sc_atlas *a = atlas->as.atlas;
     const sc_image_data **like = calloc(a->ntex ? (size_t)a->ntex : 1, sizeof *like);
     if (!like) return sc_fail(err, SC_ENOMEM, "straighten: out of memory");
@@ -1284,12 +1287,18 @@ static int run(sc_ctx *ctx, sc_error *err) {
         t_render = sc_now() - t_render;
         if (rc == SC_OK) rc = assemble_atlas(&J, &warped, err);
         double t_erase = sc_now();
-        if (rc == SC_OK) {
-            if (erase)
-                rc = erase_atlas(ctx, warped, atlas, sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
-                                 sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space")), threads, &result,
-                                 &native, err);
-            else result = sc_value_retain(warped), native = sc_value_retain(warped);
+        if (rc == SC_OK && erase) {
+            /* the re-rendered images are this run's and nothing reads them after the erasure */
+            bool *made = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *made);
+            for (int32_t i = 0; made && i < atlas->ntex; i++) made[i] = J.images[i] != NULL;
+            rc = made ? erase_atlas(ctx, warped, atlas, made,
+                                    sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
+                                    sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space")), threads, &result,
+                                    &native, err)
+                      : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+            free(made);
+        } else if (rc == SC_OK) {
+            result = sc_value_retain(warped), native = sc_value_retain(warped);
         }
         t_erase = sc_now() - t_erase;
         if (rc == SC_OK) rc = appearance_step(&J, result->as.atlas, err);

@@ -197,6 +197,7 @@ typedef struct options {
     int64_t schur_from;       /* solver auto: the edge-cluster solver from this many unknowns */
     int32_t pcg_iterations;   /* the most conjugate-gradient iterations */
     const char *textures;     /* slots to erase, or "all" */
+    const bool *inputs_private;   /* per texture, or NULL (sc_erase_options) */
     int threads;
 } options;
 
@@ -211,6 +212,7 @@ typedef enum tex_fate {
 typedef struct tex_state {
     tex_fate fate;
     int32_t same_as;      /* an earlier texture with the same image value, or -1 */
+    bool writable;        /* its float image is this call's alone: the solution is written into it */
     sc_value *f32, *native;
     double energy_before, gap_before;
     char prefix[160];
@@ -1346,14 +1348,18 @@ typedef struct texture_out {
     double max_in, sum_in, max_out;   /* the changes: inside the charts (largest, sum), outside */
     double e0, e1, g0, g1;        /* seam energy and largest gap, before and after */
     double eq_naive, eq_opt, gq;  /* after rounding to the input's pixel type; NaN when not measured */
+    double tangent_suspect;       /* a normal slot: the input looks tangent-space (1) or not (0) */
 } texture_out;
 
 /* Write the solution: the input as floats plus its columns of changes,
- * with the largest and summed changes. */
+ * with the largest and summed changes. A writable input (a float image made
+ * for this call and read by nothing after it) takes the changes itself and
+ * is the result; any other is copied first. */
 static int write_solution(group_run *r, texture_out *t, int32_t col, sc_error *err) {
     const group_work *w = &r->w;
     const int32_t C = t->img->channels, n = r->n;
-    sc_image_data *out = sc_image_to_f32_threads(t->img, r->o->threads);
+    bool in_place = r->st[t->ti].writable && t->img->pixel == SC_PIXEL_F32;
+    sc_image_data *out = in_place ? (sc_image_data *)t->img : sc_image_to_f32_threads(t->img, r->o->threads);
     if (!out) return sc_fail(err, SC_ENOMEM, "out of memory");
     float *px = out->pixels;
     bool finite = true;
@@ -1376,10 +1382,10 @@ static int write_solution(group_run *r, texture_out *t, int32_t col, sc_error *e
         }
     }
     if (!finite) {
-        sc_image_free(out);
+        if (!in_place) sc_image_free(out);
         return sc_fail(err, SC_EINPUT, "texture %s: the solve gave non-finite texels", t->tx->name);
     }
-    sc_value *fv = sc_value_new_image(out);
+    sc_value *fv = in_place ? sc_value_retain(t->tx->image) : sc_value_new_image(out);
     if (!fv) return sc_fail(err, SC_ENOMEM, "out of memory");
     r->st[t->ti].f32 = fv;
     t->fv = fv, t->px = px;
@@ -1516,7 +1522,7 @@ static void texture_metrics(const group_run *r, const texture_out *t) {
     metric(ml, pre, "mean_change_interior", r->n_inside ? t->sum_in / ((double)r->n_inside * img->channels) : 0);
     metric(ml, pre, "max_change_outside", t->max_out);
     if (!isnan(r->nullity)) metric(ml, pre, "nullity", r->nullity);
-    if (is_normal_slot(t->tx->name)) metric(ml, pre, "tangent_space_suspect", looks_tangent_space(img) ? 1 : 0);
+    if (is_normal_slot(t->tx->name)) metric(ml, pre, "tangent_space_suspect", t->tangent_suspect);
     if (r->several) {
         metric(ml, pre, "seconds_build", r->t1 - r->t0);
         metric(ml, pre, "seconds_factor", r->t2 - r->t1);
@@ -1539,6 +1545,7 @@ static int finish_texture(group_run *r, int32_t k, int32_t col, sc_error *err) {
     t.store = r->stored[ti] ? r->stored[ti] : t.img;
     t.like = r->o->native_like && r->o->native_like[ti] == t.store;
     t.decode = t.img->colorspace == SC_COLOR_LINEAR && t.store->colorspace == SC_COLOR_SRGB;
+    if (is_normal_slot(tx->name)) t.tangent_suspect = looks_tangent_space(t.img) ? 1 : 0;   /* before it changes */
     int rc = write_solution(r, &t, col, err);
     if (rc) return rc;
     t.e0 = r->st[ti].energy_before, t.g0 = r->st[ti].gap_before;
@@ -1890,6 +1897,8 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         sc_erase_options so = *eo;
         so.normal_space = SC_ERASE_NORMALS_OBJECT, so.quantize = SC_ERASE_QUANTIZE_NONE, so.gap_tolerance = 0;
         so.native_like = NULL, so.textures = "all";
+        const bool made_here = true;   /* obj, read no more once erased */
+        so.inputs_private = &made_here;
         sc_texture st = *t;
         st.image = objv;
         if (rc == SC_OK) rc = sc_erase(m, &st, 1, &so, threads, &sub, err);
@@ -1990,6 +1999,7 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
         .solver = eo->solver,
         .schur_from = eo->schur_from,
         .pcg_iterations = eo->pcg_iterations,
+        .inputs_private = eo->inputs_private,
         .threads = threads,
     };
     const char *list = o.textures;
@@ -2020,6 +2030,14 @@ int sc_erase(const sc_mesh *m, const sc_texture *textures, int32_t ntex, const s
         if (like && like->pixel != SC_PIXEL_F32 && like->width == img->width && like->height == img->height &&
             like->channels == img->channels)
             stored[i] = like;
+    }
+    /* a float image only one slot holds, made here (a linear copy) or by the
+     * caller for this call, takes its solution in place */
+    for (int32_t i = 0; i < ntex; i++) {
+        bool alone = true;
+        for (int32_t k = 0; k < ntex && alone; k++) alone = k == i || textures[k].image != textures[i].image;
+        st[i].writable = alone && (copies[i] != NULL || (o.inputs_private && o.inputs_private[i])) &&
+                         textures[i].image->as.image->pixel == SC_PIXEL_F32;
     }
     int32_t nselected = 0;
     for (int32_t i = 0; i < ntex; i++) nselected += slot_selected(list, textures[i].name);

@@ -103,6 +103,11 @@ typedef struct sc_erase_options {
     sc_erase_solver solver;
     int64_t schur_from;              /* solver auto: schur from this many unknowns */
     int32_t pcg_iterations;          /* the most conjugate-gradient iterations of each schur round */
+    /* per texture (or NULL): true where its float image is one the caller
+     * made for this call and reads no more (its value never hashed, nor held
+     * by anything else): erased, it takes its solution in place and is its
+     * f32 result, with no copy; borrowed */
+    const bool *inputs_private;
 } sc_erase_options;
 
 /* The paper's weights (preset local), every texture, optimal rounding, solver auto. */
