@@ -135,12 +135,9 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- mip_min: the chains stop once the largest texture is at most mip_min^2
 -- (a smaller map's chain stops as many levels down). Geometry fetched from a
 -- level stays fold-free while the gutters between charts span 2 texels or
--- more there: the procedural asset pads its charts for 16^2; the corpus
--- folds sooner. First crack pixels of the 1024^2 maps, measured: blub at
--- 128^2 (the whole job passes with mip_min=512: its colour is 2048^2, so the
--- maps stop at 256^2), Avocado at 256^2, spot and Lantern at 512^2,
--- WaterBottle and BoomBox at 1024^2 already (thin parts and charts that all
--- but touch), MuruCat re-chartified (chartify=auto) at 512^2.
+-- more there: the procedural asset pads its charts for 16^2; the corpus's
+-- maps fold sooner, which the map check reports (fold_pixels) and does not
+-- fail on unless max_map_fold_pixels is set.
 -- erase_min_size: mip levels with both sides below it are averaged, not
 -- erased (an atlas of thousands of charts, pizza's, cannot be erased once its
 -- charts fall under a texel: --set erase_min_size=2048 there). Levels left
