@@ -1358,7 +1358,7 @@ typedef struct texture_out {
 static int write_solution(group_run *r, texture_out *t, int32_t col, sc_error *err) {
     const group_work *w = &r->w;
     const int32_t C = t->img->channels, n = r->n;
-    bool in_place = r->st[t->ti].writable && t->img->pixel == SC_PIXEL_F32;
+    bool in_place = r->st[t->ti].writable;   /* a float image (sc_erase) */
     sc_image_data *out = in_place ? (sc_image_data *)t->img : sc_image_to_f32_threads(t->img, r->o->threads);
     if (!out) return sc_fail(err, SC_ENOMEM, "out of memory");
     float *px = out->pixels;

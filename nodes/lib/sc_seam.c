@@ -275,6 +275,26 @@ static void cover_span(sc_seam_coverage *c, const sc_seam_grid *g, int64_t x0, i
     cover_flush(c, &cw);
 }
 
+/* Face f's uv triangle in texel space (texel (i, j) centred at (i, j)):
+ * its corners counter-clockwise in T (when it has an area) and its box
+ * (xmin, xmax, ymin, ymax); returns its signed area in uv order (0, or NaN
+ * for a non-finite uv). */
+static double texel_triangle(const sc_mesh *m, int32_t f, const sc_seam_grid *g, double T[3][2], double box[4]) {
+    double P[3][2];
+    for (int k = 0; k < 3; k++) {
+        const double *uv = &m->U[2 * m->FU[3 * f + k]];
+        P[k][0] = uv[0] * g->width - 0.5;
+        P[k][1] = uv[1] * g->height - 0.5;
+    }
+    double area = sc_orient2(P[0], P[1], P[2]);
+    memcpy(T[0], P[0], sizeof T[0]);
+    memcpy(T[1], area > 0 ? P[1] : P[2], sizeof T[1]);
+    memcpy(T[2], area > 0 ? P[2] : P[1], sizeof T[2]);
+    box[0] = fmin(T[0][0], fmin(T[1][0], T[2][0])), box[1] = fmax(T[0][0], fmax(T[1][0], T[2][0]));
+    box[2] = fmin(T[0][1], fmin(T[1][1], T[2][1])), box[3] = fmax(T[0][1], fmax(T[1][1], T[2][1]));
+    return area;
+}
+
 #define COVER_FACES_PER_CHUNK 4096
 
 typedef struct cover_job {
@@ -295,17 +315,10 @@ static int cover_chunk(void *ud, int32_t chunk) {
     job->bad[2 * chunk] = -1;
     for (int32_t f = f0; f < f1; f++) {
         if (job->material >= 0 && m->FM[f] != job->material) continue;
-        double P[3][2];
-        for (int k = 0; k < 3; k++) {
-            const double *uv = &m->U[2 * m->FU[3 * f + k]];
-            P[k][0] = uv[0] * W - 0.5;
-            P[k][1] = uv[1] * H - 0.5;
-        }
-        double area = sc_orient2(P[0], P[1], P[2]);
-        if (!(area != 0)) continue; /* zero uv area (or NaN): covers nothing */
-        const double *A = P[0], *B = area > 0 ? P[1] : P[2], *C = area > 0 ? P[2] : P[1];
-        double xmin = fmin(A[0], fmin(B[0], C[0])), xmax = fmax(A[0], fmax(B[0], C[0]));
-        double ymin = fmin(A[1], fmin(B[1], C[1])), ymax = fmax(A[1], fmax(B[1], C[1]));
+        double T[3][2], box[4];
+        if (!(texel_triangle(m, f, g, T, box) != 0)) continue; /* zero uv area: covers nothing */
+        const double *A = T[0], *B = T[1], *C = T[2];
+        double xmin = box[0], xmax = box[1], ymin = box[2], ymax = box[3];
         bool wide_u = g->wrap_u != SC_WRAP_CLAMP && xmax - xmin > 64.0 * W;
         if (wide_u || (g->wrap_v != SC_WRAP_CLAMP && ymax - ymin > 64.0 * H)) {
             job->bad[2 * chunk] = f, job->bad[2 * chunk + 1] = wide_u ? 1 : 2;
@@ -388,32 +401,21 @@ int sc_seam_taps_meet(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
                       int64_t *reached, int64_t *met, sc_error *err) {
     *reached = 0, *met = 0;
     const int32_t W = g->width, H = g->height;
-    int32_t *owner = sc_alloc_array((size_t)W * (size_t)H, sizeof *owner);   /* first chart, or -1 */
-    uint8_t *twice = sc_calloc_array((size_t)W * (size_t)H, 1);
-    if (!owner || !twice) {
-        free(owner), free(twice);
-        return sc_fail(err, SC_ENOMEM, "out of memory for a %dx%d tap mask", (int)W, (int)H);
-    }
+    /* per texel: the first chart that reaches it, -1 none yet, -2 met by two */
+    int32_t *owner = sc_alloc_array((size_t)W * (size_t)H, sizeof *owner);
+    if (!owner) return sc_fail(err, SC_ENOMEM, "out of memory for a %dx%d tap mask", (int)W, (int)H);
     for (size_t i = 0; i < (size_t)W * (size_t)H; i++) owner[i] = -1;
     for (int32_t f = 0; f < m->nf; f++) {
         if (material >= 0 && m->FM[f] != material) continue;
-        double P[3][2];   /* texel space: texel (i, j) has its centre at (i, j) */
-        for (int k = 0; k < 3; k++) {
-            const double *uv = &m->U[2 * m->FU[3 * f + k]];
-            P[k][0] = uv[0] * W - 0.5;
-            P[k][1] = uv[1] * H - 0.5;
-        }
-        double area = sc_orient2(P[0], P[1], P[2]);
-        if (!(area != 0)) continue;
-        const double *A = P[0], *B = area > 0 ? P[1] : P[2], *C = area > 0 ? P[2] : P[1];
-        double xmin = fmin(A[0], fmin(B[0], C[0])), xmax = fmax(A[0], fmax(B[0], C[0]));
-        double ymin = fmin(A[1], fmin(B[1], C[1])), ymax = fmax(A[1], fmax(B[1], C[1]));
+        double T[3][2], box[4];
+        if (!(texel_triangle(m, f, g, T, box) != 0)) continue;
+        double xmin = box[0], xmax = box[1], ymin = box[2], ymax = box[3];
         if (!isfinite(xmin) || !isfinite(xmax) || !isfinite(ymin) || !isfinite(ymax)) continue;
         if (xmax - xmin > 64.0 * W || ymax - ymin > 64.0 * H) {
-            free(owner), free(twice);
+            free(owner);
             return sc_fail(err, SC_EINPUT, "face %d: uv triangle spans more than 64 textures", (int)f);
         }
-        const double *E[3][2] = {{A, B}, {B, C}, {C, A}};
+        const double *E[3][2] = {{T[0], T[1]}, {T[1], T[2]}, {T[2], T[0]}};
         /* the integers within one of the triangle's range, in x and in y
          * (a separating axis of the square and the triangle: none there) */
         for (double y = floor(ymin); y <= ceil(ymax); y++)
@@ -429,16 +431,16 @@ int sc_seam_taps_meet(const sc_mesh *m, int32_t material, const sc_seam_grid *g,
                 if (!in) continue;
                 size_t id = (size_t)sc_seam_wrap((int64_t)y, H, g->wrap_v) * (size_t)W +
                             (size_t)sc_seam_wrap((int64_t)x, W, g->wrap_u);
-                if (owner[id] < 0) {
+                if (owner[id] == -1) {
                     owner[id] = chart[f];
                     (*reached)++;
-                } else if (owner[id] != chart[f] && !twice[id]) {
-                    twice[id] = 1;
+                } else if (owner[id] >= 0 && owner[id] != chart[f]) {
+                    owner[id] = -2;
                     (*met)++;
                 }
             }
     }
-    free(owner), free(twice);
+    free(owner);
     return SC_OK;
 }
 

@@ -179,8 +179,9 @@ void sc_seam_coverage_free(sc_seam_coverage *c);
  * include it), taken through the wrap modes; chart[f] names face f's chart.
  * Such a texel would have to hold the surface of both charts, so a map of
  * this grid cannot be right there for either. Faces of zero uv area reach
- * nothing (a rasteriser draws none of their points). *reached: texels some
- * chart reaches; *met: texels two or more charts reach. */
+ * nothing (a rasteriser draws none of their points). Chart ids are >= 0.
+ * *reached: texels some chart reaches; *met: texels two or more charts
+ * reach. */
 int sc_seam_taps_meet(const sc_mesh *m, int32_t material, const sc_seam_grid *g, const int32_t *chart,
                       int64_t *reached, int64_t *met, sc_error *err);
 
