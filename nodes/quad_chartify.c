@@ -184,8 +184,13 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     sc_quad_options o;
     sc_quad_defaults(&o);
-    int32_t ts = (int32_t)sc_ctx_integer(ctx, "texture_size");
-    o.texture_size = ts > 0 ? ts : (tex_w > tex_h ? tex_w : tex_h) > 0 ? (tex_w > tex_h ? tex_w : tex_h) : 1024;
+    o.texture_size = (int32_t)sc_ctx_integer(ctx, "texture_size");
+    if (o.texture_size == 0) {   /* map_size when the texture is no larger */
+        int32_t side = tex_w > tex_h ? tex_w : tex_h;
+        o.texture_size = map_size > 0 && side <= map_size ? map_size : side > 0 ? side : 1024;
+    }
+    /* the maps the chain bakes hold the chart borders on their texel centres */
+    o.whole_texture = o.texture_size == map_size;
     o.chart_texels = (int32_t)sc_ctx_integer(ctx, "chart_texels");
     o.target_patches = (int32_t)sc_ctx_integer(ctx, "target_patches");
     o.target_quads = (int32_t)sc_ctx_integer(ctx, "target_quads");
@@ -234,7 +239,8 @@ static const sc_param_desc params[] = {
      .doc = "auto: re-chartify when two uv charts' bilinear taps reach one texel of a map_size^2 map (the "
             "size the chain bakes its geometry and displacement maps at); 0: not measured"},
     {.name = "texture_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
-     .doc = "the larger side of level 0 in texels; 0: the input's largest texture (1024 without one)"},
+     .doc = "the side of level 0 in texels; 0: the input's largest texture side, or map_size when that is larger "
+            "(1024 without either); at map_size the uv put chart borders on the maps' texel centres"},
     {.name = "chart_texels", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 16385,
      .doc = "samples per side of every chart, 2^k + 1; 0: by surface area, one texel density for the atlas"},
     {.name = "target_patches", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 1e9,
@@ -268,7 +274,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_quad, &sc_kernel_seam, NUL
 
 const sc_node_desc sc_node_quad_chartify = {
     .type = "quad_chartify",
-    .version = 2,
+    .version = 3,
     .summary = "a seamless quad-chart atlas, seam-free at every mip level (Purnomo et al. 2004)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

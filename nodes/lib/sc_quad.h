@@ -27,9 +27,13 @@
  *   levels    (§4.5) interior samples filter with a 3x3 binomial, border
  *             rows with the 1-D binomial along the border (computed once,
  *             copied), corners keep their value: still seam-free.
- *   layout    "blocks": each chart in a cell of 2^k + 2^Lmax texels, cells
- *             aligned to 2^Lmax (shelf packing), so no two charts share a
- *             texel at any level down to the last. One texel density for
+ *   layout    "blocks": each chart in a cell of 2^k + 2^G texels, cells
+ *             aligned to 2^G (shelf packing), G = max(Lmax, 2), so no two
+ *             charts share a texel at any level down to the last, and at
+ *             level 0 each chart's border samples have a texel of their
+ *             own beyond them (float32 uv give it a small weight). With
+ *             whole_texture, uv are in units of texture_size, so maps of
+ *             that size hold the border samples on texel centres. One texel density for
  *             the whole atlas: a chart's k follows the mean chart area of
  *             its connected part (charts that share a side have one size,
  *             so their border samples copy bit for bit), and the density
@@ -50,7 +54,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_quad is re-keyed. */
-#define SC_QUAD_VERSION 4
+#define SC_QUAD_VERSION 5
 extern const sc_kernel sc_kernel_quad;
 
 typedef struct sc_quad_options {
@@ -61,6 +65,8 @@ typedef struct sc_quad_options {
     int32_t min_size;        /* levels down to this larger side; 0: until charts hold 9 samples a side */
     int32_t supersample;     /* S x S points averaged per texel */
     int32_t psnr_samples;    /* surface points for the PSNR metric (0: none) */
+    bool whole_texture;      /* uv in units of texture_size (maps of that size hold the border samples
+                              * on their texel centres); else of the packed charts' extent */
 } sc_quad_options;
 
 void sc_quad_defaults(sc_quad_options *o);

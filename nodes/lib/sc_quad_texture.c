@@ -101,7 +101,7 @@ typedef struct slot {
 typedef struct job {
     const sc_mesh *in;
     qcharts *c;
-    int32_t lmax, W, H, nlevels, S;
+    int32_t lmax, gshift, W, H, nlevels, S;   /* cells: 2^k + 2^gshift texels */
     int32_t *kq;           /* per chart: 2^kq + 1 samples a side at level 0 */
     int32_t nslots;
     slot *slots;
@@ -397,7 +397,7 @@ static void fill_gutters(job *J, int32_t L) {
     for (int32_t s = 0; s < J->nslots; s++)
         for (int32_t q = 0; q < J->c->nquads; q++) {
             int32_t x0 = J->chart_x[q] >> L, y0 = J->chart_y[q] >> L, n = chart_n(J, q, L);
-            int32_t g = ((1 << J->kq[q]) >> L) + ((1 << J->lmax) >> L) - n;
+            int32_t g = ((1 << J->kq[q]) >> L) + ((1 << J->gshift) >> L) - n;
             for (int32_t j = 0; j < n + g && y0 + j < H; j++)
                 for (int32_t i = 0; i < n + g && x0 + i < W; i++) {
                     if (i < n && j < n) continue;
@@ -410,9 +410,9 @@ static void fill_gutters(job *J, int32_t L) {
 
 /* ---------------------------------------------------------------- layout */
 
-/* Cells of 2^k + 2^lmax texels, in rows of `cols` within texture_size. */
-static bool layout_fits(int32_t k, int32_t lmax, int32_t T, int32_t Q, int32_t *cols, int32_t *rows) {
-    int64_t cell = ((int64_t)1 << k) + ((int64_t)1 << lmax);
+/* Cells of 2^k + 2^gshift texels, in rows of `cols` within texture_size. */
+static bool layout_fits(int32_t k, int32_t gshift, int32_t T, int32_t Q, int32_t *cols, int32_t *rows) {
+    int64_t cell = ((int64_t)1 << k) + ((int64_t)1 << gshift);
     if (cell > T) return false;
     *cols = (int32_t)(T / cell);
     *rows = (int32_t)((Q + *cols - 1) / *cols);
@@ -429,13 +429,25 @@ static int32_t level_depth(const sc_quad_options *o, int32_t k) {
     return lmax < 0 ? 0 : lmax;
 }
 
+/* Cells are 2^k + 2^gutter_shift texels, gutter_shift at least lmax (no two
+ * charts share a texel at any level) and at least 2: at level 0, where the
+ * border samples lie on texel centres, three texels or more lie between two
+ * charts, so each chart's border has a texel of its own beyond it. Float32
+ * uv put a weight of about 1e-5 on that texel; one texel in both charts'
+ * reach holds at least one of them far from its surface, and the GPU then
+ * opens the seam by that weight times the distance between two unrelated
+ * places of the surface. */
+static int32_t gutter_shift(const sc_quad_options *o, int32_t k) {
+    int32_t lmax = level_depth(o, k);
+    return lmax > 2 ? lmax : 2;
+}
+
 /* Shelf packing of the charts in `order` (decreasing size): a shelf is as
  * tall as its first cell; smaller cells stack in columns inside it. Every
- * cell is 2^kq + G texels (G = 2^lmax), so every position is a multiple of
+ * cell is 2^kq + G texels (G = 2^gshift), so every position is a multiple of
  * G. Returns the height used (INT64_MAX when a cell is wider than T). */
-static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, int32_t *x, int32_t *y, int32_t *width) {
-    int64_t G = (int64_t)1 << J->lmax, shelf_y = 0, shelf_h = 0, col_x = 0, col_w = 0, col_y = 0;
-    *width = 0;
+static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, int32_t *x, int32_t *y) {
+    int64_t G = (int64_t)1 << J->gshift, shelf_y = 0, shelf_h = 0, col_x = 0, col_w = 0, col_y = 0;
     for (int32_t i = 0; i < Q; i++) {
         int32_t q = order[i];
         int64_t c = ((int64_t)1 << J->kq[q]) + G;
@@ -447,7 +459,6 @@ static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, in
         }
         x[q] = (int32_t)col_x, y[q] = (int32_t)(shelf_y + col_y);
         col_y += c;
-        if (col_x + c > *width) *width = (int32_t)(col_x + c);
     }
     return shelf_y + shelf_h;
 }
@@ -481,13 +492,13 @@ static int choose_layout(job *J, const sc_quad_options *o, const double *area, i
     } else
         for (int32_t kk = 1; kk <= 14; kk++) {
             int32_t cols, rows;
-            if (layout_fits(kk, level_depth(o, kk), T, Q, &cols, &rows)) ku = kk;
+            if (layout_fits(kk, gutter_shift(o, kk), T, Q, &cols, &rows)) ku = kk;
         }
     if (ku < 0)
         return sc_fail(err, SC_EINPUT, "texture_size: %d texels cannot hold %d charts of 3 x 3 samples", (int)T, (int)Q);
-    J->lmax = level_depth(o, ku), J->nlevels = J->lmax + 1;
+    J->lmax = level_depth(o, ku), J->gshift = gutter_shift(o, ku), J->nlevels = J->lmax + 1;
     int32_t kmin = o->chart_texels > 0 ? ku : J->lmax + 1, kmax = o->chart_texels > 0 ? ku : ku + 4;
-    while (kmax > kmin && ((int64_t)1 << kmax) + ((int64_t)1 << J->lmax) > T) kmax--;
+    while (kmax > kmin && ((int64_t)1 << kmax) + ((int64_t)1 << J->gshift) > T) kmax--;
     J->kq = malloc((size_t)Q * sizeof *J->kq);
     J->chart_x = malloc((size_t)Q * sizeof *J->chart_x), J->chart_y = malloc((size_t)Q * sizeof *J->chart_y);
     int32_t *order = malloc((size_t)Q * sizeof *order), *best = malloc((size_t)Q * sizeof *best);
@@ -501,7 +512,6 @@ static int choose_layout(job *J, const sc_quad_options *o, const double *area, i
     /* density bounds: every chart at kmin, every chart at kmax */
     double lo = 0, hi = ((double)((int64_t)1 << kmax) * 4) / sqrt(total / Q > 0 ? total / Q : 1) * 64;
     bool found = false;
-    int32_t width = 0;
     for (int it = 0; it < 60; it++) {
         double d = it == 0 ? 0 : 0.5 * (lo + hi);
         for (int32_t q = 0; q < Q; q++) {
@@ -510,11 +520,8 @@ static int choose_layout(job *J, const sc_quad_options *o, const double *area, i
             J->kq[q] = k < kmin ? kmin : k > kmax ? kmax : k;
         }
         order_by_size(J->kq, Q, keys, order);
-        int32_t w;
-        int64_t h = pack(J, order, Q, T, J->chart_x, J->chart_y, &w);
-        if (h <= T) {
-            found = true, width = w;
-            J->H = (int32_t)h;
+        if (pack(J, order, Q, T, J->chart_x, J->chart_y) <= T) {
+            found = true;
             memcpy(best, J->kq, (size_t)Q * sizeof *best);
             if (it > 0) lo = d;
         } else if (it == 0)
@@ -530,9 +537,15 @@ static int choose_layout(job *J, const sc_quad_options *o, const double *area, i
     }
     memcpy(J->kq, best, (size_t)Q * sizeof *best);
     order_by_size(J->kq, Q, keys, order);
-    int32_t w;
-    J->H = (int32_t)pack(J, order, Q, T, J->chart_x, J->chart_y, &w);
-    J->W = w > width ? w : width;
+    J->H = (int32_t)pack(J, order, Q, T, J->chart_x, J->chart_y);
+    J->W = 0;
+    for (int32_t q = 0; q < Q; q++) {
+        int32_t end = J->chart_x[q] + (1 << J->kq[q]) + (1 << J->gshift);
+        if (end > J->W) J->W = end;
+    }
+    /* whole_texture: the side a multiple of every cell's alignment, as the
+     * levels halve it */
+    if (o->whole_texture) J->W = J->H = T - T % (1 << J->gshift);
     free(order), free(best), free(keys);
     return SC_OK;
 }
@@ -938,13 +951,13 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
             int64_t want = m->nf / 32;
             while (k < 12) {
                 int32_t cols, rows;
-                int64_t cell = ((int64_t)1 << (k + 1)) + ((int64_t)1 << level_depth(o, k + 1));
-                if (!layout_fits(k + 1, level_depth(o, k + 1), o->texture_size, 1, &cols, &rows)) break;
+                int64_t cell = ((int64_t)1 << (k + 1)) + ((int64_t)1 << gutter_shift(o, k + 1));
+                if (!layout_fits(k + 1, gutter_shift(o, k + 1), o->texture_size, 1, &cols, &rows)) break;
                 if ((o->texture_size / cell) * (o->texture_size / cell) < want) break;
                 k++;
             }
         }
-        int64_t cell = ((int64_t)1 << k) + ((int64_t)1 << level_depth(o, k));
+        int64_t cell = ((int64_t)1 << k) + ((int64_t)1 << gutter_shift(o, k));
         int64_t per = o->texture_size / (cell > 0 ? cell : 1);
         slots = per * per;
         target = (int32_t)(slots * 9 / 10);
@@ -1066,7 +1079,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         sc_metric_list_add(ml, "width", J.W);
         sc_metric_list_add(ml, "height", J.H);
         sc_metric_list_add(ml, "levels", J.nlevels);
-        sc_metric_list_add(ml, "gutter_texels", 1 << J.lmax);
+        sc_metric_list_add(ml, "gutter_texels", 1 << J.gshift);
         sc_metric_list_add(ml, "utilisation", covered / ((double)J.W * J.H));
         sc_metric_list_add(ml, "stretch_l2", c.stretch_l2);
         sc_metric_list_add(ml, "stretch_linf", c.stretch_linf);

@@ -169,13 +169,9 @@ SC_TEST(seam_free_at_every_level_without_erasing) {
     built_free(&b);
 }
 
-/* Each chart is one uv component, a disc (V - E + F = 1), inside its own
- * square block; no texel lies in the bilinear footprint of two charts at
- * any level. */
-SC_TEST(charts_are_discs_in_blocks_that_never_share_a_texel) {
-    built b;
-    build(&b, 1);
-    const sc_mesh *m = b.r.mesh;
+/* The uv components of m as a forest: comp[i] == i at each root (the
+ * caller frees it). */
+static int32_t *uv_components(const sc_mesh *m) {
     int32_t *comp = malloc((size_t)m->nu * sizeof *comp);
     for (int32_t i = 0; i < m->nu; i++) comp[i] = i;
     for (int32_t f = 0; f < m->nf; f++)
@@ -185,6 +181,17 @@ SC_TEST(charts_are_discs_in_blocks_that_never_share_a_texel) {
             while (comp[y] != y) y = comp[y];
             if (x != y) comp[x] = y;
         }
+    return comp;
+}
+
+/* Each chart is one uv component, a disc (V - E + F = 1), inside its own
+ * square block; no texel lies in the bilinear footprint of two charts at
+ * any level. */
+SC_TEST(charts_are_discs_in_blocks_that_never_share_a_texel) {
+    built b;
+    build(&b, 1);
+    const sc_mesh *m = b.r.mesh;
+    int32_t *comp = uv_components(m);
     int32_t charts = 0;
     for (int32_t i = 0; i < m->nu; i++) charts += comp[i] == i;
     SC_CHECK_MSG(charts == (int32_t)metric(&b.r, "quads"), "%d uv components, %g quads", charts, metric(&b.r, "quads"));
@@ -257,6 +264,58 @@ SC_TEST(charts_are_discs_in_blocks_that_never_share_a_texel) {
         free(owner);
     }
     free(comp);
+    built_free(&b);
+}
+
+/* With whole_texture, the uv are in units of texture_size, so a map of that
+ * size holds every chart's border samples on its texel centres; and each
+ * chart keeps the ring of texels just beyond its border to itself, which a
+ * GPU's float32 uv weight a little. Both read from the mesh's uv alone. */
+SC_TEST(borders_on_texel_centres_and_a_ring_per_chart) {
+    built b;
+    memset(&b, 0, sizeof b);
+    b.in = mirrored_sphere(16, 32);
+    sc_quad_options o;
+    sc_quad_defaults(&o);
+    o.texture_size = 512;
+    o.supersample = 1;
+    o.psnr_samples = 0;
+    o.min_size = 256;   /* two levels: cells of 2^k + 2^1 would leave one texel between charts */
+    o.whole_texture = true;
+    sc_error err = {0};
+    int rc = sc_quad_build(b.in, NULL, 0, &o, 2, &b.r, &err);
+    SC_CHECK_MSG(rc == SC_OK, "sc_quad_build: %s", err.message);
+    if (rc != SC_OK) return;
+    SC_CHECK(b.r.width == 512 && b.r.height == 512);
+    const sc_mesh *m = b.r.mesh;
+    int32_t *comp = uv_components(m);
+    /* each chart's box in texel coordinates: its ends on texel centres */
+    double *box = malloc((size_t)m->nu * 4 * sizeof *box);
+    for (int32_t i = 0; i < m->nu; i++)
+        box[4 * i] = box[4 * i + 1] = INFINITY, box[4 * i + 2] = box[4 * i + 3] = -INFINITY;
+    for (int32_t i = 0; i < m->nu; i++) {
+        int32_t r = i;
+        while (comp[r] != r) r = comp[r];
+        double x = m->U[2 * i] * 512 - 0.5, y = m->U[2 * i + 1] * 512 - 0.5;
+        box[4 * r] = fmin(box[4 * r], x), box[4 * r + 1] = fmin(box[4 * r + 1], y);
+        box[4 * r + 2] = fmax(box[4 * r + 2], x), box[4 * r + 3] = fmax(box[4 * r + 3], y);
+    }
+    int32_t charts = 0, off_centre = 0, rings_met = 0;
+    for (int32_t c = 0; c < m->nu; c++) {
+        if (comp[c] != c) continue;
+        charts++;
+        for (int k = 0; k < 4; k++) off_centre += fabs(box[4 * c + k] - round(box[4 * c + k])) > 1e-9;
+        for (int32_t d = 0; d < c; d++) {   /* samples and ring: one texel beyond the box */
+            if (comp[d] != d) continue;
+            bool apart = box[4 * c + 2] + 1 < box[4 * d] - 1 || box[4 * d + 2] + 1 < box[4 * c] - 1 ||
+                         box[4 * c + 3] + 1 < box[4 * d + 1] - 1 || box[4 * d + 3] + 1 < box[4 * c + 1] - 1;
+            rings_met += !apart;
+        }
+    }
+    SC_CHECK(charts == (int32_t)metric(&b.r, "quads") && charts > 20);
+    SC_CHECK_MSG(off_centre == 0, "%d chart box ends off texel centres", off_centre);
+    SC_CHECK_MSG(rings_met == 0, "%d pairs of charts share a texel of their rings", rings_met);
+    free(box), free(comp);
     built_free(&b);
 }
 
