@@ -33,14 +33,15 @@
  *             level 0 each chart's border samples have a texel of their
  *             own beyond them (float32 uv give it a small weight). With
  *             whole_texture, uv are in units of texture_size, so maps of
- *             that size hold the border samples on texel centres. One texel density for
- *             the whole atlas: a chart's k follows the mean chart area of
- *             its connected part (charts that share a side have one size,
- *             so their border samples copy bit for bit), and the density
- *             is the largest whose packing fits texture_size. Level L is sampled at the level-0 uv
- *             plus (2^L - 1) / 2 texels of level 0 in u and v (the sampling
- *             rule; sc_quad_level_offset); gutters repeat the chart's border
- *             texels for engines that sample without it.
+ *             that size hold the border samples on texel centres. One
+ *             texel density for the whole atlas: a chart's k follows the
+ *             mean chart area of its connected part (charts that share a
+ *             side have one size, so their border samples copy bit for
+ *             bit), and the density is the largest whose packing fits
+ *             texture_size. Level L is sampled at the level-0 uv plus
+ *             (2^L - 1) / 2 texels of level 0 in u and v (the sampling
+ *             rule; sc_quad_level_offset); gutters repeat the chart's
+ *             border texels for engines that sample without it.
  *
  * Textures are read through each face's own old uv (so overlaps do no
  * harm), supersampled, colour decoded from sRGB to linear before it is

@@ -445,9 +445,11 @@ static int32_t gutter_shift(const sc_quad_options *o, int32_t k) {
 /* Shelf packing of the charts in `order` (decreasing size): a shelf is as
  * tall as its first cell; smaller cells stack in columns inside it. Every
  * cell is 2^kq + G texels (G = 2^gshift), so every position is a multiple of
- * G. Returns the height used (INT64_MAX when a cell is wider than T). */
-static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, int32_t *x, int32_t *y) {
+ * G. Returns the height used (INT64_MAX when a cell is wider than T) and
+ * sets *width. */
+static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, int32_t *x, int32_t *y, int32_t *width) {
     int64_t G = (int64_t)1 << J->gshift, shelf_y = 0, shelf_h = 0, col_x = 0, col_w = 0, col_y = 0;
+    *width = 0;
     for (int32_t i = 0; i < Q; i++) {
         int32_t q = order[i];
         int64_t c = ((int64_t)1 << J->kq[q]) + G;
@@ -459,6 +461,7 @@ static int64_t pack(const job *J, const int32_t *order, int32_t Q, int32_t T, in
         }
         x[q] = (int32_t)col_x, y[q] = (int32_t)(shelf_y + col_y);
         col_y += c;
+        if (col_x + c > *width) *width = (int32_t)(col_x + c);
     }
     return shelf_y + shelf_h;
 }
@@ -520,7 +523,8 @@ static int choose_layout(job *J, const sc_quad_options *o, const double *area, i
             J->kq[q] = k < kmin ? kmin : k > kmax ? kmax : k;
         }
         order_by_size(J->kq, Q, keys, order);
-        if (pack(J, order, Q, T, J->chart_x, J->chart_y) <= T) {
+        int32_t w;
+        if (pack(J, order, Q, T, J->chart_x, J->chart_y, &w) <= T) {
             found = true;
             memcpy(best, J->kq, (size_t)Q * sizeof *best);
             if (it > 0) lo = d;
@@ -537,12 +541,7 @@ static int choose_layout(job *J, const sc_quad_options *o, const double *area, i
     }
     memcpy(J->kq, best, (size_t)Q * sizeof *best);
     order_by_size(J->kq, Q, keys, order);
-    J->H = (int32_t)pack(J, order, Q, T, J->chart_x, J->chart_y);
-    J->W = 0;
-    for (int32_t q = 0; q < Q; q++) {
-        int32_t end = J->chart_x[q] + (1 << J->kq[q]) + (1 << J->gshift);
-        if (end > J->W) J->W = end;
-    }
+    J->H = (int32_t)pack(J, order, Q, T, J->chart_x, J->chart_y, &J->W);
     /* whole_texture: the side a multiple of every cell's alignment, as the
      * levels halve it */
     if (o->whole_texture) J->W = J->H = T - T % (1 << J->gshift);
