@@ -102,6 +102,10 @@
  *    node fails, before any work, when more than max_shared_fraction of the
  *    covered texels are shared, as overlapping or mirrored charts make them:
  *    one value per texel cannot serve two places of the surface);
+ *    degenerate_uv_fraction (sc_seam_degenerate_uv_fraction: the node
+ *    fails, before any work, when more than max_degenerate_uv_fraction of
+ *    the surface lies on faces whose uv have no area, as missing texture
+ *    coordinates leave them: no texel holds their points);
  *    texels fitted and timings per stage.
  * Measurements and history: docs/notes/bake_displacement.md.
  */
@@ -2029,6 +2033,7 @@ typedef struct bake_run {
     fit_stats st;                 /* every fit's */
     fit_scratch ws;
     double cov, shared;           /* texels the input's charts cover, and cover twice or more */
+    double degenerate;            /* the share of the input's surface on faces whose uv have no area */
     sc_hausdorff_mesh in_surface; /* the input's, which in_bvh refers to */
     sc_hausdorff_bvh *in_bvh;
     after_fit af;
@@ -2084,10 +2089,20 @@ static void material_grids(bake_run *b) {
     }
 }
 
-/* Fails where more than max_shared of the texels the input's charts cover
- * are covered twice or more: they would hold one value for two places of the surface. */
-static int check_coverage(bake_run *b, double max_shared, sc_error *err) {
+/* Fails where more than max_degenerate of the input's surface lies on faces
+ * whose uv have no area (no texel holds their points), or more than
+ * max_shared of the texels the input's charts cover are covered twice or
+ * more: they would hold one value for two places of the surface. */
+static int check_coverage(bake_run *b, double max_degenerate, double max_shared, sc_error *err) {
     int rc = SC_OK;
+    b->degenerate = sc_seam_degenerate_uv_fraction(b->in);
+    if (b->degenerate > max_degenerate)
+        return sc_fail(err, SC_EINPUT,
+                       "max_degenerate_uv_fraction: %.1f%% of the input's surface lies on faces whose uv have no "
+                       "area (missing texture coordinates, or triangles squashed to a segment; %.3g%% allowed): no "
+                       "texel of a geometry image or a displacement map holds their points. Give the asset an atlas "
+                       "(quad_chartify)",
+                       100.0 * b->degenerate, 100.0 * max_degenerate);
     for (int32_t m = 0; m < b->nmat && rc == SC_OK; m++) {
         sc_seam_coverage c;
         rc = sc_seam_coverage_build(b->in, m, &b->grids[m], b->threads, &c, err);
@@ -2262,6 +2277,7 @@ static void free_fit_work(bake_run *b) {
 static void report_totals(sc_ctx *ctx, const bake_run *b) {
     sc_ctx_metric(ctx, "texels_covered", b->cov);
     sc_ctx_metric(ctx, "texels_shared", b->shared);
+    sc_ctx_metric(ctx, "degenerate_uv_fraction", b->degenerate);
     sc_ctx_metric(ctx, "levels", b->nlevels);
     sc_ctx_metric(ctx, "geometry_image.texels_fitted", (double)b->st.texels_solved);
 }
@@ -2345,7 +2361,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (!alloc_maps(&b)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     if (rc == SC_OK) material_grids(&b);
     double t0 = sc_now();
-    if (rc == SC_OK) rc = check_coverage(&b, max_shared, err);
+    if (rc == SC_OK) rc = check_coverage(&b, sc_ctx_number(ctx, "max_degenerate_uv_fraction"), max_shared, err);
     b.t_metrics += sc_now() - t0;
     if (rc == SC_OK) rc = fit_geometry_images(&b, err);
     if (rc == SC_OK) rc = hand_geometry_images(&b, gap_tolerance, surface_samples, err);
@@ -2382,6 +2398,9 @@ static const sc_param_desc params[] = {
     {.name = "max_shared_fraction", .type = SC_PARAM_NUMBER, .def = 0.01, .min = 0, .max = 1,
      .doc = "fail when more than this fraction of the texels the input's charts cover are covered twice or "
             "more (overlapping or mirrored charts: Duck 94%, WaterBottle 0.2%, the rest of the corpus 0)"},
+    {.name = "max_degenerate_uv_fraction", .type = SC_PARAM_NUMBER, .def = 0.01, .min = 0, .max = 1,
+     .doc = "fail when more than this fraction of the input's surface lies on faces whose uv have no area "
+            "(missing texture coordinates: no texel holds their points)"},
     {.name = "fit_tolerance", .type = SC_PARAM_NUMBER, .def = 5e-5, .min = 0, .max = 1,
      .doc = "texels of cells whose point samples miss the surface by more than this (fraction of the "
             "bounding-box diagonal) are fitted in least squares; 1 fits none"},
@@ -2404,7 +2423,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_haus
 
 const sc_node_desc sc_node_bake_displacement = {
     .type = "bake_displacement",
-    .version = 8,
+    .version = 9,
     .summary = "bakes a geometry image and a vector displacement map per level of detail (Liu et al. 2017 §7)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -494,11 +494,22 @@ static int run(sc_ctx *ctx, sc_error *err) {
                 break;   /* one texture per (material, slot) */
             }
     int32_t ntex = atlas->ntex;
+    int64_t without_uv = l.obj.faces_without_uv + l.gltf.faces_without_uv;
+    if (rc == SC_OK && (l.obj.uv_missing || l.gltf.uv_missing) && ntex > 0)
+        rc = ntex == 1 ? sc_fail(err, SC_EINPUT, "path: %s has no texture coordinates, so its texture cannot be mapped",
+                                 path)
+                       : sc_fail(err, SC_EINPUT, "path: %s has no texture coordinates, so its %d textures cannot be "
+                                 "mapped", path, (int)ntex);
+    if (rc == SC_OK && without_uv > 0)
+        sc_ctx_warn(ctx, "%lld of %lld faces have no texture coordinates: their uv are (0, 0), with no area, until "
+                         "quad_chartify (mode auto or always) gives the model an atlas",
+                    (long long)without_uv, (long long)faces);
     if (rc == SC_OK) warn_untextured(ctx, atlas);
     sc_value *value = rc == SC_OK ? sc_value_new_atlas(atlas) : NULL;
     if (rc != SC_OK) sc_atlas_free(atlas);
     int64_t degenerate = l.obj.degenerate_faces_dropped + l.gltf.degenerate_faces_dropped;
     loaded_free(&l);
+    if (rc != SC_OK) return rc;
     if (!value) return sc_fail(err, SC_ENOMEM, "out of memory");
     sc_ctx_set_output(ctx, "atlas", value);
     sc_ctx_metric(ctx, "faces", faces);
@@ -511,6 +522,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_ctx_metric(ctx, "boundary_edges", (double)edges.boundary);
     sc_ctx_metric(ctx, "nonmanifold_edges", (double)edges.nonmanifold);
     sc_ctx_metric(ctx, "degenerate_faces_dropped", (double)degenerate);
+    sc_ctx_metric(ctx, "faces_without_uv", (double)without_uv);
     sc_ctx_metric(ctx, "seconds_parse", t1 - t0);
     sc_ctx_metric(ctx, "seconds_decode", t2 - t1);
     return SC_OK;

@@ -4,7 +4,8 @@
  *
  * mode "always" re-chartifies; "never" passes the atlas through; "auto"
  * re-chartifies when the input atlas cannot serve the chain as it is: its
- * uv share texels (overlapping or mirrored charts), it has no uv, it is
+ * uv share texels (overlapping or mirrored charts), it has no uv or uv
+ * without area on more than 0.1% of its surface, it is
  * fragmented into more charts than seam-aware decimation can keep
  * collapsing (`max_charts`), or two of its charts lie within a texel of
  * each other on the maps the chain bakes (`map_size`: a texel there would
@@ -50,6 +51,7 @@ static int32_t count_charts(const sc_mesh *m, int32_t *parent) {
 /* What auto decides on, measured on the input. */
 typedef struct input_measures {
     double shared_fraction;   /* of the covered texels, those two or more faces cover */
+    double degenerate_fraction;   /* of the surface area, that of faces whose uv have no area */
     int32_t charts;           /* uv charts */
     int64_t tap_reached, tap_met;   /* on map_size^2 grids: texels a chart's taps reach, two charts' */
 } input_measures;
@@ -74,6 +76,7 @@ static int measure_input(const sc_atlas *a, int32_t map_size, int threads, input
     const sc_mesh *m = a->mesh->as.mesh;
     *out = (input_measures){0};
     if (m->nu <= 0) return SC_OK;
+    out->degenerate_fraction = sc_seam_degenerate_uv_fraction(m);
     int32_t *parent = malloc((size_t)m->nu * sizeof *parent);
     if (!parent) return sc_fail(err, SC_ENOMEM, "out of memory");
     out->charts = count_charts(m, parent);
@@ -171,8 +174,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     int32_t max_charts = (int32_t)sc_ctx_integer(ctx, "max_charts");
     bool chartify = strcmp(mode, "always") == 0 ||
                     (strcmp(mode, "auto") == 0 && (m->nu <= 0 || in_m.shared_fraction > 0.001 ||
+                                                   in_m.degenerate_fraction > 0.001 ||
                                                    in_m.charts > max_charts || in_m.tap_met > 0));
     sc_ctx_metric(ctx, "input_shared_texel_fraction", in_m.shared_fraction);
+    sc_ctx_metric(ctx, "input_degenerate_uv_fraction", in_m.degenerate_fraction);
     sc_ctx_metric(ctx, "input_charts", in_m.charts);
     if (map_size > 0) {
         sc_ctx_metric(ctx, "input_tap_met_texels", (double)in_m.tap_met);
@@ -232,7 +237,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
 static const sc_param_desc params[] = {
     {.name = "mode", .type = SC_PARAM_ENUM, .def_string = "always", .choices = mode_choices,
      .doc = "always: re-chartify; never: pass the atlas through; auto: re-chartify when the uv share texels, are "
-            "missing, hold more than max_charts charts, or come within a texel of each other at map_size"},
+            "missing or without area on more than 0.1% of the surface, hold more than max_charts charts, or come "
+            "within a texel of each other at map_size"},
     {.name = "max_charts", .type = SC_PARAM_INTEGER, .def = 256, .min = 1, .max = 1e9,
      .doc = "auto: more uv charts than this re-chartify (decimation stalls on many non-collinear seams)"},
     {.name = "map_size", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = 32768,
@@ -274,7 +280,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_quad, &sc_kernel_seam, NUL
 
 const sc_node_desc sc_node_quad_chartify = {
     .type = "quad_chartify",
-    .version = 3,
+    .version = 4,
     .summary = "a seamless quad-chart atlas, seam-free at every mip level (Purnomo et al. 2004)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -85,6 +85,7 @@ typedef struct reader {
     int64_t ntri, captri, captm;
     bool all_normals;
     int64_t primitives_skipped;
+    int64_t faces_without_uv;   /* triangles of primitives without TEXCOORD_0 */
     /* per glTF material (index + 1; 0: none): corners whose TANGENT's
      * bitangent runs with and against increasing v (GL uv) */
     int64_t *tangent_with, *tangent_against;
@@ -660,25 +661,24 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
     if (!cJSON_IsObject(attributes)) return fail(r, SC_EINPUT, "%s: 'attributes' is missing", ctx);
     if ((rc = get_ref(r, ctx, attributes, "POSITION", &r->accessors, "accessor", true, &pos_i)))
         return rc;
-    if (!field(attributes, "TEXCOORD_0"))
-        return fail(r, SC_EINPUT, "%s has no TEXCOORD_0 (seamcook needs textured meshes)", ctx);
-    if ((rc = get_ref(r, ctx, attributes, "TEXCOORD_0", &r->accessors, "accessor", true, &uv_i)) ||
+    /* without TEXCOORD_0 the uv are (0, 0): no area, which quad_chartify's auto mode replaces */
+    if ((rc = get_ref(r, ctx, attributes, "TEXCOORD_0", &r->accessors, "accessor", false, &uv_i)) ||
         (rc = get_ref(r, ctx, attributes, "NORMAL", &r->accessors, "accessor", false, &nrm_i)) ||
         (rc = get_ref(r, ctx, prim, "indices", &r->accessors, "accessor", false, &idx_i)) ||
         (rc = get_ref(r, ctx, prim, "material", &r->materials, "material", false, &material)))
         return rc;
     uv_transform ut;
     if ((rc = material_transform(r, material, &ut))) return rc;
-    accessor pos, uv, nrm, idx;
+    accessor pos, uv = {0}, nrm, idx;
     if ((rc = open_accessor(r, pos_i, 3, "POSITION", &pos)) ||
-        (rc = open_accessor(r, uv_i, 2, "TEXCOORD_0", &uv)))
+        (uv_i >= 0 && (rc = open_accessor(r, uv_i, 2, "TEXCOORD_0", &uv))))
         return rc;
     if (pos.ctype != CT_F32)
         return fail(r, SC_EINPUT, "accessor %lld: POSITION must be float", (long long)pos_i);
-    if (!(uv.ctype == CT_F32 || ((uv.ctype == CT_U8 || uv.ctype == CT_U16) && uv.normalized)))
+    if (uv_i >= 0 && !(uv.ctype == CT_F32 || ((uv.ctype == CT_U8 || uv.ctype == CT_U16) && uv.normalized)))
         return fail(r, SC_EINPUT, "accessor %lld: TEXCOORD_0 must be float or normalized u8/u16",
                     (long long)uv_i);
-    if (uv.count != pos.count)
+    if (uv_i >= 0 && uv.count != pos.count)
         return fail(r, SC_EINPUT, "%s: TEXCOORD_0 has %lld elements, POSITION %lld", ctx,
                     (long long)uv.count, (long long)pos.count);
     if (nrm_i >= 0) {
@@ -703,7 +703,7 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
     normal_matrix(m, nm);
     for (int64_t i = 0; i < n; i++) {
         double x = accessor_get(&pos, i, 0), y = accessor_get(&pos, i, 1), z = accessor_get(&pos, i, 2);
-        double u = accessor_get(&uv, i, 0), v = accessor_get(&uv, i, 1);
+        double u = uv_i >= 0 ? accessor_get(&uv, i, 0) : 0, v = uv_i >= 0 ? accessor_get(&uv, i, 1) : 0;
         if (!isfinite(x) || !isfinite(y) || !isfinite(z))
             return fail(r, SC_EINPUT, "accessor %lld: POSITION %lld is not finite", (long long)pos_i, (long long)i);
         if (!isfinite(u) || !isfinite(v))
@@ -714,6 +714,7 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
             return fail(r, SC_EINPUT, "%s: POSITION %lld is not finite after the node transform", ctx,
                         (long long)i);
         double tu = ut.m[0] * u + ut.m[1] * v + ut.m[2], tv = ut.m[3] * u + ut.m[4] * v + ut.m[5];
+        if (uv_i < 0) tu = 0, tv = 1;   /* stored as (0, 0) */
         if (!isfinite(tu) || !isfinite(tv))
             return fail(r, SC_EINPUT, "%s: TEXCOORD_0 %lld is not finite after the material's texture transform", ctx,
                         (long long)i);
@@ -766,6 +767,7 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
     }
     for (int64_t t = 0; t < nt; t++) r->tri_material[r->ntri + t] = (int32_t)material;
     if ((rc = count_tangent_convention(r, ctx, attributes, m, material, base, n, nt)) != SC_OK) return rc;
+    if (uv_i < 0) r->faces_without_uv += nt;
     r->ntri += nt;
     r->nraw = base + n;
     return SC_OK;
@@ -1198,6 +1200,8 @@ int sc_gltf_parse(const char *name, const void *bytes, size_t size, sc_gltf_read
     if (rc == SC_OK) rc = visit_scene(&r);
     if (rc == SC_OK) rc = build(&r, out);
     out->primitives_skipped = r.primitives_skipped;
+    out->faces_without_uv = r.faces_without_uv;
+    out->uv_missing = r.ntri > 0 && r.faces_without_uv == r.ntri;
     out->raw_vertices = r.nraw;
     for (int64_t i = 0; r.bufs && i < r.buffers.count; i++) free(r.bufs[i].owned);
     free(r.bufs);

@@ -13,8 +13,9 @@
  * counted), indexed (u8/u16/u32) or not; POSITION and NORMAL as float VEC3,
  * TEXCOORD_0 as float or normalised u8/u16 VEC2. glTF's uv origin is the top
  * left: v is stored as 1 - v (OBJ and GL convention, v = 0 at the bottom).
- * A primitive without TEXCOORD_0 is an error (seamcook cooks textured meshes);
- * normals are kept only when every primitive has them.
+ * A primitive without TEXCOORD_0 gets uv (0, 0) (counted in
+ * sc_gltf.faces_without_uv): uv without area, which quad_chartify's auto
+ * mode replaces; normals are kept only when every primitive has them.
  *
  * Welding: glTF splits vertices at uv seams. Surface vertices whose positions
  * (after the transform, in double precision) are equal are merged into one V
@@ -51,7 +52,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 4
+#define SC_GLTF_VERSION 5
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */
@@ -90,6 +91,8 @@ typedef struct sc_gltf {
     int64_t degenerate_faces_dropped; /* triangles that repeat a welded position */
     int64_t primitives_skipped;       /* primitives whose mode is not TRIANGLES */
     int64_t textures_skipped;         /* textures on a uv set other than TEXCOORD_0 */
+    int64_t faces_without_uv;         /* triangles of primitives without TEXCOORD_0: uv (0, 0) */
+    bool uv_missing;                  /* every triangle's */
     int64_t raw_vertices;             /* vertices before welding */
 } sc_gltf;
 

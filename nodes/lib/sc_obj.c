@@ -248,6 +248,7 @@ typedef struct parser {
     int64_t nt, capfv, capfu, capfn, capfm, capfline;
     bool all_normals;
     int64_t polygons;
+    int64_t faces_without_uv;   /* triangles whose corners name no vt */
 
     name_table used;         /* materials faces use, in order of first use */
     char *usemtl;            /* the current usemtl name (NULL: "default") */
@@ -359,6 +360,7 @@ static int add_face(parser *p, line_reader *lr, char *rest) {
     int64_t ncorner = 0;
     char q[256];
     bool normals = true;
+    int without_uv = -1;   /* unknown until the first corner */
     for (const char *s = skip_space(rest); *s; s = skip_space(s)) {
         const char *token = s;
         int64_t c[3] = {0, 0, 0};
@@ -378,10 +380,11 @@ static int add_face(parser *p, line_reader *lr, char *rest) {
         if (*s && !is_space(*s))
             return sc_fail(p->err, SC_EINPUT, "%s:%d: face corner '%s' is malformed", lr->name,
                            lr->line, snippet(token, q));
-        if (c[1] == 0)
+        if ((c[1] == 0) != (without_uv == 1) && ncorner > 0)
             return sc_fail(p->err, SC_EINPUT,
-                           "%s:%d: face has no texture coordinates (corner '%s')", lr->name,
+                           "%s:%d: face has texture coordinates at some corners only (corner '%s')", lr->name,
                            lr->line, snippet(token, q));
+        without_uv = c[1] == 0;
         if (c[2] == 0) normals = false;
         if (ncorner >= SC_OBJ_MAX_ELEMENTS) return too_many(p, lr, "face corners");
         if (!grow((void **)&p->corner, &p->capcorner, 3 * (ncorner + 1), sizeof(int64_t)))
@@ -394,6 +397,7 @@ static int add_face(parser *p, line_reader *lr, char *rest) {
     if (!normals) p->all_normals = false;
     if (ncorner > 3) p->polygons++;
     int64_t ntri = ncorner - 2;
+    if (without_uv == 1) p->faces_without_uv += ntri;
     if (p->nt + ntri > SC_OBJ_MAX_ELEMENTS) return too_many(p, lr, "triangles");
     int64_t need = p->nt + ntri;
     if (!grow((void **)&p->fv, &p->capfv, 3 * need, sizeof(int32_t)) ||
@@ -642,8 +646,20 @@ int sc_mesh_build_compact(const double *V, int64_t nv, const double *U, int64_t 
     return SC_OK;
 }
 
-/* Check the 1-based indices against the final counts, then make them 0-based. */
+/* Check the 1-based indices against the final counts, then make them 0-based.
+ * Faces without texture coordinates get one more, (0, 0): uv with no area,
+ * which quad_chartify's auto mode replaces with an atlas of its own. */
 static int check_indices(parser *p) {
+    if (p->faces_without_uv > 0) {
+        if (p->nvt >= SC_OBJ_MAX_ELEMENTS)
+            return sc_fail(p->err, SC_EINPUT, "%s: too many texture coordinates", p->name);
+        if (!grow((void **)&p->vt, &p->capvt, 2 * (p->nvt + 1), sizeof(double)))
+            return sc_fail(p->err, SC_ENOMEM, "out of memory");
+        p->vt[2 * p->nvt] = p->vt[2 * p->nvt + 1] = 0;
+        p->nvt++;
+        for (int64_t i = 0; i < 3 * p->nt; i++)
+            if (p->fu[i] == 0) p->fu[i] = (int32_t)p->nvt;
+    }
     for (int64_t t = 0; t < p->nt; t++) {
         for (int k = 0; k < 3; k++) {
             int32_t *v = &p->fv[3 * t + k], *u = &p->fu[3 * t + k], *n = &p->fn[3 * t + k];
@@ -744,6 +760,8 @@ int sc_obj_parse(const char *name, const void *bytes, size_t size, sc_obj_read_f
     }
     if (rc == SC_OK) rc = collect_maps(&p, out);
     out->polygons = p.polygons;
+    out->faces_without_uv = p.faces_without_uv;
+    out->uv_missing = p.nt > 0 && p.faces_without_uv == p.nt;
     parser_free(&p);
     if (rc != SC_OK) sc_obj_free(out);
     return rc;

@@ -15,11 +15,14 @@
  *
  * Errors name "file:LINE: ..." for: NUL bytes or bytes that are not a
  * statement, numbers that do not parse, NaN/Inf coordinates, vertex lines with
- * too few numbers, faces with fewer than 3 corners, a face corner without a
- * texture coordinate (seamcook cooks textured meshes: such a face is an error,
- * not a guess), index 0, indices out of range (which one, and how many there
+ * too few numbers, faces with fewer than 3 corners, a face with texture
+ * coordinates at some corners only, index 0, indices out of range (which one, and how many there
  * are), more than SC_OBJ_MAX_ELEMENTS of anything, an OBJ without faces, and
  * an MTL the callback cannot read.
+ *
+ * A face without texture coordinates gets uv (0, 0), one vt added for all
+ * of them (counted in sc_obj.faces_without_uv): uv without area, which
+ * quad_chartify's auto mode replaces with an atlas of its own.
  *
  * Documented repairs (counted in sc_obj.degenerate_faces_dropped etc.):
  *   - a triangle that repeats a position index is dropped;
@@ -40,7 +43,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_obj (or a kernel built on it) is re-keyed. */
-#define SC_OBJ_VERSION 1
+#define SC_OBJ_VERSION 2
 extern const sc_kernel sc_kernel_obj;
 
 /* Limit on vertices, uvs, normals and triangles alike, so that a small file
@@ -68,6 +71,8 @@ typedef struct sc_obj {
     int64_t degenerate_faces_dropped; /* triangles that repeated a position */
     int64_t polygons;                 /* faces with more than 3 corners */
     int64_t unreferenced_dropped;     /* v/vt/vn lines no face used */
+    int64_t faces_without_uv;         /* triangles whose corners name no vt: uv (0, 0) */
+    bool uv_missing;                  /* every triangle's */
     bool normals_dropped;             /* some corner had no vn */
 } sc_obj;
 

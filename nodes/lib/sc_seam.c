@@ -395,6 +395,31 @@ void sc_seam_coverage_free(sc_seam_coverage *c) {
     c->ncovered = c->nshared = 0;
 }
 
+/* Face f's surface area and uv area. */
+static void face_areas(const sc_mesh *m, int32_t f, double *area, double *uv_area) {
+    double n[3];
+    const int32_t *F = m->FV + 3 * (size_t)f, *T = m->FU + 3 * (size_t)f;
+    sc_triangle_normal(m->V + 3 * (size_t)F[0], m->V + 3 * (size_t)F[1], m->V + 3 * (size_t)F[2], n);
+    const double *a = m->U + 2 * (size_t)T[0], *b = m->U + 2 * (size_t)T[1], *c = m->U + 2 * (size_t)T[2];
+    *area = 0.5 * sc_norm3(n);
+    *uv_area = 0.5 * fabs((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]));
+}
+
+double sc_seam_degenerate_uv_fraction(const sc_mesh *m) {
+    double surface = 0, uv_total = 0, area, uv;
+    for (int32_t f = 0; f < m->nf; f++) {
+        face_areas(m, f, &area, &uv);
+        surface += area, uv_total += uv;
+    }
+    if (!(surface > 0)) return 0;
+    double density = uv_total / surface, degenerate = 0;
+    for (int32_t f = 0; f < m->nf; f++) {
+        face_areas(m, f, &area, &uv);
+        if (!(uv > 1e-6 * density * area)) degenerate += area;
+    }
+    return degenerate / surface;
+}
+
 /* ---------------------------------------------------------------- taps */
 
 int sc_seam_taps_meet(const sc_mesh *m, int32_t material, const sc_seam_grid *g, const int32_t *chart,

@@ -173,6 +173,14 @@ int sc_seam_coverage_build(const sc_mesh *m, int32_t material, const sc_seam_gri
                            sc_seam_coverage *out, sc_error *err);
 void sc_seam_coverage_free(sc_seam_coverage *c);
 
+/* The share of m's surface area on faces whose uv have no area: missing uv
+ * (loaded as (0, 0)) or a triangle squashed to a segment or a point, under
+ * a millionth of the mesh's mean uv area per unit of surface. Such a face
+ * holds no texel of its own, so no map can hold its points, and coverage
+ * does not see it (its triangle contains no texel centre). 0 for a mesh
+ * without surface area. */
+double sc_seam_degenerate_uv_fraction(const sc_mesh *m);
+
 /* Where two uv charts reach the same texel through their bilinear taps: a
  * texel is reached by a face when a point of its uv triangle lies less than
  * one texel from the texel's centre in u and in v (the point's four taps

@@ -437,7 +437,6 @@ SC_TEST(bad_glb_inputs_name_file_and_element) {
         {nan_position, "bad.glb: accessor 0: POSITION 1 is not finite"},
         {inf_uv, "bad.glb: accessor 2: TEXCOORD_0 0 is not finite"},
         {sparse, "bad.glb: accessor 1: sparse accessors are not supported"},
-        {no_texcoord, "bad.glb: mesh 0 primitive 0 has no TEXCOORD_0"},
         {cycle, "bad.glb: node 0: the node hierarchy has a cycle"},
         {old_version, "bad.glb: asset.version is 1.0, only glTF 2.0 is supported"},
         {bad_reference, "bad.glb: mesh 0 primitive 0: 'indices' refers to accessor 17, the file has 4"},
@@ -481,6 +480,41 @@ SC_TEST(bad_glb_inputs_name_file_and_element) {
         sc_buf_free(&bin), sc_buf_free(&glb);
         cJSON_Delete(j);
     }
+}
+
+/* A primitive without TEXCOORD_0: uv (0, 0), counted; through the node, a
+ * model whose every face lacks them cannot map its textures. */
+SC_TEST(glb_without_texcoord) {
+    cJSON *j = load_quad();
+    if (!j) return;
+    sc_buf bin, glb;
+    quad_bin(j, &bin);
+    no_texcoord(j, &bin);
+    make_glb(j, &bin, &glb);
+    sc_gltf g;
+    sc_error err = {0};
+    int rc = sc_gltf_parse("bare.glb", glb.data, glb.len, failing_read, NULL, &g, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        SC_CHECK_INT(g.faces_without_uv, g.mesh->nf);
+        SC_CHECK(g.uv_missing);
+        for (int32_t i = 0; i < g.mesh->nu; i++) SC_CHECK(g.mesh->U[2 * i] == 0 && g.mesh->U[2 * i + 1] == 0);
+    }
+    sc_gltf_free(&g);
+    char *dir = sc_test_tempdir("glb-bare");
+    write_bytes(dir, "bare.glb", glb.data, glb.len);
+    sc_buf png;
+    png_bytes(2, 2, 128, &png);
+    write_bytes(dir, "color.png", png.data, png.len);
+    write_bytes(dir, "normal map.png", png.data, png.len);
+    char *path = sc_path_join(dir, "bare.glb");
+    sc_ctx *ctx = run_load(path, &err, NULL);
+    SC_CHECK(ctx == NULL && message_has(&err, "bare.glb has no texture coordinates, so its"));
+    sc_ctx_free(ctx);
+    sc_test_system("rm -rf '%s'", dir);
+    free(path), free(dir);
+    sc_buf_free(&png), sc_buf_free(&bin), sc_buf_free(&glb);
+    cJSON_Delete(j);
 }
 
 SC_TEST(bad_gltf_text_inputs) {

@@ -180,6 +180,45 @@ SC_TEST(polygons_degenerate_faces_and_defaults) {
     sc_obj_free(&obj);
 }
 
+/* Faces without texture coordinates: uv (0, 0), one added vt, counted; a
+ * face with them at some corners only is an error (above). */
+SC_TEST(faces_without_texture_coordinates) {
+    static const char *const text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0.5 0.5\nvt 1 0\nvt 0 1\n"
+                                    "f 1 2 3\nf 2/1 4/2 3/3\n";
+    sc_obj obj;
+    sc_error err = {0};
+    int rc = sc_obj_parse("mixed.obj", text, strlen(text), failing_read, NULL, &obj, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        SC_CHECK_INT(obj.faces_without_uv, 1);
+        SC_CHECK(!obj.uv_missing);
+        SC_CHECK_INT(obj.mesh->nf, 2);
+        SC_CHECK_INT(obj.mesh->nu, 4);   /* the three vt and the added (0, 0) */
+        for (int k = 0; k < 3; k++) {
+            const double *uv = obj.mesh->U + 2 * obj.mesh->FU[k];
+            SC_CHECK(uv[0] == 0 && uv[1] == 0);
+        }
+        SC_CHECK(obj.mesh->U[2 * obj.mesh->FU[3]] == 0.5);
+        sc_obj_free(&obj);
+    }
+    char *path = data_path("blob_no_uv.obj");
+    sc_buf b;
+    sc_buf_init(&b);
+    rc = sc_read_file(path, 1 << 20, &b, &err);
+    if (rc == SC_OK) rc = sc_obj_parse("blob_no_uv.obj", b.data, b.len, failing_read, NULL, &obj, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        SC_CHECK_INT(obj.mesh->nf, 320);
+        SC_CHECK_INT(obj.faces_without_uv, 320);
+        SC_CHECK(obj.uv_missing);
+        SC_CHECK_INT(obj.mesh->nu, 1);
+        SC_CHECK(obj.mesh->U[0] == 0 && obj.mesh->U[1] == 0);
+        sc_obj_free(&obj);
+    }
+    sc_buf_free(&b);
+    free(path);
+}
+
 SC_TEST(crlf_and_normals) {
     const char *text =
         "\xEF\xBB\xBFv 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nvt 0 0\r\nvt 1 0\r\nvt 0 1\r\n"
@@ -236,12 +275,12 @@ SC_TEST(bad_obj_inputs_name_file_and_line) {
         {"v 1 2\n", "bad.obj:1: vertex needs 3 numbers, found 2"},
         {"vn 1\n", "bad.obj:1: normal needs 3 numbers, found 1"},
         {"v 1 2 3abc\n", "bad.obj:1: vertex: '3abc' is not a number"},
-        {"+f 1 2 3\n", "bad.obj:6: face has no texture coordinates (corner '1')"},
-        {"+f 1//1 2//1 3//1\n", "bad.obj:6: face has no texture coordinates (corner '1//1')"},
+        {"+f 1/1 2 3/1\n", "bad.obj:6: face has texture coordinates at some corners only (corner '2')"},
+        {"+f 1//1 2//1 3//1\n", "bad.obj:6: normal index 1 is out of range (the file has 0 normals)"},
         {"+f 1/1 2/2\n", "bad.obj:6: face has 2 corners, needs at least 3"},
         {"+f 1/1 2/2 3/x\n", "bad.obj:6: face corner '3/x': missing or bad texture coordinate index"},
         {"+f 1/1 2/2 3/1a\n", "bad.obj:6: face corner '3/1a' is malformed"},
-        {"+\n\nf 1/1 2/2 3/\n", "bad.obj:8: face has no texture coordinates (corner '3/')"},
+        {"+\n\nf 1/1 2/2 3/\n", "bad.obj:8: face has texture coordinates at some corners only (corner '3/')"},
         {"+f 1/1 2/2 99999999999/1\n", "bad.obj:6: face corner '99999999999/1': vertex index is too large"},
         {"\x01\x02\xff\xfe\n", "bad.obj:1: unexpected text '\\x01\\x02\\xff\\xfe' (not a statement)"},
         {"+v 1 2 3 \\\n\x00\x01", "bad.obj:7: NUL byte"},
@@ -368,6 +407,21 @@ SC_TEST(load_atlas_obj_node) {
         if (a->ntex == 2) SC_CHECK(a->textures[0].image == a->textures[1].image);
         sc_ctx_free(ctx);
     }
+    /* a model without texture coordinates: a warning and a metric; with a
+     * texture to map, an error naming the file */
+    char *bare = data_path("blob_no_uv.obj");
+    ctx = run_load(bare, &err, NULL);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        SC_CHECK_NEAR(sc_ctx_metric_value(ctx, "faces_without_uv"), 320, 0);
+        SC_CHECK(warning_has(ctx, "320 of 320 faces have no texture coordinates"));
+        sc_ctx_free(ctx);
+    }
+    ctx = run_load(bare, &err, "texture", override, NULL);
+    SC_CHECK(ctx == NULL && message_has(&err, "blob_no_uv.obj has no texture coordinates, so its texture cannot be "
+                                              "mapped"));
+    sc_ctx_free(ctx);
+    free(bare);
     /* an unknown slot is refused with the value, before anything runs */
     ctx = sc_ctx_new(&sc_node_load_atlas, NULL, NULL);
     SC_CHECK(sc_ctx_set_param(ctx, "slots", "color,bogus", &err) != SC_OK &&
