@@ -287,8 +287,25 @@ int sc_atlas_add_texture(sc_atlas *a, const char *name, int32_t material, sc_wra
     return SC_OK;
 }
 
+sc_material sc_material_default(void) {
+    return (sc_material){.base_color = {1, 1, 1, 1}, .metallic = 1, .roughness = 1, .normal_scale = 1,
+                         .occlusion_strength = 1, .alpha_cutoff = 0.5, .alpha_mode = SC_ALPHA_OPAQUE};
+}
+
+int sc_atlas_copy_materials(sc_atlas *dst, const sc_atlas *src) {
+    free(dst->materials);
+    dst->materials = NULL;
+    if (!src->materials) return SC_OK;
+    int32_t n = src->mesh->as.mesh->nmat;
+    dst->materials = malloc((size_t)(n > 0 ? n : 1) * sizeof *dst->materials);
+    if (!dst->materials) return SC_ENOMEM;
+    memcpy(dst->materials, src->materials, (size_t)n * sizeof *dst->materials);
+    return SC_OK;
+}
+
 void sc_atlas_free(sc_atlas *a) {
     if (!a) return;
+    free(a->materials);
     sc_value_release(a->mesh);
     for (int32_t i = 0; i < a->ntex; i++) {
         free(a->textures[i].name);
@@ -473,6 +490,15 @@ static void encode(const sc_value *v, sink *s) {
             put_u8(s, (uint8_t)t->wrap_u), put_u8(s, (uint8_t)t->wrap_v);
             put_str(s, t->source);
             put_digest(s, t->image);
+        }
+        put_u8(s, a->materials != NULL);
+        for (int32_t i = 0; a->materials && i < a->mesh->as.mesh->nmat; i++) {
+            const sc_material *m = &a->materials[i];
+            for (int k = 0; k < 4; k++) put_f64(s, m->base_color[k]);
+            put_f64(s, m->metallic), put_f64(s, m->roughness);
+            for (int k = 0; k < 3; k++) put_f64(s, m->emissive[k]);
+            put_f64(s, m->normal_scale), put_f64(s, m->occlusion_strength), put_f64(s, m->alpha_cutoff);
+            put_u8(s, (uint8_t)m->alpha_mode), put_u8(s, m->double_sided);
         }
         break;
     }
@@ -739,6 +765,22 @@ static sc_atlas *decode_atlas(decoder *d) {
         free(name);
         free(source);
         if (!image) d->r.failed = true;
+    }
+    int32_t nmat = mesh->as.mesh->nmat;
+    if (!d->r.failed && !d->failed && sc_read_u8(&d->r)) {
+        a->materials = malloc((size_t)(nmat > 0 ? nmat : 1) * sizeof *a->materials);
+        if (!a->materials) d->failed = true;
+        for (int32_t i = 0; a->materials && i < nmat && !d->r.failed; i++) {
+            sc_material *m = &a->materials[i];
+            for (int k = 0; k < 4; k++) m->base_color[k] = sc_read_f64(&d->r);
+            m->metallic = sc_read_f64(&d->r), m->roughness = sc_read_f64(&d->r);
+            for (int k = 0; k < 3; k++) m->emissive[k] = sc_read_f64(&d->r);
+            m->normal_scale = sc_read_f64(&d->r), m->occlusion_strength = sc_read_f64(&d->r);
+            m->alpha_cutoff = sc_read_f64(&d->r);
+            uint8_t mode = sc_read_u8(&d->r), sided = sc_read_u8(&d->r);
+            if (mode > SC_ALPHA_BLEND || sided > 1) d->r.failed = true;
+            m->alpha_mode = (sc_alpha_mode)mode, m->double_sided = sided;
+        }
     }
     if (d->r.failed || d->failed) {
         sc_atlas_free(a);

@@ -147,10 +147,36 @@ typedef struct sc_texture {
     sc_value *image;     /* an IMAGE value (the atlas holds one reference) */
 } sc_texture;
 
+/* How a renderer blends a material (glTF 2.0's alphaMode). */
+typedef enum sc_alpha_mode {
+    SC_ALPHA_OPAQUE = 0,
+    SC_ALPHA_MASK = 1,    /* alpha below alpha_cutoff is not drawn */
+    SC_ALPHA_BLEND = 2,
+} sc_alpha_mode;
+
+/* A material's constants as glTF 2.0 states them: each multiplies its
+ * texture (a texture that is absent reads as white; occlusion strength and
+ * normal scale as glTF applies them), and the render state. */
+typedef struct sc_material {
+    double base_color[4];       /* linear RGBA factor */
+    double metallic, roughness;
+    double emissive[3];
+    double normal_scale, occlusion_strength;
+    double alpha_cutoff;        /* with SC_ALPHA_MASK */
+    sc_alpha_mode alpha_mode;
+    bool double_sided;
+} sc_material;
+
+/* glTF's defaults: factors 1, emissive 0, opaque, one-sided, cutoff 0.5. */
+sc_material sc_material_default(void);
+
 typedef struct sc_atlas {
     sc_value *mesh;      /* a MESH value (one reference held) */
     int32_t ntex;
     sc_texture *textures;
+    /* mesh->nmat constants, or NULL where the source states none (OBJ, a
+     * generated asset): writers then follow their format's conventions */
+    sc_material *materials;
 } sc_atlas;
 
 /* ---------------------------------------------------------------- lods, report */
@@ -235,6 +261,10 @@ int sc_atlas_add_texture(sc_atlas *a, const char *name, int32_t material,
                          sc_wrap wrap_u, sc_wrap wrap_v, const char *source,
                          sc_value *image);   /* takes the reference to image */
 void sc_atlas_free(sc_atlas *a);
+/* dst's material constants: a copy of src's (none where src has none). A
+ * node that makes an atlas from another calls it, so the constants travel
+ * with the textures. 0 or SC_ENOMEM. */
+int sc_atlas_copy_materials(sc_atlas *dst, const sc_atlas *src);
 /* Index of the texture with this slot name in this material, or -1. */
 int sc_atlas_find_texture(const sc_atlas *a, int32_t material, const char *name);
 
@@ -267,6 +297,6 @@ sc_value *sc_value_deserialize(const void *bytes, size_t n, const sc_digest *exp
                                sc_value_resolver resolve, void *ud, sc_error *err);
 
 /* Format version of the serialisation; part of every cache key. */
-#define SC_VALUE_FORMAT 1
+#define SC_VALUE_FORMAT 2
 
 #endif

@@ -1342,7 +1342,7 @@ static sc_value *atlas_with(const sc_atlas *src, const char *slot_a, sc_value *c
                             int32_t nmat) {
     sc_atlas *a = sc_atlas_new(sc_value_retain(src->mesh));
     if (!a) return NULL;
-    int rc = SC_OK;
+    int rc = sc_atlas_copy_materials(a, src);
     for (int32_t t = 0; t < src->ntex && rc == SC_OK; t++) {
         const sc_texture *tx = &src->textures[t];
         if (strcmp(tx->name, "geometry_image") == 0 || strcmp(tx->name, "displacement") == 0) continue;

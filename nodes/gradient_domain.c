@@ -38,6 +38,7 @@
 static sc_value *with_slot(const sc_value *atlas, int32_t k, sc_value *img) {
     const sc_atlas *a = atlas->as.atlas;
     sc_atlas *out = sc_atlas_new(sc_value_retain(a->mesh));
+    if (out && sc_atlas_copy_materials(out, a) != SC_OK) sc_atlas_free(out), out = NULL;
     if (!out) return NULL;
     for (int32_t i = 0; i < a->ntex; i++) {
         const sc_texture *s = &a->textures[i];

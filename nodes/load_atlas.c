@@ -471,6 +471,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         loaded_free(&l);
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
+    if (l.gltf.materials) atlas->materials = l.gltf.materials, l.gltf.materials = NULL;   /* the same materials */
     /* textures in material order, then slot order: the same atlas for any file order */
     int flipped = 0;
     for (int32_t m = 0; m < (int32_t)materials && rc == SC_OK; m++)

@@ -1032,7 +1032,7 @@ static int add_levels(mip_run *r, sc_error *err) {
         for (int32_t m = 0; m < r->nmip && rc == SC_OK; m++) {
             const sc_atlas *s = r->src[k];
             sc_atlas *a = sc_atlas_new(sc_value_retain(s->mesh));
-            if (!a) rc = SC_ENOMEM;
+            rc = a ? sc_atlas_copy_materials(a, s) : SC_ENOMEM;
             for (int32_t t = 0; a && t < s->ntex && rc == SC_OK; t++) {
                 const sc_texture *tx = &s->textures[t];
                 const chain *ch = &r->chains[r->map[r->first_tex[k] + t] - 1];

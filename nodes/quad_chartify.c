@@ -145,6 +145,10 @@ static sc_value *level_atlas(sc_quad_result *r, sc_value *mesh0, int32_t L) {
     }
     sc_atlas *a = sc_atlas_new(mesh);
     if (!a) return NULL;
+    if (r->has_constants) {
+        if (!(a->materials = malloc(sizeof *a->materials))) return sc_atlas_free(a), NULL;
+        a->materials[0] = r->constants;
+    }
     for (int32_t t = 0; t < r->ntex; t++) {
         sc_value *iv = sc_value_new_image(r->textures[t].levels[L]);   /* takes it */
         r->textures[t].levels[L] = NULL;
@@ -208,6 +212,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.min_size = (int32_t)sc_ctx_integer(ctx, "min_size");
     o.supersample = (int32_t)sc_ctx_integer(ctx, "supersample");
     o.psnr_samples = (int32_t)sc_ctx_integer(ctx, "psnr_samples");
+    o.constants = a->materials;
     (void)sc_ctx_string(ctx, "layout");
     sc_quad_result r;
     int rc = sc_quad_build(m, a->textures, a->ntex, &o, sc_ctx_threads(ctx), &r, err);
@@ -280,7 +285,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_quad, &sc_kernel_seam, NUL
 
 const sc_node_desc sc_node_quad_chartify = {
     .type = "quad_chartify",
-    .version = 4,
+    .version = 5,
     .summary = "a seamless quad-chart atlas, seam-free at every mip level (Purnomo et al. 2004)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -351,7 +351,11 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
     sc_buf_puts(&mtl, "# seamcook\n");
     int rc = SC_OK;
     for (int32_t k = 0; k < m->nmat && rc == SC_OK; k++) {
-        sc_buf_printf(&mtl, "\nnewmtl %s\nKd 1 1 1\n", names[k]);
+        const sc_material *c = set->materials ? &set->materials[k] : NULL;   /* Kd and d multiply map_Kd */
+        if (c) sc_buf_printf(&mtl, "\nnewmtl %s\nKd %.17g %.17g %.17g\n", names[k], c->base_color[0], c->base_color[1],
+                             c->base_color[2]);
+        else sc_buf_printf(&mtl, "\nnewmtl %s\nKd 1 1 1\n", names[k]);
+        if (c && c->base_color[3] != 1) sc_buf_printf(&mtl, "d %.17g\n", c->base_color[3]);
         sc_seam_set seams = {0};
         bool found = false;
         for (int32_t t = 0; t < set->ntex && rc == SC_OK; t++) {
@@ -419,6 +423,7 @@ static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_err
     int32_t n = (atlas ? 1 : 0) + (lods ? lods->count : 0);
     const sc_mesh **levels = calloc((size_t)n, sizeof *levels);
     if (!levels) return sc_fail(err, SC_ENOMEM, "out of memory");
+    const sc_material *constants = atlas ? atlas->materials : lods->levels[0]->as.atlas->materials;
     int32_t k = 0;
     if (atlas) levels[k++] = atlas->mesh->as.mesh;
     for (int32_t l = 0; lods && l < lods->count; l++) levels[k++] = lods->levels[l]->as.atlas->mesh->as.mesh;
@@ -435,8 +440,8 @@ static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_err
     char *file = sc_strprintf("%s.%s", s->name, separate ? "gltf" : "glb");
     char *bin_file = separate ? sc_strprintf("%s.bin", s->name) : NULL;
     int rc = !file || (separate && !bin_file) ? sc_fail(err, SC_ENOMEM, "out of memory")
-             : separate ? sc_gltf_write_gltf(levels, n, s->glb_tex, s->nglb, bin_file, &b, &bin, err)
-                        : sc_gltf_write_glb(levels, n, s->glb_tex, s->nglb, &b, err);
+             : separate ? sc_gltf_write_gltf(levels, n, s->glb_tex, s->nglb, constants, bin_file, &b, &bin, err)
+                        : sc_gltf_write_glb(levels, n, s->glb_tex, s->nglb, constants, &b, err);
     if (rc == SC_OK) {
         s->bytes += (int64_t)(b.len + bin.len);
         rc = add_file(s->report, file, &b, err);

@@ -32,7 +32,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
                                mesh->materials[m], reference->materials[m]);
             }
         sc_atlas *a = sc_atlas_new(sc_value_retain(level->mesh));
-        int rc = a ? SC_OK : SC_ENOMEM;
+        int rc = a ? sc_atlas_copy_materials(a, textures) : SC_ENOMEM;
         for (int32_t t = 0; rc == SC_OK && t < textures->ntex; t++) {
             const sc_texture *tex = &textures->textures[t];
             rc = sc_atlas_add_texture(a, tex->name, tex->material, tex->wrap_u, tex->wrap_v, tex->source,

@@ -1214,7 +1214,8 @@ static int assemble_atlas(const job *J, sc_value **out, sc_error *err) {
     sc_value *mesh_value = nm ? sc_value_new_mesh(nm) : NULL;
     sc_atlas *na = mesh_value ? sc_atlas_new(sc_value_retain(mesh_value)) : NULL;
     sc_value_release(mesh_value);
-    int rc = na ? SC_OK : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
+    int rc = na && sc_atlas_copy_materials(na, atlas) == SC_OK ? SC_OK
+                                                               : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
     for (int32_t i = 0; i < atlas->ntex && rc == SC_OK; i++) {
         const sc_texture *tex = &atlas->textures[i];
         sc_value *img = sc_value_retain(J->images[i] ? J->images[i] : tex->image);

@@ -1695,6 +1695,7 @@ sc_value *sc_erase_result_atlas(const sc_value *atlas, const sc_erase_result *re
     for (int32_t i = 0; i < a->ntex && own; i++) own = (native ? res->native[i] : res->f32[i]) == a->textures[i].image;
     if (own) return sc_value_retain((sc_value *)atlas);
     sc_atlas *o = sc_atlas_new(sc_value_retain(a->mesh));
+    if (o && sc_atlas_copy_materials(o, a) != SC_OK) sc_atlas_free(o), o = NULL;
     if (!o) return NULL;
     for (int32_t i = 0; i < a->ntex; i++) {
         const sc_texture *t = &a->textures[i];

@@ -192,6 +192,17 @@ static int index_list(reader *r, const char *key, list *l) {
     return SC_OK;
 }
 
+/* One finite number field in [min, max]; absent leaves *out unchanged. */
+static int get_number(reader *r, const char *ctx, const cJSON *obj, const char *key, double min, double max,
+                      double *out) {
+    const cJSON *v = field(obj, key);
+    if (!v) return SC_OK;
+    if (!cJSON_IsNumber(v) || !(v->valuedouble >= min && v->valuedouble <= max))
+        return fail(r, SC_EINPUT, "%s: '%s' must be a number in [%g, %g]", ctx, key, min, max);
+    *out = v->valuedouble;
+    return SC_OK;
+}
+
 /* ---------------------------------------------------------------- URIs */
 
 static int base64_value(unsigned char c) {
@@ -1098,6 +1109,42 @@ static int parse_container(reader *r, const uint8_t *bytes, size_t size) {
 }
 
 /* Weld, map materials, build the mesh and the texture list. */
+/* Material k's constants (glTF 2.0 material: factors, scale and strength
+ * of its textures, alphaMode, alphaCutoff, doubleSided) into *m. */
+static int material_constants(reader *r, int64_t k, sc_material *m) {
+    char ctx[48];
+    snprintf(ctx, sizeof ctx, "material %lld", (long long)k);
+    const cJSON *mat = r->materials.items[k], *pbr = field(mat, "pbrMetallicRoughness");
+    int rc;
+    if ((rc = get_numbers(r, ctx, pbr, "baseColorFactor", 4, m->base_color, NULL)) ||
+        (rc = get_number(r, ctx, pbr, "metallicFactor", 0, 1, &m->metallic)) ||
+        (rc = get_number(r, ctx, pbr, "roughnessFactor", 0, 1, &m->roughness)) ||
+        (rc = get_numbers(r, ctx, mat, "emissiveFactor", 3, m->emissive, NULL)) ||
+        (rc = get_number(r, ctx, field(mat, "normalTexture"), "scale", -1e6, 1e6, &m->normal_scale)) ||
+        (rc = get_number(r, ctx, field(mat, "occlusionTexture"), "strength", 0, 1, &m->occlusion_strength)) ||
+        (rc = get_number(r, ctx, mat, "alphaCutoff", 0, 1e6, &m->alpha_cutoff)))
+        return rc;
+    const cJSON *mode = field(mat, "alphaMode"), *sided = field(mat, "doubleSided");
+    if (mode) {
+        const char *s = cJSON_IsString(mode) ? mode->valuestring : "";
+        if (strcmp(s, "OPAQUE") == 0) m->alpha_mode = SC_ALPHA_OPAQUE;
+        else if (strcmp(s, "MASK") == 0) m->alpha_mode = SC_ALPHA_MASK;
+        else if (strcmp(s, "BLEND") == 0) m->alpha_mode = SC_ALPHA_BLEND;
+        else return fail(r, SC_EINPUT, "%s: 'alphaMode' must be OPAQUE, MASK or BLEND", ctx);
+    }
+    if (sided) {
+        if (!cJSON_IsBool(sided)) return fail(r, SC_EINPUT, "%s: 'doubleSided' must be true or false", ctx);
+        m->double_sided = cJSON_IsTrue(sided);
+    }
+    for (int c = 0; c < 4; c++)
+        if (!(m->base_color[c] >= 0 && m->base_color[c] <= 1))
+            return fail(r, SC_EINPUT, "%s: 'baseColorFactor' must hold numbers in [0, 1]", ctx);
+    for (int c = 0; c < 3; c++)
+        if (!(m->emissive[c] >= 0))
+            return fail(r, SC_EINPUT, "%s: 'emissiveFactor' must hold numbers of at least 0", ctx);
+    return SC_OK;
+}
+
 static int build(reader *r, sc_gltf *out) {
     if (r->ntri == 0) return fail(r, SC_EINPUT, "the scene has no triangles");
     int32_t *vid = sc_alloc_array((size_t)r->nraw, sizeof(int32_t));
@@ -1164,6 +1211,13 @@ static int build(reader *r, sc_gltf *out) {
                                    r->err);
         if (rc != SC_OK) sc_error_prefix(r->err, "%s", r->name);
     }
+    if (rc == SC_OK && !(out->materials = sc_alloc_array((size_t)nmat + 1, sizeof *out->materials)))
+        rc = fail(r, SC_ENOMEM, "out of memory");
+    for (int64_t k = 0; k <= nm && rc == SC_OK; k++)
+        if (mat_map[k] >= 0) {
+            out->materials[mat_map[k]] = sc_material_default();   /* "default": glTF's default material */
+            if (k < nm) rc = material_constants(r, k, &out->materials[mat_map[k]]);
+        }
     for (int64_t k = 0; k < nm && rc == SC_OK; k++)
         if (mat_map[k] >= 0) rc = add_material_textures(r, k, mat_map[k], out);
     free(U);
@@ -1226,5 +1280,6 @@ void sc_gltf_free(sc_gltf *g) {
     free(g->images);
     for (int32_t i = 0; i < g->ntextures; i++) free(g->textures[i].slot);
     free(g->textures);
+    free(g->materials);
     memset(g, 0, sizeof *g);
 }

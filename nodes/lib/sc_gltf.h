@@ -52,7 +52,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 5
+#define SC_GLTF_VERSION 6
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */
@@ -88,6 +88,7 @@ typedef struct sc_gltf {
     sc_gltf_image *images;            /* the images the textures use */
     int32_t ntextures;
     sc_gltf_texture *textures;
+    sc_material *materials;           /* mesh->nmat: each material's constants */
     int64_t degenerate_faces_dropped; /* triangles that repeat a welded position */
     int64_t primitives_skipped;       /* primitives whose mode is not TRIANGLES */
     int64_t textures_skipped;         /* textures on a uv set other than TEXCOORD_0 */
@@ -120,15 +121,20 @@ typedef struct sc_gltf_out_texture {
  * the others in MSFT_lod (finest first), each level a mesh with a primitive
  * per material (unindexed corners welded into glTF vertices: equal position,
  * uv and normal indices), materials named as the levels' (all levels share
- * level 0's materials), textures embedded with samplers from their wrap
- * modes. Positions, uvs (v stored as 1 - v) and normals are float32. */
+ * level 0's materials) with `constants` (one per material: factors, normal
+ * scale, occlusion strength, alpha mode and cutoff, double-sidedness; NULL:
+ * an OBJ's conventions, a dielectric fully rough without a
+ * metallic-roughness map, emission as its map), textures embedded with
+ * samplers from their wrap modes. Positions, uvs (v stored as 1 - v) and
+ * normals are float32. */
 int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
-                      int32_t ntextures, sc_buf *out, sc_error *err);
+                      int32_t ntextures, const sc_material *constants, sc_buf *out, sc_error *err);
 
 /* The same document as a .gltf: its JSON text appended to *json, the binary
  * buffer (the .glb's chunk without the images) to *bin, which the JSON names
  * bin_uri; images by their textures' uri. */
 int sc_gltf_write_gltf(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
-                       int32_t ntextures, const char *bin_uri, sc_buf *json, sc_buf *bin, sc_error *err);
+                       int32_t ntextures, const sc_material *constants, const char *bin_uri, sc_buf *json,
+                       sc_buf *bin, sc_error *err);
 
 #endif

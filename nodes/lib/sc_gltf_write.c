@@ -187,7 +187,8 @@ static int texture_of(const sc_gltf_out_texture *t, int32_t n, int32_t mat, cons
  * makes a .glb's (images in the buffer, buffer 0 the binary chunk); else a
  * .gltf's (images by their textures' uri, buffer 0 the file bin_uri). */
 static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlevels,
-                          const sc_gltf_out_texture *textures, int32_t ntextures, const char *bin_uri, sc_error *err) {
+                          const sc_gltf_out_texture *textures, int32_t ntextures, const sc_material *constants,
+                          const char *bin_uri, sc_error *err) {
     if (nlevels < 1) return sc_fail(err, SC_EINPUT, "glb: no levels");
     const sc_mesh *m0 = levels[0];
     for (int32_t l = 1; l < nlevels; l++)
@@ -236,11 +237,32 @@ static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlev
         sc_buf_puts(&materials, ",\"pbrMetallicRoughness\":{");
         if (tc >= 0) sc_buf_printf(&materials, "\"baseColorTexture\":{\"index\":%d},", tc);
         if (tm >= 0) sc_buf_printf(&materials, "\"metallicRoughnessTexture\":{\"index\":%d},", tm);
-        /* without a metallic-roughness map: a dielectric, fully rough (an OBJ's diffuse look) */
-        sc_buf_printf(&materials, "\"metallicFactor\":%s,\"roughnessFactor\":1}", tm >= 0 ? "1" : "0");
-        if (tn >= 0) sc_buf_printf(&materials, ",\"normalTexture\":{\"index\":%d}", tn);
-        if (to >= 0) sc_buf_printf(&materials, ",\"occlusionTexture\":{\"index\":%d}", to);
-        if (te >= 0) sc_buf_printf(&materials, ",\"emissiveTexture\":{\"index\":%d},\"emissiveFactor\":[1,1,1]", te);
+        const sc_material *c = constants ? &constants[mat] : NULL;
+        if (c) {
+            sc_buf_printf(&materials, "\"baseColorFactor\":[%.17g,%.17g,%.17g,%.17g],", c->base_color[0],
+                          c->base_color[1], c->base_color[2], c->base_color[3]);
+            sc_buf_printf(&materials, "\"metallicFactor\":%.17g,\"roughnessFactor\":%.17g}", c->metallic, c->roughness);
+        } else {   /* without a metallic-roughness map: a dielectric, fully rough (an OBJ's diffuse look) */
+            sc_buf_printf(&materials, "\"metallicFactor\":%s,\"roughnessFactor\":1}", tm >= 0 ? "1" : "0");
+        }
+        if (tn >= 0) sc_buf_printf(&materials, ",\"normalTexture\":{\"index\":%d", tn);
+        if (tn >= 0 && c && c->normal_scale != 1) sc_buf_printf(&materials, ",\"scale\":%.17g", c->normal_scale);
+        if (tn >= 0) sc_buf_puts(&materials, "}");
+        if (to >= 0) sc_buf_printf(&materials, ",\"occlusionTexture\":{\"index\":%d", to);
+        if (to >= 0 && c && c->occlusion_strength != 1)
+            sc_buf_printf(&materials, ",\"strength\":%.17g", c->occlusion_strength);
+        if (to >= 0) sc_buf_puts(&materials, "}");
+        if (te >= 0) sc_buf_printf(&materials, ",\"emissiveTexture\":{\"index\":%d}", te);
+        if (c && (c->emissive[0] != 0 || c->emissive[1] != 0 || c->emissive[2] != 0))
+            sc_buf_printf(&materials, ",\"emissiveFactor\":[%.17g,%.17g,%.17g]", c->emissive[0], c->emissive[1],
+                          c->emissive[2]);
+        else if (!c && te >= 0)
+            sc_buf_puts(&materials, ",\"emissiveFactor\":[1,1,1]");
+        if (c && c->alpha_mode != SC_ALPHA_OPAQUE)
+            sc_buf_printf(&materials, ",\"alphaMode\":\"%s\"", c->alpha_mode == SC_ALPHA_MASK ? "MASK" : "BLEND");
+        if (c && c->alpha_mode == SC_ALPHA_MASK && c->alpha_cutoff != 0.5)
+            sc_buf_printf(&materials, ",\"alphaCutoff\":%.17g", c->alpha_cutoff);
+        if (c && c->double_sided) sc_buf_puts(&materials, ",\"doubleSided\":true");
         sc_buf_puts(&materials, "}");
     }
     /* the document */
@@ -291,10 +313,10 @@ static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlev
 }
 
 int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
-                      int32_t ntextures, sc_buf *out, sc_error *err) {
+                      int32_t ntextures, const sc_material *constants, sc_buf *out, sc_error *err) {
     glb g = {0};
     sc_buf_init(&g.json), sc_buf_init(&g.bin), sc_buf_init(&g.views), sc_buf_init(&g.accessors);
-    int rc = write_document(&g, levels, nlevels, textures, ntextures, NULL, err);
+    int rc = write_document(&g, levels, nlevels, textures, ntextures, constants, NULL, err);
     sc_buf *j = &g.json;
     while (j->len % 4) sc_buf_u8(j, ' ');
     if (rc == SC_OK && 12 + 8 + j->len + 8 + g.bin.len > UINT32_MAX) rc = sc_fail(err, SC_EINPUT, "glb: over 4 GB");
@@ -315,10 +337,11 @@ int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gl
 }
 
 int sc_gltf_write_gltf(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,
-                       int32_t ntextures, const char *bin_uri, sc_buf *json, sc_buf *bin, sc_error *err) {
+                       int32_t ntextures, const sc_material *constants, const char *bin_uri, sc_buf *json,
+                       sc_buf *bin, sc_error *err) {
     glb g = {0};
     sc_buf_init(&g.json), sc_buf_init(&g.bin), sc_buf_init(&g.views), sc_buf_init(&g.accessors);
-    int rc = write_document(&g, levels, nlevels, textures, ntextures, bin_uri, err);
+    int rc = write_document(&g, levels, nlevels, textures, ntextures, constants, bin_uri, err);
     if (rc == SC_OK) {
         sc_buf_append(json, g.json.data, g.json.len);
         sc_buf_append(bin, g.bin.data, g.bin.len);

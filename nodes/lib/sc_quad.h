@@ -55,7 +55,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_quad is re-keyed. */
-#define SC_QUAD_VERSION 5
+#define SC_QUAD_VERSION 6
 extern const sc_kernel sc_kernel_quad;
 
 typedef struct sc_quad_options {
@@ -68,6 +68,7 @@ typedef struct sc_quad_options {
     int32_t psnr_samples;    /* surface points for the PSNR metric (0: none) */
     bool whole_texture;      /* uv in units of texture_size (maps of that size hold the border samples
                               * on their texel centres); else of the packed charts' extent */
+    const sc_material *constants;   /* the input's material constants (one per material), or NULL */
 } sc_quad_options;
 
 void sc_quad_defaults(sc_quad_options *o);
@@ -86,10 +87,18 @@ typedef struct sc_quad_result {
     int32_t ntex;
     sc_quad_texture *textures;
     sc_metric_list metrics;
+    sc_material constants;   /* with has_constants: the one material's (merged: sc_quad_build) */
+    bool has_constants;
 } sc_quad_result;
 
 /* Build the quad atlas of mesh m with textures tex[0..ntex) (their images
- * read through m's uv; ntex may be 0, and m may have no uv then). On
+ * read through m's uv; ntex may be 0, and m may have no uv then). With
+ * o->constants, the atlas's one material gets the constants every used
+ * material agrees on; one they differ on (a colour factor, say) is
+ * multiplied into its slot's texels as glTF applies it, per source
+ * material, and left neutral (metric material_constants_unbaked: those
+ * without a slot to take them, kept as the first material's); the most
+ * transparent alpha mode and any double-sidedness hold for the whole. On
  * failure nothing is kept and err names the cause. */
 int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const sc_quad_options *o,
                   int threads, sc_quad_result *out, sc_error *err);

@@ -87,9 +87,15 @@ static void source_sample(const source *s, double u, double v, float out[4]) {
 
 /* ---------------------------------------------------------------- the job */
 
+/* Which material constant a slot's texels take in (the quad atlas has one
+ * material; constants its sources disagree on are multiplied into texels). */
+typedef enum slot_constant { CONSTANT_NONE, CONSTANT_BASE_COLOR, CONSTANT_METALLIC_ROUGHNESS, CONSTANT_EMISSIVE,
+                             CONSTANT_OCCLUSION, CONSTANT_NORMAL } slot_constant;
+
 typedef struct slot {
     char *name;
     slot_kind kind;
+    slot_constant bake;    /* the constant its texels take in, or none */
     int32_t channels;
     sc_pixel pixel;
     sc_colorspace colorspace;
@@ -107,6 +113,7 @@ typedef struct job {
     slot *slots;
     double (*frame)[9];    /* per input face: tangent, bitangent, normal (unit) */
     int32_t *chart_x, *chart_y;
+    const sc_material *constants;   /* the input's, per material, or NULL */
 } job;
 
 static void input_frame(const sc_mesh *m, int32_t f, double fr[9]) {
@@ -158,20 +165,46 @@ static const source *old_point(const job *J, const slot *s, int32_t f, const dou
 /* Samples a side of chart q at level L. */
 static int32_t chart_n(const job *J, int32_t q, int32_t L) { return (1 << (J->kq[q] - L)) + 1; }
 
+/* out (a value of slot s on input face of) times the constant of of's
+ * material that s takes in, as glTF applies it. */
+static void take_constant(const job *J, const slot *s, int32_t of, float out[4]) {
+    const sc_material *c = &J->constants[J->in->FM ? J->in->FM[of] : 0];
+    switch (s->bake) {
+    case CONSTANT_BASE_COLOR:
+        for (int k = 0; k < 4; k++) out[k] = (float)(out[k] * c->base_color[k]);
+        break;
+    case CONSTANT_METALLIC_ROUGHNESS:
+        out[1] = (float)(out[1] * c->roughness), out[2] = (float)(out[2] * c->metallic);
+        break;
+    case CONSTANT_EMISSIVE:
+        for (int k = 0; k < 3; k++) out[k] = (float)(out[k] * c->emissive[k]);
+        break;
+    case CONSTANT_OCCLUSION: out[0] = (float)(1 + c->occlusion_strength * (out[0] - 1)); break;
+    default: break;
+    }
+}
+
 /* The value of slot s at a point of refined face f with barycentric l. */
 static void sample_point(const job *J, const slot *s, int32_t f, const double l[3], const double newT[3],
                          float out[4]) {
     double u, v;
     const source *src = old_point(J, s, f, l, &u, &v);
+    int32_t of = J->c->m.old[f];
     if (!src) {
         memcpy(out, s->neutral, 4 * sizeof(float));
+        if (s->bake == CONSTANT_EMISSIVE) out[0] = out[1] = out[2] = 1;   /* an absent map reads as white */
+        if (s->bake != CONSTANT_NONE && s->bake != CONSTANT_NORMAL) take_constant(J, s, of, out);
         return;
     }
     source_sample(src, u, v, out);
-    int32_t of = J->c->m.old[f];
+    if (s->bake != CONSTANT_NONE && s->bake != CONSTANT_NORMAL) take_constant(J, s, of, out);
     if (s->kind != SLOT_NORMAL) return;
     const double *fr = J->frame[of];
     double t[3] = {2.0 * out[0] - 1, 2.0 * out[1] - 1, 2.0 * out[2] - 1}, w[3];
+    if (s->bake == CONSTANT_NORMAL) {
+        double scale = J->constants[J->in->FM ? J->in->FM[of] : 0].normal_scale;
+        t[0] *= scale, t[1] *= scale;
+    }
     for (int i = 0; i < 3; i++) w[i] = t[0] * fr[i] + t[1] * fr[3 + i] + t[2] * fr[6 + i];
     const double *n = fr + 6;
     double T[3], B[3];
@@ -931,6 +964,62 @@ static int psnr_one(void *ud, int32_t s) {
     return SC_OK;
 }
 
+/* The quad atlas's one material from the input's constants: a constant
+ * every used material agrees on is kept; one they differ on is multiplied
+ * into its slot's texels (the slot's `bake`) and left neutral, or, with no
+ * such slot, taken from the first used material and counted in
+ * *unbaked. Render state: the most transparent alpha mode (MASK with the
+ * smallest cutoff), double-sided where any is. */
+static sc_material merge_constants(job *J, int32_t *unbaked) {
+    const sc_mesh *m = J->in;
+    const sc_material *c = J->constants;
+    bool *used = calloc((size_t)(m->nmat > 0 ? m->nmat : 1), sizeof *used);
+    int32_t first = -1;
+    for (int32_t f = 0; f < m->nf; f++) {
+        int32_t k = m->FM ? m->FM[f] : 0;
+        if (used) used[k] = true;
+        if (first < 0) first = k;
+    }
+    sc_material out = c[first < 0 ? 0 : first];
+    bool differ[6] = {false};
+    double cutoff = INFINITY;
+    out.alpha_mode = SC_ALPHA_OPAQUE, out.double_sided = false;
+    for (int32_t k = 0; k < m->nmat; k++) {
+        if (used && !used[k]) continue;
+        const sc_material *a = &c[k], *b = &c[first];
+        differ[CONSTANT_BASE_COLOR] |= memcmp(a->base_color, b->base_color, sizeof a->base_color) != 0;
+        differ[CONSTANT_METALLIC_ROUGHNESS] |= a->metallic != b->metallic || a->roughness != b->roughness;
+        differ[CONSTANT_EMISSIVE] |= memcmp(a->emissive, b->emissive, sizeof a->emissive) != 0;
+        differ[CONSTANT_OCCLUSION] |= a->occlusion_strength != b->occlusion_strength;
+        differ[CONSTANT_NORMAL] |= a->normal_scale != b->normal_scale;
+        if (a->alpha_mode > out.alpha_mode) out.alpha_mode = a->alpha_mode;
+        if (a->alpha_mode == SC_ALPHA_MASK && a->alpha_cutoff < cutoff) cutoff = a->alpha_cutoff;
+        out.double_sided |= a->double_sided;
+    }
+    free(used);
+    if (out.alpha_mode == SC_ALPHA_MASK) out.alpha_cutoff = cutoff;
+    static const char *const slot_of[6] = {NULL, "color", "metallic_roughness", "emissive", "occlusion", "normal"};
+    for (int k = CONSTANT_BASE_COLOR; k <= CONSTANT_NORMAL; k++) {
+        if (!differ[k]) continue;
+        int32_t s = 0;
+        while (s < J->nslots && strcmp(J->slots[s].name, slot_of[k]) != 0) s++;
+        if (s == J->nslots) {
+            (*unbaked)++;
+            continue;
+        }
+        J->slots[s].bake = (slot_constant)k;
+        sc_material neutral = sc_material_default();
+        switch (k) {
+        case CONSTANT_BASE_COLOR: memcpy(out.base_color, neutral.base_color, sizeof out.base_color); break;
+        case CONSTANT_METALLIC_ROUGHNESS: out.metallic = out.roughness = 1; break;
+        case CONSTANT_EMISSIVE: out.emissive[0] = out.emissive[1] = out.emissive[2] = 1; break;
+        case CONSTANT_OCCLUSION: out.occlusion_strength = 1; break;
+        default: out.normal_scale = 1; break;
+        }
+    }
+    return out;
+}
+
 int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const sc_quad_options *o, int threads,
                   sc_quad_result *out, sc_error *err) {
     memset(out, 0, sizeof *out);
@@ -997,6 +1086,12 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
     if (rc == SC_OK) rc = choose_layout(&J, o, area, c.nquads, err);
     free(area);
     if (rc == SC_OK) rc = setup_slots(&J, tex, ntex);
+    int32_t unbaked = 0;
+    if (rc == SC_OK && o->constants) {
+        J.constants = o->constants;
+        out->constants = merge_constants(&J, &unbaked);
+        out->has_constants = true;
+    }
     if (rc == SC_OK) {
         J.frame = malloc((size_t)m->nf * sizeof *J.frame);
         if (!J.frame) rc = SC_ENOMEM;
@@ -1066,6 +1161,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         for (int32_t q = 0; q < c.nquads; q++) kmin = J.kq[q] < kmin ? J.kq[q] : kmin, kmax = J.kq[q] > kmax ? J.kq[q] : kmax;
         sc_metric_list_add(ml, "patches", c.npatches);
         sc_metric_list_add(ml, "quads", c.nquads);
+        if (out->has_constants) sc_metric_list_add(ml, "material_constants_unbaked", unbaked);
         static const char *const hist[9] = {"patches_3_sided", "patches_4_sided", "patches_5_sided", "patches_6_sided",
                                             "patches_7_sided", "patches_8_sided", "patches_9_sided", "patches_10_sided",
                                             "patches_11plus_sided"};

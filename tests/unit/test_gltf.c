@@ -517,6 +517,111 @@ SC_TEST(glb_without_texcoord) {
     cJSON_Delete(j);
 }
 
+static void constants_on_quad(cJSON *j) {
+    cJSON *mat = at(j, "materials", 0), *pbr = cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness");
+    cJSON *base = cJSON_AddArrayToObject(pbr, "baseColorFactor");
+    const double bc[4] = {0.9, 0.5, 0.25, 0.75};
+    for (int k = 0; k < 4; k++) cJSON_AddItemToArray(base, cJSON_CreateNumber(bc[k]));
+    cJSON_AddNumberToObject(pbr, "metallicFactor", 0.125);
+    cJSON_AddNumberToObject(pbr, "roughnessFactor", 0.3);
+    cJSON *em = cJSON_AddArrayToObject(mat, "emissiveFactor");
+    const double ef[3] = {0.125, 0.25, 2.5};
+    for (int k = 0; k < 3; k++) cJSON_AddItemToArray(em, cJSON_CreateNumber(ef[k]));
+    cJSON_AddNumberToObject(cJSON_GetObjectItemCaseSensitive(mat, "normalTexture"), "scale", 0.6);
+    cJSON_AddNumberToObject(cJSON_GetObjectItemCaseSensitive(mat, "occlusionTexture"), "strength", 0.4);
+    cJSON_AddStringToObject(mat, "alphaMode", "MASK");
+    cJSON_AddNumberToObject(mat, "alphaCutoff", 0.35);
+    cJSON_AddBoolToObject(mat, "doubleSided", true);
+}
+
+static void check_constants(const sc_material *m) {
+    SC_CHECK(m->base_color[0] == 0.9 && m->base_color[1] == 0.5 && m->base_color[2] == 0.25 &&
+             m->base_color[3] == 0.75);
+    SC_CHECK(m->metallic == 0.125 && m->roughness == 0.3);
+    SC_CHECK(m->emissive[0] == 0.125 && m->emissive[1] == 0.25 && m->emissive[2] == 2.5);
+    SC_CHECK(m->normal_scale == 0.6 && m->occlusion_strength == 0.4);
+    SC_CHECK(m->alpha_mode == SC_ALPHA_MASK && m->alpha_cutoff == 0.35 && m->double_sided);
+}
+
+/* A material's constants read, carried by load_atlas, and written back
+ * into a .glb that reads them again bit for bit; bad ones are refused. */
+SC_TEST(material_constants_round_trip) {
+    cJSON *j = load_quad();
+    if (!j) return;
+    constants_on_quad(j);
+    sc_buf bin, glb, out;
+    quad_bin(j, &bin);
+    make_glb(j, &bin, &glb);
+    sc_buf_init(&out);
+    sc_gltf g;
+    sc_error err = {0};
+    int rc = sc_gltf_parse("paint.glb", glb.data, glb.len, failing_read, NULL, &g, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    sc_buf png;
+    png_bytes(2, 2, 128, &png);
+    if (rc == SC_OK) {
+        check_constants(&g.materials[0]);
+        const sc_mesh *levels[1] = {g.mesh};
+        sc_gltf_out_texture t[2] = {{0, "normal", SC_WRAP_REPEAT, SC_WRAP_REPEAT, png.data, png.len, "image/png", NULL},
+                                    {0, "occlusion", SC_WRAP_REPEAT, SC_WRAP_REPEAT, png.data, png.len, "image/png",
+                                     NULL}};
+        rc = sc_gltf_write_glb(levels, 1, t, 2, g.materials, &out, &err);
+        SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    }
+    sc_gltf_free(&g);
+    if (rc == SC_OK) {
+        /* the JSON chunk, read here: glTF's own names and values */
+        uint32_t n;
+        memcpy(&n, out.data + 12, 4);
+        cJSON *doc = cJSON_ParseWithLength((const char *)out.data + 20, n);
+        const cJSON *mat = doc ? at(doc, "materials", 0) : NULL;
+        SC_CHECK(mat && cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(mat, "doubleSided")));
+        SC_CHECK(mat && strcmp(cJSON_GetObjectItemCaseSensitive(mat, "alphaMode")->valuestring, "MASK") == 0);
+        SC_CHECK(mat && cJSON_GetObjectItemCaseSensitive(mat, "alphaCutoff")->valuedouble == 0.35);
+        const cJSON *nt = mat ? cJSON_GetObjectItemCaseSensitive(mat, "normalTexture") : NULL;
+        SC_CHECK(nt && cJSON_GetObjectItemCaseSensitive(nt, "scale")->valuedouble == 0.6);
+        cJSON_Delete(doc);
+        rc = sc_gltf_parse("again.glb", out.data, out.len, failing_read, NULL, &g, &err);
+        SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+        if (rc == SC_OK) check_constants(&g.materials[0]);
+        sc_gltf_free(&g);
+    }
+    /* through the node: the atlas carries them */
+    char *dir = sc_test_tempdir("glb-constants");
+    write_bytes(dir, "paint.glb", glb.data, glb.len);
+    write_bytes(dir, "color.png", png.data, png.len);
+    write_bytes(dir, "normal map.png", png.data, png.len);
+    char *path = sc_path_join(dir, "paint.glb");
+    sc_ctx *ctx = run_load(path, &err, NULL);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        const sc_atlas *a = sc_ctx_output(ctx, 0)->as.atlas;
+        SC_CHECK(a->materials != NULL);
+        if (a->materials) check_constants(&a->materials[0]);
+        sc_ctx_free(ctx);
+    }
+    sc_test_system("rm -rf '%s'", dir);
+    free(path), free(dir);
+    sc_buf_free(&png), sc_buf_free(&bin), sc_buf_free(&glb), sc_buf_free(&out);
+    cJSON_Delete(j);
+    /* refused: each names the material and the field */
+    static const char *const bad[][3] = {
+        {"alphaMode", "SOMETIMES", "material 0: 'alphaMode' must be OPAQUE, MASK or BLEND"},
+        {"doubleSided", "yes", "material 0: 'doubleSided' must be true or false"},
+    };
+    for (int i = 0; i < 2; i++) {
+        j = load_quad();
+        if (!j) return;
+        cJSON_AddStringToObject(at(j, "materials", 0), bad[i][0], bad[i][1]);
+        quad_bin(j, &bin);
+        make_glb(j, &bin, &glb);
+        rc = sc_gltf_parse("bad.glb", glb.data, glb.len, failing_read, NULL, &g, &err);
+        SC_CHECK_MSG(rc != SC_OK && message_has(&err, bad[i][2]), "case %d: %s", i, err.message);
+        sc_buf_free(&bin), sc_buf_free(&glb);
+        cJSON_Delete(j);
+    }
+}
+
 SC_TEST(bad_gltf_text_inputs) {
     sc_gltf g;
     sc_error err = {0};

@@ -321,10 +321,12 @@ SC_TEST(borders_on_texel_centres_and_a_ring_per_chart) {
 
 /* Level 0 of a linear field on a flat square holds the field's value at
  * each texel's surface point (supersample 1: a point sample there). */
-SC_TEST(linear_field_reproduced_at_level_zero) {
-    int n = 12;
-    sc_mesh *in = sc_mesh_alloc((n + 1) * (n + 1), (n + 1) * (n + 1), 0, 2 * n * n, 1);
-    in->materials[0] = strdup("m");
+/* The unit square in the plane z = 0, n x n cells of two triangles, uv
+ * 0.1 + 0.8 (x, y); with two materials, "left" for x < 1/2 and "right". */
+static sc_mesh *plane(int n, int nmat) {
+    sc_mesh *in = sc_mesh_alloc((n + 1) * (n + 1), (n + 1) * (n + 1), 0, 2 * n * n, nmat);
+    in->materials[0] = strdup(nmat == 1 ? "m" : "left");
+    if (nmat == 2) in->materials[1] = strdup("right");
     for (int j = 0; j <= n; j++)
         for (int i = 0; i <= n; i++) {
             int v = j * (n + 1) + i;
@@ -336,7 +338,14 @@ SC_TEST(linear_field_reproduced_at_level_zero) {
             int a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
             int t[6] = {a, b, c, a, c, d};
             for (int k = 0; k < 6; k++) in->FV[3 * f + k] = t[k], in->FU[3 * f + k] = t[k];
+            in->FM[f] = in->FM[f + 1] = nmat == 2 && i >= n / 2 ? 1 : 0;
         }
+    return in;
+}
+
+SC_TEST(linear_field_reproduced_at_level_zero) {
+    int n = 12;
+    sc_mesh *in = plane(n, 1);
     /* field value = u of the old atlas, stored linearly across a 256-wide image */
     sc_image_data *im = sc_image_alloc(256, 256, 3, SC_PIXEL_F32);
     im->colorspace = SC_COLOR_DATA;
@@ -379,6 +388,89 @@ SC_TEST(linear_field_reproduced_at_level_zero) {
     SC_CHECK_MSG(checked > 1000, "only %lld texels checked", (long long)checked);
     SC_CHECK_MSG(worst < 1e-5, "level 0 misses the linear field by %g", worst);
     sc_quad_result_free(&r);
+    sc_mesh_free(in);
+    sc_value_release(img);
+}
+
+/* Two materials on one plane (x < 1/2 and x > 1/2) with one uniform colour
+ * texture: their colour factors differ, so each texel strictly inside a
+ * face holds the texture times its own material's factor, and the one
+ * material left has factor 1; metallic agrees and is kept; roughness
+ * differs with no metallic-roughness map to take it (counted unbaked); the
+ * alpha mode is the more transparent (BLEND over MASK), double-sided as
+ * one of them is. */
+SC_TEST(material_constants_merged_and_baked) {
+    sc_mesh *in = plane(8, 2);
+    sc_image_data *im = sc_image_alloc(64, 64, 4, SC_PIXEL_F32);
+    im->colorspace = SC_COLOR_LINEAR;
+    for (int64_t i = 0; i < 64 * 64 * 4; i++) ((float *)im->pixels)[i] = (i % 4) == 3 ? 1.0f : 0.8f;
+    sc_value *img = sc_value_new_image(im);
+    sc_texture tex[2];
+    for (int k = 0; k < 2; k++)
+        tex[k] = (sc_texture){.name = "color", .material = k, .wrap_u = SC_WRAP_CLAMP, .wrap_v = SC_WRAP_CLAMP,
+                              .source = "", .image = img};
+    sc_material c[2] = {sc_material_default(), sc_material_default()};
+    c[0].base_color[0] = 0.5, c[1].base_color[1] = 0.25, c[1].base_color[3] = 0.5;
+    c[0].metallic = c[1].metallic = 0.7;
+    c[0].roughness = 0.2, c[1].roughness = 0.9;
+    c[0].alpha_mode = SC_ALPHA_MASK, c[0].alpha_cutoff = 0.3, c[1].alpha_mode = SC_ALPHA_BLEND;
+    c[1].double_sided = true;
+    sc_quad_options o;
+    sc_quad_defaults(&o);
+    o.texture_size = 256, o.supersample = 1, o.psnr_samples = 0, o.constants = c;
+    sc_quad_result r;
+    sc_error err = {0};
+    int rc = sc_quad_build(in, tex, 2, &o, 1, &r, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        SC_CHECK(r.has_constants);
+        for (int k = 0; k < 4; k++) SC_CHECK(r.constants.base_color[k] == 1);
+        SC_CHECK(r.constants.metallic == 0.7 && r.constants.roughness == 0.2);
+        SC_CHECK(r.constants.alpha_mode == SC_ALPHA_BLEND && r.constants.double_sided);
+        SC_CHECK(metric(&r, "material_constants_unbaked") == 1);
+        const sc_mesh *m = r.mesh;
+        const sc_image_data *out = r.textures[0].levels[0];
+        int64_t checked = 0;
+        double worst = 0;
+        for (int32_t f = 0; f < m->nf; f++) {
+            double x[3], y[3], cx = 0;
+            for (int k = 0; k < 3; k++) {
+                const double *uv = m->U + 2 * m->FU[3 * f + k];
+                x[k] = uv[0] * r.width - 0.5, y[k] = uv[1] * r.height - 0.5;
+                cx += m->V[3 * m->FV[3 * f + k]] / 3;
+            }
+            const double *want = cx < 0.5 ? c[0].base_color : c[1].base_color;
+            double area = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+            if (!(area > 0)) continue;
+            for (int j = (int)floor(fmin(y[0], fmin(y[1], y[2]))); j <= (int)ceil(fmax(y[0], fmax(y[1], y[2]))); j++)
+                for (int i = (int)floor(fmin(x[0], fmin(x[1], x[2]))); i <= (int)ceil(fmax(x[0], fmax(x[1], x[2])));
+                     i++) {
+                    double l0 = ((x[1] - i) * (y[2] - j) - (x[2] - i) * (y[1] - j)) / area;
+                    double l1 = ((x[2] - i) * (y[0] - j) - (x[0] - i) * (y[2] - j)) / area, l2 = 1 - l0 - l1;
+                    if (l0 < 1e-6 || l1 < 1e-6 || l2 < 1e-6) continue;   /* strictly inside: one face */
+                    const float *px = (const float *)out->pixels + 4 * ((size_t)j * out->width + i);
+                    for (int k = 0; k < 4; k++) worst = fmax(worst, fabs(px[k] - (k == 3 ? 1.0 : 0.8) * want[k]));
+                    checked++;
+                }
+        }
+        SC_CHECK_MSG(checked > 1000, "only %lld texels checked", (long long)checked);
+        SC_CHECK_MSG(worst < 1e-6, "texels miss their material's factor by %g", worst);
+        sc_quad_result_free(&r);
+    }
+    /* constants they agree on stay constants: the texels keep the texture's values */
+    c[1] = c[0];
+    rc = sc_quad_build(in, tex, 2, &o, 1, &r, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        SC_CHECK(r.constants.base_color[0] == 0.5 && metric(&r, "material_constants_unbaked") == 0);
+        SC_CHECK(r.constants.alpha_mode == SC_ALPHA_MASK && r.constants.alpha_cutoff == 0.3 &&
+                 !r.constants.double_sided);
+        const float *px = (const float *)r.textures[0].levels[0]->pixels;
+        float most = 0;   /* red: the texture's 0.8, not times the factor */
+        for (int64_t i = 0; i < (int64_t)r.width * r.height; i++) most = fmaxf(most, px[4 * i]);
+        SC_CHECK_MSG(fabsf(most - 0.8f) < 1e-6, "largest red texel %g", most);
+        sc_quad_result_free(&r);
+    }
     sc_mesh_free(in);
     sc_value_release(img);
 }
