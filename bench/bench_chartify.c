@@ -1,6 +1,9 @@
 /* bench_chartify.c - the quad-chart atlas (sc_quad_build) against xatlas.
  *
- *   bench_chartify [-j N] [-r RUNS] [ASSET...]
+ *   bench_chartify [-j N] [-r RUNS] [-s] [ASSET...]
+ *
+ * -s: with straight patch borders (sc_quad_options.straight_borders, the
+ * node's straight_borders).
  *
  * For each corpus asset (../shared/corpus, or $SC_CORPUS): load it with
  * load_atlas (decode time reported apart), then time sc_quad_build with
@@ -86,6 +89,7 @@ typedef struct run_args {
     const asset *a;
     int threads;
     int res_fd;            /* where the child writes its result */
+    bool straight;         /* -s: straight patch borders */
 } run_args;
 
 /* Loads the asset and builds its quad atlas; the result goes to res_fd,
@@ -119,6 +123,7 @@ static int run_quad(void *ud, int out) {
     sc_quad_options o;
     sc_quad_defaults(&o);
     o.texture_size = a->texture_size;
+    o.straight_borders = ra->straight;
     sc_quad_result q;
     memset(&q, 0, sizeof q);
     double rss0 = bench_resident_mb();
@@ -316,11 +321,13 @@ static bool have_xatlas(void) {
 int main(int argc, char **argv) {
     sc_tune_allocator();   /* as the command line runs */
     int threads = 2, runs = 1;
+    bool straight = false;
     const char *only[NASSETS];
     int nonly = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "-j") && i + 1 < argc) threads = atoi(argv[++i]);
         else if (!strcmp(argv[i], "-r") && i + 1 < argc) runs = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "-s")) straight = true;
         else if (nonly < NASSETS) only[nonly++] = argv[i];
     }
     const char *env = getenv("SC_CORPUS");
@@ -332,8 +339,8 @@ int main(int argc, char **argv) {
     }
     if (runs < 1 || runs > 100) runs = 1;
     bool xatlas = have_xatlas();
-    printf("sc_quad_build (sc_quad_defaults) on %s, %d threads, %d run%s per asset\n", corpus, threads, runs,
-           runs > 1 ? "s" : "");
+    printf("sc_quad_build (sc_quad_defaults%s) on %s, %d threads, %d run%s per asset\n",
+           straight ? ", straight_borders" : "", corpus, threads, runs, runs > 1 ? "s" : "");
     if (!xatlas) printf("xatlas: not installed (npm ci --prefix bench/xatlas)\n");
     printf("\n");
 
@@ -344,7 +351,7 @@ int main(int argc, char **argv) {
         want[k] = nonly == 0;
         for (int i = 0; i < nonly; i++) want[k] |= !strcmp(only[i], assets[k].name);
         if (!want[k]) continue;
-        run_args ra = {corpus, &assets[k], threads, -1};
+        run_args ra = {corpus, &assets[k], threads, -1, straight};
         have_q[k] = measure(run_quad, &ra, runs, "quad", assets[k].targets ? 10 : 0, &quad[k]) > 0;
         failed += !have_q[k];
         if (have_q[k]) {

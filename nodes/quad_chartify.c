@@ -213,6 +213,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.supersample = (int32_t)sc_ctx_integer(ctx, "supersample");
     o.psnr_samples = (int32_t)sc_ctx_integer(ctx, "psnr_samples");
     o.constants = a->materials;
+    o.straight_borders = sc_ctx_bool(ctx, "straight_borders");
     (void)sc_ctx_string(ctx, "layout");
     sc_quad_result r;
     int rc = sc_quad_build(m, a->textures, a->ntex, &o, sc_ctx_threads(ctx), &r, err);
@@ -269,6 +270,10 @@ static const sc_param_desc params[] = {
      .doc = "S x S points averaged per texel"},
     {.name = "psnr_samples", .type = SC_PARAM_INTEGER, .def = 200000, .min = 0, .max = 1e8,
      .doc = "surface points for the psnr_<slot> metrics (0: none)"},
+    {.name = "straight_borders", .type = SC_PARAM_BOOL, .def = 0,
+     .doc = "re-draw the patches' borders as shorter paths of mesh edges (Purnomo et al. 2004 4.1): less stretch, "
+            "levels nearer their face targets; off by default, as WaterBottle's decimated level then shows folds "
+            "at its cap's rim (docs/notes/quad_chartify.md)"},
 };
 
 static const sc_port_desc inputs[] = {

@@ -8,7 +8,11 @@
  *             and compactness, under the paper's two rules: every patch is a
  *             disc, and two patches meet in one vertex, one boundary arc, or
  *             not at all. Corners are the vertices where three regions (two
- *             patches and the mesh border, or three patches) meet.
+ *             patches and the mesh border, or three patches) meet. With
+ *             straight_borders, each border between two patches is then
+ *             re-drawn as the shortest edge path between its ends inside
+ *             the two, lengths scaled by the distance from the old border,
+ *             where that is shorter and both stay discs.
  *   quads     (§4.2) each n-sided patch is mapped harmonically onto a
  *             regular n-gon and cut into n quads by paths from a centre
  *             vertex to the median of each side: shortest paths along mesh
@@ -69,6 +73,7 @@ typedef struct sc_quad_options {
     bool whole_texture;      /* uv in units of texture_size (maps of that size hold the border samples
                               * on their texel centres); else of the packed charts' extent */
     const sc_material *constants;   /* the input's material constants (one per material), or NULL */
+    bool straight_borders;   /* re-draw patch borders as shorter edge paths (§4.1; default false) */
 } sc_quad_options;
 
 void sc_quad_defaults(sc_quad_options *o);

@@ -44,6 +44,7 @@ typedef struct qcharts {
     double stretch_l2_within;          /* each chart scaled to its own surface area */
     int32_t flipped;
     int32_t straight_cuts;    /* patches cut by straight domain segments, not along edges */
+    int32_t straightened_borders;   /* patch borders re-drawn shorter (§4.1) */
 } qcharts;
 
 /* Patches, quads and chart maps of input mesh `in` (positions and faces). */

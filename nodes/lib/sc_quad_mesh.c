@@ -1625,6 +1625,278 @@ static void builder_free(builder *b) {
     free(b->lw.slot), free(b->flag), free(b->local), free(b->xy), free(b->side), free(b->label.a);
 }
 
+/* ---------------------------------------------------------------- straight patch borders (§4.1) */
+
+/* Scratch for straightening: per vertex its outgoing half-edges (CSR) and
+ * whether it lies on the mesh border; per face a stamp of the region being
+ * re-split and the flood's side; Dijkstra's state. */
+typedef struct straightener {
+    qmesh *m;
+    int32_t *out_start, *out_h;   /* per vertex: half-edges leaving it */
+    uint8_t *border;              /* per vertex */
+    int32_t *in_region, stamp;    /* per face: == stamp when in A or B */
+    int32_t *side;                /* per face: the flood's mark */
+    double *dist;                 /* per vertex */
+    int32_t *via, *seen;          /* per vertex: the half-edge reaching it; == stamp when dist is set */
+    uint8_t *on_path;             /* per vertex */
+    dnode *heap;
+    int32_t nheap, cap_heap;
+    ivec arc, path, faces, queue;
+} straightener;
+
+static void straightener_free(straightener *S) {
+    free(S->out_start), free(S->out_h), free(S->border), free(S->in_region), free(S->side), free(S->dist);
+    free(S->via), free(S->seen), free(S->on_path), free(S->heap);
+    free(S->arc.a), free(S->path.a), free(S->faces.a), free(S->queue.a);
+}
+
+static int straightener_init(straightener *S, qmesh *m) {
+    memset(S, 0, sizeof *S);
+    S->m = m;
+    int32_t nv = m->nv, nh = 3 * m->nf;
+    S->out_start = calloc((size_t)nv + 1, sizeof *S->out_start);
+    S->out_h = malloc((size_t)(nh > 0 ? nh : 1) * sizeof *S->out_h);
+    S->border = calloc((size_t)nv + 1, 1);
+    S->in_region = calloc((size_t)m->nf + 1, sizeof *S->in_region);
+    S->side = calloc((size_t)m->nf + 1, sizeof *S->side);
+    S->dist = malloc(((size_t)nv + 1) * sizeof *S->dist);
+    S->via = malloc(((size_t)nv + 1) * sizeof *S->via);
+    S->seen = calloc((size_t)nv + 1, sizeof *S->seen);
+    S->on_path = calloc((size_t)nv + 1, 1);
+    if (!S->out_start || !S->out_h || !S->border || !S->in_region || !S->side || !S->dist || !S->via || !S->seen ||
+        !S->on_path)
+        return SC_ENOMEM;
+    for (int32_t h = 0; h < nh; h++) {
+        S->out_start[m->tri[h] + 1]++;
+        if (m->opp[h] < 0) S->border[m->tri[h]] = S->border[m->tri[qm_next(h)]] = 1;
+    }
+    for (int32_t v = 0; v < nv; v++) S->out_start[v + 1] += S->out_start[v];
+    int32_t *fill = malloc(((size_t)nv + 1) * sizeof *fill);
+    if (!fill) return SC_ENOMEM;
+    memcpy(fill, S->out_start, (size_t)nv * sizeof *fill);
+    for (int32_t h = 0; h < nh; h++) S->out_h[fill[m->tri[h]]++] = h;
+    free(fill);
+    return SC_OK;
+}
+
+/* Distance from p to the segment a-b (3D). */
+static double point_segment3(const double *p, const double *a, const double *b) {
+    double ab[3], ap[3];
+    sc_sub3(b, a, ab), sc_sub3(p, a, ap);
+    double l2 = sc_dot3(ab, ab), t = l2 > 0 ? sc_dot3(ap, ab) / l2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double q[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+    return sc_dist3(p, q);
+}
+
+/* Whether vertex v may carry the new border inside region (A, B): not on
+ * the mesh border, and every face around it in the region. */
+static bool region_interior(const straightener *S, int32_t v) {
+    if (S->border[v]) return false;
+    for (int32_t i = S->out_start[v]; i < S->out_start[v + 1]; i++)
+        if (S->in_region[S->out_h[i] / 3] != S->stamp) return false;
+    return true;
+}
+
+/* The border of patches a and b as a chain of vertices from one end to the
+ * other in S->arc; false when it is not one open chain of two edges or more. */
+static bool border_chain(straightener *S, const ivec *fa, int32_t b, bool *oom) {
+    qmesh *m = S->m;
+    S->arc.n = 0;
+    int32_t first = -1, n = 0;
+    /* a chain's half-edges run a -> b side; from each vertex at most one leaves along it */
+    S->stamp++;
+    for (int32_t i = 0; i < fa->n; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t h = 3 * fa->a[i] + k, o = m->opp[h];
+            if (o < 0 || m->patch[o / 3] != b) continue;
+            int32_t v = m->tri[h];
+            if (S->seen[v] == S->stamp) return false;
+            S->seen[v] = S->stamp, S->via[v] = h;
+            n++;
+        }
+    if (n < 2) return false;
+    /* the start: a chain vertex no chain half-edge arrives at (on_path marks arrivals) */
+    for (int pass = 0; pass < 3; pass++)
+        for (int32_t i = 0; i < fa->n; i++)
+            for (int k = 0; k < 3; k++) {
+                int32_t h = 3 * fa->a[i] + k, o = m->opp[h];
+                if (o < 0 || m->patch[o / 3] != b) continue;
+                if (pass == 0) S->on_path[m->tri[qm_next(h)]] = 1;
+                else if (pass == 1 && !S->on_path[m->tri[h]]) first = m->tri[h];
+                else if (pass == 2) S->on_path[m->tri[qm_next(h)]] = 0;
+            }
+    if (first < 0) return false;   /* a closed loop */
+    int32_t v = first;
+    for (int32_t steps = 0; steps <= n; steps++) {
+        if (!iv_push(&S->arc, v)) return *oom = true, false;
+        if (S->seen[v] != S->stamp) break;
+        int32_t nxt = m->tri[qm_next(S->via[v])];
+        S->seen[v] = -1;   /* walked */
+        v = nxt;
+    }
+    return S->arc.n == n + 1;
+}
+
+/* Faces of the region reached from a's faces along the outer border without
+ * crossing the path: they stay a; the rest become b. False (labels as they
+ * were) when either part is not one disc or the path does not separate. */
+static bool resplit(straightener *S, int32_t a, int32_t b, ivec *fa, ivec *fb, loop_walk *lw, bool *oom) {
+    qmesh *m = S->m;
+    for (int32_t i = 0; i < S->path.n; i++) S->on_path[S->path.a[i]] = 1;
+    int32_t mark = S->stamp;
+    S->queue.n = 0;
+    for (int32_t i = 0; i < fa->n; i++) {
+        int32_t f = fa->a[i];
+        for (int k = 0; k < 3; k++) {
+            int32_t o = m->opp[3 * f + k];
+            if ((o < 0 || S->in_region[o / 3] != mark) && S->side[f] != mark) {
+                S->side[f] = mark;
+                if (!iv_push(&S->queue, f)) *oom = true;
+            }
+        }
+    }
+    for (int32_t q = 0; q < S->queue.n && !*oom; q++) {
+        int32_t f = S->queue.a[q];
+        for (int k = 0; k < 3; k++) {
+            int32_t h = 3 * f + k, o = m->opp[h];
+            if (o < 0 || S->in_region[o / 3] != mark || S->side[o / 3] == mark) continue;
+            if (S->on_path[m->tri[h]] && S->on_path[m->tri[qm_next(h)]]) {
+                /* an edge of the path (consecutive on it) is a wall */
+                bool wall = false;
+                for (int32_t i = 0; i + 1 < S->path.n && !wall; i++) {
+                    int32_t u = S->path.a[i], w = S->path.a[i + 1];
+                    wall = (u == m->tri[h] && w == m->tri[qm_next(h)]) || (w == m->tri[h] && u == m->tri[qm_next(h)]);
+                }
+                if (wall) continue;
+            }
+            S->side[o / 3] = mark;
+            if (!iv_push(&S->queue, o / 3)) *oom = true;
+        }
+    }
+    for (int32_t i = 0; i < S->path.n; i++) S->on_path[S->path.a[i]] = 0;
+    if (*oom) return false;
+    bool separates = true;   /* b's outer faces must not be reached */
+    for (int32_t i = 0; i < fb->n && separates; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t o = m->opp[3 * fb->a[i] + k];
+            if ((o < 0 || S->in_region[o / 3] != mark) && S->side[fb->a[i]] == mark) separates = false;
+        }
+    if (!separates) return false;
+    S->faces.n = 0;
+    for (int32_t i = 0; i < fa->n; i++)
+        if (!iv_push(&S->faces, fa->a[i])) return *oom = true, false;
+    for (int32_t i = 0; i < fb->n; i++)
+        if (!iv_push(&S->faces, fb->a[i])) return *oom = true, false;
+    int32_t na = fa->n, total = S->faces.n;
+    for (int32_t i = 0; i < total; i++) m->patch[S->faces.a[i]] = S->side[S->faces.a[i]] == mark ? a : b;
+    /* the new parts, a's then b's, after the old lists in S->faces */
+    for (int32_t i = 0; i < total && !*oom; i++)
+        if (m->patch[S->faces.a[i]] == a && !iv_push(&S->faces, S->faces.a[i])) *oom = true;
+    int32_t new_a = S->faces.n - total;
+    for (int32_t i = 0; i < total && !*oom; i++)
+        if (m->patch[S->faces.a[i]] == b && !iv_push(&S->faces, S->faces.a[i])) *oom = true;
+    int32_t new_b = S->faces.n - total - new_a, pa = a, pb = b;
+    bool ok = !*oom && new_a > 0 && new_b > 0 &&
+              loop_build(m, S->faces.a + total, new_a, in_patch, &pa, lw, oom) &&
+              loop_build(m, S->faces.a + total + new_a, new_b, in_patch, &pb, lw, oom);
+    if (ok) {
+        fa->n = fb->n = 0;
+        for (int32_t i = 0; i < new_a && !*oom; i++)
+            if (!iv_push(fa, S->faces.a[total + i])) *oom = true;
+        for (int32_t i = 0; i < new_b && !*oom; i++)
+            if (!iv_push(fb, S->faces.a[total + new_a + i])) *oom = true;
+        return !*oom;
+    }
+    for (int32_t i = 0; i < total; i++) m->patch[S->faces.a[i]] = i < na ? a : b;   /* as they were */
+    return false;
+}
+
+/* The border of patches a and b re-drawn as the shortest path of mesh edges
+ * between its ends through the inside of a and b, each edge's length scaled
+ * by 1 + its distance from the old border over a quarter of the ends'
+ * distance (Purnomo et al. 2004 §4.1: locally shorter, not far from where
+ * it was). Kept when shorter by that measure and both patches stay discs. */
+static int straighten_border(straightener *S, int32_t a, int32_t b, ivec *fa, ivec *fb, loop_walk *lw,
+                             int32_t *straightened) {
+    qmesh *m = S->m;
+    bool oom = false;
+    if (!border_chain(S, fa, b, &oom)) return oom ? SC_ENOMEM : SC_OK;
+    S->stamp++;
+    for (int32_t i = 0; i < fa->n; i++) S->in_region[fa->a[i]] = S->stamp;
+    for (int32_t i = 0; i < fb->n; i++) S->in_region[fb->a[i]] = S->stamp;
+    const int32_t *arc = S->arc.a, n = S->arc.n, c0 = arc[0], c1 = arc[n - 1];
+    double old_len = 0;
+    for (int32_t i = 0; i + 1 < n; i++) old_len += qm_len(m, arc[i], arc[i + 1]);
+    double scale = 0.25 * qm_len(m, c0, c1);
+    if (!(scale > 0)) return SC_OK;
+    /* Dijkstra from c0 to c1 over region-interior vertices */
+    S->nheap = 0;
+    S->seen[c0] = S->stamp, S->dist[c0] = 0, S->via[c0] = -1;
+    if (!dheap_push(&S->heap, &S->nheap, &S->cap_heap, (dnode){0, c0})) return SC_ENOMEM;
+    bool reached = false;
+    while (S->nheap > 0) {
+        dnode x = dheap_pop(S->heap, &S->nheap);
+        if (x.d > S->dist[x.v]) continue;
+        if (x.v == c1) {
+            reached = true;
+            break;
+        }
+        if (x.d >= old_len) break;   /* no shorter path left */
+        for (int32_t i = S->out_start[x.v]; i < S->out_start[x.v + 1]; i++) {
+            int32_t h = S->out_h[i], o = m->opp[h], w = m->tri[qm_next(h)];
+            if (o < 0 || S->in_region[h / 3] != S->stamp || S->in_region[o / 3] != S->stamp) continue;
+            if (w != c1 && !region_interior(S, w)) continue;
+            double mid[3], near = INFINITY;
+            for (int k = 0; k < 3; k++) mid[k] = 0.5 * (m->pos[3 * (size_t)x.v + k] + m->pos[3 * (size_t)w + k]);
+            for (int32_t j = 0; j + 1 < n; j++)
+                near = fmin(near, point_segment3(mid, m->pos + 3 * (size_t)arc[j], m->pos + 3 * (size_t)arc[j + 1]));
+            double d = x.d + qm_len(m, x.v, w) * (1 + near / scale);
+            if (S->seen[w] == S->stamp && S->dist[w] <= d) continue;
+            S->seen[w] = S->stamp, S->dist[w] = d, S->via[w] = x.v;
+            if (!dheap_push(&S->heap, &S->nheap, &S->cap_heap, (dnode){d, w})) return SC_ENOMEM;
+        }
+    }
+    if (!reached || !(S->dist[c1] < old_len * (1 - 1e-9))) return SC_OK;
+    S->path.n = 0;
+    for (int32_t v = c1; v >= 0; v = S->via[v])
+        if (!iv_push(&S->path, v)) return SC_ENOMEM;
+    if (resplit(S, a, b, fa, fb, lw, &oom)) (*straightened)++;
+    return oom ? SC_ENOMEM : SC_OK;
+}
+
+/* Every pair of neighbouring patches' border straightened once, pairs in
+ * order of their patch numbers. */
+static int straighten_patches(qmesh *m, int32_t np, int32_t nv_in, int32_t *straightened) {
+    straightener S;
+    loop_walk lw = {0};
+    ivec *pf = calloc((size_t)np + 1, sizeof *pf);
+    int rc = straightener_init(&S, m);
+    lw.mark = calloc((size_t)nv_in + 1, sizeof(int32_t)), lw.slot = calloc((size_t)nv_in + 1, sizeof(int32_t));
+    if (rc == SC_OK && (!pf || !lw.mark || !lw.slot)) rc = SC_ENOMEM;
+    for (int32_t f = 0; f < m->nf && rc == SC_OK; f++)
+        if (!iv_push(&pf[m->patch[f]], f)) rc = SC_ENOMEM;
+    for (int32_t a = 0; a < np && rc == SC_OK; a++) {
+        /* a's neighbours b > a, as they are now */
+        ivec nb = {0};
+        for (int32_t i = 0; i < pf[a].n && rc == SC_OK; i++)
+            for (int k = 0; k < 3; k++) {
+                int32_t o = m->opp[3 * pf[a].a[i] + k];
+                if (o < 0 || m->patch[o / 3] <= a) continue;
+                bool have = false;
+                for (int32_t j = 0; j < nb.n && !have; j++) have = nb.a[j] == m->patch[o / 3];
+                if (!have && !iv_push(&nb, m->patch[o / 3])) rc = SC_ENOMEM;
+            }
+        for (int32_t j = 0; j < nb.n && rc == SC_OK; j++)
+            rc = straighten_border(&S, a, nb.a[j], &pf[a], &pf[nb.a[j]], &lw, straightened);
+        free(nb.a);
+    }
+    for (int32_t p = 0; pf && p < np; p++) free(pf[p].a);
+    free(pf), free(lw.verts.a), free(lw.hs.a), free(lw.mark), free(lw.slot);
+    straightener_free(&S);
+    return rc;
+}
+
 int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_quads, qcharts *out,
                    sc_error *err) {
     memset(out, 0, sizeof *out);
@@ -1632,6 +1904,7 @@ int sc_quad_charts(const sc_mesh *in, const sc_quad_options *o, int32_t target_q
     b.m = &out->m;
     int rc = qm_from_mesh(b.m, in);
     if (rc == SC_OK) rc = make_patches(b.m, in->nv, o->target_patches, target_quads, &b.np);
+    if (rc == SC_OK && o->straight_borders) rc = straighten_patches(b.m, b.np, in->nv, &out->straightened_borders);
     if (rc == SC_OK) {
         b.pf = calloc((size_t)b.np, sizeof *b.pf);
         if (!b.pf || !b_fit(&b)) rc = SC_ENOMEM;

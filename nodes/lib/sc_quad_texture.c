@@ -22,6 +22,7 @@ void sc_quad_defaults(sc_quad_options *o) {
     o->texture_size = 2048;
     o->supersample = 2;
     o->psnr_samples = 200000;
+    o->straight_borders = false;
 }
 
 static double now_seconds(void) {
@@ -1169,6 +1170,7 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         sc_metric_list_add(ml, "faces_in", m->nf);
         sc_metric_list_add(ml, "faces_out", c.m.nf);
         sc_metric_list_add(ml, "patches_cut_straight", c.straight_cuts);
+        sc_metric_list_add(ml, "patch_borders_straightened", c.straightened_borders);
         sc_metric_list_add(ml, "chart_texels_min", (1 << kmin) + 1);
         sc_metric_list_add(ml, "chart_texels_max", (1 << kmax) + 1);
         sc_metric_list_add(ml, "width", J.W);

@@ -392,6 +392,62 @@ SC_TEST(linear_field_reproduced_at_level_zero) {
     sc_value_release(img);
 }
 
+/* The total 3D length of m's seam edges (the two faces at an edge use
+ * different uv indices at its ends), from the mesh alone. */
+static double seam_length(const sc_mesh *m) {
+    typedef struct { int32_t lo, hi, u0, u1; } edge;
+    edge *e = malloc((size_t)m->nf * 3 * sizeof *e);
+    int64_t n = 0;
+    for (int32_t f = 0; f < m->nf; f++)
+        for (int k = 0; k < 3; k++) {
+            int32_t a = m->FV[3 * f + k], b = m->FV[3 * f + (k + 1) % 3];
+            int32_t ua = m->FU[3 * f + k], ub = m->FU[3 * f + (k + 1) % 3];
+            e[n++] = a < b ? (edge){a, b, ua, ub} : (edge){b, a, ub, ua};
+        }
+    double len = 0;
+    for (int64_t i = 0; i < n; i++)   /* quadratic, but the meshes here are small */
+        for (int64_t j = i + 1; j < n; j++)
+            if (e[i].lo == e[j].lo && e[i].hi == e[j].hi && (e[i].u0 != e[j].u0 || e[i].u1 != e[j].u1)) {
+                const double *p = m->V + 3 * e[i].lo, *q = m->V + 3 * e[i].hi;
+                double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+                len += sqrt(dx * dx + dy * dy + dz * dz);
+            }
+    free(e);
+    return len;
+}
+
+/* §4.1's straightening: patch borders re-drawn as shorter edge paths give
+ * shorter seams on the output mesh, and no more stretch, than the borders
+ * the merging left. */
+SC_TEST(straight_borders_shorten_the_seams) {
+    sc_mesh *in = mirrored_sphere(16, 32);
+    sc_value *img = smooth_texture(64);
+    sc_texture tex = {.name = "data", .material = 0, .wrap_u = SC_WRAP_CLAMP, .wrap_v = SC_WRAP_CLAMP, .source = "",
+                      .image = img};
+    double length[2], stretch[2], straightened[2];
+    for (int on = 0; on < 2; on++) {
+        sc_quad_options o;
+        sc_quad_defaults(&o);
+        o.texture_size = 512, o.psnr_samples = 0, o.straight_borders = on, o.target_patches = 24;
+        sc_quad_result r;
+        sc_error err = {0};
+        int rc = sc_quad_build(in, &tex, 1, &o, 2, &r, &err);
+        SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+        if (rc) break;
+        length[on] = seam_length(r.mesh);
+        stretch[on] = metric(&r, "stretch_l2");
+        straightened[on] = metric(&r, "patch_borders_straightened");
+        SC_CHECK(metric(&r, "boundary_mismatch") == 0 && metric(&r, "shared_texels") == 0);
+        sc_quad_result_free(&r);
+    }
+    SC_CHECK_MSG(straightened[0] == 0 && straightened[1] > 0, "borders straightened: %g off, %g on", straightened[0],
+                 straightened[1]);
+    SC_CHECK_MSG(length[1] < 0.99 * length[0], "seams %g with straight borders, %g without", length[1], length[0]);
+    SC_CHECK_MSG(stretch[1] <= stretch[0], "stretch %g with straight borders, %g without", stretch[1], stretch[0]);
+    sc_mesh_free(in);
+    sc_value_release(img);
+}
+
 /* Two materials on one plane (x < 1/2 and x > 1/2) with one uniform colour
  * texture: their colour factors differ, so each texel strictly inside a
  * face holds the texture times its own material's factor, and the one
