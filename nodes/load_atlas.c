@@ -403,6 +403,140 @@ static int count_edges(const sc_mesh *m, edge_counts *out, sc_error *err) {
     return SC_OK;
 }
 
+/* ---------------------------------------------------------------- reversed copies */
+
+/* A face's three corner positions, sorted (so that a face and its reversed
+ * copy have the same key), and the face. */
+typedef struct face_key {
+    double pos[9];
+    int32_t face;
+} face_key;
+
+static int cmp_point(const double *a, const double *b) {
+    for (int k = 0; k < 3; k++)
+        if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
+    return 0;
+}
+
+static int cmp_points(const face_key *a, const face_key *b) {
+    for (int c = 0; c < 3; c++) {
+        int r = cmp_point(a->pos + 3 * c, b->pos + 3 * c);
+        if (r) return r;
+    }
+    return 0;
+}
+
+static int cmp_face_key(const void *x, const void *y) {
+    const face_key *a = x, *b = y;
+    int r = cmp_points(a, b);
+    return r ? r : (a->face > b->face) - (a->face < b->face);
+}
+
+static void face_key_make(const sc_mesh *m, int32_t f, face_key *k) {
+    k->face = f;
+    for (int c = 0; c < 3; c++) memcpy(k->pos + 3 * c, m->V + 3 * (size_t)m->FV[3 * f + c], 3 * sizeof(double));
+    for (int u = 0; u < 3; u++)   /* three points: a sort by exchange */
+        for (int v = u + 1; v < 3; v++)
+            if (cmp_point(k->pos + 3 * v, k->pos + 3 * u) < 0) {
+                double t[3];
+                memcpy(t, k->pos + 3 * u, sizeof t);
+                memcpy(k->pos + 3 * u, k->pos + 3 * v, sizeof t);
+                memcpy(k->pos + 3 * v, t, sizeof t);
+            }
+}
+
+/* Whether face g is face f reversed: the same points in the other cyclic
+ * order, the same material, the same uv at each point. */
+static bool reversed_copy(const sc_mesh *m, int32_t f, int32_t g) {
+    if (m->FM[f] != m->FM[g]) return false;
+    for (int k = 0; k < 3; k++) {
+        const double *p = m->V + 3 * (size_t)m->FV[3 * f + k];
+        int j = 0;
+        while (j < 3 && cmp_point(p, m->V + 3 * (size_t)m->FV[3 * g + j]) != 0) j++;
+        if (j == 3) return false;
+        /* f's next corner must be g's previous one */
+        const double *next_f = m->V + 3 * (size_t)m->FV[3 * f + (k + 1) % 3];
+        if (cmp_point(next_f, m->V + 3 * (size_t)m->FV[3 * g + (j + 2) % 3]) != 0) return false;
+        const double *uf = m->U + 2 * (size_t)m->FU[3 * f + k], *ug = m->U + 2 * (size_t)m->FU[3 * g + j];
+        if (uf[0] != ug[0] || uf[1] != ug[1]) return false;
+    }
+    return true;
+}
+
+/* Drops every face that is an earlier face reversed (a double-sided model
+ * made of two copies of its surface: the second has nothing to add once the
+ * material draws both sides); their materials are flagged in two_sided
+ * (nmat). The mesh is rebuilt compact; *dropped counts the faces. */
+static int drop_reversed_copies(sc_mesh **mesh, uint8_t *two_sided, int64_t *dropped, sc_error *err) {
+    sc_mesh *m = *mesh;
+    *dropped = 0;
+    face_key *keys = malloc((size_t)(m->nf > 0 ? m->nf : 1) * sizeof *keys);
+    uint8_t *gone = calloc((size_t)m->nf + 1, 1);
+    if (!keys || !gone) {
+        free(keys), free(gone);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t f = 0; f < m->nf; f++) face_key_make(m, f, &keys[f]);
+    qsort(keys, (size_t)m->nf, sizeof *keys, cmp_face_key);
+    for (int32_t i = 0; i < m->nf;) {
+        int32_t j = i + 1;
+        while (j < m->nf && cmp_points(&keys[i], &keys[j]) == 0) j++;
+        for (int32_t x = i; x < j; x++)   /* each face paired with one later reversed copy */
+            for (int32_t y = x + 1; y < j && !gone[keys[x].face]; y++) {
+                int32_t f = keys[x].face, g = keys[y].face;   /* f < g: keys sort by face within a group */
+                if (gone[g] || !reversed_copy(m, f, g)) continue;
+                gone[g] = 1, two_sided[m->FM[g]] = 1, (*dropped)++;
+                break;
+            }
+        i = j;
+    }
+    free(keys);
+    int rc = SC_OK;
+    if (*dropped > 0) {
+        int32_t *FV = malloc((size_t)m->nf * 3 * sizeof *FV), *FU = malloc((size_t)m->nf * 3 * sizeof *FU);
+        int32_t *FN = m->nn ? malloc((size_t)m->nf * 3 * sizeof *FN) : NULL, *FM = malloc((size_t)m->nf * sizeof *FM);
+        int64_t n = 0;
+        if (!FV || !FU || !FM || (m->nn && !FN)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t f = 0; f < m->nf && rc == SC_OK; f++) {
+            if (gone[f]) continue;
+            memcpy(FV + 3 * n, m->FV + 3 * (size_t)f, 3 * sizeof *FV);
+            memcpy(FU + 3 * n, m->FU + 3 * (size_t)f, 3 * sizeof *FU);
+            if (FN) memcpy(FN + 3 * n, m->FN + 3 * (size_t)f, 3 * sizeof *FN);
+            FM[n++] = m->FM[f];
+        }
+        sc_mesh *out = NULL;
+        int64_t degenerate = 0;
+        if (rc == SC_OK)
+            rc = sc_mesh_build_compact(m->V, m->nv, m->U, m->nu, m->N, m->nn, FV, FU, FN, FM, n, m->materials, m->nmat,
+                                       &out, &degenerate, NULL, err);
+        if (rc == SC_OK) sc_mesh_free(m), *mesh = out;
+        free(FV), free(FU), free(FN), free(FM);
+    }
+    free(gone);
+    return rc;
+}
+
+/* The materials flagged in two_sided made double-sided; an atlas without
+ * constants (an OBJ's) gets those its outputs would follow anyway (factors
+ * 1, a dielectric without a metallic-roughness map, emission as its map). */
+static int mark_two_sided(sc_atlas *a, const uint8_t *two_sided, sc_error *err) {
+    int32_t nmat = a->mesh->as.mesh->nmat;
+    if (!a->materials) {
+        a->materials = malloc((size_t)(nmat > 0 ? nmat : 1) * sizeof *a->materials);
+        if (!a->materials) return sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t k = 0; k < nmat; k++) {
+            sc_material *c = &a->materials[k];
+            *c = sc_material_default();
+            c->metallic = sc_atlas_find_texture(a, k, "metallic_roughness") >= 0 ? 1 : 0;
+            double e = sc_atlas_find_texture(a, k, "emissive") >= 0 ? 1 : 0;
+            c->emissive[0] = c->emissive[1] = c->emissive[2] = e;
+        }
+    }
+    for (int32_t k = 0; k < nmat; k++)
+        if (two_sided[k]) a->materials[k].double_sided = true;
+    return SC_OK;
+}
+
 /* ---------------------------------------------------------------- the node */
 
 /* A model that cooks without colour, in whole or in part, says so. */
@@ -452,6 +586,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
     free(dir);
     if (rc == SC_OK && *texture) rc = apply_texture_override(texture, l.mesh, &l, err);
     if (rc == SC_OK) rc = sc_mesh_check(l.mesh, err);
+    uint8_t *two_sided = rc == SC_OK ? calloc((size_t)l.mesh->nmat + 1, 1) : NULL;
+    int64_t reversed = 0;
+    if (rc == SC_OK) rc = two_sided ? drop_reversed_copies(&l.mesh, two_sided, &reversed, err)
+                                    : sc_fail(err, SC_ENOMEM, "out of memory");
     double t1 = sc_now();
     if (rc == SC_OK) rc = load_textures(ctx, &l, err);
     double t2 = sc_now();
@@ -459,6 +597,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     if (rc == SC_OK) rc = count_edges(l.mesh, &edges, err);
     if (rc != SC_OK) {
         loaded_free(&l);
+        free(two_sided);
         return rc;
     }
 
@@ -494,6 +633,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
                            : sc_fail(err, SC_ENOMEM, "out of memory");
                 break;   /* one texture per (material, slot) */
             }
+    if (rc == SC_OK && reversed > 0) rc = mark_two_sided(atlas, two_sided, err);
+    free(two_sided);
+    if (rc == SC_OK && reversed > 0)
+        sc_ctx_warn(ctx, "%lld faces are reversed copies of others (a double-sided model): dropped, their materials "
+                         "marked double-sided (a glTF output says so; an OBJ cannot)",
+                    (long long)reversed);
     int32_t ntex = atlas->ntex;
     int64_t without_uv = l.obj.faces_without_uv + l.gltf.faces_without_uv;
     if (rc == SC_OK && (l.obj.uv_missing || l.gltf.uv_missing) && ntex > 0)
@@ -524,6 +669,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_ctx_metric(ctx, "nonmanifold_edges", (double)edges.nonmanifold);
     sc_ctx_metric(ctx, "degenerate_faces_dropped", (double)degenerate);
     sc_ctx_metric(ctx, "faces_without_uv", (double)without_uv);
+    sc_ctx_metric(ctx, "reversed_copies_dropped", (double)reversed);
     sc_ctx_metric(ctx, "seconds_parse", t1 - t0);
     sc_ctx_metric(ctx, "seconds_decode", t2 - t1);
     return SC_OK;
@@ -556,7 +702,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, 
 
 const sc_node_desc sc_node_load_atlas = {
     .type = "load_atlas",
-    .version = 2,
+    .version = 3,
     .summary = "load a textured mesh (OBJ + MTL, glTF 2.0) and its textures",
     .outputs = outputs,
     .noutputs = SC_COUNT(outputs),

@@ -462,6 +462,46 @@ SC_TEST(load_atlas_obj_node) {
     free(dir);
 }
 
+/* A double-sided model made of two copies of its surface: the reversed
+ * copy (same points, other orientation, same uv) is dropped and its
+ * material marked double-sided; a reversed face with other uv, or a face
+ * repeated in the same orientation, is no such copy and stays. */
+SC_TEST(reversed_copies_dropped) {
+    char *dir = sc_test_tempdir("reversed");
+    write_text(dir, "two.obj",
+               "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\n"
+               "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"      /* the surface */
+               "f 3/3 2/2 1/1\nf 4/4 3/3 1/1\n");    /* reversed, same uv: dropped */
+    char *path = sc_path_join(dir, "two.obj");
+    sc_error err = {0};
+    sc_ctx *ctx = run_load(path, &err, NULL);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        const sc_atlas *a = atlas_of(ctx);
+        SC_CHECK_INT(a->mesh->as.mesh->nf, 2);
+        SC_CHECK_NEAR(sc_ctx_metric_value(ctx, "reversed_copies_dropped"), 2, 0);
+        SC_CHECK(a->materials && a->materials[0].double_sided && a->materials[0].metallic == 0);
+        SC_CHECK(warning_has(ctx, "2 faces are reversed copies of others"));
+        sc_ctx_free(ctx);
+    }
+    write_text(dir, "two.obj",
+               "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\n"
+               "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
+               "f 3/5 2/2 1/1\n"                     /* reversed, other uv: kept */
+               "f 1/1 3/3 4/4\n");                   /* the same orientation: kept */
+    ctx = run_load(path, &err, NULL);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        const sc_atlas *a = atlas_of(ctx);
+        SC_CHECK_INT(a->mesh->as.mesh->nf, 4);
+        SC_CHECK_NEAR(sc_ctx_metric_value(ctx, "reversed_copies_dropped"), 0, 0);
+        SC_CHECK(a->materials == NULL);
+        sc_ctx_free(ctx);
+    }
+    sc_test_system("rm -rf '%s'", dir);
+    free(path), free(dir);
+}
+
 SC_TEST(seam_and_boundary_edges) {
     char *path = data_path("seam.obj");
     sc_error err = {0};
