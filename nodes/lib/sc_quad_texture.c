@@ -193,7 +193,7 @@ static void sample_point(const job *J, const slot *s, int32_t f, const double l[
     int32_t of = J->c->m.old[f];
     if (!src) {
         memcpy(out, s->neutral, 4 * sizeof(float));
-        if (s->bake == CONSTANT_EMISSIVE) out[0] = out[1] = out[2] = 1;   /* an absent map reads as white */
+        if (J->constants && strcmp(s->name, "emissive") == 0) out[0] = out[1] = out[2] = 1;   /* glTF: absent is white */
         if (s->bake != CONSTANT_NONE && s->bake != CONSTANT_NORMAL) take_constant(J, s, of, out);
         return;
     }
