@@ -84,6 +84,7 @@ typedef struct reader {
     int32_t *tri, *tri_material;
     int64_t ntri, captri, captm;
     bool all_normals;
+    bool quantized;             /* KHR_mesh_quantization used: integer positions, normals and uv */
     int64_t primitives_skipped;
     int64_t faces_without_uv;   /* triangles of primitives without TEXCOORD_0 */
     /* per glTF material (index + 1; 0: none): corners whose TANGENT's
@@ -684,9 +685,16 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
     if ((rc = open_accessor(r, pos_i, 3, "POSITION", &pos)) ||
         (uv_i >= 0 && (rc = open_accessor(r, uv_i, 2, "TEXCOORD_0", &uv))))
         return rc;
-    if (pos.ctype != CT_F32)
-        return fail(r, SC_EINPUT, "accessor %lld: POSITION must be float", (long long)pos_i);
-    if (uv_i >= 0 && !(uv.ctype == CT_F32 || ((uv.ctype == CT_U8 || uv.ctype == CT_U16) && uv.normalized)))
+    /* KHR_mesh_quantization: positions and uv may be 8/16-bit integers, normalized or not, normals
+     * normalized 8/16-bit signed integers (the node and texture transforms scale them back) */
+    bool quantized = r->quantized;
+    bool pos_int = pos.ctype == CT_I8 || pos.ctype == CT_U8 || pos.ctype == CT_I16 || pos.ctype == CT_U16;
+    if (pos.ctype != CT_F32 && !(quantized && pos_int))
+        return fail(r, SC_EINPUT, "accessor %lld: POSITION must be float%s", (long long)pos_i,
+                    quantized ? " or 8/16-bit integers" : " (integers need KHR_mesh_quantization)");
+    bool uv_int = uv.ctype == CT_I8 || uv.ctype == CT_U8 || uv.ctype == CT_I16 || uv.ctype == CT_U16;
+    if (uv_i >= 0 && !(uv.ctype == CT_F32 || ((uv.ctype == CT_U8 || uv.ctype == CT_U16) && uv.normalized) ||
+                       (quantized && uv_int)))
         return fail(r, SC_EINPUT, "accessor %lld: TEXCOORD_0 must be float or normalized u8/u16",
                     (long long)uv_i);
     if (uv_i >= 0 && uv.count != pos.count)
@@ -694,7 +702,8 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
                     (long long)uv.count, (long long)pos.count);
     if (nrm_i >= 0) {
         if ((rc = open_accessor(r, nrm_i, 3, "NORMAL", &nrm))) return rc;
-        if (nrm.ctype != CT_F32)
+        bool nrm_int = (nrm.ctype == CT_I8 || nrm.ctype == CT_I16) && nrm.normalized;
+        if (nrm.ctype != CT_F32 && !(quantized && nrm_int))
             return fail(r, SC_EINPUT, "accessor %lld: NORMAL must be float", (long long)nrm_i);
         if (nrm.count != pos.count)
             return fail(r, SC_EINPUT, "%s: NORMAL has %lld elements, POSITION %lld", ctx,
@@ -1102,13 +1111,16 @@ static int parse_container(reader *r, const uint8_t *bytes, size_t size) {
     const cJSON *e;
     cJSON_ArrayForEach(e, field(r->root, "extensionsRequired")) {
         if (!cJSON_IsString(e)) return fail(r, SC_EINPUT, "extensionsRequired has a non-string entry");
-        if (strncmp(e->valuestring, "KHR_materials_", 14) != 0)
+        const char *x = e->valuestring;
+        if (strncmp(x, "KHR_materials_", 14) != 0 && strcmp(x, "KHR_mesh_quantization") != 0 &&
+            strcmp(x, "KHR_texture_transform") != 0)
             return fail(r, SC_EINPUT, "requires extension %.60s, which seamcook does not support", e->valuestring);
     }
+    cJSON_ArrayForEach(e, field(r->root, "extensionsUsed"))
+        if (cJSON_IsString(e) && strcmp(e->valuestring, "KHR_mesh_quantization") == 0) r->quantized = true;
     return SC_OK;
 }
 
-/* Weld, map materials, build the mesh and the texture list. */
 /* Material k's constants (glTF 2.0 material: factors, scale and strength
  * of its textures, alphaMode, alphaCutoff, doubleSided) into *m. */
 static int material_constants(reader *r, int64_t k, sc_material *m) {
@@ -1145,6 +1157,7 @@ static int material_constants(reader *r, int64_t k, sc_material *m) {
     return SC_OK;
 }
 
+/* Weld, map materials, build the mesh and the texture list. */
 static int build(reader *r, sc_gltf *out) {
     if (r->ntri == 0) return fail(r, SC_EINPUT, "the scene has no triangles");
     int32_t *vid = sc_alloc_array((size_t)r->nraw, sizeof(int32_t));

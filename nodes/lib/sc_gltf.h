@@ -11,7 +11,10 @@
  * by the full matrix, normals by the inverse transpose, renormalised), every
  * primitive of mode TRIANGLES (4 or absent; other modes are skipped and
  * counted), indexed (u8/u16/u32) or not; POSITION and NORMAL as float VEC3,
- * TEXCOORD_0 as float or normalised u8/u16 VEC2. glTF's uv origin is the top
+ * TEXCOORD_0 as float or normalised u8/u16 VEC2; with KHR_mesh_quantization
+ * (gltfpack's output) POSITION and TEXCOORD_0 also as 8/16-bit integers,
+ * normalised or not, and NORMAL as normalised signed 8/16-bit integers, which
+ * the node and texture transforms scale back. glTF's uv origin is the top
  * left: v is stored as 1 - v (OBJ and GL convention, v = 0 at the bottom).
  * A primitive without TEXCOORD_0 gets uv (0, 0) (counted in
  * sc_gltf.faces_without_uv): uv without area, which quad_chartify's auto
@@ -40,7 +43,8 @@
  * Errors name the file and the element: "Duck.gltf: accessor 3: count 506 with
  * stride 12 needs 6072 bytes, bufferView 2 has 6000". Every index, offset,
  * length and count is checked before use; sparse accessors, accessors without
- * a bufferView (all zeros), Draco and other required extensions are rejected
+ * a bufferView (all zeros), Draco and other required extensions (all but
+ * KHR_materials_*, KHR_mesh_quantization and KHR_texture_transform) are rejected
  * with a clear message. So every vertex and index the reader allocates is
  * backed by bytes of the file (or, through node instancing, bounded by
  * SC_GLTF_MAX_ELEMENTS).
@@ -52,7 +56,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 6
+#define SC_GLTF_VERSION 7
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */

@@ -622,6 +622,69 @@ SC_TEST(material_constants_round_trip) {
     }
 }
 
+/* KHR_mesh_quantization (gltfpack's output): positions as normalized 16-bit
+ * integers, the node's scale taking them back; the mesh matches the float
+ * one within a quantization step. Without the extension they are refused. */
+SC_TEST(quantized_positions) {
+    cJSON *j = load_quad();
+    if (!j) return;
+    sc_buf bin, glb;
+    quad_bin(j, &bin);
+    make_glb(j, &bin, &glb);
+    sc_gltf plain, q;
+    sc_error err = {0};
+    int rc = sc_gltf_parse("plain.glb", glb.data, glb.len, failing_read, NULL, &plain, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    sc_buf_free(&glb);
+    /* the six positions as int16 / 32767 of the largest magnitude, after the float data */
+    double most = 0;
+    float p[18];
+    memcpy(p, bin.data, sizeof p);
+    for (int i = 0; i < 18; i++) most = fmax(most, fabs(p[i]));
+    size_t offset = bin.len;
+    for (int i = 0; i < 18; i++) {
+        int16_t v = (int16_t)lround(p[i] / most * 32767);
+        sc_buf_append(&bin, &v, 2);
+    }
+    set_number(at(j, "buffers", 0), "byteLength", (double)bin.len);
+    cJSON *view = cJSON_CreateObject();
+    cJSON_AddNumberToObject(view, "buffer", 0);
+    cJSON_AddNumberToObject(view, "byteOffset", (double)offset);
+    cJSON_AddNumberToObject(view, "byteLength", 36);
+    cJSON_AddItemToArray(cJSON_GetObjectItemCaseSensitive(j, "bufferViews"), view);
+    cJSON *pos = at(j, "accessors", 0);
+    set_number(pos, "bufferView", 2);
+    set_number(pos, "componentType", 5122);
+    cJSON_AddBoolToObject(pos, "normalized", true);
+    cJSON *scale = cJSON_AddArrayToObject(at(j, "nodes", 1), "scale");
+    for (int k = 0; k < 3; k++) cJSON_AddItemToArray(scale, cJSON_CreateNumber(most));
+    cJSON *copy = cJSON_Duplicate(j, true);
+    make_glb(copy, &bin, &glb);
+    rc = sc_gltf_parse("bare.glb", glb.data, glb.len, failing_read, NULL, &q, &err);
+    SC_CHECK(rc != SC_OK && message_has(&err, "POSITION must be float (integers need KHR_mesh_quantization)"));
+    sc_buf_free(&glb);
+    cJSON_Delete(copy);
+    cJSON *used = cJSON_AddArrayToObject(j, "extensionsUsed");
+    cJSON *required = cJSON_AddArrayToObject(j, "extensionsRequired");
+    cJSON_AddItemToArray(used, cJSON_CreateString("KHR_mesh_quantization"));
+    cJSON_AddItemToArray(required, cJSON_CreateString("KHR_mesh_quantization"));
+    make_glb(j, &bin, &glb);
+    rc = sc_gltf_parse("quantized.glb", glb.data, glb.len, failing_read, NULL, &q, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK && plain.mesh) {
+        SC_CHECK_INT(q.mesh->nv, plain.mesh->nv);
+        SC_CHECK_INT(q.mesh->nf, plain.mesh->nf);
+        double worst = 0;   /* the parent's scale 2 doubles the step */
+        for (int32_t i = 0; i < 3 * q.mesh->nv && i < 3 * plain.mesh->nv; i++)
+            worst = fmax(worst, fabs(q.mesh->V[i] - plain.mesh->V[i]));
+        SC_CHECK_MSG(worst <= 2 * most / 32767, "quantized positions off by %g", worst);
+        sc_gltf_free(&q);
+    }
+    sc_gltf_free(&plain);
+    sc_buf_free(&bin), sc_buf_free(&glb);
+    cJSON_Delete(j);
+}
+
 SC_TEST(bad_gltf_text_inputs) {
     sc_gltf g;
     sc_error err = {0};
