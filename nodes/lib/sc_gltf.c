@@ -1011,7 +1011,12 @@ static int add_texture(reader *r, const char *mctx, const cJSON *info, const cha
     if ((rc = get_ref(r, ctx, t, "source", &r->images, "image", false, &source)) ||
         (rc = get_ref(r, ctx, t, "sampler", &r->samplers, "sampler", false, &sampler)))
         return rc;
-    if (source < 0) return fail(r, SC_EINPUT, "%s has no source image (only PNG/JPEG sources are supported)", ctx);
+    if (source < 0) {   /* EXT_texture_webp names its image in an extension (without a PNG/JPEG fallback) */
+        const cJSON *webp = field(field(t, "extensions"), "EXT_texture_webp");
+        if (webp && (rc = get_ref(r, ctx, webp, "source", &r->images, "image", true, &source))) return rc;
+    }
+    if (source < 0)
+        return fail(r, SC_EINPUT, "%s has no source image (PNG, JPEG and EXT_texture_webp sources are supported)", ctx);
     sc_wrap wrap_u = SC_WRAP_REPEAT, wrap_v = SC_WRAP_REPEAT;
     if (sampler >= 0) {
         char sctx[64];
@@ -1113,7 +1118,7 @@ static int parse_container(reader *r, const uint8_t *bytes, size_t size) {
         if (!cJSON_IsString(e)) return fail(r, SC_EINPUT, "extensionsRequired has a non-string entry");
         const char *x = e->valuestring;
         if (strncmp(x, "KHR_materials_", 14) != 0 && strcmp(x, "KHR_mesh_quantization") != 0 &&
-            strcmp(x, "KHR_texture_transform") != 0)
+            strcmp(x, "KHR_texture_transform") != 0 && strcmp(x, "EXT_texture_webp") != 0)
             return fail(r, SC_EINPUT, "requires extension %.60s, which seamcook does not support", e->valuestring);
     }
     cJSON_ArrayForEach(e, field(r->root, "extensionsUsed"))

@@ -44,7 +44,8 @@
  * stride 12 needs 6072 bytes, bufferView 2 has 6000". Every index, offset,
  * length and count is checked before use; sparse accessors, accessors without
  * a bufferView (all zeros), Draco and other required extensions (all but
- * KHR_materials_*, KHR_mesh_quantization and KHR_texture_transform) are rejected
+ * KHR_materials_*, KHR_mesh_quantization, KHR_texture_transform and
+ * EXT_texture_webp, whose image is read where a texture has no other) are rejected
  * with a clear message. So every vertex and index the reader allocates is
  * backed by bytes of the file (or, through node instancing, bounded by
  * SC_GLTF_MAX_ELEMENTS).
@@ -56,7 +57,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 7
+#define SC_GLTF_VERSION 8
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */

@@ -129,7 +129,7 @@ bool png_chunks_complete(const unsigned char *p, size_t size) {
 int decode(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err) {
     const char *format = sc_imageio_sniff(bytes, size);
     if (!format)
-        return sc_fail(err, SC_EINPUT, "%s: not an image seamcook reads (PNG, JPEG, TIFF, OpenEXR, HDR, BMP)",
+        return sc_fail(err, SC_EINPUT, "%s: not an image seamcook reads (PNG, JPEG, WebP, TIFF, OpenEXR, HDR, BMP)",
                        name);
     if (std::strcmp(format, "png") == 0 && !png_chunks_complete((const unsigned char *)bytes, size))
         return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated png: a chunk runs past the end of the data", name);

@@ -39,7 +39,7 @@ extern "C" {
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_imageio (or a kernel built on it) is re-keyed. */
-#define SC_IMAGEIO_VERSION 2
+#define SC_IMAGEIO_VERSION 3
 extern const sc_kernel sc_kernel_imageio;
 
 /* Decode image file bytes. `name` is used in messages. On success *out is a

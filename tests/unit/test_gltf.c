@@ -482,6 +482,32 @@ SC_TEST(bad_glb_inputs_name_file_and_element) {
     }
 }
 
+/* The load_atlas node on `glb` written as NAME in a folder of its own
+ * beside its images: "normal map.png" (2 x 2 grey) and the colour image
+ * COLOR (the bytes of COLOR_FILE under the source tree, or the grey PNG).
+ * NULL when the node fails (err says why). */
+static sc_ctx *load_glb_beside(const sc_buf *glb, const char *name, const char *color, const char *color_file,
+                               sc_error *err) {
+    char *dir = sc_test_tempdir("glb-node");
+    sc_buf png, img;
+    png_bytes(2, 2, 128, &png);
+    sc_buf_init(&img);
+    if (color_file) {
+        char *src = sc_test_source_path(color_file);
+        SC_CHECK(sc_read_file(src, 1 << 20, &img, err) == SC_OK);
+        free(src);
+    }
+    write_bytes(dir, color, color_file ? img.data : png.data, color_file ? img.len : png.len);
+    write_bytes(dir, "normal map.png", png.data, png.len);
+    write_bytes(dir, name, glb->data, glb->len);
+    char *path = sc_path_join(dir, name);
+    sc_ctx *ctx = run_load(path, err, NULL);
+    sc_test_system("rm -rf '%s'", dir);
+    free(path), free(dir);
+    sc_buf_free(&png), sc_buf_free(&img);
+    return ctx;
+}
+
 /* A primitive without TEXCOORD_0: uv (0, 0), counted; through the node, a
  * model whose every face lacks them cannot map its textures. */
 SC_TEST(glb_without_texcoord) {
@@ -501,19 +527,10 @@ SC_TEST(glb_without_texcoord) {
         for (int32_t i = 0; i < g.mesh->nu; i++) SC_CHECK(g.mesh->U[2 * i] == 0 && g.mesh->U[2 * i + 1] == 0);
     }
     sc_gltf_free(&g);
-    char *dir = sc_test_tempdir("glb-bare");
-    write_bytes(dir, "bare.glb", glb.data, glb.len);
-    sc_buf png;
-    png_bytes(2, 2, 128, &png);
-    write_bytes(dir, "color.png", png.data, png.len);
-    write_bytes(dir, "normal map.png", png.data, png.len);
-    char *path = sc_path_join(dir, "bare.glb");
-    sc_ctx *ctx = run_load(path, &err, NULL);
+    sc_ctx *ctx = load_glb_beside(&glb, "bare.glb", "color.png", NULL, &err);
     SC_CHECK(ctx == NULL && message_has(&err, "bare.glb has no texture coordinates, so its"));
     sc_ctx_free(ctx);
-    sc_test_system("rm -rf '%s'", dir);
-    free(path), free(dir);
-    sc_buf_free(&png), sc_buf_free(&bin), sc_buf_free(&glb);
+    sc_buf_free(&bin), sc_buf_free(&glb);
     cJSON_Delete(j);
 }
 
@@ -587,12 +604,7 @@ SC_TEST(material_constants_round_trip) {
         sc_gltf_free(&g);
     }
     /* through the node: the atlas carries them */
-    char *dir = sc_test_tempdir("glb-constants");
-    write_bytes(dir, "paint.glb", glb.data, glb.len);
-    write_bytes(dir, "color.png", png.data, png.len);
-    write_bytes(dir, "normal map.png", png.data, png.len);
-    char *path = sc_path_join(dir, "paint.glb");
-    sc_ctx *ctx = run_load(path, &err, NULL);
+    sc_ctx *ctx = load_glb_beside(&glb, "paint.glb", "color.png", NULL, &err);
     SC_CHECK_MSG(ctx != NULL, "%s", err.message);
     if (ctx) {
         const sc_atlas *a = sc_ctx_output(ctx, 0)->as.atlas;
@@ -600,8 +612,6 @@ SC_TEST(material_constants_round_trip) {
         if (a->materials) check_constants(&a->materials[0]);
         sc_ctx_free(ctx);
     }
-    sc_test_system("rm -rf '%s'", dir);
-    free(path), free(dir);
     sc_buf_free(&png), sc_buf_free(&bin), sc_buf_free(&glb), sc_buf_free(&out);
     cJSON_Delete(j);
     /* refused: each names the material and the field */
@@ -681,6 +691,41 @@ SC_TEST(quantized_positions) {
         sc_gltf_free(&q);
     }
     sc_gltf_free(&plain);
+    sc_buf_free(&bin), sc_buf_free(&glb);
+    cJSON_Delete(j);
+}
+
+/* A texture whose image is named by EXT_texture_webp alone loads (the
+ * tests' WebP); one with neither that nor a source is refused. */
+SC_TEST(webp_texture) {
+    cJSON *j = load_quad();
+    if (!j) return;
+    cJSON *t = at(j, "textures", 0);
+    cJSON_DeleteItemFromObjectCaseSensitive(t, "source");
+    cJSON *webp = cJSON_AddObjectToObject(cJSON_AddObjectToObject(t, "extensions"), "EXT_texture_webp");
+    cJSON_AddNumberToObject(webp, "source", 0);
+    set_string(at(j, "images", 0), "uri", "grad8.webp");
+    cJSON *required = cJSON_AddArrayToObject(j, "extensionsRequired");
+    cJSON_AddItemToArray(required, cJSON_CreateString("EXT_texture_webp"));
+    sc_buf bin, glb;
+    quad_bin(j, &bin);
+    make_glb(j, &bin, &glb);
+    sc_error err = {0};
+    sc_ctx *ctx = load_glb_beside(&glb, "webp.glb", "grad8.webp", "tests/data/images/grad8.webp", &err);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        const sc_atlas *a = sc_ctx_output(ctx, 0)->as.atlas;
+        int c = sc_atlas_find_texture(a, 0, "color");
+        SC_CHECK(c >= 0 && a->textures[c].image->as.image->width == 8 &&
+                 strcmp(a->textures[c].source, "grad8.webp") == 0);
+        sc_ctx_free(ctx);
+    }
+    cJSON_DeleteItemFromObjectCaseSensitive(t, "extensions");
+    sc_buf_free(&glb);
+    make_glb(j, &bin, &glb);
+    sc_gltf g;
+    int rc = sc_gltf_parse("bare.glb", glb.data, glb.len, failing_read, NULL, &g, &err);
+    SC_CHECK(rc != SC_OK && message_has(&err, "texture 0 has no source image"));
     sc_buf_free(&bin), sc_buf_free(&glb);
     cJSON_Delete(j);
 }

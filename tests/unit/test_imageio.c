@@ -514,6 +514,43 @@ SC_TEST(exr_mip_round_trip) {
     for (int k = 0; k < n; k++) sc_image_free(lv[k]);
 }
 
+/* A WebP (tests/data/images/grad8.webp, lossy, made from grad8.png) decodes
+ * to the PNG's size and channels and, within the lossy coding, its values;
+ * cut short it fails with a message. */
+SC_TEST(webp_decodes) {
+    sc_buf webp, png;
+    sc_buf_init(&webp), sc_buf_init(&png);
+    sc_error err = {0};
+    char *wp = sc_test_source_path("tests/data/images/grad8.webp");
+    char *pp = sc_test_source_path("tests/data/images/grad8.png");
+    int rc = sc_read_file(wp, 1 << 16, &webp, &err);
+    if (rc == SC_OK) rc = sc_read_file(pp, 1 << 16, &png, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    sc_image_data *a = NULL, *b = NULL;
+    if (rc == SC_OK) {
+        SC_CHECK_STR(sc_image_sniff(webp.data, webp.len), "webp");
+        rc = sc_image_decode("grad8.webp", webp.data, webp.len, &a, &err);
+        SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+        SC_CHECK(sc_image_decode("grad8.png", png.data, png.len, &b, &err) == SC_OK);
+    }
+    if (a && b) {
+        SC_CHECK_INT(a->width, 8);
+        SC_CHECK_INT(a->height, 8);
+        SC_CHECK_INT(a->channels, b->channels);
+        SC_CHECK_INT(a->pixel, SC_PIXEL_U8);
+        double sum = 0;
+        int64_t n = (int64_t)a->width * a->height * a->channels;
+        for (int64_t i = 0; i < n; i++) sum += fabs((double)((uint8_t *)a->pixels)[i] - ((uint8_t *)b->pixels)[i]);
+        SC_CHECK_MSG(sum / n < 0.05 * 255, "mean difference %g of 255", sum / n);
+        sc_image_data *cut = NULL;
+        SC_CHECK(sc_image_decode("cut.webp", webp.data, webp.len / 2, &cut, &err) != SC_OK && cut == NULL);
+        SC_CHECK(message_has(&err, "cut.webp"));
+    }
+    sc_image_free(a), sc_image_free(b);
+    sc_buf_free(&webp), sc_buf_free(&png);
+    free(wp), free(pp);
+}
+
 SC_TEST(bad_images_fail_cleanly) {
     sc_error err = {0};
     sc_image_data *im = NULL;
