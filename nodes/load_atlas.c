@@ -30,6 +30,7 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <strings.h>
 
 #include "sc_gltf.h"
@@ -64,6 +65,36 @@ typedef struct file_reader {
 /* A file the model (or its MTL) names, resolved and confined to the root. */
 static int resolve(const file_reader *fr, const char *rel, char **path, sc_error *err) {
     return sc_path_confine(fr->root, fr->dir, rel, path, err);
+}
+
+static bool regular_file(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* A texture file the model names, resolved and confined to the root. A name
+ * that is absolute or leads outside the root, or a file that is not there
+ * (an export from another machine: "C:\Users\me\wood.png",
+ * "../textures/wood.png"), falls back to the file of its base name beside
+ * the model when that one is there, with a warning naming `origin`. */
+static int resolve_texture(const file_reader *fr, const char *rel, const char *origin, char **path, sc_error *err) {
+    sc_error first = {0};
+    int rc = resolve(fr, rel, path, &first);
+    if (rc == SC_OK && regular_file(*path)) return SC_OK;
+    const char *base = rel + strlen(rel);
+    while (base > rel && base[-1] != '/' && base[-1] != '\\') base--;
+    char *beside = NULL;
+    sc_error ignored = {0};
+    if (base != rel && *base && resolve(fr, base, &beside, &ignored) == SC_OK && regular_file(beside)) {
+        sc_ctx_warn(fr->ctx, "%s: '%s' %s: read %s, beside the model", origin, rel,
+                    rc == SC_OK ? "is not there" : "is outside the asset's folder", base);
+        free(*path);
+        *path = beside;
+        return SC_OK;
+    }
+    free(beside);
+    if (rc != SC_OK) *err = first;
+    return rc;   /* a missing file fails where it is read, naming it */
 }
 
 static int read_beside_model(void *ud, const char *rel, sc_buf *out, sc_error *err) {
@@ -187,7 +218,7 @@ static int load_obj(file_reader *fr, const char *path, const sc_buf *bytes, cons
         char *origin = mtl_path ? sc_strprintf("%s:%d", mtl_path, m->line) : NULL;
         free(mtl_path);
         char *file = NULL;
-        if ((rc = resolve(fr, m->path, &file, err))) {
+        if ((rc = resolve_texture(fr, m->path, origin ? origin : m->mtl, &file, err))) {
             sc_error_prefix(err, "%s: %s", origin ? origin : "", m->slot);
             free(origin);
             return rc;
@@ -211,9 +242,10 @@ static int load_gltf(file_reader *fr, const char *path, const sc_buf *bytes, con
         const sc_gltf_image *im = &l->gltf.images[t->image];
         int slot = slot_index(t->slot, strlen(t->slot));
         if (slot < 0 || !wanted[slot]) continue;
-        char *file = NULL;
-        if (im->path && (rc = resolve(fr, im->path, &file, err)))
-            return sc_error_prefix(err, "%s: image %d", path, im->index);
+        char *file = NULL, *origin = im->path ? sc_strprintf("%s: image %d", path, im->index) : NULL;
+        rc = im->path ? resolve_texture(fr, im->path, origin ? origin : path, &file, err) : SC_OK;
+        free(origin);
+        if (rc) return sc_error_prefix(err, "%s: image %d", path, im->index);
         if ((rc = add_ref(l, t->material, slot, file, im->data, im->size, t->wrap_u, t->wrap_v,
                           sc_strprintf("%s: image %d", path, im->index), err)))
             return rc;
@@ -702,7 +734,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, 
 
 const sc_node_desc sc_node_load_atlas = {
     .type = "load_atlas",
-    .version = 3,
+    .version = 4,
     .summary = "load a textured mesh (OBJ + MTL, glTF 2.0) and its textures",
     .outputs = outputs,
     .noutputs = SC_COUNT(outputs),

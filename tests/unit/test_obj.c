@@ -502,6 +502,37 @@ SC_TEST(reversed_copies_dropped) {
     free(path), free(dir);
 }
 
+/* A texture the MTL names where it was on another machine (an absolute
+ * Windows path, a folder that is not there) is read from the file of that
+ * name beside the model, with a warning; with no such file it still fails,
+ * and nothing outside the asset's folder is read. */
+SC_TEST(textures_named_elsewhere_read_beside_the_model) {
+    char *dir = sc_test_tempdir("elsewhere");
+    static const char *const obj = "mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                   "f 1/1 2/2 3/3\n";
+    write_text(dir, "m.obj", obj);
+    write_text(dir, "m.mtl", "newmtl a\nmap_Kd C:\\Users\\me\\Desktop\\wood.png\nmap_Ke ../gone/glow.png\n");
+    write_png(dir, "wood.png", 4, 4, 90);
+    write_png(dir, "glow.png", 4, 4, 20);
+    char *path = sc_path_join(dir, "m.obj");
+    sc_error err = {0};
+    sc_ctx *ctx = run_load(path, &err, NULL);
+    SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+    if (ctx) {
+        const sc_atlas *a = atlas_of(ctx);
+        SC_CHECK_INT(a->ntex, 2);
+        SC_CHECK(warning_has(ctx, "m.mtl:2: 'C:/Users/me/Desktop/wood.png' is outside the asset's folder: read "
+                                  "wood.png, beside the model"));
+        SC_CHECK(warning_has(ctx, "m.mtl:3: '../gone/glow.png' is outside the asset's folder: read glow.png"));
+        sc_ctx_free(ctx);
+    }
+    sc_test_system("rm -f '%s/wood.png'", dir);
+    ctx = run_load(path, &err, NULL);
+    SC_CHECK(ctx == NULL && message_has(&err, "'C:/Users/me/Desktop/wood.png' is an absolute path"));
+    sc_test_system("rm -rf '%s'", dir);
+    free(path), free(dir);
+}
+
 SC_TEST(seam_and_boundary_edges) {
     char *path = data_path("seam.obj");
     sc_error err = {0};
