@@ -21,6 +21,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <strings.h>
 #include <exception>
 #include <string>
 #include <vector>
@@ -126,11 +127,18 @@ bool png_chunks_complete(const unsigned char *p, size_t size) {
     return false;
 }
 
+/* Whether name ends in suffix, letters in either case. */
+static bool ends_with(const char *name, const char *suffix) {
+    size_t n = std::strlen(name), k = std::strlen(suffix);
+    return n >= k && strcasecmp(name + n - k, suffix) == 0;
+}
+
 int decode(const char *name, const void *bytes, size_t size, sc_image_data **out, sc_error *err) {
     const char *format = sc_imageio_sniff(bytes, size);
+    if (!format && ends_with(name, ".tga")) format = "tga";   /* Targa has no signature: its name says it */
     if (!format)
-        return sc_fail(err, SC_EINPUT, "%s: not an image seamcook reads (PNG, JPEG, WebP, TIFF, OpenEXR, HDR, BMP)",
-                       name);
+        return sc_fail(err, SC_EINPUT,
+                       "%s: not an image seamcook reads (PNG, JPEG, WebP, TIFF, OpenEXR, HDR, BMP, Targa)", name);
     if (std::strcmp(format, "png") == 0 && !png_chunks_complete((const unsigned char *)bytes, size))
         return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated png: a chunk runs past the end of the data", name);
     OIIO::Filesystem::IOMemReader proxy(bytes, size);

@@ -551,6 +551,34 @@ SC_TEST(webp_decodes) {
     free(wp), free(pp);
 }
 
+/* A Targa (no signature: its name says it) decodes to the very pixels of
+ * the PNG it was made from, rows the same way up. */
+SC_TEST(targa_decodes_by_its_name) {
+    sc_buf tga, png;
+    sc_buf_init(&tga), sc_buf_init(&png);
+    sc_error err = {0};
+    char *tp = sc_test_source_path("tests/data/images/grad8.tga");
+    char *pp = sc_test_source_path("tests/data/images/grad8.png");
+    int rc = sc_read_file(tp, 1 << 16, &tga, &err);
+    if (rc == SC_OK) rc = sc_read_file(pp, 1 << 16, &png, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    sc_image_data *a = NULL, *b = NULL;
+    if (rc == SC_OK) {
+        SC_CHECK(sc_image_decode("grad8.data", tga.data, tga.len, &a, &err) != SC_OK && a == NULL);
+        SC_CHECK(message_has(&err, "grad8.data: not an image seamcook reads"));
+        rc = sc_image_decode("grad8.TGA", tga.data, tga.len, &a, &err);
+        SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+        SC_CHECK(sc_image_decode("grad8.png", png.data, png.len, &b, &err) == SC_OK);
+    }
+    if (a && b) {
+        SC_CHECK(a->width == b->width && a->height == b->height && a->channels == b->channels && a->pixel == b->pixel);
+        SC_CHECK(memcmp(a->pixels, b->pixels, (size_t)a->width * a->height * a->channels) == 0);
+    }
+    sc_image_free(a), sc_image_free(b);
+    sc_buf_free(&tga), sc_buf_free(&png);
+    free(tp), free(pp);
+}
+
 SC_TEST(bad_images_fail_cleanly) {
     sc_error err = {0};
     sc_image_data *im = NULL;
