@@ -138,7 +138,7 @@ int decode(const char *name, const void *bytes, size_t size, sc_image_data **out
     if (!format && ends_with(name, ".tga")) format = "tga";   /* Targa has no signature: its name says it */
     if (!format)
         return sc_fail(err, SC_EINPUT,
-                       "%s: not an image seamcook reads (PNG, JPEG, WebP, TIFF, OpenEXR, HDR, BMP, Targa)", name);
+                       "%s: not an image seamcook reads (PNG, JPEG, WebP, TIFF, OpenEXR, HDR, BMP, Targa, DDS)", name);
     if (std::strcmp(format, "png") == 0 && !png_chunks_complete((const unsigned char *)bytes, size))
         return sc_fail(err, SC_EINPUT, "%s: corrupt or truncated png: a chunk runs past the end of the data", name);
     OIIO::Filesystem::IOMemReader proxy(bytes, size);

@@ -53,6 +53,7 @@ static inline const char *sc_imageio_sniff(const void *bytes, size_t size) {
     if (size >= 6 && (memcmp(p, "#?RADI", 6) == 0 || memcmp(p, "#?RGBE", 6) == 0)) return "hdr";
     if (size >= 2 && p[0] == 'B' && p[1] == 'M') return "bmp";
     if (size >= 12 && memcmp(p, "RIFF", 4) == 0 && memcmp(p + 8, "WEBP", 4) == 0) return "webp";
+    if (size >= 4 && memcmp(p, "DDS ", 4) == 0) return "dds";
     return NULL;
 }
 

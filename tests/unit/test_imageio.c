@@ -579,6 +579,34 @@ SC_TEST(targa_decodes_by_its_name) {
     free(tp), free(pp);
 }
 
+/* A DDS (tests/data/images/grad8.dds: 8 x 8 uncompressed BGRA, the picture's
+ * top row first, texel (x, y) = (32 x, 32 y, 16 (x + y)) from the top)
+ * decodes to those values, the picture's top row the last in memory as
+ * every image here. */
+SC_TEST(dds_decodes) {
+    sc_buf dds;
+    sc_buf_init(&dds);
+    sc_error err = {0};
+    char *path = sc_test_source_path("tests/data/images/grad8.dds");
+    int rc = sc_read_file(path, 1 << 16, &dds, &err);
+    sc_image_data *im = NULL;
+    if (rc == SC_OK) rc = sc_image_decode("grad8.dds", dds.data, dds.len, &im, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (im) {
+        SC_CHECK(im->width == 8 && im->height == 8 && im->channels == 4 && im->pixel == SC_PIXEL_U8);
+        int wrong = 0;
+        for (int y = 0; y < 8; y++)
+            for (int x = 0; x < 8; x++) {
+                const uint8_t *p = (const uint8_t *)im->pixels + 4 * ((size_t)(7 - y) * 8 + x);
+                wrong += p[0] != 32 * x || p[1] != 32 * y || p[2] != 16 * (x + y) || p[3] != 255;
+            }
+        SC_CHECK_MSG(wrong == 0, "%d texels differ", wrong);
+    }
+    sc_image_free(im);
+    sc_buf_free(&dds);
+    free(path);
+}
+
 SC_TEST(bad_images_fail_cleanly) {
     sc_error err = {0};
     sc_image_data *im = NULL;
