@@ -292,6 +292,15 @@ sc_material sc_material_default(void) {
                          .occlusion_strength = 1, .alpha_cutoff = 0.5, .alpha_mode = SC_ALPHA_OPAQUE};
 }
 
+sc_material sc_atlas_material(const sc_atlas *a, int32_t material) {
+    if (a->materials) return a->materials[material];
+    sc_material c = sc_material_default();
+    c.metallic = sc_atlas_find_texture(a, material, "metallic_roughness") >= 0 ? 1 : 0;
+    double e = sc_atlas_find_texture(a, material, "emissive") >= 0 ? 1 : 0;
+    c.emissive[0] = c.emissive[1] = c.emissive[2] = e;
+    return c;
+}
+
 int sc_atlas_copy_materials(sc_atlas *dst, const sc_atlas *src) {
     free(dst->materials);
     dst->materials = NULL;

@@ -267,6 +267,10 @@ void sc_atlas_free(sc_atlas *a);
 int sc_atlas_copy_materials(sc_atlas *dst, const sc_atlas *src);
 /* Index of the texture with this slot name in this material, or -1. */
 int sc_atlas_find_texture(const sc_atlas *a, int32_t material, const char *name);
+/* The constants material k of a stands for: its own, or, where the source
+ * states none, an OBJ's conventions (factors 1, a dielectric without a
+ * metallic-roughness map, fully rough; emission as its emissive map). */
+sc_material sc_atlas_material(const sc_atlas *a, int32_t material);
 
 sc_lods *sc_lods_new(void);
 int sc_lods_add(sc_lods *l, sc_value *atlas);       /* takes the reference */

@@ -242,12 +242,13 @@ static int load_gltf(file_reader *fr, const char *path, const sc_buf *bytes, con
         const sc_gltf_image *im = &l->gltf.images[t->image];
         int slot = slot_index(t->slot, strlen(t->slot));
         if (slot < 0 || !wanted[slot]) continue;
-        char *file = NULL, *origin = im->path ? sc_strprintf("%s: image %d", path, im->index) : NULL;
+        char *file = NULL, *origin = sc_strprintf("%s: image %d", path, im->index);
         rc = im->path ? resolve_texture(fr, im->path, origin ? origin : path, &file, err) : SC_OK;
-        free(origin);
-        if (rc) return sc_error_prefix(err, "%s: image %d", path, im->index);
-        if ((rc = add_ref(l, t->material, slot, file, im->data, im->size, t->wrap_u, t->wrap_v,
-                          sc_strprintf("%s: image %d", path, im->index), err)))
+        if (rc) {
+            free(origin);
+            return sc_error_prefix(err, "%s: image %d", path, im->index);
+        }
+        if ((rc = add_ref(l, t->material, slot, file, im->data, im->size, t->wrap_u, t->wrap_v, origin, err)))
             return rc;
         l->refs[l->nrefs - 1].green_flipped = t->green_flipped;
     }
@@ -549,20 +550,15 @@ static int drop_reversed_copies(sc_mesh **mesh, uint8_t *two_sided, int64_t *dro
 }
 
 /* The materials flagged in two_sided made double-sided; an atlas without
- * constants (an OBJ's) gets those its outputs would follow anyway (factors
- * 1, a dielectric without a metallic-roughness map, emission as its map). */
+ * constants (an OBJ's) first gets those its outputs follow anyway
+ * (sc_atlas_material). */
 static int mark_two_sided(sc_atlas *a, const uint8_t *two_sided, sc_error *err) {
     int32_t nmat = a->mesh->as.mesh->nmat;
     if (!a->materials) {
-        a->materials = malloc((size_t)(nmat > 0 ? nmat : 1) * sizeof *a->materials);
-        if (!a->materials) return sc_fail(err, SC_ENOMEM, "out of memory");
-        for (int32_t k = 0; k < nmat; k++) {
-            sc_material *c = &a->materials[k];
-            *c = sc_material_default();
-            c->metallic = sc_atlas_find_texture(a, k, "metallic_roughness") >= 0 ? 1 : 0;
-            double e = sc_atlas_find_texture(a, k, "emissive") >= 0 ? 1 : 0;
-            c->emissive[0] = c->emissive[1] = c->emissive[2] = e;
-        }
+        sc_material *c = malloc((size_t)(nmat > 0 ? nmat : 1) * sizeof *c);
+        if (!c) return sc_fail(err, SC_ENOMEM, "out of memory");
+        for (int32_t k = 0; k < nmat; k++) c[k] = sc_atlas_material(a, k);
+        a->materials = c;
     }
     for (int32_t k = 0; k < nmat; k++)
         if (two_sided[k]) a->materials[k].double_sided = true;

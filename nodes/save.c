@@ -351,11 +351,10 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
     sc_buf_puts(&mtl, "# seamcook\n");
     int rc = SC_OK;
     for (int32_t k = 0; k < m->nmat && rc == SC_OK; k++) {
-        const sc_material *c = set->materials ? &set->materials[k] : NULL;   /* Kd and d multiply map_Kd */
-        if (c) sc_buf_printf(&mtl, "\nnewmtl %s\nKd %.17g %.17g %.17g\n", names[k], c->base_color[0], c->base_color[1],
-                             c->base_color[2]);
-        else sc_buf_printf(&mtl, "\nnewmtl %s\nKd 1 1 1\n", names[k]);
-        if (c && c->base_color[3] != 1) sc_buf_printf(&mtl, "d %.17g\n", c->base_color[3]);
+        const sc_material c = sc_atlas_material(set, k);   /* Kd and d multiply map_Kd */
+        sc_buf_printf(&mtl, "\nnewmtl %s\nKd %.17g %.17g %.17g\n", names[k], c.base_color[0], c.base_color[1],
+                      c.base_color[2]);
+        if (c.base_color[3] != 1) sc_buf_printf(&mtl, "d %.17g\n", c.base_color[3]);
         sc_seam_set seams = {0};
         bool found = false;
         for (int32_t t = 0; t < set->ntex && rc == SC_OK; t++) {
@@ -421,9 +420,15 @@ static int save_obj(saver *s, const sc_mesh *m, const sc_mesh *set, char *const 
  * files embedded (float textures cannot be: glTF holds PNG and JPEG). */
 static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_error *err) {
     int32_t n = (atlas ? 1 : 0) + (lods ? lods->count : 0);
+    const sc_atlas *set = atlas ? atlas : lods->levels[0]->as.atlas;
+    int32_t nmat = set->mesh->as.mesh->nmat;
     const sc_mesh **levels = calloc((size_t)n, sizeof *levels);
-    if (!levels) return sc_fail(err, SC_ENOMEM, "out of memory");
-    const sc_material *constants = atlas ? atlas->materials : lods->levels[0]->as.atlas->materials;
+    sc_material *constants = malloc((size_t)(nmat > 0 ? nmat : 1) * sizeof *constants);
+    if (!levels || !constants) {
+        free(levels), free(constants);
+        return sc_fail(err, SC_ENOMEM, "out of memory");
+    }
+    for (int32_t k = 0; k < nmat; k++) constants[k] = sc_atlas_material(set, k);
     int32_t k = 0;
     if (atlas) levels[k++] = atlas->mesh->as.mesh;
     for (int32_t l = 0; lods && l < lods->count; l++) levels[k++] = lods->levels[l]->as.atlas->mesh->as.mesh;
@@ -448,7 +453,7 @@ static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_err
     }
     if (rc == SC_OK && separate) rc = add_file(s->report, bin_file, &bin, err);
     if (rc) sc_error_prefix(err, "%s.%s", s->name, separate ? "gltf" : "glb");
-    free(file), free(bin_file), free(levels);
+    free(file), free(bin_file), free(levels), free(constants);
     sc_buf_free(&b), sc_buf_free(&bin);
     return rc;
 }

@@ -723,7 +723,7 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
     normal_matrix(m, nm);
     for (int64_t i = 0; i < n; i++) {
         double x = accessor_get(&pos, i, 0), y = accessor_get(&pos, i, 1), z = accessor_get(&pos, i, 2);
-        double u = uv_i >= 0 ? accessor_get(&uv, i, 0) : 0, v = uv_i >= 0 ? accessor_get(&uv, i, 1) : 0;
+        double u = uv_i >= 0 ? accessor_get(&uv, i, 0) : 0, v = uv_i >= 0 ? accessor_get(&uv, i, 1) : 1;
         if (!isfinite(x) || !isfinite(y) || !isfinite(z))
             return fail(r, SC_EINPUT, "accessor %lld: POSITION %lld is not finite", (long long)pos_i, (long long)i);
         if (!isfinite(u) || !isfinite(v))
@@ -733,8 +733,8 @@ static int add_primitive(reader *r, int64_t mesh, int64_t index, const cJSON *pr
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
             return fail(r, SC_EINPUT, "%s: POSITION %lld is not finite after the node transform", ctx,
                         (long long)i);
-        double tu = ut.m[0] * u + ut.m[1] * v + ut.m[2], tv = ut.m[3] * u + ut.m[4] * v + ut.m[5];
-        if (uv_i < 0) tu = 0, tv = 1;   /* stored as (0, 0) */
+        double tu = u, tv = v;   /* without TEXCOORD_0: (0, 1) in glTF's terms, stored as (0, 0) */
+        if (uv_i >= 0) tu = ut.m[0] * u + ut.m[1] * v + ut.m[2], tv = ut.m[3] * u + ut.m[4] * v + ut.m[5];
         if (!isfinite(tu) || !isfinite(tv))
             return fail(r, SC_EINPUT, "%s: TEXCOORD_0 %lld is not finite after the material's texture transform", ctx,
                         (long long)i);

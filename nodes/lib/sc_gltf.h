@@ -57,7 +57,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 8
+#define SC_GLTF_VERSION 9
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */
@@ -127,9 +127,8 @@ typedef struct sc_gltf_out_texture {
  * per material (unindexed corners welded into glTF vertices: equal position,
  * uv and normal indices), materials named as the levels' (all levels share
  * level 0's materials) with `constants` (one per material: factors, normal
- * scale, occlusion strength, alpha mode and cutoff, double-sidedness; NULL:
- * an OBJ's conventions, a dielectric fully rough without a
- * metallic-roughness map, emission as its map), textures embedded with
+ * scale, occlusion strength, alpha mode and cutoff, double-sidedness; see
+ * sc_atlas_material), textures embedded with
  * samplers from their wrap modes. Positions, uvs (v stored as 1 - v) and
  * normals are float32. */
 int sc_gltf_write_glb(const sc_mesh *const *levels, int32_t nlevels, const sc_gltf_out_texture *textures,

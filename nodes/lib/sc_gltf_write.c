@@ -237,32 +237,27 @@ static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlev
         sc_buf_puts(&materials, ",\"pbrMetallicRoughness\":{");
         if (tc >= 0) sc_buf_printf(&materials, "\"baseColorTexture\":{\"index\":%d},", tc);
         if (tm >= 0) sc_buf_printf(&materials, "\"metallicRoughnessTexture\":{\"index\":%d},", tm);
-        const sc_material *c = constants ? &constants[mat] : NULL;
-        if (c) {
-            sc_buf_printf(&materials, "\"baseColorFactor\":[%.17g,%.17g,%.17g,%.17g],", c->base_color[0],
-                          c->base_color[1], c->base_color[2], c->base_color[3]);
-            sc_buf_printf(&materials, "\"metallicFactor\":%.17g,\"roughnessFactor\":%.17g}", c->metallic, c->roughness);
-        } else {   /* without a metallic-roughness map: a dielectric, fully rough (an OBJ's diffuse look) */
-            sc_buf_printf(&materials, "\"metallicFactor\":%s,\"roughnessFactor\":1}", tm >= 0 ? "1" : "0");
-        }
+        const sc_material *c = &constants[mat];   /* what glTF defaults to is left out, but the factors */
+        const double *bc = c->base_color;
+        if (bc[0] != 1 || bc[1] != 1 || bc[2] != 1 || bc[3] != 1)
+            sc_buf_printf(&materials, "\"baseColorFactor\":[%.17g,%.17g,%.17g,%.17g],", bc[0], bc[1], bc[2], bc[3]);
+        sc_buf_printf(&materials, "\"metallicFactor\":%.17g,\"roughnessFactor\":%.17g}", c->metallic, c->roughness);
         if (tn >= 0) sc_buf_printf(&materials, ",\"normalTexture\":{\"index\":%d", tn);
-        if (tn >= 0 && c && c->normal_scale != 1) sc_buf_printf(&materials, ",\"scale\":%.17g", c->normal_scale);
+        if (tn >= 0 && c->normal_scale != 1) sc_buf_printf(&materials, ",\"scale\":%.17g", c->normal_scale);
         if (tn >= 0) sc_buf_puts(&materials, "}");
         if (to >= 0) sc_buf_printf(&materials, ",\"occlusionTexture\":{\"index\":%d", to);
-        if (to >= 0 && c && c->occlusion_strength != 1)
+        if (to >= 0 && c->occlusion_strength != 1)
             sc_buf_printf(&materials, ",\"strength\":%.17g", c->occlusion_strength);
         if (to >= 0) sc_buf_puts(&materials, "}");
         if (te >= 0) sc_buf_printf(&materials, ",\"emissiveTexture\":{\"index\":%d}", te);
-        if (c && (c->emissive[0] != 0 || c->emissive[1] != 0 || c->emissive[2] != 0))
+        if (c->emissive[0] != 0 || c->emissive[1] != 0 || c->emissive[2] != 0)
             sc_buf_printf(&materials, ",\"emissiveFactor\":[%.17g,%.17g,%.17g]", c->emissive[0], c->emissive[1],
                           c->emissive[2]);
-        else if (!c && te >= 0)
-            sc_buf_puts(&materials, ",\"emissiveFactor\":[1,1,1]");
-        if (c && c->alpha_mode != SC_ALPHA_OPAQUE)
+        if (c->alpha_mode != SC_ALPHA_OPAQUE)
             sc_buf_printf(&materials, ",\"alphaMode\":\"%s\"", c->alpha_mode == SC_ALPHA_MASK ? "MASK" : "BLEND");
-        if (c && c->alpha_mode == SC_ALPHA_MASK && c->alpha_cutoff != 0.5)
+        if (c->alpha_mode == SC_ALPHA_MASK && c->alpha_cutoff != 0.5)
             sc_buf_printf(&materials, ",\"alphaCutoff\":%.17g", c->alpha_cutoff);
-        if (c && c->double_sided) sc_buf_puts(&materials, ",\"doubleSided\":true");
+        if (c->double_sided) sc_buf_puts(&materials, ",\"doubleSided\":true");
         sc_buf_puts(&materials, "}");
     }
     /* the document */

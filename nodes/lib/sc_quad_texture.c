@@ -193,7 +193,6 @@ static void sample_point(const job *J, const slot *s, int32_t f, const double l[
     int32_t of = J->c->m.old[f];
     if (!src) {
         memcpy(out, s->neutral, 4 * sizeof(float));
-        if (J->constants && strcmp(s->name, "emissive") == 0) out[0] = out[1] = out[2] = 1;   /* glTF: absent is white */
         if (s->bake != CONSTANT_NONE && s->bake != CONSTANT_NORMAL) take_constant(J, s, of, out);
         return;
     }
@@ -1092,6 +1091,10 @@ int sc_quad_build(const sc_mesh *m, const sc_texture *tex, int32_t ntex, const s
         J.constants = o->constants;
         out->constants = merge_constants(&J, &unbaked);
         out->has_constants = true;
+        for (int32_t s = 0; s < J.nslots; s++) {   /* glTF: an absent emissive map reads as white, times the factor */
+            float *nv = J.slots[s].neutral;
+            if (strcmp(J.slots[s].name, "emissive") == 0) nv[0] = nv[1] = nv[2] = 1;
+        }
     }
     if (rc == SC_OK) {
         J.frame = malloc((size_t)m->nf * sizeof *J.frame);

@@ -482,12 +482,13 @@ SC_TEST(bad_glb_inputs_name_file_and_element) {
     }
 }
 
-/* The load_atlas node on `glb` written as NAME in a folder of its own
- * beside its images: "normal map.png" (2 x 2 grey) and the colour image
- * COLOR (the bytes of COLOR_FILE under the source tree, or the grey PNG).
- * NULL when the node fails (err says why). */
+/* The load_atlas node (its `slots` SLOTS, or all with NULL) on `glb`
+ * written as NAME in a folder of its own beside its images: "normal
+ * map.png" (2 x 2 grey) and the colour image COLOR (the bytes of
+ * COLOR_FILE under the source tree, or the grey PNG). NULL when the node
+ * fails (err says why). */
 static sc_ctx *load_glb_beside(const sc_buf *glb, const char *name, const char *color, const char *color_file,
-                               sc_error *err) {
+                               const char *slots, sc_error *err) {
     char *dir = sc_test_tempdir("glb-node");
     sc_buf png, img;
     png_bytes(2, 2, 128, &png);
@@ -501,7 +502,7 @@ static sc_ctx *load_glb_beside(const sc_buf *glb, const char *name, const char *
     write_bytes(dir, "normal map.png", png.data, png.len);
     write_bytes(dir, name, glb->data, glb->len);
     char *path = sc_path_join(dir, name);
-    sc_ctx *ctx = run_load(path, err, NULL);
+    sc_ctx *ctx = slots ? run_load(path, err, "slots", slots, NULL) : run_load(path, err, NULL);
     sc_test_system("rm -rf '%s'", dir);
     free(path), free(dir);
     sc_buf_free(&png), sc_buf_free(&img);
@@ -527,7 +528,7 @@ SC_TEST(glb_without_texcoord) {
         for (int32_t i = 0; i < g.mesh->nu; i++) SC_CHECK(g.mesh->U[2 * i] == 0 && g.mesh->U[2 * i + 1] == 0);
     }
     sc_gltf_free(&g);
-    sc_ctx *ctx = load_glb_beside(&glb, "bare.glb", "color.png", NULL, &err);
+    sc_ctx *ctx = load_glb_beside(&glb, "bare.glb", "color.png", NULL, NULL, &err);
     SC_CHECK(ctx == NULL && message_has(&err, "bare.glb has no texture coordinates, so its"));
     sc_ctx_free(ctx);
     sc_buf_free(&bin), sc_buf_free(&glb);
@@ -604,7 +605,7 @@ SC_TEST(material_constants_round_trip) {
         sc_gltf_free(&g);
     }
     /* through the node: the atlas carries them */
-    sc_ctx *ctx = load_glb_beside(&glb, "paint.glb", "color.png", NULL, &err);
+    sc_ctx *ctx = load_glb_beside(&glb, "paint.glb", "color.png", NULL, NULL, &err);
     SC_CHECK_MSG(ctx != NULL, "%s", err.message);
     if (ctx) {
         const sc_atlas *a = sc_ctx_output(ctx, 0)->as.atlas;
@@ -711,7 +712,7 @@ SC_TEST(webp_texture) {
     quad_bin(j, &bin);
     make_glb(j, &bin, &glb);
     sc_error err = {0};
-    sc_ctx *ctx = load_glb_beside(&glb, "webp.glb", "grad8.webp", "tests/data/images/grad8.webp", &err);
+    sc_ctx *ctx = load_glb_beside(&glb, "webp.glb", "grad8.webp", "tests/data/images/grad8.webp", NULL, &err);
     SC_CHECK_MSG(ctx != NULL, "%s", err.message);
     if (ctx) {
         const sc_atlas *a = sc_ctx_output(ctx, 0)->as.atlas;
