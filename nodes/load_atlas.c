@@ -549,6 +549,22 @@ static int drop_reversed_copies(sc_mesh **mesh, uint8_t *two_sided, int64_t *dro
     return rc;
 }
 
+/* A glTF material whose metallic-roughness or emissive map is not in the
+ * atlas (left out, unreadable, or not among `slots`): its factor, which
+ * multiplied that map, would stand alone for the whole surface (a fully
+ * metallic or glowing one); the material becomes what it is without the
+ * map by the conventions the outputs follow (sc_atlas_material): a
+ * dielectric, no emission. */
+static void constants_without_maps(sc_atlas *a, const sc_gltf *g) {
+    for (int32_t i = 0; a->materials && i < g->ntextures; i++) {
+        const sc_gltf_texture *t = &g->textures[i];
+        if (sc_atlas_find_texture(a, t->material, t->slot) >= 0) continue;
+        sc_material *c = &a->materials[t->material];
+        if (strcmp(t->slot, "metallic_roughness") == 0) c->metallic = 0;
+        if (strcmp(t->slot, "emissive") == 0) c->emissive[0] = c->emissive[1] = c->emissive[2] = 0;
+    }
+}
+
 /* The materials flagged in two_sided made double-sided; an atlas without
  * constants (an OBJ's) first gets those its outputs follow anyway
  * (sc_atlas_material). */
@@ -661,6 +677,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
                            : sc_fail(err, SC_ENOMEM, "out of memory");
                 break;   /* one texture per (material, slot) */
             }
+    if (rc == SC_OK) constants_without_maps(atlas, &l.gltf);
     if (rc == SC_OK && reversed > 0) rc = mark_two_sided(atlas, two_sided, err);
     free(two_sided);
     if (rc == SC_OK && reversed > 0)
@@ -730,7 +747,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_gltf, &sc_kernel_imageio, 
 
 const sc_node_desc sc_node_load_atlas = {
     .type = "load_atlas",
-    .version = 4,
+    .version = 5,
     .summary = "load a textured mesh (OBJ + MTL, glTF 2.0) and its textures",
     .outputs = outputs,
     .noutputs = SC_COUNT(outputs),

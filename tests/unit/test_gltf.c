@@ -613,6 +613,24 @@ SC_TEST(material_constants_round_trip) {
         if (a->materials) check_constants(&a->materials[0]);
         sc_ctx_free(ctx);
     }
+    /* a metallic-roughness or emissive map the atlas goes without (here not
+     * among `slots`) takes its factor with it: a dielectric, no emission */
+    cJSON *mat = at(j, "materials", 0);
+    cJSON_AddNumberToObject(cJSON_AddObjectToObject(cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness"),
+                                                    "metallicRoughnessTexture"), "index", 0);
+    cJSON_AddNumberToObject(cJSON_AddObjectToObject(mat, "emissiveTexture"), "index", 0);
+    sc_buf_free(&glb);
+    make_glb(j, &bin, &glb);
+    for (int all = 0; all < 2; all++) {
+        ctx = load_glb_beside(&glb, "paint.glb", "color.png", NULL, all ? NULL : "color,normal", &err);
+        SC_CHECK_MSG(ctx != NULL, "%s", err.message);
+        if (!ctx) continue;
+        const sc_material *c = sc_ctx_output(ctx, 0)->as.atlas->materials;
+        SC_CHECK(c && c->roughness == 0.3 && c->base_color[0] == 0.9);
+        if (c && all) SC_CHECK(c->metallic == 0.125 && c->emissive[2] == 2.5);
+        if (c && !all) SC_CHECK(c->metallic == 0 && c->emissive[0] == 0 && c->emissive[1] == 0 && c->emissive[2] == 0);
+        sc_ctx_free(ctx);
+    }
     sc_buf_free(&png), sc_buf_free(&bin), sc_buf_free(&glb), sc_buf_free(&out);
     cJSON_Delete(j);
     /* refused: each names the material and the field */
