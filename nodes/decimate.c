@@ -169,7 +169,11 @@
  * when one passes max_error the levels are made again from the input with
  * every collapse bounded by max_error x 0.95 / the overshoot, up to
  * MAX_TIGHTENINGS times (metrics bound_tightenings, bound_scale); a level
- * still over it after that says so in a warning.
+ * still over it after that says so in a warning. Where a pass leaves the
+ * overshoot where it was (under a thousandth less), the farthest point is
+ * one the tracked error does not sample, and the bound tightens by a fifth
+ * at least (MuruCat's level 1: 2.0012% after three passes of 0.95 / the
+ * overshoot, within 2% after one more of a fifth).
  *
  * Maps that restore the detail (map_size > 0). A level drawn with a
  * displacement map of map_size^2 (bake_displacement) gets back only what
@@ -3658,7 +3662,7 @@ static int decimate_levels(sc_ctx *ctx, const sc_mesh *in, const int64_t *target
  * the whole level) are made again from the input, every collapse bounded
  * tighter by the overshoot measured, up to MAX_TIGHTENINGS times: the levels
  * output are within max_error by the sampled measure, or say they are not. */
-#define MAX_TIGHTENINGS 3
+#define MAX_TIGHTENINGS 8
 
 static int run(sc_ctx *ctx, sc_error *err) {
     const sc_mesh *in = sc_ctx_mesh(ctx, "mesh");
@@ -3671,7 +3675,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     rc = read_targets(ctx, in->nf, &targets, &ntargets, err);
     if (rc != SC_OK) return rc;
     bool measured_bound = sc_ctx_number(ctx, "max_error") > 0 && sc_ctx_integer(ctx, "hausdorff_samples") > 0;
-    double scale = 1, seconds = 0;
+    double scale = 1, seconds = 0, last_over = INFINITY;
     sc_lods *lods = NULL;
     outcome o = {0};
     for (int tightenings = 0;; tightenings++) {
@@ -3687,7 +3691,10 @@ static int run(sc_ctx *ctx, sc_error *err) {
             total(&o, "seconds_all_passes", seconds);
             break;
         }
-        scale *= 0.95 / o.over;
+        double step = 0.95 / o.over;
+        if (o.over > 0.999 * last_over) step = min2(step, 0.8);   /* stuck: not where the tracked error looks */
+        last_over = o.over;
+        scale *= step;
     }
     free(targets);
     if (rc == SC_OK && o.out_of_memory) rc = sc_fail(err, SC_ENOMEM, "decimate: out of memory");
@@ -3790,7 +3797,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quad
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 9,
+    .version = 10,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),
