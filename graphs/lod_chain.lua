@@ -11,7 +11,8 @@
 --   seamcook run graphs/lod_chain.lua --set smooth=0.5        (colour smoothed first; 2: sharpened)
 --   seamcook run graphs/lod_chain.lua --set erased_exr=1      (the float erasure as EXR files too)
 --
--- load -> quad_chartify -> [gradient_domain] -> erase_seams -> straighten -> decimate (seam-aware) -> share_textures -> save, render (crack check)
+-- load -> quad_chartify -> [gradient_domain] -> straighten (erasing) or erase_seams -> decimate (seam-aware)
+--      -> share_textures -> save, render (crack check)
 --      -> bake_displacement (geometry image, displacement per LOD) -> mipmap -> render (every LOD x mip)
 local mesh = param("mesh", "")
 local asset
@@ -46,9 +47,9 @@ asset = chartified.atlas
 -- scales the gradients of one texture (smooth_texture, colour by default):
 -- 0 <= BETA < 1 smooths, BETA > 1 sharpens, held to the input by
 -- smooth_screening (the paper's 1e4 on a surface of unit area). It runs
--- before erase_seams: the filter blurs the seams but does not close them,
--- and erase_seams closes them next, so the node's own erasure is off
--- (seamless = false).
+-- before the erasure: the filter blurs the seams but does not close them,
+-- and straighten (or erase_seams) closes them next, so the node's own
+-- erasure is off (seamless = false).
 local smooth = param("smooth", -1)
 if smooth >= 0 then
   asset = gradient_domain{ name = "smooth", atlas = asset, operation = smooth > 1 and "sharpen" or "smooth",
@@ -56,34 +57,38 @@ if smooth >= 0 then
                            texture = param("smooth_texture", "color"), seamless = false }.atlas_native
 end
 
--- Seam-free textures: float for the chain, and in the input's own format.
+-- Seam-free textures (Liu §4), in the input's own format: an 8-bit input
+-- stays 8-bit, optimally rounded, so what is checked is what is written.
 -- filter_space: sRGB colour is erased, straightened and mip-mapped in linear
 -- light, the way GPUs filter sRGB textures (glTF, GL/Vulkan sRGB formats);
 -- encoded works on the stored values, for engines that filter those.
+-- preset: the erasure's weights (local keeps interior texels; global favours
+-- gradients).
 local filter_space = param("filter_space", "linear")
-local erased = erase_seams{ name = "erased", atlas = asset, preset = param("preset", "local"),
-                            filter_space = filter_space }
+local preset = param("preset", "local")
 -- save measures every texture file it writes, decoded as a renderer filters
 -- it, and fails when the file's seams open wider than the image's by more
 -- than max_file_seam_gap (a lossy format or a conversion).
 local max_file_seam_gap = param("max_file_seam_gap", 1e-6)
--- erased_exr=1: also the float erasure itself as EXR files (asset_erased_*),
--- before straightening; off by default, as --out holds the assets.
+-- erased_exr=1: also the float erasure of the input's own uv as EXR files
+-- (asset_erased_*); off by default, as --out holds the assets.
 if param("erased_exr", 0) ~= 0 then
+  local erased = erase_seams{ name = "erased", atlas = asset, preset = preset, filter_space = filter_space }
   save{ name = "save_erased_exr", atlas = erased.atlas, file = "asset_erased", format = "exr", glb = false,
         max_seam_gap = max_file_seam_gap }
 end
 
 -- Straight, evenly parameterised seams (Liu §6), so decimation can collapse
--- them; straighten re-renders the textures into the new uv and erases their
--- seams again. The chain carries the textures in the input's own depth (an
--- 8-bit input stays 8-bit, optimally rounded), so what is checked is what is
--- written.
-local shared = erased.atlas_native
+-- them: straighten re-renders the textures into the new uv and erases every
+-- texture's seams, moved or not, so no erase_seams runs before it.
+-- straighten=0 keeps the input's uv and only erases.
+local shared
 if param("straighten", 1) ~= 0 then
-  shared = straighten{ name = "straight", atlas = erased.atlas_native,
+  shared = straighten{ name = "straight", atlas = asset,
                        tolerance = param("straighten_tolerance", 0.01),
-                       filter_space = filter_space }.atlas_native
+                       filter_space = filter_space, preset = preset }.atlas_native
+else
+  shared = erase_seams{ name = "erased", atlas = asset, preset = preset, filter_space = filter_space }.atlas_native
 end
 
 -- Levels of detail from the mesh alone: new texture bytes never re-decimate.

@@ -86,14 +86,18 @@
  * taken to object space through the input's frames, re-rendered there, and
  * brought back through the frames of the new uv, every texel (a kept face's
  * frame can turn with a moved neighbour). With `erase` (the
- * default) the erase kernel (sc_erase, erase_seams's defaults, no
- * quantisation) then erases the new atlas's textures, as the resampling
- * leaves the two sides of each seam slightly different.
+ * default) the erase kernel (sc_erase, erase_seams's defaults but for
+ * `preset`) then erases every texture of the new atlas, re-rendered or not,
+ * as the resampling leaves the two sides of each seam slightly different
+ * and the others may come with seams of their own: the output is seam-free
+ * either way, so a chain needs no erase_seams before straighten (an erased
+ * input's textures are seam-free already and pass through the kernel).
  *
  * Output. The input's surface mesh, faces, normals and materials unchanged,
  * U moved, FU unchanged. When no uv coordinate moves (nothing to straighten,
  * e.g. a mesh without seams whose borders are already straight within the
- * tolerance) the input atlas itself is the output.
+ * tolerance) the input's textures are erased as they are, or without
+ * `erase` the input atlas itself is the output.
  *
  * Metrics. seam_edges; collapsible_seam_edges_before/_after: seam edges that
  * unify (§5.1) with the neighbouring seam edge at one of their ends: the
@@ -969,6 +973,7 @@ static int erase_atlas(sc_ctx *ctx, const sc_value *atlas, const sc_atlas *input
                        sc_value **native, sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
+    o.w_change = strcmp(sc_ctx_string(ctx, "preset"), "global") == 0 ? SC_ERASE_W_CHANGE_GLOBAL : SC_ERASE_W_CHANGE_LOCAL;
     o.filter_space = space;
     o.normal_space = normals;
     o.inputs_private = made;
@@ -1271,22 +1276,29 @@ static int run(sc_ctx *ctx, sc_error *err) {
     J.normals = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
     int64_t nmoved = 0, collapsible_before = 0;
     if (rc == SC_OK) rc = straighten_step(&J, tol, borders, &nmoved, &collapsible_before, err);
-    if (rc == SC_OK && nmoved == 0) {
-        /* nothing to straighten: the input itself */
+    if (rc == SC_OK && nmoved == 0) {   /* nothing to straighten */
         sc_ctx_metric(ctx, "collapsible_seam_edges_after", (double)collapsible_before);
         sc_ctx_metric(ctx, "flipped_triangles", 0);
         sc_ctx_metric(ctx, "max_uv_displacement", 0);
+    }
+    if (rc == SC_OK && nmoved == 0 && !erase) {   /* the input itself */
         sc_ctx_metric(ctx, "seconds", sc_now() - started);
         sc_ctx_set_output(ctx, "atlas", sc_value_retain((sc_value *)in_value));
         sc_ctx_set_output(ctx, "atlas_native", sc_value_retain((sc_value *)in_value));
     } else if (rc == SC_OK) {
+        /* moved: the textures re-rendered into the new uv; unmoved: the input's, erased all the same */
         sc_value *warped = NULL, *result = NULL, *native = NULL;
         int32_t rendered = 0;
-        rc = warp_step(&J, steps, err);
         double t_render = sc_now();
-        if (rc == SC_OK) rc = render_signals(&J, pad, &rendered, err);
+        if (nmoved > 0) {
+            rc = warp_step(&J, steps, err);
+            t_render = sc_now();
+            if (rc == SC_OK) rc = render_signals(&J, pad, &rendered, err);
+            if (rc == SC_OK) rc = assemble_atlas(&J, &warped, err);
+        } else {
+            warped = sc_value_retain((sc_value *)in_value);
+        }
         t_render = sc_now() - t_render;
-        if (rc == SC_OK) rc = assemble_atlas(&J, &warped, err);
         double t_erase = sc_now();
         if (rc == SC_OK && erase) {
             /* the re-rendered images are this run's and nothing reads them after the erasure */
@@ -1320,6 +1332,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 }
 
 static const char *const border_choices[] = {"with_seams", "always", "never", NULL};
+static const char *const preset_choices[] = {"local", "global", NULL};
 
 static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
 static const char *const normal_space_choices[] = {"auto", "tangent", "object", NULL};
@@ -1340,7 +1353,10 @@ static const sc_param_desc params[] = {
     {.name = "padding", .type = SC_PARAM_INTEGER, .def = 4, .min = 1, .max = 64,
      .doc = "texels around each moved chart re-rendered from the linear continuation of its border faces"},
     {.name = "erase", .type = SC_PARAM_BOOL, .def = 1,
-     .doc = "erase the seams of the re-rendered textures (the erase_seams node, defaults, quantize none)"},
+     .doc = "erase the output's textures, re-rendered or not (the erase kernel with erase_seams's defaults), so "
+            "no erase_seams need come first; 0: the re-rendered textures as they are, the input when nothing moves"},
+    {.name = "preset", .type = SC_PARAM_ENUM, .def_string = "local", .choices = preset_choices,
+     .doc = "the erasure's w_change, as erase_seams's preset: local 1e4 (keep interior texels), global 1e2"},
 };
 
 static const sc_port_desc inputs[] = {
@@ -1350,10 +1366,10 @@ static const sc_port_desc inputs[] = {
 static const sc_port_desc outputs[] = {
     {.name = "atlas", .kind = SC_KIND_ATLAS,
      .doc = "the same surface mesh with straightened seams and boundaries in uv and its textures re-rendered "
-            "(f32); the input itself when nothing moves"},
+            "(f32) and erased; without erase, the input itself when nothing moves"},
     {.name = "atlas_native", .kind = SC_KIND_ATLAS,
      .doc = "the same with each texture in the input's pixel type and encoding (8-bit: optimal rounding, "
-            "judged as filtered); the input itself when nothing moves"},
+            "judged as filtered); without erase, the input itself when nothing moves"},
 };
 
 static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &sc_kernel_sparse, &sc_kernel_tangent,
@@ -1361,7 +1377,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &s
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 8,
+    .version = 9,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

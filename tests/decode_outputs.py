@@ -167,7 +167,12 @@ def main():
     failures, ratios = [], []
     for d in folders:
         report = json.load(open(os.path.join(d, "report.json")))
+        # the erasure the files hold: straighten's (its erase.* metrics), which
+        # erases every texture, or erase_seams's with straighten=0
         saved, erased = metrics_of(report, "save"), metrics_of(report, "erased")
+        straight = metrics_of(report, "straight")
+        if straight:
+            erased = {k[len("erase."):]: v for k, v in straight.items() if k.startswith("erase.")}
         V, VT, faces, mats = read_obj(os.path.join(d, "asset_lod0.obj"))
         one_material = len(set(mats)) <= 1
         for name in sorted(os.listdir(d)):
@@ -190,7 +195,7 @@ def main():
                 line += f", save reports {reported:.4g}"
                 if abs(e - reported) > 0.02 * reported + 1e-14:
                     failures.append(f"{d}/{name}: the bytes hold {e:.6g}, the report says {reported:.6g}")
-            # the slot's own floor; the unprefixed one only when erase_seams
+            # the slot's own floor; the unprefixed one only when the erasure
             # erased a single texture (with several, it is their sum)
             prefixed = any(k.endswith(".seam_energy_before") for k in erased)
             key = f"{slot}.seam_energy_after_u8_naive" if prefixed else "seam_energy_after_u8_naive"

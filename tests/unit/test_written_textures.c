@@ -17,21 +17,19 @@
  * full level; every level shares its uv), asset_erased.obj for the EXR files
  * of erase_seams's own output:
  *   - the seam energy save reports for the file is what its bytes hold;
- *   - 8-bit: the energy is within twice the naive-rounding floor erase_seams
+ *   - 8-bit: the energy is within twice the naive-rounding floor the erasure
  *     reports for its texture (seam_energy_after_u8_naive), and the files are
- *     below their floors on average; a texture erase_seams found seam-free
+ *     below their floors on average; a texture the erasure found seam-free
  *     already has no floor: its file must be seam-free (numerically zero).
  *     The largest gap is within one code value in the filtering space;
  *   - float EXR (asset_erased_*, written with --set erased_exr=1): the energy
  *     is within 1e-12 of the input's (seam_energy_before), the gap within
  *     the job's max_file_seam_gap (1e-6).
- * The floors are those of the node `erased`: straighten passes erase_seams's
- * textures through untouched when it moves no uv (moved_uv_vertices 0, as on
- * every asset here), and then the files save writes are erase_seams's 8-bit
- * output. When straighten does move uv it re-renders and re-erases the
- * textures and reports no rounding floor of its own: the floor checks then
- * say so and are not made.
- * Tangent-space normal maps (<slot>.tangent_space 1 in erase_seams's
+ * The floors are those of the node whose erasure the file holds: straighten
+ * (`straight`, its erase.* metrics), which erases every texture whether it
+ * moves uv or not; erase_seams (`erased`) with straighten=0 and for the EXR
+ * files of erased_exr=1.
+ * Tangent-space normal maps (<slot>.tangent_space 1 in the erasing node's
  * metrics) are erased in object space through the tangent frames, so their
  * stored values do not meet across seams by design: what matters there is
  * the rendered normal's gap, which erase_seams and render measure. They are
@@ -87,15 +85,16 @@ static double metric(const cJSON *metrics, const char *key) {
     return cJSON_IsNumber(v) ? v->valuedouble : NAN;
 }
 
-/* erase_seams's metric for one texture: "<material>.<slot>.NAME" with several
+/* The erase kernel's metric for one texture, after `prefix` (erase_seams's:
+ * none; straighten's: "erase."): "<material>.<slot>.NAME" with several
  * materials, "<slot>.NAME" with several textures, "NAME" with one. */
-static double texture_metric(const cJSON *metrics, const char *material, const char *slot, const char *name,
-                             bool one_texture) {
+static double texture_metric(const cJSON *metrics, const char *prefix, const char *material, const char *slot,
+                             const char *name, bool one_texture) {
     char key[512];
-    snprintf(key, sizeof key, "%s.%s.%s", material, slot, name);
+    snprintf(key, sizeof key, "%s%s.%s.%s", prefix, material, slot, name);
     double v = metric(metrics, key);
-    if (isnan(v)) snprintf(key, sizeof key, "%s.%s", slot, name), v = metric(metrics, key);
-    if (isnan(v) && one_texture) v = metric(metrics, name);
+    if (isnan(v)) snprintf(key, sizeof key, "%s%s.%s", prefix, slot, name), v = metric(metrics, key);
+    if (isnan(v) && one_texture) snprintf(key, sizeof key, "%s%s", prefix, name), v = metric(metrics, key);
     return v;
 }
 
@@ -138,7 +137,7 @@ typedef struct totals {
 } totals;
 
 static void check_file(const char *dir, const char *name, const sc_mesh *full, const sc_mesh *erased_mesh,
-                       const cJSON *report, bool one_texture, bool straighten_moved, totals *tot) {
+                       const cJSON *report, bool one_texture, totals *tot) {
     char material[256];
     const char *slot;
     bool erased_file, exr;
@@ -146,7 +145,6 @@ static void check_file(const char *dir, const char *name, const sc_mesh *full, c
     /* erase_seams's own files go with the mesh written beside them (its uv,
      * before straighten) */
     const sc_mesh *m = erased_file && erased_mesh ? erased_mesh : full;
-    if (erased_file && erased_mesh) straighten_moved = false;
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", dir, name);
     size_t size = 0;
@@ -174,7 +172,10 @@ static void check_file(const char *dir, const char *name, const sc_mesh *full, c
     free(rs);
     tot->files++;
 
-    const cJSON *erase = node_metrics(report, "erased");
+    /* the erasing node: straighten when the graph has it (erase_seams's own files aside) */
+    const cJSON *erase = node_metrics(report, "erased"), *straight = node_metrics(report, "straight");
+    const char *prefix = "";
+    if (!erased_file && straight) erase = straight, prefix = "erase.";
     const cJSON *save = node_metrics(report, erased_file ? "save_erased_exr" : "save");
     char key[512];
     snprintf(key, sizeof key, "%s.seam_energy", name);
@@ -185,29 +186,27 @@ static void check_file(const char *dir, const char *name, const sc_mesh *full, c
     SC_CHECK_MSG(fabs(e - saved) <= 0.01 * saved + NUMERICAL_ZERO, "%s: the bytes hold energy %.6g, save reports %.6g",
                  path, e, saved);
 
-    if (texture_metric(erase, material, slot, "tangent_space", one_texture) == 1) {
+    if (texture_metric(erase, prefix, material, slot, "tangent_space", one_texture) == 1) {
         printf(", tangent-space normal map: not checked here\n");
         sc_image_free(im);
         return;
     }
-    bool seam_free = texture_metric(erase, material, slot, "already_seam_free", one_texture) == 1;
-    if (straighten_moved && !seam_free) {
-        printf(", straighten re-erased it and reports no floor: floor not checked\n");
-    } else if (exr) {
-        double before = texture_metric(erase, material, slot, "seam_energy_before", one_texture);
+    bool seam_free = texture_metric(erase, prefix, material, slot, "already_seam_free", one_texture) == 1;
+    if (exr) {
+        double before = texture_metric(erase, prefix, material, slot, "seam_energy_before", one_texture);
         double bound = fmax(EXR_RELATIVE * before, NUMERICAL_ZERO);
         printf(", input %.4g (bound %.3g)\n", before, bound);
-        SC_CHECK_MSG(!isnan(before), "%s: erase_seams reports no input energy", path);
+        SC_CHECK_MSG(!isnan(before), "%s: the erasure reports no input energy", path);
         SC_CHECK_MSG(e <= bound, "%s: energy %.6g above %g of the input's %.6g", path, e, EXR_RELATIVE, before);
         SC_CHECK_MSG(gap <= 1e-6, "%s: gap %.6g above 1e-6", path, gap);
     } else if (seam_free) {
         printf(", seam-free before erasure: no floor\n");
-        SC_CHECK_MSG(e <= NUMERICAL_ZERO, "%s: erase_seams found it seam-free, the file holds energy %.6g", path, e);
+        SC_CHECK_MSG(e <= NUMERICAL_ZERO, "%s: the erasure found it seam-free, the file holds energy %.6g", path, e);
     } else {
-        double floor_naive = texture_metric(erase, material, slot, "seam_energy_after_u8_naive", one_texture);
+        double floor_naive = texture_metric(erase, prefix, material, slot, "seam_energy_after_u8_naive", one_texture);
         printf(", naive floor %.4g (ratio %.4g)\n", floor_naive, e / floor_naive);
         SC_CHECK_MSG(im->pixel == SC_PIXEL_U8, "%s: not an 8-bit file", path);
-        SC_CHECK_MSG(!isnan(floor_naive) && floor_naive > 0, "%s: erase_seams reports no naive floor", path);
+        SC_CHECK_MSG(!isnan(floor_naive) && floor_naive > 0, "%s: the erasure reports no naive floor", path);
         if (!isnan(floor_naive) && floor_naive > 0) {
             SC_CHECK_MSG(e <= FLOOR_FACTOR * floor_naive, "%s: energy %.6g above twice the naive floor %.6g", path, e,
                          floor_naive);
@@ -268,9 +267,7 @@ static void check_folder(const char *dir, totals *tot) {
             bool erased_file, exr;
             if (parse_name(names[i], material, sizeof material, &slot, &erased_file, &exr) && !erased_file) textures++;
         }
-        const cJSON *straight = node_metrics(report, "straight");
-        bool moved = straight && (metric(straight, "moved_uv_vertices") > 0 || metric(straight, "textures_rendered") > 0);
-        for (int i = 0; i < n; i++) check_file(dir, names[i], full, erased_mesh, report, textures == 1, moved, tot);
+        for (int i = 0; i < n; i++) check_file(dir, names[i], full, erased_mesh, report, textures == 1, tot);
         for (int i = 0; i < n; i++) free(names[i]);
         free(names);
     }
