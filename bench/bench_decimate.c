@@ -63,6 +63,8 @@ static const asset assets[] = {
     {"BoomBox", "BoomBox/BoomBox.gltf", NULL},
     {"Lantern", "Lantern/Lantern_welded.obj", NULL},   /* the glTF names a texture the corpus lacks */
     {"pizza", "pizza/pizza.obj", "pizza/pizza_gloss_map.jpg"},
+    {"Avocado", "Avocado/Avocado.gltf", NULL},
+    {"Suzanne", "Suzanne/Suzanne.gltf", NULL},
 };
 
 static const double ratios[] = {0.5, 0.1, 0.01};

@@ -465,6 +465,7 @@ typedef struct state {
     int32_t *owned_head, *owned_tail;   /* per surface vertex: the input vertices it stands for */
     int32_t *owned_next;         /* per input vertex: the next one in its owner's list, or -1 */
     int32_t *near_face;          /* per surface vertex: an input face near it, where queries start */
+    int32_t *input_vf_off, *input_vf;   /* per input vertex: its input faces (input_vf_off[v] .. [v + 1]) */
     double map_texel_length;     /* map_texel x diagonal x map_size: the importance's unit of h x map_size; 0: off */
     double *importance;          /* per surface vertex: the largest importance of the input faces it stands for */
     double *stretch;             /* per surface vertex: the largest stretch (uv_stretch) of the input faces it stands for */
@@ -2441,6 +2442,7 @@ static void state_free(state *st) {
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
     free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
+    free(st->input_vf_off), free(st->input_vf);
     free(st->contacts), free(st->contact_reach), free(st->contact_rise), free(st->part);
     free(st->importance), free(st->stretch), free(st->input_z_first), free(st->input_z_next), free(st->input_zuv);
     grid_free(&st->grid);
@@ -2826,6 +2828,17 @@ static int start_error_tracking(state *st, sc_error *err) {
             st->owned_next[v] = -1;
             st->near_face[v] = st->vf_len[v] > 0 ? st->pool[st->vf_off[v]] : -1;
         }
+        const sc_hausdorff_mesh *in = st->input;   /* the input's faces around each vertex (ring_within) */
+        st->input_vf_off = sc_calloc_array((size_t)in->nv + 1, sizeof(int32_t));
+        st->input_vf = sc_alloc_array((size_t)3 * in->nf + 1, sizeof(int32_t));
+        if (!st->input_vf_off || !st->input_vf) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
+        for (int32_t i = 0; i < 3 * in->nf; i++) st->input_vf_off[in->F[i] + 1]++;
+        for (int32_t v = 0; v < in->nv; v++) st->input_vf_off[v + 1] += st->input_vf_off[v];
+        /* filled from each list's end, which leaves input_vf_off[v + 1] at v's start: shifted down by one */
+        for (int32_t f = in->nf - 1; f >= 0; f--)
+            for (int k = 0; k < 3; k++) st->input_vf[--st->input_vf_off[in->F[3 * f + k] + 1]] = f;
+        memmove(st->input_vf_off, st->input_vf_off + 1, sizeof(int32_t) * (size_t)in->nv);
+        st->input_vf_off[in->nv] = 3 * in->nf;
     }
     if (st->seam_error2 > 0) {   /* seam_kept: the input Zs of every seam vertex, with their uv */
         st->input_z_first = sc_alloc_array((size_t)nv, sizeof(int32_t));
@@ -3316,6 +3329,29 @@ static int32_t new_fan(state *st, const collapse_plan *p) {
  * than the maximum so far, and the measure stops (*complete false) as soon
  * as the maximum passes `stop`: it is then a lower bound. *seed carries an
  * input face near the moved vertex in and out. */
+/* Whether an input face sharing a corner with input face *face lies within
+ * sqrt(enough) of q, *face becoming that face: then q cannot raise a
+ * largest distance of `enough` and needs no walk through the BVH (the
+ * nearest input face to a point of a fan is most often next to the last
+ * one's). */
+static bool ring_within(const state *st, const double q[3], int32_t *face, double enough) {
+    const sc_hausdorff_mesh *in = st->input;
+    for (int k = 0; k < 3; k++) {
+        int32_t v = in->F[3 * *face + k];
+        for (int32_t i = st->input_vf_off[v]; i < st->input_vf_off[v + 1]; i++) {
+            const int32_t *g = in->F + 3 * st->input_vf[i];
+            double r[3];
+            sc_hausdorff_closest_on_triangle(q, in->V + 3 * g[0], in->V + 3 * g[1], in->V + 3 * g[2], r);
+            double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
+            if (sc_dot3(d, d) <= enough) {
+                *face = st->input_vf[i];
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 static double tracked_error(state *st, const collapse_plan *p, int32_t *seed, double stop, bool *complete) {
     *complete = false;
     const double *c = st->center;
@@ -3350,6 +3386,7 @@ static double tracked_error(state *st, const collapse_plan *p, int32_t *seed, do
             for (int k = 0; k < 3; k++)
                 q[k] = weight[w][0] * fan[i].corner[0][k] + weight[w][1] * fan[i].corner[1][k] +
                        weight[w][2] * fan[i].corner[2][k] + c[k];
+            if (face >= 0 && ring_within(st, q, &face, worst)) continue;
             double d = sc_hausdorff_bvh_closest_above(st->input_bvh, q, worst, face, &face);
             if (d > worst) {
                 worst = d;
