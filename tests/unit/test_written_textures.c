@@ -5,7 +5,7 @@
  * occlusion, metallic_roughness) and float EXR as stored.
  *
  * The folders are the main job's outputs (the procedural asset, the same
- * with erased_exr=1, and Duck and MuruCat from the corpus), named in $SC_MAIN_JOB_OUTPUTS (':'-separated) by
+ * with erased_exr=1, and every corpus main job), named in $SC_MAIN_JOB_OUTPUTS (':'-separated) by
  * the ctest registration, which runs this test after the jobs; a folder
  * without report.json is passed over, and none at all skips (exit 77).
  *
