@@ -3329,22 +3329,45 @@ static int32_t new_fan(state *st, const collapse_plan *p) {
  * than the maximum so far, and the measure stops (*complete false) as soon
  * as the maximum passes `stop`: it is then a lower bound. *seed carries an
  * input face near the moved vertex in and out. */
-/* Whether an input face sharing a corner with input face *face lies within
+/* Squared distance from q to input face g's bounding box: no nearer point of g. */
+static double input_box_distance2(const sc_hausdorff_mesh *in, int32_t g, const double q[3]) {
+    const double *A = in->V + 3 * in->F[3 * g], *B = in->V + 3 * in->F[3 * g + 1], *C = in->V + 3 * in->F[3 * g + 2];
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        double lo = min2(A[k], min2(B[k], C[k])), hi = max2(A[k], max2(B[k], C[k]));
+        double e = q[k] < lo ? lo - q[k] : q[k] > hi ? q[k] - hi : 0;
+        d2 += e * e;
+    }
+    return d2;
+}
+
+/* Whether input face *face, or one sharing a corner with it, lies within
  * sqrt(enough) of q, *face becoming that face: then q cannot raise a
  * largest distance of `enough` and needs no walk through the BVH (the
  * nearest input face to a point of a fan is most often next to the last
- * one's). */
+ * one's). Each face is tried once, and only where its box is that near. */
 static bool ring_within(const state *st, const double q[3], int32_t *face, double enough) {
     const sc_hausdorff_mesh *in = st->input;
-    for (int k = 0; k < 3; k++) {
-        int32_t v = in->F[3 * *face + k];
-        for (int32_t i = st->input_vf_off[v]; i < st->input_vf_off[v + 1]; i++) {
-            const int32_t *g = in->F + 3 * st->input_vf[i];
+    int32_t tried[64], ntried = 0;
+    tried[ntried++] = *face;
+    for (int k = -1; k < 3; k++) {
+        int32_t v = k >= 0 ? in->F[3 * *face + k] : -1;
+        int32_t first = k >= 0 ? st->input_vf_off[v] : 0, end = k >= 0 ? st->input_vf_off[v + 1] : 1;
+        for (int32_t i = first; i < end; i++) {
+            int32_t g = k >= 0 ? st->input_vf[i] : *face;
+            if (k >= 0) {
+                bool seen = false;
+                for (int32_t t = 0; t < ntried && !seen; t++) seen = tried[t] == g;
+                if (seen) continue;
+                if (ntried < (int32_t)(sizeof tried / sizeof tried[0])) tried[ntried++] = g;
+            }
+            if (input_box_distance2(in, g, q) > enough) continue;
+            const int32_t *c = in->F + 3 * g;
             double r[3];
-            sc_hausdorff_closest_on_triangle(q, in->V + 3 * g[0], in->V + 3 * g[1], in->V + 3 * g[2], r);
+            sc_hausdorff_closest_on_triangle(q, in->V + 3 * c[0], in->V + 3 * c[1], in->V + 3 * c[2], r);
             double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
             if (sc_dot3(d, d) <= enough) {
-                *face = st->input_vf[i];
+                *face = g;
                 return true;
             }
         }
