@@ -973,7 +973,8 @@ static int erase_atlas(sc_ctx *ctx, const sc_value *atlas, const sc_atlas *input
                        sc_value **native, sc_error *err) {
     sc_erase_options o;
     sc_erase_defaults(&o);
-    o.w_change = strcmp(sc_ctx_string(ctx, "preset"), "global") == 0 ? SC_ERASE_W_CHANGE_GLOBAL : SC_ERASE_W_CHANGE_LOCAL;
+    bool global = strcmp(sc_ctx_string(ctx, "preset"), "global") == 0;
+    o.w_change = global ? SC_ERASE_W_CHANGE_GLOBAL : SC_ERASE_W_CHANGE_LOCAL;
     o.filter_space = space;
     o.normal_space = normals;
     o.inputs_private = made;
