@@ -2834,11 +2834,10 @@ static int start_error_tracking(state *st, sc_error *err) {
         if (!st->input_vf_off || !st->input_vf) return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
         for (int32_t i = 0; i < 3 * in->nf; i++) st->input_vf_off[in->F[i] + 1]++;
         for (int32_t v = 0; v < in->nv; v++) st->input_vf_off[v + 1] += st->input_vf_off[v];
-        /* filled from each list's end, which leaves input_vf_off[v + 1] at v's start: shifted down by one */
-        for (int32_t f = in->nf - 1; f >= 0; f--)
-            for (int k = 0; k < 3; k++) st->input_vf[--st->input_vf_off[in->F[3 * f + k] + 1]] = f;
-        memmove(st->input_vf_off, st->input_vf_off + 1, sizeof(int32_t) * (size_t)in->nv);
-        st->input_vf_off[in->nv] = 3 * in->nf;
+        for (int32_t i = 0; i < 3 * in->nf; i++)   /* each list filled from its start: input_vf_off[v] moves on */
+            st->input_vf[st->input_vf_off[in->F[i]]++] = i / 3;
+        for (int32_t v = in->nv; v > 0; v--) st->input_vf_off[v] = st->input_vf_off[v - 1];   /* moved back */
+        st->input_vf_off[0] = 0;
     }
     if (st->seam_error2 > 0) {   /* seam_kept: the input Zs of every seam vertex, with their uv */
         st->input_z_first = sc_alloc_array((size_t)nv, sizeof(int32_t));
@@ -3318,17 +3317,6 @@ static int32_t new_fan(state *st, const collapse_plan *p) {
     return count;
 }
 
-/* The tracked error of a planned collapse: the larger squared distance of
- *   (a) the input vertices keep and gone stand for, to the new fan, and
- *   (b) points of the new fan, to the input surface: the moved vertex and,
- *       on each face, the middle of its spoke (where a collapse that
- *       bridges a gap or cuts off a feature leaves the new surface farthest
- *       from the input), its centroid and a point nearer the moved vertex
- *       (faces spanning a hollow).
- * Only the maximum matters, so a point is let go at the first face closer
- * than the maximum so far, and the measure stops (*complete false) as soon
- * as the maximum passes `stop`: it is then a lower bound. *seed carries an
- * input face near the moved vertex in and out. */
 /* Squared distance from q to input face g's bounding box: no nearer point of g. */
 static double input_box_distance2(const sc_hausdorff_mesh *in, int32_t g, const double q[3]) {
     const double *A = in->V + 3 * in->F[3 * g], *B = in->V + 3 * in->F[3 * g + 1], *C = in->V + 3 * in->F[3 * g + 2];
@@ -3341,32 +3329,35 @@ static double input_box_distance2(const sc_hausdorff_mesh *in, int32_t g, const 
     return d2;
 }
 
+/* Whether input face g lies within sqrt(enough) of q. */
+static bool input_face_within(const sc_hausdorff_mesh *in, int32_t g, const double q[3], double enough) {
+    if (input_box_distance2(in, g, q) > enough) return false;
+    const int32_t *c = in->F + 3 * g;
+    double r[3];
+    sc_hausdorff_closest_on_triangle(q, in->V + 3 * c[0], in->V + 3 * c[1], in->V + 3 * c[2], r);
+    double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
+    return sc_dot3(d, d) <= enough;
+}
+
 /* Whether input face *face, or one sharing a corner with it, lies within
  * sqrt(enough) of q, *face becoming that face: then q cannot raise a
  * largest distance of `enough` and needs no walk through the BVH (the
  * nearest input face to a point of a fan is most often next to the last
- * one's). Each face is tried once, and only where its box is that near. */
+ * one's). Each face is tried once. */
 static bool ring_within(const state *st, const double q[3], int32_t *face, double enough) {
     const sc_hausdorff_mesh *in = st->input;
+    if (input_face_within(in, *face, q, enough)) return true;
     int32_t tried[64], ntried = 0;
     tried[ntried++] = *face;
-    for (int k = -1; k < 3; k++) {
-        int32_t v = k >= 0 ? in->F[3 * *face + k] : -1;
-        int32_t first = k >= 0 ? st->input_vf_off[v] : 0, end = k >= 0 ? st->input_vf_off[v + 1] : 1;
-        for (int32_t i = first; i < end; i++) {
-            int32_t g = k >= 0 ? st->input_vf[i] : *face;
-            if (k >= 0) {
-                bool seen = false;
-                for (int32_t t = 0; t < ntried && !seen; t++) seen = tried[t] == g;
-                if (seen) continue;
-                if (ntried < (int32_t)(sizeof tried / sizeof tried[0])) tried[ntried++] = g;
-            }
-            if (input_box_distance2(in, g, q) > enough) continue;
-            const int32_t *c = in->F + 3 * g;
-            double r[3];
-            sc_hausdorff_closest_on_triangle(q, in->V + 3 * c[0], in->V + 3 * c[1], in->V + 3 * c[2], r);
-            double d[3] = {q[0] - r[0], q[1] - r[1], q[2] - r[2]};
-            if (sc_dot3(d, d) <= enough) {
+    for (int k = 0; k < 3; k++) {
+        int32_t v = in->F[3 * *face + k];
+        for (int32_t i = st->input_vf_off[v]; i < st->input_vf_off[v + 1]; i++) {
+            int32_t g = st->input_vf[i];
+            bool seen = false;
+            for (int32_t t = 0; t < ntried && !seen; t++) seen = tried[t] == g;
+            if (seen) continue;
+            if (ntried < (int32_t)(sizeof tried / sizeof tried[0])) tried[ntried++] = g;
+            if (input_face_within(in, g, q, enough)) {
                 *face = g;
                 return true;
             }
@@ -3375,6 +3366,17 @@ static bool ring_within(const state *st, const double q[3], int32_t *face, doubl
     return false;
 }
 
+/* The tracked error of a planned collapse: the larger squared distance of
+ *   (a) the input vertices keep and gone stand for, to the new fan, and
+ *   (b) points of the new fan, to the input surface: the moved vertex and,
+ *       on each face, the middle of its spoke (where a collapse that
+ *       bridges a gap or cuts off a feature leaves the new surface farthest
+ *       from the input), its centroid and a point nearer the moved vertex
+ *       (faces spanning a hollow).
+ * Only the maximum matters, so a point is let go at the first face closer
+ * than the maximum so far, and the measure stops (*complete false) as soon
+ * as the maximum passes `stop`: it is then a lower bound. *seed carries an
+ * input face near the moved vertex in and out. */
 static double tracked_error(state *st, const collapse_plan *p, int32_t *seed, double stop, bool *complete) {
     *complete = false;
     const double *c = st->center;
