@@ -227,8 +227,13 @@
  *
  * Output: each level is an ATLAS without textures (share_textures adds them).
  * Faces keep the input order (survivors only) and their material; surface
- * vertices and uv entries are renumbered in order of their ids; normals are
- * dropped (they do not match the moved vertices).
+ * vertices and uv entries are renumbered in order of their ids. Normals
+ * are the input's, per corner (normal_corner): its own, or without them the
+ * smooth ones save writes for it (sc_tangent_corner_normals). A level shades
+ * as the input does, and a tangent-space normal map, made for the frames
+ * of the input's normals, authored ones included, turns with them: frames
+ * built from a level's own normals would show it turned across seams
+ * (docs/notes/decimate.md).
  *
  * Measurements and history behind these choices: docs/notes/decimate.md.
  */
@@ -244,6 +249,7 @@
 #include "sc_hausdorff.h"
 #include "sc_nodes.h"
 #include "sc_quadric.h"
+#include "sc_tangent.h"
 
 #define QDIM 5
 #define QSIZE SC_QUADRIC_SIZE(QDIM)
@@ -436,6 +442,7 @@ typedef struct state {
     /* Z-vertices */
     int32_t nz;
     int32_t *zv, *zuv_index;
+    int32_t *zcorner;            /* the input corner (3 f + k) that first named the Z: its normal */
     double *zuv;
     uint8_t *zflags;
     double *zq, *zgeo, *znormal, *zweight;
@@ -2438,7 +2445,7 @@ static void state_free(state *st) {
     free(st->pos), free(st->vflags), free(st->version), free(st->vmark);
     free(st->vf_off), free(st->vf_len), free(st->vf_cap), free(st->vf_dead), free(st->pool);
     free(st->fv), free(st->fz), free(st->fmat), free(st->falive), free(st->input_uv_area);
-    free(st->zv), free(st->zuv_index), free(st->zuv), free(st->zflags);
+    free(st->zv), free(st->zuv_index), free(st->zcorner), free(st->zuv), free(st->zflags);
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
     free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
@@ -2586,8 +2593,9 @@ static int number_z_vertices(state *st, const sc_mesh *m, sc_error *err) {
     int32_t zcap = nf * 3;
     st->zv = sc_alloc_array((size_t)zcap, sizeof(int32_t));
     st->zuv_index = sc_alloc_array((size_t)zcap, sizeof(int32_t));
+    st->zcorner = sc_alloc_array((size_t)zcap, sizeof(int32_t));
     int32_t *zmat = sc_alloc_array((size_t)zcap, sizeof(int32_t));
-    if (!table.slot || !st->zv || !st->zuv_index || !zmat) {
+    if (!table.slot || !st->zv || !st->zuv_index || !st->zcorner || !zmat) {
         free(table.slot);
         free(zmat);
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
@@ -2608,6 +2616,7 @@ static int number_z_vertices(state *st, const sc_mesh *m, sc_error *err) {
                     table.slot[h] = z;
                     st->zv[z] = v;
                     st->zuv_index[z] = u;
+                    st->zcorner[z] = 3 * f + k;
                     zmat[z] = mat;
                     st->fz[3 * f + k] = z;
                     break;
@@ -2949,6 +2958,17 @@ static int64_t census_blocked(state *st, int64_t counts[BLOCK_COUNT]) {
     return blocked;
 }
 
+/* The input corner whose normal corner k of live face f takes: the face's
+ * own where the corner still is the input's vertex, else (a vertex that
+ * took a collapsed one's place) the corner that first named the corner's Z
+ * (its vertex, uv index and material). */
+static int32_t normal_corner(const state *st, const sc_mesh *in, int32_t f, int k) {
+    int32_t v = st->fv[3 * f + k];
+    for (int c = 0; c < 3; c++)
+        if (in->FV[3 * f + c] == v) return 3 * f + c;
+    return st->zcorner[st->fz[3 * f + k]];
+}
+
 /* The current mesh as an sc_mesh: live faces in input order, vertices and uv
  * entries renumbered in id order (Z of one vertex that share a uv index and
  * its coordinates become one entry again). */
@@ -3003,7 +3023,11 @@ static int build_level_mesh(state *st, const sc_mesh *in, sc_mesh **out, sc_erro
         }
     }
     free(slot);
-    sc_mesh *m = sc_mesh_alloc(nv, nu, 0, st->nf_alive, in->nmat);
+    /* the input's normals: its own, or the smooth ones save writes for it */
+    const bool own_normals = in->nn > 0 && in->FN;
+    double *smooth = own_normals ? NULL : sc_tangent_corner_normals(in);
+    const int32_t nn = own_normals ? in->nn : 3 * st->nf_alive;
+    sc_mesh *m = own_normals || smooth ? sc_mesh_alloc(nv, nu, nn, st->nf_alive, in->nmat) : NULL;
     int rc = m ? SC_OK : SC_ENOMEM;
     for (int32_t i = 0; rc == SC_OK && i < in->nmat; i++)
         if (!(m->materials[i] = sc_strdup(in->materials[i]))) rc = SC_ENOMEM;
@@ -3021,12 +3045,20 @@ static int build_level_mesh(state *st, const sc_mesh *in, sc_mesh **out, sc_erro
             for (int k = 0; k < 3; k++) {
                 m->FV[3 * g + k] = vmap[st->fv[3 * f + k]];
                 m->FU[3 * g + k] = zmap[st->fz[3 * f + k]];
+                int32_t c = normal_corner(st, in, f, k);
+                if (own_normals) {
+                    m->FN[3 * g + k] = in->FN[c];
+                } else {
+                    m->FN[3 * g + k] = 3 * g + k;
+                    memcpy(m->N + 3 * (3 * (size_t)g + k), smooth + 3 * (size_t)c, 3 * sizeof(double));
+                }
             }
             m->FM[g] = st->fmat[f];
             g++;
         }
+        if (own_normals && nn > 0) memcpy(m->N, in->N, sizeof(double) * 3 * (size_t)nn);
     }
-    free(vmap), free(zmap), free(ufirst);
+    free(vmap), free(zmap), free(ufirst), free(smooth);
     if (rc != SC_OK) {
         sc_mesh_free(m);
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");
@@ -3855,11 +3887,11 @@ static const sc_port_desc outputs[] = {
      .doc = "one textureless atlas per target, each decimated from the one before, all in the input's uv layout"},
 };
 
-static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quadric, NULL};
+static const sc_kernel *const kernels[] = {&sc_kernel_hausdorff, &sc_kernel_quadric, &sc_kernel_tangent, NULL};
 
 const sc_node_desc sc_node_decimate = {
     .type = "decimate",
-    .version = 10,
+    .version = 11,
     .summary = "seam-aware edge-collapse decimation into a chain of levels of detail sharing one parameterisation",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

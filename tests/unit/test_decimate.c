@@ -1385,6 +1385,65 @@ SC_TEST(materials_are_kept) {
     sc_value_release(atlas);
 }
 
+/* A copy of `in` with authored normals, one per vertex, that no smooth
+ * normal computation would give: the direction from a far point, which
+ * turns slowly along the surface. */
+static sc_value *authored_normals_copy(const sc_mesh *in) {
+    sc_mesh *m = sc_mesh_alloc(in->nv, in->nu, in->nv, in->nf, in->nmat);
+    memcpy(m->V, in->V, sizeof(double) * 3 * (size_t)in->nv);
+    memcpy(m->U, in->U, sizeof(double) * 2 * (size_t)in->nu);
+    memcpy(m->FV, in->FV, sizeof(int32_t) * 3 * (size_t)in->nf);
+    memcpy(m->FU, in->FU, sizeof(int32_t) * 3 * (size_t)in->nf);
+    memcpy(m->FN, in->FV, sizeof(int32_t) * 3 * (size_t)in->nf);
+    memcpy(m->FM, in->FM, sizeof(int32_t) * (size_t)in->nf);
+    for (int v = 0; v < in->nv; v++) {
+        double d[3] = {in->V[3 * v] + 3, in->V[3 * v + 1] - 2, in->V[3 * v + 2] + 7};
+        double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (int k = 0; k < 3; k++) m->N[3 * v + k] = d[k] / len;
+    }
+    for (int i = 0; i < in->nmat; i++) m->materials[i] = sc_strdup(in->materials[i]);
+    return mesh_value(m);
+}
+
+/* A level shades with the input's normals (a tangent-space normal map is
+ * made for their frames): every normal of the level is one of the input's,
+ * bit for bit, and it points as the authored field does where the level's
+ * vertex is (collapses move vertices a little, and the field turns by a
+ * hundredth of a radian over a tenth of a unit). */
+SC_TEST(levels_keep_the_input_normals) {
+    sc_value *atlas = procedural(10, 64, 0.0);
+    if (!atlas) return;
+    sc_value *with = authored_normals_copy(atlas->as.atlas->mesh->as.mesh);
+    const sc_mesh *in = with->as.mesh;
+    node_run r = decimate(with, "0.2", "aware", NULL, NULL);
+    SC_CHECK_MSG(r.rc == SC_OK, "decimate: %s", r.err.message);
+    if (r.rc == SC_OK) {
+        const sc_mesh *m = level_mesh(r.out, 0);
+        SC_CHECK(m->nn > 0 && m->FN != NULL);
+        int foreign = 0;
+        double worst = 0;
+        for (int c = 0; m->nn > 0 && c < 3 * m->nf; c++) {
+            const double *n = m->N + 3 * m->FN[c], *p = m->V + 3 * m->FV[c];
+            bool known = false;
+            for (int v = 0; v < in->nv && !known; v++)
+                known = n[0] == in->N[3 * v] && n[1] == in->N[3 * v + 1] && n[2] == in->N[3 * v + 2];
+            foreign += !known;
+            double d[3] = {p[0] + 3, p[1] - 2, p[2] + 7};
+            double cosine = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            worst = fmax(worst, acos(fmin(1, cosine)));
+        }
+        SC_CHECK_INT(foreign, 0);
+        SC_CHECK_MSG(worst < 0.05, "a normal turned %.3g rad from the authored field", worst);
+    }
+    run_free(&r);
+    /* without normals, the level still has some: the input's smooth ones */
+    node_run bare = decimate(atlas->as.atlas->mesh, "0.2", "aware", NULL, NULL);
+    if (bare.rc == SC_OK) SC_CHECK_INT(level_mesh(bare.out, 0)->nn, 3 * level_mesh(bare.out, 0)->nf);
+    run_free(&bare);
+    sc_value_release(with);
+    sc_value_release(atlas);
+}
+
 SC_TEST(area_distortion_weights) {
     sc_value *atlas = procedural(16, 64, 0.0);
     if (!atlas) return;
