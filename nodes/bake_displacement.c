@@ -1371,7 +1371,7 @@ static int erase_maps(sc_value *mesh, sc_value **images, const sc_seam_grid *gri
     sc_value **out = calloc((size_t)nmat + 1, sizeof *out);
     int rc = maps && out ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
     for (int32_t k = 0; k < nmat && rc == SC_OK; k++)
-        maps[k] = (sc_atlas_ops_map){k, grids[k].wrap_u, grids[k].wrap_v, images[k]};
+        maps[k] = (sc_atlas_ops_map){k, grids[k].wrap_u, grids[k].wrap_v, images[k], NULL};
     /* erase_seams's terms for positions, less E_C1: the two sides of a seam map
      * uv to the surface with their own Jacobians, so a geometry image has no
      * reason to be C1 across it */

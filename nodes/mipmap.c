@@ -34,6 +34,17 @@
  *    and at 1e10 the penalty leaves gaps that the render check sees.
  *    Cholesky's backward error, ~1e-16 * 1e12 of the grid stiffness, is
  *    still far below it.
+ *  - Tangent-space normal maps. A "normal" slot is judged once, at level 0
+ *    (sc_erase_takes_tangent_space with `normal_space`); a tangent-space
+ *    map's vectors live in the frames of one mesh, so its levels are erased
+ *    in a call of their own through those frames (in object space, the
+ *    kernel's way), and a shared chain's through the first level of
+ *    detail's, the finest that shares it: the union's copies overlap in uv
+ *    and would give a texel any copy's frame. Its level 0 is the kernel's
+ *    to keep, when its object-space seams are within what 8-bit rounding
+ *    opens there. The saved map was erased for the reference's frames, so
+ *    where the first level's differ the chain's level 0 differs from it
+ *    (docs/notes/mipmap.md).
  *  - Levels not erased. Where an atlas's charts fall under a texel, the seams
  *    tie texels all over the level together and no ordering keeps the factor
  *    sparse: from some size on the factor passes sc_sparse's limit (6e8
@@ -116,6 +127,7 @@ typedef struct chain {
     sc_value *native[MAX_MIP]; /* erased, in the input's pixel type */
     sc_value *f32[MAX_MIP];    /* erased, float (what the next level is built from) */
     int32_t *band;             /* DATA maps: chart of each valid texel of the last level built, else -1 */
+    bool tangent;              /* a tangent-space normal map, erased through its mesh's frames */
 } chain;
 
 /* ---------------------------------------------------------------- images */
@@ -452,17 +464,28 @@ static sc_image_data *data_down(const sc_image_data *src, int32_t **band_io) {
 
 /* ---------------------------------------------------------------- erasing */
 
+/* How levels are erased (the node's parameters). */
+typedef struct erase_settings {
+    int32_t min_size;            /* erase_min_size */
+    double gap_tolerance, level0_gap;
+    sc_erase_options erase;      /* sc_erase's: the defaults, with w_seam and gap_tolerance */
+    int threads;
+} erase_settings;
+
 /* Whether level 0 of a chain is seam-free already: its largest sampled seam
  * gap (sc_seam_energy) within `gap_tolerance`, or within what its storage
  * holds: `level0_gap` times its largest magnitude (float), one step (8/16
  * bit). The gap is measured on `filtered`, the level as the erasure filters
  * it (float_view: sRGB colour in linear light by default), the tolerance
  * from `im`, the level as stored. level0_gap = 0: never (every level 0 is
- * erased). */
+ * erased). Tangent-space normal maps are the erase kernel's to judge
+ * (erase_level). */
 static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, const sc_texture *tex,
-                             const sc_image_data *im, const sc_image_data *filtered, double gap_tolerance,
-                             double level0_gap, int threads, bool *clean, sc_error *err) {
+                             const sc_image_data *im, const sc_image_data *filtered, const erase_settings *es,
+                             bool *clean, sc_error *err) {
     *clean = false;
+    const double gap_tolerance = es->gap_tolerance, level0_gap = es->level0_gap;
+    const int threads = es->threads;
     if (!(level0_gap > 0)) return SC_OK;
     double tol = gap_tolerance;
     if (im->pixel == SC_PIXEL_F32) {
@@ -485,14 +508,8 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
     return rc;
 }
 
-/* How levels are erased (the node's parameters), and what happened. */
-typedef struct erase_settings {
-    int32_t min_size;            /* erase_min_size */
-    double gap_tolerance, level0_gap;
-    sc_erase_options erase;      /* sc_erase's: the defaults, with w_seam and gap_tolerance */
-    int threads;
-} erase_settings;
 
+/* What erasing the levels did. */
 typedef struct erase_counts {
     int runs;       /* sc_atlas_ops_erase calls */
     int passed;     /* level-0 maps kept as they are */
@@ -516,9 +533,12 @@ static sc_value *float_view(sc_value *in, const erase_settings *es) {
  * level 0, chains whose seams are closed already (seam_free_already) pass
  * through as they are; so do maps whose sides are both below erase_min_size
  * (counted as unerased); the others are erased in one sc_atlas_ops_erase
- * call. */
-static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m,
-                       const erase_settings *es, erase_counts *counts, sc_error *err) {
+ * call with options eo. With `tangent` every chain is a tangent-space
+ * normal map, and the kernel itself judges level 0 in the space it erases
+ * it in (object space through the frames), with level0_gap as the
+ * tolerance beside what rounding alone opens there (sc_erase). */
+static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in, int n, int m, bool tangent,
+                       const sc_erase_options *eo, const erase_settings *es, erase_counts *counts, sc_error *err) {
     sc_atlas_ops_map *maps = calloc((size_t)n + 1, sizeof *maps);
     sc_value **f32 = calloc((size_t)n + 1, sizeof *f32), **native = calloc((size_t)n + 1, sizeof *native);
     int *which = calloc((size_t)n + 1, sizeof *which);   /* erased map i is chain which[i] */
@@ -533,11 +553,11 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
         bool clean = !erase;
         if (!erase) counts->unerased++;
         sc_value *fv = NULL;   /* the level as the erasure filters it */
-        if (erase && m == 0 && es->level0_gap > 0) {
+        if (erase && m == 0 && es->level0_gap > 0 && !tangent) {
             fv = float_view(in[i], es);
             if (!fv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         }
-        if (rc == SC_OK && erase && m == 0 && es->level0_gap > 0) {
+        if (rc == SC_OK && erase && m == 0 && es->level0_gap > 0 && !tangent) {
             if (seams_material != t->material) {
                 if (seams_material >= 0) sc_seam_set_free(&seams);
                 seams_material = -1;
@@ -545,8 +565,7 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
                 if (rc == SC_OK) seams_material = t->material;
             }
             if (rc == SC_OK)
-                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, fv->as.image, es->gap_tolerance,
-                                       es->level0_gap, es->threads, &clean, err);
+                rc = seam_free_already(mesh->as.mesh, &seams, t, in[i]->as.image, fv->as.image, es, &clean, err);
         }
         if (rc == SC_OK && clean) {
             if (!fv) fv = float_view(in[i], es);
@@ -556,17 +575,20 @@ static int erase_level(sc_value *mesh, chain *const *chains, sc_value *const *in
         } else {
             sc_value_release(fv);
             if (rc == SC_OK) {
-                maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i]};
+                maps[nerase] = (sc_atlas_ops_map){t->material, t->wrap_u, t->wrap_v, in[i], t->name};
                 which[nerase++] = i;
             }
         }
     }
     if (seams_material >= 0) sc_seam_set_free(&seams);
     if (rc == SC_OK && nerase > 0) {
-        rc = sc_atlas_ops_erase(mesh->as.mesh, maps, nerase, &es->erase, es->threads, f32, native, err);
+        sc_erase_options o = *eo;
+        if (tangent && m == 0 && es->level0_gap > 0) o.gap_tolerance = fmax(o.gap_tolerance, es->level0_gap);
+        rc = sc_atlas_ops_erase(mesh->as.mesh, maps, nerase, &o, es->threads, f32, native, err);
         if (rc == SC_OK) {
             counts->runs++;
             for (int i = 0; i < nerase; i++) {
+                if (tangent && m == 0 && native[i] == in[which[i]]) counts->passed++;   /* kept as it is */
                 /* a map the kernel passes through comes back as it went in */
                 sc_value *fv = float_view(f32[i], es);
                 sc_value_release(f32[i]);
@@ -722,6 +744,38 @@ typedef struct groups_job {
     group_result *results;    /* per group */
 } groups_job;
 
+/* Level m of group g's chains (members[0..n), their inputs beside), erased
+ * on the group's mesh, but for tangent-space normal maps: each normal map
+ * is judged once, at level 0 (sc_erase_takes_tangent_space, the node's
+ * normal_space), and a tangent-space one is erased through its mesh's
+ * frames in a call of its own. Its vectors are held in the frames of one
+ * mesh, and the union's copies overlap in uv and would give a texel any
+ * copy's frame: the shared chains' go through the first level's, the
+ * finest of those that share them. */
+static int erase_parts(groups_job *J, int32_t g, sc_value *mesh, chain **members, sc_value **inputs, int n,
+                       int32_t m, group_result *res, sc_error *err) {
+    const erase_settings *es = J->es;
+    sc_value *frames_mesh = g == J->nsrc ? J->src[0]->mesh : mesh;
+    int rc = SC_OK, k = 0;
+    for (int i = 0; i < n && rc == SC_OK; i++) {
+        chain *c = members[i];
+        if (m == 0 && strcmp(c->tex->name, "normal") == 0)
+            rc = sc_erase_takes_tangent_space(frames_mesh->as.mesh, c->tex, es->erase.normal_space, &c->tangent, err);
+        if (!c->tangent) {   /* the others first */
+            sc_value *v = inputs[i];
+            members[i] = members[k], inputs[i] = inputs[k];
+            members[k] = c, inputs[k] = v;
+            k++;
+        }
+    }
+    sc_erase_options others = es->erase, normals = es->erase;
+    others.normal_space = SC_ERASE_NORMALS_OBJECT, normals.normal_space = SC_ERASE_NORMALS_TANGENT;
+    if (rc == SC_OK && k > 0) rc = erase_level(mesh, members, inputs, k, m, false, &others, es, &res->counts, err);
+    if (rc == SC_OK && k < n)
+        rc = erase_level(frames_mesh, members + k, inputs + k, n - k, m, true, &normals, es, &res->counts, err);
+    return rc;
+}
+
 /* Group `g`: its chains level by level, one erasure per level,
  * then their files. Work item 0 is the shared group (g = nsrc), the
  * largest (the union of every level's seams), so it starts first. */
@@ -774,7 +828,7 @@ static int build_group(void *ud, int32_t item) {
         }
         if (rc == SC_OK && n > 0) {
             double t1 = sc_now();
-            rc = erase_level(mesh, members, inputs, n, m, es, &res->counts, err);
+            rc = erase_parts(J, g, mesh, members, inputs, n, m, res, err);
             t_erase += sc_now() - t1;
         }
         for (int i = 0; i < n; i++) sc_value_release(inputs[i]);
@@ -1181,7 +1235,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imag
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 13,
+    .version = 14,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

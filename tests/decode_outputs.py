@@ -14,6 +14,17 @@ Checked for each file:
   - an 8-bit file whose erasure reported a naive-rounding floor
     (erase_seams's seam_energy_after_u8_naive for its slot) is within twice
     that floor, and the files are below their floors on average.
+And for every normal map of asset.glb, read with the GLB's own NORMAL and
+TANGENT (B = w N x T, the map decoded as 2 x - 1, the normal the renderer
+reconstructs on each side of every seam, 19 points per edge, its mean gap
+weighted by the edges' length):
+  - each level of detail has the reference's normals wherever it has a
+    vertex at the reference's position and uv (its shading and the frames
+    a tangent-space map is made for are the reference's);
+  - where straighten erased the map in tangent space, the reference's mean
+    gap is what it reports (normal_gap_mean_after, within a quarter), and
+    mip levels 0 and 1 of the map, erased through the first level's frames,
+    are at least as continuous there as the saved map.
 Textures use repeat wrap (the main job's assets all do). Folders that do not
 exist are skipped; none at all: exit status 77.
 """
@@ -152,6 +163,111 @@ def seam_energy(img, edges):
     return total / length if length > 0 else 0.0
 
 
+def read_glb(path):
+    """The JSON, and an accessor reader over the binary chunk."""
+    data = open(path, "rb").read()
+    n = struct.unpack("<I", data[12:16])[0]
+    doc = json.loads(data[20:20 + n])
+    blob = data[20 + n + 8:]
+
+    def accessor(i):
+        a = doc["accessors"][i]
+        view = doc["bufferViews"][a["bufferView"]]
+        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[a["type"]]
+        kind = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}[a["componentType"]]
+        at = view.get("byteOffset", 0) + a.get("byteOffset", 0)
+        x = np.frombuffer(blob, dtype=kind, count=a["count"] * width, offset=at)
+        x = x.astype(np.float64 if kind == np.float32 else np.int64)
+        return x.reshape(-1, width) if width > 1 else x
+
+    def image(i):
+        view = doc["bufferViews"][doc["images"][i]["bufferView"]]
+        at = view.get("byteOffset", 0)
+        return blob[at:at + view["byteLength"]]
+
+    return doc, accessor, image
+
+
+def reconstructed_gap(P, N, T, UV, I, img):
+    """Mean (over the seams' length) and largest gap between the normals
+    the renderer reconstructs on the two sides of every seam edge."""
+    sides = {}
+    for tri in I:
+        for k in range(3):
+            a, b = int(tri[k]), int(tri[(k + 1) % 3])
+            pa, pb = tuple(P[a]), tuple(P[b])
+            sides.setdefault((min(pa, pb), max(pa, pb)), []).append((a, b) if pa < pb else (b, a))
+    t = np.linspace(0.05, 0.95, 19)[:, None]
+
+    def side(a, b):
+        uv = UV[a] * (1 - t) + UV[b] * t
+        m = bilinear(img, uv[:, 0], 1 - uv[:, 1])[:, :3] * 2 - 1   # glTF's v runs down
+        n = N[a] * (1 - t) + N[b] * t
+        tg = T[a, :3] * (1 - t) + T[b, :3] * t
+        r = m[:, :1] * tg + m[:, 1:2] * T[a, 3] * np.cross(n, tg) + m[:, 2:3] * n
+        return r / np.linalg.norm(r, axis=1, keepdims=True)
+
+    total = length = largest = 0.0
+    for (a0, b0), (a1, b1) in (s for s in sides.values() if len(s) == 2):
+        if np.array_equal(UV[a0], UV[a1]) and np.array_equal(UV[b0], UV[b1]):
+            continue
+        g = np.linalg.norm(side(a0, b0) - side(a1, b1), axis=1)
+        le = float(np.linalg.norm(P[a0] - P[b0]))
+        total, length, largest = total + le * float(g.mean()), length + le, max(largest, float(g.max()))
+    return (total / length if length > 0 else 0.0), largest
+
+
+def glb_normal_checks(d, straight, failures):
+    path = os.path.join(d, "asset.glb")
+    if not os.path.isfile(path):
+        return
+    doc, accessor, image = read_glb(path)
+    for mi, material in enumerate(doc.get("materials", [])):
+        if "normalTexture" not in material:
+            continue
+        png = os.path.join(d, "glb_normal.png")
+        open(png, "wb").write(image(doc["textures"][material["normalTexture"]["index"]]["source"]))
+        saved = decode_png(png)
+        os.remove(png)
+        meshes = []
+        for mesh in doc["meshes"]:
+            for prim in mesh["primitives"]:
+                if prim.get("material") == mi:
+                    at = prim["attributes"]
+                    meshes.append([accessor(at[k]) for k in ("POSITION", "NORMAL", "TANGENT", "TEXCOORD_0")] +
+                                  [accessor(prim["indices"]).reshape(-1, 3)])
+        if len(meshes) < 2:
+            continue
+        name = material.get("name", str(mi))
+        gaps = [reconstructed_gap(*m, saved)[0] for m in meshes]
+        print(f"{d}/asset.glb: {name}'s normal map, mean reconstructed seam gap per mesh " +
+              " ".join(f"{g:.4f}" for g in gaps))
+        P0, N0, _, U0, _ = meshes[0]
+        where = {}   # a vertex with a hard edge through it has several
+        for p, n, u in zip(P0, N0, U0):
+            where.setdefault((tuple(p), tuple(u)), []).append(n)
+        for k, (P, N, _, UV, _) in enumerate(meshes[1:], 1):
+            same = [max(float(np.dot(n, r)) for r in where[(tuple(p), tuple(u))]) for p, n, u in zip(P, N, UV)
+                    if (tuple(p), tuple(u)) in where]
+            if same and min(same) < 0.9999:
+                failures.append(f"{d}/asset.glb: level {k}'s normal at a reference vertex turns by "
+                                f"{math.acos(max(-1.0, min(same))):.3g} rad")
+        if straight.get("erase.normal.tangent_space") != 1:
+            continue
+        told = straight.get("erase.normal.normal_gap_mean_after")
+        if told is not None and abs(gaps[0] - told) > 0.25 * told + 0.002:
+            failures.append(f"{d}/asset.glb: the reference's normal map holds a mean gap of {gaps[0]:.4g}, "
+                            f"straighten reports {told:.4g}")
+        for level in (0, 1):
+            mip = [f for f in os.listdir(os.path.join(d, "mip")) if f.endswith(f"_normal_level{level}.png")]
+            for f in mip:
+                g = reconstructed_gap(*meshes[1], decode_png(os.path.join(d, "mip", f)))[0]
+                print(f"{d}/mip/{f}: mean reconstructed seam gap on the first level {g:.4f} (saved map {gaps[1]:.4f})")
+                if g > gaps[1] + 1e-3:
+                    failures.append(f"{d}/mip/{f}: the first level sees a mean gap of {g:.4g}, "
+                                    f"above the saved map's {gaps[1]:.4g}")
+
+
 def metrics_of(report, name):
     for n in report["nodes"]:
         if n.get("name") == name:
@@ -206,6 +322,7 @@ def main():
                 if e > 2 * floor:
                     failures.append(f"{d}/{name}: energy {e:.4g} above twice the naive floor {floor:.4g}")
             print(line)
+        glb_normal_checks(d, straight, failures)
     if ratios:
         mean = sum(ratios) / len(ratios)
         print(f"mean ratio to the naive floor over {len(ratios)} files: {mean:.3g}")

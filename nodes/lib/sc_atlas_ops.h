@@ -21,7 +21,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_atlas_ops (or a kernel built on it) is re-keyed. */
-#define SC_ATLAS_OPS_VERSION 2
+#define SC_ATLAS_OPS_VERSION 3
 extern const sc_kernel sc_kernel_atlas_ops;
 
 /* The meshes one after the other (vertex, uv and face indices shifted) in a
@@ -37,16 +37,19 @@ sc_value *sc_atlas_ops_mesh_union(const sc_mesh *const *meshes, int n);
  * seams, which would weigh them twice in the seam energy. */
 sc_value *sc_atlas_ops_mesh_union_distinct(const sc_value *const *meshes, int n);
 
-/* One image to erase: its material, wrap modes and (retained by the caller)
- * image value. */
+/* One image to erase: its material, wrap modes, (retained by the caller)
+ * image value, and the slot it fills, which tells the erase kernel what it
+ * holds (a "normal" slot may be a tangent-space map, erased through the
+ * mesh's frames); NULL: a data map. */
 typedef struct sc_atlas_ops_map {
     int32_t material;
     sc_wrap wrap_u, wrap_v;
     sc_value *image;
+    const char *slot;
 } sc_atlas_ops_map;
 
-/* Erase maps[0..n) on `mesh` with sc_erase (each map a slot of its own,
- * named map<i>). On success f32_out[i] and native_out[i] (sc_erase's float
+/* Erase maps[0..n) on `mesh` with sc_erase (each map a texture of its own,
+ * named by its slot, or map<i> without one). On success f32_out[i] and native_out[i] (sc_erase's float
  * and native results) hold new references, either array may be NULL. On
  * failure nothing is stored and err says what failed. */
 int sc_atlas_ops_erase(const sc_mesh *mesh, const sc_atlas_ops_map *maps, int n, const sc_erase_options *o,

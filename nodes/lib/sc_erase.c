@@ -114,7 +114,9 @@
  *
  * Passing through. A texture whose material has no seam edge, or whose
  * largest sampled seam gap is within o->gap_tolerance (default 1e-4) or one
- * step of its 8/16-bit encoding, is passed on as the same value (its
+ * step of its 8/16-bit encoding (a tangent-space normal map: measured in
+ * object space, where rounding opens sqrt(3) steps), is passed on as the
+ * same value (its
  * native result rounded to native_like's type where that is another);
  * when every result is the input's own image, sc_erase_result_atlas
  * returns the input atlas itself.
@@ -1863,14 +1865,27 @@ int sc_erase_takes_tangent_space(const sc_mesh *m, const sc_texture *t, sc_erase
     return rc;
 }
 
+/* The largest object-space seam gap that rounding a seam-free field to
+ * img's pixel type can open: each side's components off by half a step of
+ * the signed decoding (2 x - 1), turned by a frame whose rows are at most
+ * unit vectors, so sqrt(3) steps; 0 for float. */
+static double tangent_rounding_gap(const sc_image_data *img) {
+    double step = img->pixel == SC_PIXEL_U8 ? 2.0 / 255 : img->pixel == SC_PIXEL_U16 ? 2.0 / 65535 : 0;
+    return sqrt(3.0) * step;
+}
+
 /* A tangent-space normal map (FATE_TANGENT): to object space with the
  * frames of `frames`, erased there as one float data map with the caller's
  * weights (no rounding), back to tangent space, and rounded to nearest in
  * the input's pixel type (like's, when given: an 8/16-bit original). A map
  * whose mean rendered gap would widen (texels shared by faces with other
- * frames) is left as it is, and tangent_space_left says so. Its metrics: the reconstructed normal's seam gap
- * on the input and on the bytes written, and the object-space field's seam
- * energy before and after the solve. */
+ * frames) is left as it is, and tangent_space_left says so. A map written in
+ * its own pixel type whose object-space field is seam-free already passes
+ * through, as any texture does (already_seam_free): its largest seam gap
+ * there is within the options' gap_tolerance or within what rounding to
+ * that type can open (tangent_rounding_gap). Its metrics: the reconstructed normal's seam gap on the
+ * input and on the bytes written, and the object-space field's seam energy
+ * before and after the solve. */
 static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const sc_texture *t,
                                const sc_image_data *like, const sc_erase_options *eo, int threads, const sc_tangent_frames *frames,
                                tex_state *s, sc_metric_list *ml, sc_error *err) {
@@ -1891,10 +1906,16 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
                  : sc_tangent_texels_build(m, t->material, &g, SC_TANGENT_BAND, threads, &tx, err);
     if (rc == SC_OK)
         rc = sc_tangent_seam_gap(m, seams, &g, frames, as_left ? as_left : img, &gap_before, &mean_before, err);
+    bool clean = false;
+    double object_energy = 0, object_gap = 0;
     if (rc == SC_OK) {
         sc_image_data *obj = sc_tangent_to_object(img, frames, &tx, threads);
         sc_value *objv = obj ? sc_value_new_image(obj) : NULL;
         if (!objv) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK && eo->gap_tolerance > 0 && to->pixel == img->pixel) {
+            rc = sc_seam_energy(m, seams, &g, obj, threads, &object_energy, &object_gap, err);
+            clean = rc == SC_OK && object_gap <= fmax(eo->gap_tolerance, tangent_rounding_gap(img));
+        }
         sc_erase_options so = *eo;
         so.normal_space = SC_ERASE_NORMALS_OBJECT, so.quantize = SC_ERASE_QUANTIZE_NONE, so.gap_tolerance = 0;
         so.native_like = NULL, so.textures = "all";
@@ -1902,21 +1923,28 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         so.inputs_private = &made_here;
         sc_texture st = *t;
         st.image = objv;
-        if (rc == SC_OK) rc = sc_erase(m, &st, 1, &so, threads, &sub, err);
+        if (rc == SC_OK && !clean) rc = sc_erase(m, &st, 1, &so, threads, &sub, err);
         sc_value_release(objv);
     }
-    if (rc == SC_OK && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx, threads)))
+    if (rc == SC_OK && clean) {   /* passed through: the input itself */
+        sc_image_data *f = sc_image_to_f32(img);
+        s->f32 = f ? sc_value_new_image(f) : NULL;
+        s->native = sc_value_retain(t->image);
+        if (!s->f32) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        gap_after = gap_before, mean_after = mean_before;
+    }
+    if (rc == SC_OK && !clean && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx, threads)))
         rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    if (rc == SC_OK) {
+    if (rc == SC_OK && !clean) {
         sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to, threads);
         s->f32 = sc_value_new_image(back), back = NULL;
         s->native = to->pixel == SC_PIXEL_F32 ? sc_value_retain(s->f32) : nat ? sc_value_new_image(nat) : NULL;
         if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
     }
-    if (rc == SC_OK)
+    if (rc == SC_OK && !clean)
         rc = sc_tangent_seam_gap(m, seams, &g, frames, s->native->as.image, &gap_after, &mean_after, err);
     bool left = false;
-    if (rc == SC_OK && mean_after > mean_before) {
+    if (rc == SC_OK && !clean && mean_after > mean_before) {
         /* texels that faces with other frames share (overlapping or mirrored
          * charts) cannot hold one object-space value: rather than widen
          * the rendered gaps, the map is left as it is */
@@ -1933,6 +1961,12 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         metric(ml, pre, "tangent_space", 1);
         metric(ml, pre, "tangent_space_left", left);
         metric(ml, pre, "seam_edges", seams->nseams);
+        if (clean) {
+            metric(ml, pre, "already_seam_free", 1);
+            metric(ml, pre, "object_seam_energy_before", object_energy);
+            metric(ml, pre, "object_seam_energy_after", object_energy);
+            metric(ml, pre, "object_max_seam_gap", object_gap);
+        }
         for (int32_t k = 0; k < sub.metrics.count; k++) {
             const char *name = sub.metrics.items[k].name;
             if (!strcmp(name, "seam_energy_before") || !strcmp(name, "seam_energy_after")) {
