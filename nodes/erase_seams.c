@@ -28,7 +28,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
     o.w_outside = sc_ctx_number(ctx, "w_outside");
     o.lerp = sc_ctx_bool(ctx, "lerp");
     o.outside = sc_ctx_bool(ctx, "outside");
-    o.normal_space = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
+    o.normal_space = sc_erase_normal_space_of(sc_ctx_string(ctx, "normal_space"), a);
     o.gap_tolerance = sc_ctx_number(ctx, "gap_tolerance");
     double wc = sc_ctx_number(ctx, "w_change");
     const char *preset = sc_ctx_string(ctx, "preset");
@@ -139,7 +139,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, NULL};
 
 const sc_node_desc sc_node_erase_seams = {
     .type = "erase_seams",
-    .version = 8,
+    .version = 9,
     .summary = "erase texture seams (Liu et al. 2017): project textures onto the seam operator's null space",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -1146,12 +1146,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     sc_erase_defaults(&es.erase);
     es.erase.w_seam = sc_ctx_number(ctx, "w_seam");
     es.erase.filter_space = sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space"));
-    es.erase.normal_space = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
     es.erase.gap_tolerance = es.gap_tolerance;
     mip_run r = {.nsrc = nsrc, .lods = lods != NULL, .linear = es.erase.filter_space == SC_ERASE_FILTER_LINEAR};
     r.src = calloc((size_t)nsrc, sizeof *r.src);
     if (!r.src) return sc_fail(err, SC_ENOMEM, "out of memory");
     int rc = read_sources(&r, single, lods, err);
+    if (rc == SC_OK) es.erase.normal_space = sc_erase_normal_space_of(sc_ctx_string(ctx, "normal_space"), r.src[0]);
 
     /* the chains, and the erase meshes: each source's own, and the union for shared chains */
     if (!alloc_chains(&r)) rc = sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1235,7 +1235,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_atlas_ops, &sc_kernel_imag
 
 const sc_node_desc sc_node_mipmap = {
     .type = "mipmap",
-    .version = 14,
+    .version = 15,
     .summary = "mip chains with seams erased on every level independently (Liu et al. 2017 §9)",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

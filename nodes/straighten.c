@@ -1274,7 +1274,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
     job J;
     rc = job_init(&J, ctx, atlas, err);
-    J.normals = sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space"));
+    J.normals = sc_erase_normal_space_of(sc_ctx_string(ctx, "normal_space"), atlas);
     int64_t nmoved = 0, collapsible_before = 0;
     if (rc == SC_OK) rc = straighten_step(&J, tol, borders, &nmoved, &collapsible_before, err);
     if (rc == SC_OK && nmoved == 0) {   /* nothing to straighten */
@@ -1306,9 +1306,8 @@ static int run(sc_ctx *ctx, sc_error *err) {
             bool *made = sc_calloc_array((size_t)atlas->ntex + 1, sizeof *made);
             for (int32_t i = 0; made && i < atlas->ntex; i++) made[i] = J.images[i] != NULL;
             rc = made ? erase_atlas(ctx, warped, atlas, made,
-                                    sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")),
-                                    sc_erase_normal_space_named(sc_ctx_string(ctx, "normal_space")), threads, &result,
-                                    &native, err)
+                                    sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space")), J.normals,
+                                    threads, &result, &native, err)
                       : sc_fail(err, SC_ENOMEM, "straighten: out of memory");
             free(made);
         } else if (rc == SC_OK) {
@@ -1378,7 +1377,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &s
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 9,
+    .version = 10,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -1754,6 +1754,11 @@ sc_erase_normal_space sc_erase_normal_space_named(const char *name) {
                                          : SC_ERASE_NORMALS_AUTO;
 }
 
+sc_erase_normal_space sc_erase_normal_space_of(const char *name, const sc_atlas *atlas) {
+    sc_erase_normal_space s = sc_erase_normal_space_named(name);
+    return s == SC_ERASE_NORMALS_AUTO && atlas && atlas->materials ? SC_ERASE_NORMALS_TANGENT : s;
+}
+
 sc_erase_filter_space sc_erase_filter_space_named(const char *name) {
     return strcmp(name, "encoded") == 0 ? SC_ERASE_FILTER_ENCODED : SC_ERASE_FILTER_LINEAR;
 }

@@ -76,10 +76,16 @@ typedef enum sc_erase_normal_space {
 
 /* The nodes' normal_space parameter: "tangent", "object", or "auto" (anything else). */
 sc_erase_normal_space sc_erase_normal_space_named(const char *name);
+
+/* The same for the textures of `atlas`: auto is tangent for an atlas whose
+ * source states its materials (glTF, whose normal textures are
+ * tangent-space by its spec: a re-chartified atlas's map meets across
+ * seams as stored, by construction, and would read as object-space). */
+sc_erase_normal_space sc_erase_normal_space_of(const char *name, const sc_atlas *atlas);
 #define SC_ERASE_NORMAL_SPACE_DOC                                                                           \
     "what the normal slot holds: tangent (erased in object space through MikkTSpace frames, as glTF's maps " \
-    "are), object (erased as stored), or auto (tangent when the map looks tangent-space and its seams meet " \
-    "better through the frames than as stored)"
+    "are), object (erased as stored), or auto (tangent for a glTF asset's maps, as its spec says; else when " \
+    "the map looks tangent-space and its seams meet better through the frames than as stored)"
 /* A tangent-space map whose reconstructed normals still differ by more than
  * this across a seam (|n_a - n_b|, about radians: 3 degrees) after erasure is
  * reported as discontinuous. What erasure leaves below it: the frames' turn
