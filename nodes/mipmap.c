@@ -508,7 +508,6 @@ static int seam_free_already(const sc_mesh *mesh, const sc_seam_set *seams, cons
     return rc;
 }
 
-
 /* What erasing the levels did. */
 typedef struct erase_counts {
     int runs;       /* sc_atlas_ops_erase calls */
