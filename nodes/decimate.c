@@ -443,6 +443,7 @@ typedef struct state {
     int32_t nz;
     int32_t *zv, *zuv_index;
     int32_t *zcorner;            /* the input corner (3 f + k) that first named the Z: its normal */
+    double *smooth_normals;      /* per input corner, for an input without normals (made at its first level) */
     double *zuv;
     uint8_t *zflags;
     double *zq, *zgeo, *znormal, *zweight;
@@ -2445,7 +2446,7 @@ static void state_free(state *st) {
     free(st->pos), free(st->vflags), free(st->version), free(st->vmark);
     free(st->vf_off), free(st->vf_len), free(st->vf_cap), free(st->vf_dead), free(st->pool);
     free(st->fv), free(st->fz), free(st->fmat), free(st->falive), free(st->input_uv_area);
-    free(st->zv), free(st->zuv_index), free(st->zcorner), free(st->zuv), free(st->zflags);
+    free(st->zv), free(st->zuv_index), free(st->zcorner), free(st->smooth_normals), free(st->zuv), free(st->zflags);
     free(st->zq), free(st->zgeo), free(st->znormal), free(st->zweight), free(st->zmark), free(st->zstep);
     free(st->heap), free(st->scratch), free(st->touched), free(st->neighbours);
     free(st->owned_head), free(st->owned_tail), free(st->owned_next), free(st->near_face), free(st->fan), free(st->fan_h2);
@@ -3025,7 +3026,8 @@ static int build_level_mesh(state *st, const sc_mesh *in, sc_mesh **out, sc_erro
     free(slot);
     /* the input's normals: its own, or the smooth ones save writes for it */
     const bool own_normals = in->nn > 0 && in->FN;
-    double *smooth = own_normals ? NULL : sc_tangent_corner_normals(in);
+    if (!own_normals && !st->smooth_normals) st->smooth_normals = sc_tangent_corner_normals(in);
+    const double *smooth = st->smooth_normals;
     const int32_t nn = own_normals ? in->nn : 3 * st->nf_alive;
     sc_mesh *m = own_normals || smooth ? sc_mesh_alloc(nv, nu, nn, st->nf_alive, in->nmat) : NULL;
     int rc = m ? SC_OK : SC_ENOMEM;
@@ -3058,7 +3060,7 @@ static int build_level_mesh(state *st, const sc_mesh *in, sc_mesh **out, sc_erro
         }
         if (own_normals && nn > 0) memcpy(m->N, in->N, sizeof(double) * 3 * (size_t)nn);
     }
-    free(vmap), free(zmap), free(ufirst), free(smooth);
+    free(vmap), free(zmap), free(ufirst);
     if (rc != SC_OK) {
         sc_mesh_free(m);
         return sc_fail(err, SC_ENOMEM, "decimate: out of memory");

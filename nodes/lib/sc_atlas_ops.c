@@ -87,8 +87,10 @@ int sc_atlas_ops_erase(const sc_mesh *mesh, const sc_atlas_ops_map *maps, int n,
         return sc_fail(err, SC_ENOMEM, "out of memory");
     }
     for (int i = 0; i < n; i++) {
-        snprintf(names[i], sizeof names[i], "%s", maps[i].slot ? maps[i].slot : "");
-        if (!maps[i].slot || strlen(maps[i].slot) >= sizeof names[i]) snprintf(names[i], sizeof names[i], "map%d", i);
+        if (maps[i].slot && strlen(maps[i].slot) < sizeof names[i])
+            snprintf(names[i], sizeof names[i], "%s", maps[i].slot);
+        else
+            snprintf(names[i], sizeof names[i], "map%d", i);
         textures[i] = (sc_texture){.name = names[i], .material = maps[i].material, .wrap_u = maps[i].wrap_u,
                                    .wrap_v = maps[i].wrap_v, .source = "", .image = maps[i].image};
     }

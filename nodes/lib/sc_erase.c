@@ -116,9 +116,8 @@
  * largest sampled seam gap is within o->gap_tolerance (default 1e-4) or one
  * step of its 8/16-bit encoding (a tangent-space normal map: measured in
  * object space, where rounding opens sqrt(3) steps), is passed on as the
- * same value (its
- * native result rounded to native_like's type where that is another);
- * when every result is the input's own image, sc_erase_result_atlas
+ * same value (its native result rounded to native_like's type where that
+ * is another); when every result is the input's own image, sc_erase_result_atlas
  * returns the input atlas itself.
  * This is what makes a re-run on an erased texture change nothing: the
  * penalty leaves near-null directions of M (relative eigenvalues ~1e-10)
@@ -1879,6 +1878,18 @@ static double tangent_rounding_gap(const sc_image_data *img) {
     return sqrt(3.0) * step;
 }
 
+/* A tangent-space map kept as it is: its float copy, and as written: the
+ * input itself, or *as_left (taken over) where a float input goes back to
+ * its 8/16-bit original's type. */
+static int keep_tangent_map(const sc_texture *t, sc_image_data **as_left, tex_state *s, sc_error *err) {
+    sc_image_data *f = sc_image_to_f32(t->image->as.image);
+    sc_value_release(s->f32), sc_value_release(s->native);
+    s->f32 = f ? sc_value_new_image(f) : NULL;
+    s->native = *as_left ? sc_value_new_image(*as_left) : sc_value_retain(t->image);
+    *as_left = NULL;
+    return s->f32 && s->native ? SC_OK : sc_fail(err, SC_ENOMEM, "out of memory");
+}
+
 /* A tangent-space normal map (FATE_TANGENT): to object space with the
  * frames of `frames`, erased there as one float data map with the caller's
  * weights (no rounding), back to tangent space, and rounded to nearest in
@@ -1888,9 +1899,9 @@ static double tangent_rounding_gap(const sc_image_data *img) {
  * its own pixel type whose object-space field is seam-free already passes
  * through, as any texture does (already_seam_free): its largest seam gap
  * there is within the options' gap_tolerance or within what rounding to
- * that type can open (tangent_rounding_gap). Its metrics: the reconstructed normal's seam gap on the
- * input and on the bytes written, and the object-space field's seam energy
- * before and after the solve. */
+ * that type can open (tangent_rounding_gap). Its metrics: the
+ * reconstructed normal's seam gap on the input and on the bytes written,
+ * and the object-space field's seam energy before and after the solve. */
 static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const sc_texture *t,
                                const sc_image_data *like, const sc_erase_options *eo, int threads, const sc_tangent_frames *frames,
                                tex_state *s, sc_metric_list *ml, sc_error *err) {
@@ -1931,35 +1942,28 @@ static int erase_tangent_space(const sc_mesh *m, const sc_seam_set *seams, const
         if (rc == SC_OK && !clean) rc = sc_erase(m, &st, 1, &so, threads, &sub, err);
         sc_value_release(objv);
     }
-    if (rc == SC_OK && clean) {   /* passed through: the input itself */
-        sc_image_data *f = sc_image_to_f32(img);
-        s->f32 = f ? sc_value_new_image(f) : NULL;
-        s->native = sc_value_retain(t->image);
-        if (!s->f32) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        gap_after = gap_before, mean_after = mean_before;
-    }
-    if (rc == SC_OK && !clean && !(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx, threads)))
-        rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    if (rc == SC_OK && !clean) {
-        sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to, threads);
-        s->f32 = sc_value_new_image(back), back = NULL;
-        s->native = to->pixel == SC_PIXEL_F32 ? sc_value_retain(s->f32) : nat ? sc_value_new_image(nat) : NULL;
-        if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    }
-    if (rc == SC_OK && !clean)
-        rc = sc_tangent_seam_gap(m, seams, &g, frames, s->native->as.image, &gap_after, &mean_after, err);
     bool left = false;
-    if (rc == SC_OK && !clean && mean_after > mean_before) {
-        /* texels that faces with other frames share (overlapping or mirrored
-         * charts) cannot hold one object-space value: rather than widen
-         * the rendered gaps, the map is left as it is */
-        sc_image_data *f = sc_image_to_f32(img);
-        sc_value_release(s->f32), sc_value_release(s->native);
-        s->f32 = f ? sc_value_new_image(f) : NULL;
-        s->native = as_left ? sc_value_new_image(as_left) : sc_value_retain(t->image);
-        as_left = NULL;
-        if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-        gap_after = gap_before, mean_after = mean_before, left = true;
+    if (rc == SC_OK && clean) {   /* passed through: the input itself */
+        rc = keep_tangent_map(t, &as_left, s, err);
+        gap_after = gap_before, mean_after = mean_before;
+    } else if (rc == SC_OK) {
+        if (!(back = sc_tangent_from_object(sub.f32[0]->as.image, img, frames, &tx, threads)))
+            rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        if (rc == SC_OK) {
+            sc_image_data *nat = to->pixel == SC_PIXEL_F32 ? NULL : quantised_like(back, to, threads);
+            s->f32 = sc_value_new_image(back), back = NULL;
+            s->native = to->pixel == SC_PIXEL_F32 ? sc_value_retain(s->f32) : nat ? sc_value_new_image(nat) : NULL;
+            if (!s->f32 || !s->native) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+        }
+        if (rc == SC_OK)
+            rc = sc_tangent_seam_gap(m, seams, &g, frames, s->native->as.image, &gap_after, &mean_after, err);
+        if (rc == SC_OK && mean_after > mean_before) {
+            /* texels that faces with other frames share (overlapping or mirrored
+             * charts) cannot hold one object-space value: rather than widen
+             * the rendered gaps, the map is left as it is */
+            rc = keep_tangent_map(t, &as_left, s, err);
+            gap_after = gap_before, mean_after = mean_before, left = true;
+        }
     }
     if (rc == SC_OK) {
         const char *pre = s->prefix;
