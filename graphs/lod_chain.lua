@@ -10,6 +10,8 @@
 --   seamcook run graphs/lod_chain.lua --set chartify=always   (auto|always|never: a quad atlas first)
 --   seamcook run graphs/lod_chain.lua --set smooth=0.5        (colour smoothed first; 2: sharpened)
 --   seamcook run graphs/lod_chain.lua --set erased_exr=1      (the float erasure as EXR files too)
+--   seamcook run graphs/lod_chain.lua --set obj=1             (OBJ/MTL and texture files beside asset.glb)
+--   seamcook run graphs/lod_chain.lua --set mip_files=all     (every mip level, displacement maps too)
 --
 -- load -> quad_chartify -> [gradient_domain] -> straighten (erasing) or erase_seams -> decimate (seam-aware)
 --      -> share_textures -> save, render (crack check)
@@ -118,9 +120,11 @@ local lods = decimate{ name = "lods", mesh = shared,
                        map_size = param("map_size", 0),
                        contact_distance = param("contact_distance", 0.01) }
 local chain = share_textures{ name = "chain", lods = lods, atlas = shared }
--- save writes OBJ/MTL per level and one asset.glb (glTF 2.0) holding the
--- full mesh and every level (MSFT_lod) with the textures embedded.
-save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset"), max_seam_gap = max_file_seam_gap }
+-- save writes one asset.glb (glTF 2.0) holding the full mesh and every level
+-- (MSFT_lod) with the textures embedded; obj=1 adds OBJ/MTL per level and the
+-- texture files they name (the same bytes as the .glb's images).
+save{ name = "save", atlas = shared, lods = chain, file = param("file", "asset"), max_seam_gap = max_file_seam_gap,
+      obj = param("obj", 0) ~= 0 }
 
 -- The crack check: every level, rendered the way a GPU samples the shared
 -- textures; a crack pixel or a seam gap fails the cook, naming level, mode, view.
@@ -147,8 +151,14 @@ local baked = bake_displacement{ name = "bake", atlas = shared, lods = chain,
 -- erased (an atlas of thousands of charts, pizza's, cannot be erased once its
 -- charts fall under a texel: --set erase_min_size=2048 there). Levels left
 -- unerased keep their seams, and check_maps's seam-gap limit says so.
+-- mip_files: which chains become files in mip/: textures (the default: the
+-- texture set's levels 1 and down, level 0 being the .glb's texture); all
+-- (every level of every chain, with the geometry image and each level's
+-- displacement map as mip-mapped EXR files); none.
+local mip_files = param("mip_files", "textures")
 local mips = mipmap{ name = "mips", lods = baked.lods, min_size = param("mip_min", 16),
-                     erase_min_size = param("erase_min_size", 1), filter_space = filter_space }
+                     erase_min_size = param("erase_min_size", 1), filter_space = filter_space,
+                     files = mip_files, files_from_level = mip_files == "all" and 0 or 1 }
 -- Its levels have the uv of the textured check's, whose uv pictures are in
 -- render/: with pictures=all it also draws that uv over each mip level.
 render{ name = "check_maps", lods = mips.levels, reference = shared, folder = "render_maps", pictures = pictures,

@@ -82,6 +82,11 @@
  *    mip/[lod<k>_]<material>_<slot>.exr (float textures: one tiled,
  *    mip-mapped OpenEXR holding every level) and
  *    mip/[lod<k>_]<material>_<slot>_level<m>.png (8/16-bit textures).
+ *    `files` picks the chains written (all; textures, leaving out the baked
+ *    geometry_image and displacement maps, which only a tessellating
+ *    renderer reads; none) and `files_from_level` a PNG chain's first level
+ *    written (1 where level 0 is the texture save writes), so --out holds
+ *    each texture once; the levels and metrics are the same either way.
  *  - Work. Groups (each source's chains, and the shared ones) are built side
  *    by side, as many at once as there are threads, each using every thread
  *    in its own parallel parts (labelling, the erase kernel, its files), so
@@ -465,11 +470,18 @@ static sc_image_data *data_down(const sc_image_data *src, int32_t **band_io) {
 /* ---------------------------------------------------------------- erasing */
 
 /* How levels are erased (the node's parameters). */
+/* Which files the node writes (params files and files_from_level). */
+typedef struct file_choice {
+    bool any, maps;           /* any file at all; the baked maps (geometry_image, displacement) too */
+    int32_t from_level;       /* a PNG chain's first level written */
+} file_choice;
+
 typedef struct erase_settings {
     int32_t min_size;            /* erase_min_size */
     double gap_tolerance, level0_gap;
     sc_erase_options erase;      /* sc_erase's: the defaults, with w_seam and gap_tolerance */
     int threads;
+    file_choice files;           /* which chains and levels become files */
 } erase_settings;
 
 /* Whether level 0 of a chain is seam-free already: its largest sampled seam
@@ -640,11 +652,11 @@ typedef struct chain_files {
 } chain_files;
 
 /* One file to encode: a PNG chain's level m, or a float chain's whole EXR
- * (m = -1); bytes, its size to schedule by. */
+ * (m = -1), at out->path[i]; bytes, its size to schedule by. */
 typedef struct file_item {
     chain *ch;
     chain_files *out;
-    int m;
+    int m, i;
     size_t bytes;
 } file_item;
 
@@ -652,42 +664,49 @@ static size_t pixel_bytes(const sc_image_data *im) {
     return (size_t)im->width * (size_t)im->height * (size_t)im->channels * (size_t)im->pixel;
 }
 
-/* Name chain ch's files in out and list them in items (appended at *n). */
-static void list_files(chain *ch, const sc_mesh *mesh, chain_files *out, file_item *items, int32_t *n) {
+static bool baked_map(const sc_texture *tex) {
+    return strcmp(tex->name, "geometry_image") == 0 || strcmp(tex->name, "displacement") == 0;
+}
+
+/* Name chain ch's files in out and list them in items (appended at *n):
+ * none when `which` leaves the chain out. */
+static void list_files(chain *ch, const sc_mesh *mesh, const file_choice *which, chain_files *out,
+                       file_item *items, int32_t *n) {
     char mat[96], slot[96], prefix[32] = "";
     clean_name(mesh->materials[ch->tex->material], mat, sizeof mat);
     clean_name(ch->tex->name, slot, sizeof slot);
     if (ch->source >= 0) snprintf(prefix, sizeof prefix, "lod%d_", ch->source);
     bool exr = ch->native[0]->as.image->pixel == SC_PIXEL_F32;
-    out->n = exr ? 1 : ch->count;
+    bool chosen = which->any && (which->maps || !baked_map(ch->tex));
+    int32_t from = exr ? 0 : which->from_level;
+    out->n = !chosen ? 0 : exr ? 1 : ch->count > from ? ch->count - from : 0;
     for (int i = 0; i < out->n; i++) {
         sc_buf_init(&out->buf[i]);
         out->rc[i] = SC_OK;
         if (exr) snprintf(out->path[i], sizeof out->path[i], "mip/%s%s_%s.exr", prefix, mat, slot);
-        else snprintf(out->path[i], sizeof out->path[i], "mip/%s%s_%s_level%d.png", prefix, mat, slot, i);
+        else snprintf(out->path[i], sizeof out->path[i], "mip/%s%s_%s_level%d.png", prefix, mat, slot, from + i);
     }
-    if (exr) {
+    if (exr && out->n) {
         size_t bytes = 0;
         for (int m = 0; m < ch->count; m++) bytes += pixel_bytes(ch->native[m]->as.image);
-        items[(*n)++] = (file_item){ch, out, -1, bytes};
+        items[(*n)++] = (file_item){ch, out, -1, 0, bytes};
     } else {
-        for (int m = 0; m < ch->count; m++)
-            items[(*n)++] = (file_item){ch, out, m, pixel_bytes(ch->native[m]->as.image)};
+        for (int i = 0; i < out->n; i++)
+            items[(*n)++] = (file_item){ch, out, from + i, i, pixel_bytes(ch->native[from + i]->as.image)};
     }
 }
 
 static int encode_item(void *ud, int32_t i) {
     const file_item *it = (const file_item *)ud + i;
     const chain *ch = it->ch;
-    int k = it->m < 0 ? 0 : it->m;
-    int *rc = &it->out->rc[k];
-    sc_error *err = &it->out->err[k];
+    int *rc = &it->out->rc[it->i];
+    sc_error *err = &it->out->err[it->i];
     if (it->m >= 0) {
-        *rc = sc_image_value_encode_png(ch->native[it->m], 0, &it->out->buf[k], err);
+        *rc = sc_image_value_encode_png(ch->native[it->m], 0, &it->out->buf[it->i], err);
     } else {
         const sc_image_data *levels[MAX_MIP];
         for (int m = 0; m < ch->count; m++) levels[m] = ch->native[m]->as.image;
-        *rc = sc_image_encode_exr_mip(levels, ch->count, &it->out->buf[k], err);
+        *rc = sc_image_encode_exr_mip(levels, ch->count, &it->out->buf[it->i], err);
     }
     if (*rc != SC_OK) sc_error_prefix(err, "writing the chain of '%s'", ch->tex->name);
     return SC_OK;
@@ -841,7 +860,7 @@ static int build_group(void *ud, int32_t item) {
     for (int32_t c = 0; c < J->nchains && items; c++)
         if (chains[c].group == g)
             list_files(&chains[c], J->src[chains[c].source >= 0 ? chains[c].source : 0]->mesh->as.mesh,
-                       &J->files[c], items, &nitems);
+                       &es->files, &J->files[c], items, &nitems);
     if (items) {
         qsort(items, (size_t)nitems, sizeof *items, larger_first);
         if (sc_parallel(es->threads, nitems, encode_item, items) != SC_OK)
@@ -1146,6 +1165,9 @@ static int run(sc_ctx *ctx, sc_error *err) {
     es.erase.w_seam = sc_ctx_number(ctx, "w_seam");
     es.erase.filter_space = sc_erase_filter_space_named(sc_ctx_string(ctx, "filter_space"));
     es.erase.gap_tolerance = es.gap_tolerance;
+    const char *files = sc_ctx_string(ctx, "files");
+    es.files = (file_choice){strcmp(files, "none") != 0, strcmp(files, "all") == 0,
+                             (int32_t)sc_ctx_integer(ctx, "files_from_level")};
     mip_run r = {.nsrc = nsrc, .lods = lods != NULL, .linear = es.erase.filter_space == SC_ERASE_FILTER_LINEAR};
     r.src = calloc((size_t)nsrc, sizeof *r.src);
     if (!r.src) return sc_fail(err, SC_ENOMEM, "out of memory");
@@ -1197,6 +1219,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
 
 static const char *const filter_space_choices[] = {"linear", "encoded", NULL};
 static const char *const normal_space_choices[] = {"auto", "tangent", "object", NULL};
+static const char *const files_choices[] = {"all", "textures", "none", NULL};
 
 static const sc_param_desc params[] = {
     {.name = "filter_space", .type = SC_PARAM_ENUM, .def_string = "linear", .choices = filter_space_choices,
@@ -1215,6 +1238,12 @@ static const sc_param_desc params[] = {
             "atlases whose charts fall under a texel there, where an exact erasure can outgrow memory"},
     {.name = "w_seam", .type = SC_PARAM_NUMBER, .def = 1e12, .min = 0, .max = 1e30,
      .doc = "erase_seams's w_seam on every level: the seam stiffness against the grid terms"},
+    {.name = "files", .type = SC_PARAM_ENUM, .def_string = "all", .choices = files_choices,
+     .doc = "the chains written as files: all; textures (not the baked geometry_image and displacement maps, "
+            "which a renderer without tessellation does not read); none (the levels only)"},
+    {.name = "files_from_level", .type = SC_PARAM_INTEGER, .def = 0, .min = 0, .max = MAX_MIP,
+     .doc = "the first level of a PNG chain written (1: level 0 is the texture save writes); an EXR file holds "
+            "its whole chain"},
 };
 
 static const sc_port_desc inputs[] = {

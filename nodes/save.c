@@ -20,6 +20,9 @@
  *           texture set's PNG/JPEG files embedded (sc_gltf_write_glb); with
  *           gltf_form = gltf, N.gltf and N.bin instead, the JSON naming the
  *           texture files beside it (sc_gltf_write_gltf)
+ *   obj = false: no OBJ or MTL, and the texture set's PNG/JPEG files live
+ *           only inside the .glb (its images named as the files would be);
+ *           float textures, which glTF cannot hold, are still files
  * The MTL names colour maps with map_Kd, normal maps with map_Bump (what
  * Blender and most OBJ readers take for a normal map; load_atlas reads norm,
  * map_Bump and bump), emissive maps with map_Ke; other slots have no MTL
@@ -212,11 +215,14 @@ static int encode(const sc_value *image, const char *ext, sc_buf *out, sc_error 
     return sc_image_encode_exr(im, out, err);
 }
 
-/* One written texture file, so a shared image is written once. */
+/* One encoded texture file, so a shared image is encoded once: in the
+ * report when it is written as a file, else its bytes kept here for the
+ * .glb. */
 typedef struct written {
     sc_digest digest;
     char ext[8];
     char *path;
+    sc_buf kept;
 } written;
 
 typedef struct saver {
@@ -224,6 +230,8 @@ typedef struct saver {
     sc_report *report;
     const char *name, *format;
     bool exr_too;
+    bool obj;                 /* OBJ and MTL files */
+    bool texture_files;       /* textures as files (obj, or gltf_form gltf); else only inside the .glb */
     double max_seam_gap;      /* a file whose decoded seams open wider than its image's, by more, fails */
     written *files;
     int nfiles;
@@ -316,18 +324,22 @@ static int save_image(saver *s, const sc_value *image, const seam_place *at, con
         sc_buf_init(&b);
         int rc = encode(image, exts[e], &b, err);
         if (rc == SC_OK && at) rc = measure_file(s, at, im, file, &b, err);
-        if (rc == SC_OK) {
+        /* a texture only the .glb holds is kept for it; an EXR, which no
+         * .glb holds, is always a file */
+        bool as_file = !at || s->texture_files || strcmp(exts[e], "exr") == 0;
+        if (rc == SC_OK && as_file) {
             s->bytes += (int64_t)b.len;
             rc = add_file(s->report, file, &b, err);
-        } else if (!strstr(err->message, file)) {
+        } else if (rc != SC_OK && !strstr(err->message, file)) {
             sc_error_prefix(err, "%s", file);
         }
-        sc_buf_free(&b);
         if (rc) {
+            sc_buf_free(&b);
             free(file);
             return rc;
         }
         w = &s->files[s->nfiles++];
+        w->kept = b;   /* empty when the report took the bytes */
         w->digest = *sc_value_digest(image);
         snprintf(w->ext, sizeof w->ext, "%s", exts[e]);
         w->path = file;
@@ -390,9 +402,9 @@ static int save_texture_set(saver *s, const sc_atlas *set, char *const *names, s
         }
         if (found) sc_seam_set_free(&seams);
     }
-    char *path = rc == SC_OK ? sc_strprintf("%s.mtl", s->name) : NULL;
-    if (rc == SC_OK && !path) rc = sc_fail(err, SC_ENOMEM, "out of memory");
-    if (rc == SC_OK) rc = add_file(s->report, path, &mtl, err);
+    char *path = rc == SC_OK && s->obj ? sc_strprintf("%s.mtl", s->name) : NULL;
+    if (rc == SC_OK && s->obj && !path) rc = sc_fail(err, SC_ENOMEM, "out of memory");
+    if (rc == SC_OK && s->obj) rc = add_file(s->report, path, &mtl, err);
     free(path);
     sc_buf_free(&mtl);
     return rc;
@@ -432,12 +444,16 @@ static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_err
     int32_t k = 0;
     if (atlas) levels[k++] = atlas->mesh->as.mesh;
     for (int32_t l = 0; lods && l < lods->count; l++) levels[k++] = lods->levels[l]->as.atlas->mesh->as.mesh;
-    for (int i = 0; i < s->nglb; i++)
+    for (int i = 0; i < s->nglb; i++) {
         for (int32_t f = 0; f < s->report->nfiles; f++)
             if (strcmp(s->report->files[f].path, s->glb_path[i]) == 0) {
                 const sc_bytes *b = s->report->files[f].bytes->as.bytes;
                 s->glb_tex[i].bytes = b->data, s->glb_tex[i].size = b->size;
             }
+        for (int w = 0; w < s->nfiles; w++)
+            if (s->files[w].path == s->glb_path[i] && s->files[w].kept.len)
+                s->glb_tex[i].bytes = (const uint8_t *)s->files[w].kept.data, s->glb_tex[i].size = s->files[w].kept.len;
+    }
     for (int i = 0; i < s->nglb; i++) s->glb_tex[i].uri = s->glb_path[i];
     bool separate = strcmp(sc_ctx_string(s->ctx, "gltf_form"), "gltf") == 0;
     sc_buf b, bin;
@@ -462,12 +478,17 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const sc_atlas *atlas = sc_ctx_atlas(ctx, "atlas");
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
     const sc_value *image = sc_ctx_input(ctx, "image");
+    const bool glb = sc_ctx_bool(ctx, "glb"), separate = strcmp(sc_ctx_string(ctx, "gltf_form"), "gltf") == 0;
     saver s = {.ctx = ctx, .name = sc_ctx_string(ctx, "file"), .format = sc_ctx_string(ctx, "format"),
-               .exr_too = sc_ctx_bool(ctx, "exr_too"), .max_seam_gap = sc_ctx_number(ctx, "max_seam_gap")};
+               .exr_too = sc_ctx_bool(ctx, "exr_too"), .obj = sc_ctx_bool(ctx, "obj"),
+               .max_seam_gap = sc_ctx_number(ctx, "max_seam_gap")};
+    s.texture_files = s.obj || !glb || separate;
     int rc = check_name(s.name, err);
     if (rc) return sc_error_prefix(err, "file");
     if (!atlas && !lods && !image)
         return sc_fail(err, SC_EINPUT, "nothing to save: connect atlas, lods or image");
+    if ((atlas || lods) && !s.obj && !glb)
+        return sc_fail(err, SC_EINPUT, "obj: with glb = false too, nothing would hold the mesh");
     if (lods && lods->count < 1) return sc_fail(err, SC_EINPUT, "lods: no levels");
     if (image && image->kind != SC_KIND_IMAGE) return sc_fail(err, SC_EINPUT, "image: not an image");
     s.report = sc_report_new();
@@ -480,21 +501,21 @@ static int run(sc_ctx *ctx, sc_error *err) {
         names = material_names(set_mesh);
         if (!names) rc = sc_fail(err, SC_ENOMEM, "out of memory");
         if (rc == SC_OK) rc = save_texture_set(&s, set, names, err);
-        if (rc == SC_OK && atlas) {
+        if (rc == SC_OK && atlas && s.obj) {
             char *file = sc_strprintf("%s.obj", s.name);
             rc = file ? save_obj(&s, atlas->mesh->as.mesh, set_mesh, names, file, err)
                       : sc_fail(err, SC_ENOMEM, "out of memory");
             if (rc) sc_error_prefix(err, "atlas");
             free(file);
         }
-        for (int32_t k = 0; lods && k < lods->count && rc == SC_OK; k++) {
+        for (int32_t k = 0; s.obj && lods && k < lods->count && rc == SC_OK; k++) {
             char *file = sc_strprintf("%s_lod%d.obj", s.name, k);
             rc = file ? save_obj(&s, lods->levels[k]->as.atlas->mesh->as.mesh, set_mesh, names, file, err)
                       : sc_fail(err, SC_ENOMEM, "out of memory");
             if (rc) sc_error_prefix(err, "lods: level %d", k);
             free(file);
         }
-        if (rc == SC_OK && sc_ctx_bool(ctx, "glb")) rc = save_glb(&s, atlas, lods, err);
+        if (rc == SC_OK && glb) rc = save_glb(&s, atlas, lods, err);
         free_names(names, set_mesh->nmat);
     }
     if (rc == SC_OK && image) {
@@ -503,7 +524,7 @@ static int run(sc_ctx *ctx, sc_error *err) {
         if (rc) sc_error_prefix(err, "image");
     }
     int nfiles = s.report->nfiles;
-    for (int i = 0; i < s.nfiles; i++) free(s.files[i].path);
+    for (int i = 0; i < s.nfiles; i++) free(s.files[i].path), sc_buf_free(&s.files[i].kept);
     free(s.files), free(s.glb_tex), free(s.glb_path);
     if (rc == SC_OK) {
         rc = sc_report_metric(s.report, "files", nfiles) || sc_report_metric(s.report, "bytes", (double)s.bytes) ||
@@ -539,6 +560,9 @@ static const sc_param_desc params[] = {
     {.name = "format", .type = SC_PARAM_ENUM, .def_string = "auto", .choices = format_choices,
      .doc = "texture format; auto: png for 8/16-bit images (lossless, a JPEG input too), exr for float; "
             "jpg only when asked"},
+    {.name = "obj", .type = SC_PARAM_BOOL, .def = 1,
+     .doc = "write <file>.obj (with lods, <file>_lod<k>.obj), <file>.mtl and the texture files they name; "
+            "false: the .glb alone holds the meshes and its PNG/JPEG textures (float ones are still files)"},
     {.name = "exr_too", .type = SC_PARAM_BOOL, .def = 0,
      .doc = "also write every texture as float EXR"},
     {.name = "glb", .type = SC_PARAM_BOOL, .def = 1,
@@ -566,7 +590,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_imageio, &sc_kernel_seam, 
 
 const sc_node_desc sc_node_save = {
     .type = "save",
-    .version = 7,
+    .version = 8,
     .summary = "write an atlas, LODs or an image as OBJ/MTL and PNG/JPEG/EXR files",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

@@ -14,6 +14,9 @@ Checked for each file:
   - an 8-bit file whose erasure reported a naive-rounding floor
     (erase_seams's seam_energy_after_u8_naive for its slot) is within twice
     that floor, and the files are below their floors on average.
+The folders are the main job's with obj=1 (the OBJ and texture files beside
+asset.glb): every image the .glb embeds is named as its file and holds that
+file's bytes, so what is measured here is what the .glb holds.
 And for every normal map of asset.glb, read with the GLB's own NORMAL and
 TANGENT (B = w N x T, the map decoded as 2 x - 1, the normal the renderer
 reconstructs on each side of every seam, 19 points per edge, its mean gap
@@ -23,7 +26,8 @@ weighted by the edges' length):
     a tangent-space map is made for are the reference's);
   - where straighten erased the map in tangent space, the reference's mean
     gap is what it reports (normal_gap_mean_after, within a quarter), and
-    mip levels 0 and 1 of the map, erased through the first level's frames,
+    mip levels 0 and 1 of the map (those written: level 0 with
+    mip_files=all), erased through the first level's frames,
     are at least as continuous there as the saved map and as its plain
     2 x 2 box average (renormalised) are.
 Textures use repeat wrap (the main job's assets all do). Folders that do not
@@ -275,6 +279,25 @@ def glb_normal_checks(d, straight, failures):
                                     f"above the unerased map's {plain[level]:.4g}")
 
 
+def glb_images_are_the_files(d, failures):
+    """Every image asset.glb embeds carries the name of the texture file save
+    measured, and with obj=1 that file is beside it: its bytes, bit for bit."""
+    glb = os.path.join(d, "asset.glb")
+    if not os.path.isfile(glb):
+        return
+    doc, _, image = read_glb(glb)
+    for i, im in enumerate(doc.get("images", [])):
+        name = im.get("name")
+        if not name:
+            failures.append(f"{glb}: image {i} has no name")
+            continue
+        path = os.path.join(d, name)
+        if not os.path.isfile(path):
+            failures.append(f"{glb}: image {i} is {name}, which is not beside it")
+        elif open(path, "rb").read() != image(i):
+            failures.append(f"{glb}: image {i} differs from {name}")
+
+
 def metrics_of(report, name):
     for n in report["nodes"]:
         if n.get("name") == name:
@@ -331,6 +354,7 @@ def main():
                 if e > 2 * floor:
                     failures.append(f"{d}/{name}: energy {e:.4g} above twice the naive floor {floor:.4g}")
             print(line)
+        glb_images_are_the_files(d, failures)
         glb_normal_checks(d, straight, failures)
     if ratios:
         mean = sum(ratios) / len(ratios)

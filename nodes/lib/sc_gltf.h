@@ -57,7 +57,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_gltf (or a kernel built on it) is re-keyed. */
-#define SC_GLTF_VERSION 9
+#define SC_GLTF_VERSION 10
 extern const sc_kernel sc_kernel_gltf;
 
 /* Limits on raw vertices and triangles, against memory bombs. */
@@ -119,7 +119,7 @@ typedef struct sc_gltf_out_texture {
     const uint8_t *bytes;
     size_t size;
     const char *mime;   /* "image/png" or "image/jpeg" */
-    const char *uri;    /* for sc_gltf_write_gltf */
+    const char *uri;    /* the image file: sc_gltf_write_gltf names it, the .glb names its image so */
 } sc_gltf_out_texture;
 
 /* One .glb holding every level of detail: node 0 draws levels[0] and names

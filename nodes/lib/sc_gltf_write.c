@@ -221,7 +221,12 @@ static int write_document(glb *g_out, const sc_mesh *const *levels, int32_t nlev
             sc_buf_puts(&images, "}");
         } else {
             int32_t view = add_view(&g, textures[i].bytes, textures[i].size, 0);
-            sc_buf_printf(&images, "%s{\"bufferView\":%d,\"mimeType\":\"%s\"}", i ? "," : "", view, textures[i].mime);
+            sc_buf_printf(&images, "%s{\"bufferView\":%d,\"mimeType\":\"%s\"", i ? "," : "", view, textures[i].mime);
+            if (textures[i].uri) {   /* the file name save measured it under */
+                sc_buf_puts(&images, ",\"name\":");
+                put_string(&images, textures[i].uri);
+            }
+            sc_buf_puts(&images, "}");
         }
         sc_buf_printf(&samplers, "%s{\"magFilter\":9729,\"minFilter\":9987,\"wrapS\":%d,\"wrapT\":%d}", i ? "," : "",
                       gl_wrap(textures[i].wrap_u), gl_wrap(textures[i].wrap_v));

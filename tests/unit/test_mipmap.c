@@ -390,6 +390,49 @@ done:
     sc_value_release(atlas);
 }
 
+/* files and files_from_level choose the files alone: files = textures
+ * leaves the baked geometry image's EXR out, files_from_level = 1 level 0's
+ * PNG, none every file; the levels are the same values either way. */
+SC_TEST(files_choose_what_is_written_not_the_levels) {
+    sc_value *atlas = NULL, *baked_atlas = NULL;
+    sc_value *lods = baked_lods(&atlas, &baked_atlas);
+    if (!lods || !baked_atlas) goto done;
+    const char *textures[] = {"files", "textures", "files_from_level", "1", NULL};
+    const char *none[] = {"files", "none", NULL};
+    sc_test_run all = sc_test_run_node(&sc_node_mipmap, NULL, "atlas", baked_atlas, NULL, NULL);
+    sc_test_run tex = sc_test_run_node(&sc_node_mipmap, textures, "atlas", baked_atlas, NULL, NULL);
+    sc_test_run no = sc_test_run_node(&sc_node_mipmap, none, "atlas", baked_atlas, NULL, NULL);
+    SC_CHECK_MSG(all.rc == SC_OK && tex.rc == SC_OK && no.rc == SC_OK, "%s %s %s", all.err.message,
+                 tex.err.message, no.err.message);
+    if (all.rc == SC_OK && tex.rc == SC_OK && no.rc == SC_OK) {
+        const sc_report *ra = sc_ctx_output(all.ctx, 1)->as.report, *rt = sc_ctx_output(tex.ctx, 1)->as.report;
+        int exr_all = 0, exr = 0, level0 = 0, png = 0;
+        for (int i = 0; i < ra->nfiles; i++) exr_all += strstr(ra->files[i].path, "geometry_image.exr") != NULL;
+        SC_CHECK_INT(exr_all, 1);
+        for (int i = 0; i < rt->nfiles; i++) {
+            const char *p = rt->files[i].path;
+            exr += strstr(p, ".exr") != NULL, level0 += strstr(p, "_level0.png") != NULL;
+            png += strstr(p, "_color_level") != NULL;
+            const sc_report_file *f = find_file(ra, p);   /* the same bytes as with files = all */
+            const sc_bytes *x = rt->files[i].bytes->as.bytes, *y = f ? f->bytes->as.bytes : NULL;
+            SC_CHECK_MSG(y && x->size == y->size && memcmp(x->data, y->data, x->size) == 0, "%s", p);
+        }
+        SC_CHECK_INT(exr, 0);
+        SC_CHECK_INT(level0, 0);
+        SC_CHECK_INT(png, 6);   /* 32 ... 1 of the 64 x 64 colour */
+        SC_CHECK_INT(sc_ctx_output(no.ctx, 1)->as.report->nfiles, 0);
+        const sc_lods *la = sc_ctx_output(all.ctx, 0)->as.lods, *ln = sc_ctx_output(no.ctx, 0)->as.lods;
+        SC_CHECK_INT(ln->count, la->count);
+        for (int m = 0; m < la->count && m < ln->count; m++)
+            SC_CHECK(sc_digest_equal(sc_value_digest(la->levels[m]), sc_value_digest(ln->levels[m])));
+    }
+    sc_ctx_free(all.ctx), sc_ctx_free(tex.ctx), sc_ctx_free(no.ctx);
+done:
+    sc_value_release(baked_atlas);
+    sc_value_release(lods);
+    sc_value_release(atlas);
+}
+
 /* The procedural sphere's mesh with `colour` (taken over) as its one
  * texture; NULL when the sphere is not made. */
 static sc_value *sphere_with_colour(sc_image_data *colour) {

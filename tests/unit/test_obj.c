@@ -669,6 +669,8 @@ SC_TEST(save_then_load_is_exact) {
     sc_value *inputs[3] = {atlas, lods, NULL};
     sc_ctx *ctx = sc_ctx_new(&sc_node_save, NULL, inputs);
     sc_error err = {0};
+    char *glb = NULL;
+    size_t glb_size = 0;
     SC_CHECK(sc_ctx_set_param(ctx, "file", "thing", &err) == SC_OK);
     SC_CHECK(sc_ctx_set_param(ctx, "exr_too", "true", &err) == SC_OK);
     int rc = sc_ctx_run(ctx, &err);
@@ -693,8 +695,33 @@ SC_TEST(save_then_load_is_exact) {
         }
         check_glb_round_trip(r, atlas->as.atlas, false);
         write_report(r, dir);
+        const sc_bytes *g = report_file(r, "thing.glb");
+        glb = g ? malloc(g->size + 1) : NULL;
+        if (glb) memcpy(glb, g->data, g->size), glb[g->size] = 0, glb_size = g->size;
     }
     sc_ctx_free(ctx);
+    /* obj = false: the .glb alone, the very bytes (its images are the PNG
+     * files above, named so), and its textures measured as those files */
+    ctx = sc_ctx_new(&sc_node_save, NULL, inputs);
+    SC_CHECK(sc_ctx_set_param(ctx, "file", "thing", &err) == SC_OK);
+    SC_CHECK(sc_ctx_set_param(ctx, "obj", "false", &err) == SC_OK);
+    rc = sc_ctx_run(ctx, &err);
+    SC_CHECK_MSG(rc == SC_OK, "%s", err.message);
+    if (rc == SC_OK) {
+        const sc_report *r = sc_ctx_output(ctx, 0)->as.report;
+        const sc_bytes *g = report_file(r, "thing.glb");
+        SC_CHECK_INT(r->nfiles, 1);
+        SC_CHECK(g && glb && g->size == glb_size && memcmp(g->data, glb, glb_size) == 0);
+        SC_CHECK(glb && strstr(glb + 20, "\"name\":\"thing_skin_one_color.png\""));   /* in the JSON chunk */
+        SC_CHECK(isfinite(sc_ctx_metric_value(ctx, "thing_skin_one_normal.png.seam_energy")));
+    }
+    sc_ctx_free(ctx);
+    ctx = sc_ctx_new(&sc_node_save, NULL, inputs);
+    SC_CHECK(sc_ctx_set_param(ctx, "obj", "false", &err) == SC_OK);
+    SC_CHECK(sc_ctx_set_param(ctx, "glb", "false", &err) == SC_OK);
+    SC_CHECK(sc_ctx_run(ctx, &err) != SC_OK && message_has(&err, "nothing would hold the mesh"));
+    sc_ctx_free(ctx);
+    free(glb);
     /* .gltf + .bin in place of the .glb: the same document, its buffer beside it and the
      * textures by name; the buffer is the .glb's chunk less the embedded images */
     ctx = sc_ctx_new(&sc_node_save, NULL, inputs);
