@@ -53,16 +53,18 @@ double *sc_tangent_corner_normals(const sc_mesh *m) {
     /* the faces around each vertex (CSR), with their normals */
     int32_t *start = sc_calloc_array((size_t)m->nv + 1, sizeof *start), *at = sc_alloc_array(nc ? nc : 1, sizeof *at);
     double *fn = sc_alloc_array(m->nf ? (size_t)m->nf * 3 : 1, sizeof *fn);
-    if (!start || !at || !fn) {
-        free(start), free(at), free(fn), free(out);
+    double *angle = sc_alloc_array(nc ? nc : 1, sizeof *angle);   /* per corner, each once */
+    if (!start || !at || !fn || !angle) {
+        free(start), free(at), free(fn), free(angle), free(out);
         return NULL;
     }
     for (int32_t f = 0; f < m->nf; f++) face_normal(m, f, fn + 3 * (size_t)f);
+    for (size_t k = 0; k < nc; k++) angle[k] = corner_angle(m, (int32_t)(k / 3), (int)(k % 3));
     for (size_t k = 0; k < nc; k++) start[m->FV[k] + 1]++;
     for (int32_t v = 0; v < m->nv; v++) start[v + 1] += start[v];
     int32_t *fill = sc_alloc_array((size_t)m->nv + 1, sizeof *fill);
     if (!fill) {
-        free(start), free(at), free(fn), free(out);
+        free(start), free(at), free(fn), free(angle), free(out);
         return NULL;
     }
     memcpy(fill, start, sizeof *fill * ((size_t)m->nv + 1));
@@ -78,12 +80,12 @@ double *sc_tangent_corner_normals(const sc_mesh *m) {
             int32_t c = at[i], f = c / 3;
             const double *o = fn + 3 * (size_t)f;
             if (dot3(o, own) < smooth) continue;
-            double w = corner_angle(m, f, c % 3);
+            double w = angle[c];
             for (int d = 0; d < 3; d++) n[d] += w * o[d];
         }
         if (!normalize3(n)) memcpy(n, own, 3 * sizeof *n);
     }
-    free(start), free(at), free(fn);
+    free(start), free(at), free(fn), free(angle);
     return out;
 }
 
