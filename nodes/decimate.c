@@ -82,9 +82,12 @@
  * another face it shares no vertex with, unless it passed through it before
  * (the input's own crossings stay): two parts close together, decimated
  * apart, push through each other and show back faces (a bottle's cap ring
- * through its body). Faces live in a loose uniform grid of cells about
- * twice the mean edge long, each face in the one cell holding its box's
- * centre, built again whenever the faces fall to a quarter. With
+ * through its body). Faces live in a loose grid of levels, cells about
+ * twice the mean edge long on the finest and four times longer on each
+ * next, each face in the one cell holding its box's centre on the finest
+ * level whose cells are as long as its box's half-side, taken out the
+ * moment it moves or goes, and the grid built again whenever the faces
+ * fall to a quarter. With
  * contact_distance, an open part's border vertex within that distance of
  * another connected part is in contact: no collapse may leave it (or the
  * vertex it merges into), or a point of a border edge between two
@@ -340,34 +343,49 @@ typedef struct collapse_plan {
  * cell's memory. */
 typedef struct grid_item {
     int32_t face, v[3];   /* the face and its vertices, */
-    float lo[3], hi[3];   /* its box (float, rounded outwards), */
-    uint32_t epoch;       /* and the face's epoch when put: stale once it differs */
+    float lo[3], hi[3];   /* and its box (float, rounded outwards) */
 } grid_item;
 
-/* The items whose box centre falls in one cell, and the union of their
- * boxes (stale ones included until the cell drops them). */
+/* The items whose box centre falls in one cell, and a box holding theirs
+ * (the union of those put since the cell was last empty). */
 typedef struct grid_cell {
     grid_item *items;
     int32_t len, cap;
     float lo[3], hi[3];
 } grid_cell;
 
-/* Live faces in a loose uniform grid (refuse_crossings, contact): each face
- * is in one cell, the one holding its box's centre, or in `big` when its
- * box is more than a cell across. A query visits the cells within `reach`
- * (the largest half-side of a cell item's box) of its box, and only those
- * whose union box meets it, so it meets every face once and no face is
- * spread over cells. A face that moves or goes only steps its epoch: its
- * old item stays, stale, until its cell fills up and drops it, and queries
- * skip stale items. */
-typedef struct face_grid {
-    double lo[3], cell, inv_cell;
+/* One level of the grid: cells `cell` long from the grid's corner, and the
+ * faces whose box's half-side is at most that. */
+typedef struct grid_level {
+    double cell, inv_cell;
     int32_t n[3];
     grid_cell *cells;
-    grid_cell big;                 /* faces more than a cell across */
-    double reach;                  /* the largest half-side of a cell item's box */
+    double reach;                  /* the largest half-side of an item's box */
+    int64_t items;                 /* items put since built (none: no cell to visit) */
+    float lo[3], hi[3];            /* the union of their boxes */
+} grid_level;
+
+#define GRID_LEVELS 6              /* cells 1, 4, 16, ... 1024 times level 0's */
+
+/* Live faces in a loose hierarchical grid (refuse_crossings, contact): each
+ * face is in one cell, the one holding its box's centre, on the finest level
+ * whose cells are at least its box's half-side long (cells four times longer
+ * from one level to the next), or in `big` when its box is larger still. A
+ * query visits, on each level holding faces, the cells within that level's
+ * `reach` (the largest half-side of its items' boxes) of its box, and only
+ * those whose union box meets it, so it meets every face once and no face is
+ * spread over cells; long faces (a lantern's struts) sit on coarse levels,
+ * where a query visits a few cells, instead of in a list every query reads.
+ * A face that moves or goes is taken out of its cell at once (the cell's
+ * last item takes its place), so a query scans live faces only. */
+typedef struct face_grid {
+    bool on;
+    double lo[3];
+    grid_level level[GRID_LEVELS];
+    grid_cell big;                 /* faces larger than the coarsest level's cells */
     int32_t built_faces;           /* live faces when built */
-    uint32_t *epoch;               /* per face: bumped when it moves or goes */
+    grid_cell **home;              /* per face: its cell, NULL when not in the grid */
+    int32_t *slot;                 /* per face: its index there */
     const grid_item **found;       /* scratch: the items a query meets */
     int32_t found_cap;
     struct fan_entry *fan;         /* scratch: the new fan of a query */
@@ -1407,19 +1425,24 @@ static bool one_side(const crossing_triangle *A, const double *const Q[3], doubl
 }
 
 static void grid_free(face_grid *g) {
-    int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
-    for (int64_t c = 0; g->cells && c < cells; c++) free(g->cells[c].items);
-    free(g->cells), free(g->big.items), free(g->epoch), free(g->found);
+    for (int l = 0; l < GRID_LEVELS; l++) {
+        grid_level *L = &g->level[l];
+        int64_t cells = (int64_t)L->n[0] * L->n[1] * L->n[2];
+        for (int64_t c = 0; L->cells && c < cells; c++) free(L->cells[c].items);
+        free(L->cells);
+    }
+    free(g->big.items), free(g->home), free(g->slot), free(g->found);
     free(g->fan), free(g->fan_box), free(g->met), free(g->old_fan);
     memset(g, 0, sizeof *g);
 }
 
-/* The cell range [c0, c1] of a bounding box, clamped to the grid. */
-static void grid_range(const face_grid *g, const double lo[3], const double hi[3], int32_t c0[3], int32_t c1[3]) {
+/* The cell range [c0, c1] of a bounding box on level L, clamped to it. */
+static void grid_range(const face_grid *g, const grid_level *L, const double lo[3], const double hi[3], int32_t c0[3],
+                       int32_t c1[3]) {
     for (int k = 0; k < 3; k++) {   /* truncation is floor where it is not clamped */
-        double a = (lo[k] - g->lo[k]) * g->inv_cell, b = (hi[k] - g->lo[k]) * g->inv_cell;
-        c0[k] = !(a >= 0) ? 0 : a >= g->n[k] ? g->n[k] - 1 : (int32_t)a;
-        c1[k] = !(b >= 0) ? 0 : b >= g->n[k] ? g->n[k] - 1 : (int32_t)b;
+        double a = (lo[k] - g->lo[k]) * L->inv_cell, b = (hi[k] - g->lo[k]) * L->inv_cell;
+        c0[k] = !(a >= 0) ? 0 : a >= L->n[k] ? L->n[k] - 1 : (int32_t)a;
+        c1[k] = !(b >= 0) ? 0 : b >= L->n[k] ? L->n[k] - 1 : (int32_t)b;
     }
 }
 
@@ -1485,30 +1508,28 @@ static void face_points(const state *st, int32_t f, const double *P[3]) {
     for (int k = 0; k < 3; k++) P[k] = st->pos + 3 * st->fv[3 * f + k];
 }
 
-/* The cell's live items, stale ones dropped (order kept), and their box. */
-static void cell_compact(const face_grid *g, grid_cell *c) {
-    int32_t n = 0;
-    for (int k = 0; k < 3; k++) c->lo[k] = INFINITY, c->hi[k] = -INFINITY;
-    for (int32_t x = 0; x < c->len; x++) {
-        const grid_item *it = &c->items[x];
-        if (it->epoch != g->epoch[it->face]) continue;
-        for (int k = 0; k < 3; k++) c->lo[k] = min2f(c->lo[k], it->lo[k]), c->hi[k] = max2f(c->hi[k], it->hi[k]);
-        c->items[n++] = *it;
-    }
-    c->len = n;
+/* Take face f out of the grid (when it is in): its cell's last item takes
+ * its place. */
+static void grid_take_out(face_grid *g, int32_t f) {
+    grid_cell *c = g->home[f];
+    if (!c) return;
+    int32_t i = g->slot[f];
+    c->items[i] = c->items[--c->len];
+    g->slot[c->items[i].face] = i;
+    g->home[f] = NULL;
+    if (c->len == 0)
+        for (int k = 0; k < 3; k++) c->lo[k] = INFINITY, c->hi[k] = -INFINITY;
 }
-
-/* Take face f out of the grid: its item goes stale. */
-static void grid_take_out(face_grid *g, int32_t f) { g->epoch[f]++; }
 
 /* Put face f in the grid at its current positions; false when out of memory. */
 static bool grid_put(state *st, int32_t f) {
     face_grid *g = &st->grid;
     const double *P[3];
     double lo[3], hi[3], centre[3], half = 0;
+    grid_take_out(g, f);
     face_points(st, f, P);
     triangle_box(P, lo, hi);
-    grid_item item = {.face = f, .epoch = g->epoch[f]};
+    grid_item item = {.face = f};
     for (int k = 0; k < 3; k++) {
         item.v[k] = st->fv[3 * f + k];
         item.lo[k] = float_below(lo[k]), item.hi[k] = float_above(hi[k]);
@@ -1517,21 +1538,24 @@ static bool grid_put(state *st, int32_t f) {
         half = max2(half, 0.5 * ((double)item.hi[k] - item.lo[k]));
     }
     grid_cell *c = &g->big;
-    if (half <= g->cell) {   /* else big: one long face would widen every query */
+    int l = 0;   /* the finest level whose cells are as long as half: one long face would widen every query there */
+    while (l < GRID_LEVELS && !(half <= g->level[l].cell)) l++;
+    if (l < GRID_LEVELS) {
+        grid_level *L = &g->level[l];
         int32_t c0[3], c1[3];
-        grid_range(g, centre, centre, c0, c1);
-        c = &g->cells[((int64_t)c0[2] * g->n[1] + c0[1]) * g->n[0] + c0[0]];
-        g->reach = max2(g->reach, half);
+        grid_range(g, L, centre, centre, c0, c1);
+        c = &L->cells[((int64_t)c0[2] * L->n[1] + c0[1]) * L->n[0] + c0[0]];
+        L->reach = max2(L->reach, half);
+        L->items++;
+        for (int k = 0; k < 3; k++) L->lo[k] = min2f(L->lo[k], item.lo[k]), L->hi[k] = max2f(L->hi[k], item.hi[k]);
     }
-    if (c->len == c->cap) {   /* full: drop the stale, and grow unless half is free then */
-        cell_compact(g, c);
-        if (c->len == c->cap || c->len > c->cap / 2) {
-            int32_t cap = c->cap ? 2 * c->cap : 4;
-            grid_item *items = realloc(c->items, (size_t)cap * sizeof *items);
-            if (!items) return false;
-            c->items = items, c->cap = cap;
-        }
+    if (c->len == c->cap) {
+        int32_t cap = c->cap ? 2 * c->cap : 4;
+        grid_item *items = realloc(c->items, (size_t)cap * sizeof *items);
+        if (!items) return false;
+        c->items = items, c->cap = cap;
     }
+    g->home[f] = c, g->slot[f] = c->len;
     c->items[c->len++] = item;
     for (int k = 0; k < 3; k++) c->lo[k] = min2f(c->lo[k], item.lo[k]), c->hi[k] = max2f(c->hi[k], item.hi[k]);
     return true;
@@ -1550,28 +1574,35 @@ static bool cell_query(face_grid *g, const grid_cell *c, const float lo[3], cons
     for (int32_t x = 0; x < c->len; x++) {
         const grid_item *it = &c->items[x];
         g->found[*n] = it;
-        *n += box_meets(it->lo, it->hi, lo, hi) && it->epoch == g->epoch[it->face];
+        *n += box_meets(it->lo, it->hi, lo, hi);
     }
     return true;
 }
 
 /* The live items whose boxes meet (lo, hi) into g->found: those of the
- * cells within reach, then the big faces; their count, -1 out of memory. */
+ * cells within reach on each level, finest first, then the big faces;
+ * their count, -1 out of memory. */
 static int32_t grid_query(face_grid *g, const float lo[3], const float hi[3]) {
-    double qlo[3], qhi[3];
-    int32_t c0[3], c1[3], n = 0;
-    double reach = g->reach * (1 + 1e-9);   /* past the rounding of the sums below */
-    for (int k = 0; k < 3; k++) qlo[k] = (double)lo[k] - reach, qhi[k] = (double)hi[k] + reach;
-    grid_range(g, qlo, qhi, c0, c1);
-    for (int32_t k = c0[2]; k <= c1[2]; k++)
-        for (int32_t j = c0[1]; j <= c1[1]; j++)
-            for (int32_t i = c0[0]; i <= c1[0]; i++)
-                if (!cell_query(g, &g->cells[((int64_t)k * g->n[1] + j) * g->n[0] + i], lo, hi, &n)) return -1;
+    int32_t n = 0;
+    for (int l = 0; l < GRID_LEVELS; l++) {
+        const grid_level *L = &g->level[l];
+        if (L->items == 0 || !box_meets(L->lo, L->hi, lo, hi)) continue;
+        double qlo[3], qhi[3];
+        int32_t c0[3], c1[3];
+        double reach = L->reach * (1 + 1e-9);   /* past the rounding of the sums below */
+        for (int k = 0; k < 3; k++) qlo[k] = (double)lo[k] - reach, qhi[k] = (double)hi[k] + reach;
+        grid_range(g, L, qlo, qhi, c0, c1);
+        for (int32_t k = c0[2]; k <= c1[2]; k++)
+            for (int32_t j = c0[1]; j <= c1[1]; j++)
+                for (int32_t i = c0[0]; i <= c1[0]; i++)
+                    if (!cell_query(g, &L->cells[((int64_t)k * L->n[1] + j) * L->n[0] + i], lo, hi, &n)) return -1;
+    }
     return cell_query(g, &g->big, lo, hi, &n) ? n : -1;
 }
 
-/* The grid over the live faces: cells twice their mean edge long, at most
- * about four per face. */
+/* The grid over the live faces: the finest level's cells twice their mean
+ * edge long, at most about four per face; each next level's four times
+ * longer. */
 static bool grid_build(state *st) {
     face_grid *g = &st->grid;
     grid_free(g);
@@ -1592,17 +1623,22 @@ static bool grid_build(state *st) {
     double most = 4.0 * st->nf_alive + 64;
     if (volume / (cell * cell * cell) > most) cell = cbrt(volume / most);
     if (!(cell > 0)) cell = 1;
-    for (int d = 0; d < 3; d++) {
-        g->lo[d] = lo[d];
-        g->n[d] = (int32_t)fmin(fmax(ceil((hi[d] - lo[d]) / cell), 1), 1 << 20);
+    for (int d = 0; d < 3; d++) g->lo[d] = lo[d];
+    g->on = true;
+    for (int l = 0; l < GRID_LEVELS; l++, cell *= 4) {
+        grid_level *L = &g->level[l];
+        for (int d = 0; d < 3; d++) L->n[d] = (int32_t)fmin(fmax(ceil((hi[d] - lo[d]) / cell), 1), 1 << 20);
+        L->cell = cell, L->inv_cell = 1 / cell;
+        int64_t cells = (int64_t)L->n[0] * L->n[1] * L->n[2];
+        L->cells = calloc((size_t)cells, sizeof *L->cells);
+        if (!L->cells) return false;
+        for (int64_t c = 0; c < cells; c++)
+            for (int k = 0; k < 3; k++) L->cells[c].lo[k] = INFINITY, L->cells[c].hi[k] = -INFINITY;
+        for (int k = 0; k < 3; k++) L->lo[k] = INFINITY, L->hi[k] = -INFINITY;
     }
-    g->cell = cell, g->inv_cell = 1 / cell;
-    int64_t cells = (int64_t)g->n[0] * g->n[1] * g->n[2];
-    g->cells = calloc((size_t)cells, sizeof *g->cells);
-    g->epoch = calloc((size_t)st->nf, sizeof *g->epoch);
-    if (!g->cells || !g->epoch) return false;
-    for (int64_t c = 0; c < cells; c++)
-        for (int k = 0; k < 3; k++) g->cells[c].lo[k] = INFINITY, g->cells[c].hi[k] = -INFINITY;
+    g->home = calloc((size_t)st->nf, sizeof *g->home);
+    g->slot = calloc((size_t)st->nf, sizeof *g->slot);
+    if (!g->home || !g->slot) return false;
     for (int k = 0; k < 3; k++) g->big.lo[k] = INFINITY, g->big.hi[k] = -INFINITY;
     g->built_faces = st->nf_alive;
     for (int32_t f = 0; f < st->nf; f++)
@@ -1669,7 +1705,7 @@ static bool grow_met(face_grid *grid, int32_t need) {
  * faces whose boxes it meets. */
 static bool crossings_ok(state *st, const collapse_plan *p) {
     face_grid *grid = &st->grid;
-    if (!grid->cells) return true;
+    if (!grid->on) return true;
     int32_t need = st->vf_len[p->keep] + st->vf_len[p->gone];
     if (need > grid->fan_cap) {
         fan_entry *fan = realloc(grid->fan, (size_t)need * sizeof *fan);
@@ -2124,7 +2160,7 @@ static bool merge_lists(state *st, int32_t keep, int32_t gone) {
 
 static bool apply_plan(state *st, const collapse_plan *p) {
     int32_t keep = p->keep, gone = p->gone;
-    if (st->grid.cells)   /* the fans' faces move (or go): out of the grid at their old places */
+    if (st->grid.on)   /* the fans' faces move (or go): out of the grid at their old places */
         for (int side = 0; side < 2; side++) {
             int32_t n;
             const int32_t *list = vfaces(st, side ? gone : keep, &n);
@@ -2179,7 +2215,7 @@ static bool apply_plan(state *st, const collapse_plan *p) {
         st->fz[3 * f + k] = z;
     }
     if (!merge_lists(st, keep, gone)) return false;
-    if (st->grid.cells) {
+    if (st->grid.on) {
         list = vfaces(st, keep, &n);
         for (int32_t i = 0; i < n; i++)
             if (st->falive[list[i]] && !grid_put(st, list[i])) return false;
@@ -3511,7 +3547,7 @@ static bool decimate_to(state *st, int64_t target) {
          * one cost more than dropping them in bulk) */
         int64_t edge_bound = (3 * (int64_t)st->nf_alive + st->border_edges) / 2;
         if (st->heap_len > edge_bound * 5 / 4 + 1024) heap_compact(st);
-        if (st->grid.cells && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
+        if (st->grid.on && st->nf_alive < st->grid.built_faces / 4 && !grid_build(st)) {
             st->out_of_memory = true;
             break;
         }
