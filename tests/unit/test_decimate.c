@@ -1159,9 +1159,9 @@ SC_TEST(refused_crossings_keep_nested_parts_apart) {
 }
 
 /* A lens around a flat square of two faces, each far wider than the grid's
- * cells (which follow the lens's short edges): the crossing check finds such
- * faces in the grid's list of wide faces. Decimated far, the top cap
- * flattens through the square unless crossings are refused. */
+ * finest cells (which follow the mean edge): the crossing check finds such
+ * faces on a coarser level of the grid. Decimated far, the top cap flattens
+ * through the square unless crossings are refused. */
 SC_TEST(refused_crossings_see_faces_wider_than_a_cell) {
     sc_value *lens = thin_lens(10, 40, 0.06);
     if (!lens) return;
