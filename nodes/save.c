@@ -223,6 +223,8 @@ typedef struct written {
     char ext[8];
     char *path;
     sc_buf kept;
+    const uint8_t *data;   /* its bytes: the report's file, or kept */
+    size_t size;
 } written;
 
 typedef struct saver {
@@ -231,6 +233,7 @@ typedef struct saver {
     const char *name, *format;
     bool exr_too;
     bool obj;                 /* OBJ and MTL files */
+    bool separate;            /* gltf_form gltf: .gltf + .bin naming texture files */
     bool texture_files;       /* textures as files (obj, or gltf_form gltf); else only inside the .glb */
     double max_seam_gap;      /* a file whose decoded seams open wider than its image's, by more, fails */
     written *files;
@@ -340,6 +343,12 @@ static int save_image(saver *s, const sc_value *image, const seam_place *at, con
         }
         w = &s->files[s->nfiles++];
         w->kept = b;   /* empty when the report took the bytes */
+        if (as_file) {
+            const sc_bytes *in_report = s->report->files[s->report->nfiles - 1].bytes->as.bytes;
+            w->data = in_report->data, w->size = in_report->size;
+        } else {
+            w->data = (const uint8_t *)w->kept.data, w->size = w->kept.len;
+        }
         w->digest = *sc_value_digest(image);
         snprintf(w->ext, sizeof w->ext, "%s", exts[e]);
         w->path = file;
@@ -445,17 +454,12 @@ static int save_glb(saver *s, const sc_atlas *atlas, const sc_lods *lods, sc_err
     if (atlas) levels[k++] = atlas->mesh->as.mesh;
     for (int32_t l = 0; lods && l < lods->count; l++) levels[k++] = lods->levels[l]->as.atlas->mesh->as.mesh;
     for (int i = 0; i < s->nglb; i++) {
-        for (int32_t f = 0; f < s->report->nfiles; f++)
-            if (strcmp(s->report->files[f].path, s->glb_path[i]) == 0) {
-                const sc_bytes *b = s->report->files[f].bytes->as.bytes;
-                s->glb_tex[i].bytes = b->data, s->glb_tex[i].size = b->size;
-            }
         for (int w = 0; w < s->nfiles; w++)
-            if (s->files[w].path == s->glb_path[i] && s->files[w].kept.len)
-                s->glb_tex[i].bytes = (const uint8_t *)s->files[w].kept.data, s->glb_tex[i].size = s->files[w].kept.len;
+            if (s->files[w].path == s->glb_path[i])
+                s->glb_tex[i].bytes = s->files[w].data, s->glb_tex[i].size = s->files[w].size;
+        s->glb_tex[i].uri = s->glb_path[i];
     }
-    for (int i = 0; i < s->nglb; i++) s->glb_tex[i].uri = s->glb_path[i];
-    bool separate = strcmp(sc_ctx_string(s->ctx, "gltf_form"), "gltf") == 0;
+    const bool separate = s->separate;
     sc_buf b, bin;
     sc_buf_init(&b), sc_buf_init(&bin);
     char *file = sc_strprintf("%s.%s", s->name, separate ? "gltf" : "glb");
@@ -478,11 +482,12 @@ static int run(sc_ctx *ctx, sc_error *err) {
     const sc_atlas *atlas = sc_ctx_atlas(ctx, "atlas");
     const sc_lods *lods = sc_ctx_lods(ctx, "lods");
     const sc_value *image = sc_ctx_input(ctx, "image");
-    const bool glb = sc_ctx_bool(ctx, "glb"), separate = strcmp(sc_ctx_string(ctx, "gltf_form"), "gltf") == 0;
+    const bool glb = sc_ctx_bool(ctx, "glb");
     saver s = {.ctx = ctx, .name = sc_ctx_string(ctx, "file"), .format = sc_ctx_string(ctx, "format"),
                .exr_too = sc_ctx_bool(ctx, "exr_too"), .obj = sc_ctx_bool(ctx, "obj"),
+               .separate = strcmp(sc_ctx_string(ctx, "gltf_form"), "gltf") == 0,
                .max_seam_gap = sc_ctx_number(ctx, "max_seam_gap")};
-    s.texture_files = s.obj || !glb || separate;
+    s.texture_files = s.obj || !glb || s.separate;
     int rc = check_name(s.name, err);
     if (rc) return sc_error_prefix(err, "file");
     if (!atlas && !lods && !image)
