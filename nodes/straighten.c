@@ -762,11 +762,16 @@ static int warp_interior(const sc_mesh *m, const int32_t *chart, const bool *mov
 
 /* ---------------------------------------------------------------- signal warp */
 
-/* Distance in texel space from p to triangle t (0 inside). */
-static double triangle_distance(const double t[3][2], double px, double py) {
+/* Whether triangle t holds p (its edges included). */
+static bool triangle_holds(const double t[3][2], double px, double py) {
     double p[2] = {px, py};
     double s0 = sc_orient2(t[0], t[1], p), s1 = sc_orient2(t[1], t[2], p), s2 = sc_orient2(t[2], t[0], p);
-    if ((s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0)) return 0;
+    return (s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0);
+}
+
+/* Distance in texel space from p to triangle t (0 inside). */
+static double triangle_distance(const double t[3][2], double px, double py) {
+    if (triangle_holds(t, px, py)) return 0;
     double ex[3], ey[3], d2[3], least = DBL_MAX;
     for (int k = 0; k < 3; k++) {
         const double *a = t[k], *b = t[(k + 1) % 3];
@@ -800,59 +805,136 @@ typedef struct warp_job {
     float *dp;                    /* the new one: its f32 copy, warped where a moved face claims */
     float *best;                  /* per texel: the claiming face's distance */
     int32_t *owner, *lattice;     /* per texel: the claiming face, and the lattice point it claimed */
+    const uint8_t *reach;         /* per texel: 1 where a moved face may claim it (within its box and pad) */
+    const int32_t *reach_lo, *reach_hi;   /* per row: its first and last reached texel (none: lo > hi) */
 } warp_job;
+
+/* A face's lattice box in texel space, widened by pad: the texels it may
+ * claim lie in it. False for a face that claims none. */
+static bool face_box(const double *Unew, const int32_t *fu, int32_t W, int32_t H, int32_t pad, double t[3][2],
+                     int64_t box[4]) {
+    double lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+    for (int k = 0; k < 3; k++) {
+        t[k][0] = Unew[2 * fu[k]] * W - 0.5;
+        t[k][1] = Unew[2 * fu[k] + 1] * H - 0.5;
+        for (int c = 0; c < 2; c++) lo[c] = fmin(lo[c], t[k][c]), hi[c] = fmax(hi[c], t[k][c]);
+    }
+    if (!(fabs(sc_orient2(t[0], t[1], t[2])) > 0)) return false;
+    if (hi[0] - lo[0] > 2.0 * W + 2 * pad || hi[1] - lo[1] > 2.0 * H + 2 * pad) return false;
+    box[0] = (int64_t)ceil(lo[0] - pad), box[1] = (int64_t)floor(hi[0] + pad);
+    box[2] = (int64_t)ceil(lo[1] - pad), box[3] = (int64_t)floor(hi[1] + pad);
+    return true;
+}
+
+/* The texels a lattice point (i, j) lands on, or -1 off a clamped side. */
+static int64_t lattice_texel(int64_t i, int64_t j, int32_t W, int32_t H, const sc_texture *tex) {
+    if ((tex->wrap_u == SC_WRAP_CLAMP && (i < 0 || i >= W)) || (tex->wrap_v == SC_WRAP_CLAMP && (j < 0 || j >= H)))
+        return -1;
+    int32_t ii = tex->wrap_u == SC_WRAP_CLAMP ? (int32_t)i : sc_seam_wrap(i, W, tex->wrap_u);
+    int32_t jj = tex->wrap_v == SC_WRAP_CLAMP ? (int32_t)j : sc_seam_wrap(j, H, tex->wrap_v);
+    return (int64_t)jj * W + ii;
+}
+
+/* The texels a moved face may claim: only there can the claim change a
+ * texel, so only there is every face's distance needed. A point within pad
+ * of the triangle lies within pad (and a rounding's slack) of the inner side
+ * of each of its edges' lines: a cheap test that keeps every such texel. */
+static void mark_reach(const sc_mesh *m, const double *Unew, const bool *face_moved, const sc_texture *tex,
+                       int32_t W, int32_t H, int32_t pad, uint8_t *reach, int32_t *reach_lo, int32_t *reach_hi) {
+    for (int32_t j = 0; j < H; j++) reach_lo[j] = W, reach_hi[j] = -1;
+    for (int32_t f = 0; f < m->nf; f++) {
+        double t[3][2];
+        int64_t box[4];
+        if (!face_moved[f] || m->FM[f] != tex->material || !face_box(Unew, m->FU + 3 * f, W, H, pad, t, box)) continue;
+        double side = sc_orient2(t[0], t[1], t[2]) > 0 ? 1.0 : -1.0, least[3];
+        for (int k = 0; k < 3; k++) {
+            const double *a = t[k], *b = t[(k + 1) % 3];
+            least[k] = -(pad + 1e-3) * hypot(b[0] - a[0], b[1] - a[1]);
+        }
+        for (int64_t j = box[2]; j <= box[3]; j++)
+            for (int64_t i = box[0]; i <= box[1]; i++) {
+                double p[2] = {(double)i, (double)j};
+                if (side * sc_orient2(t[0], t[1], p) < least[0] || side * sc_orient2(t[1], t[2], p) < least[1] ||
+                    side * sc_orient2(t[2], t[0], p) < least[2])
+                    continue;
+                int64_t id = lattice_texel(i, j, W, H, tex);
+                if (id < 0) continue;
+                int32_t row = (int32_t)(id / W), col = (int32_t)(id % W);
+                reach[id] = 1;
+                reach_lo[row] = col < reach_lo[row] ? col : reach_lo[row];
+                reach_hi[row] = col > reach_hi[row] ? col : reach_hi[row];
+            }
+    }
+}
+
+/* Face f's claims in the band's rows [row0, row1), on the texels a moved
+ * face reaches. Inside pass: the texels f holds that no earlier face holds.
+ * Outside pass: the texels no face holds, within pad of f and nearer it
+ * than the faces before. Together they give each texel the nearest face,
+ * the first in order among equals, as one pass over every face and texel
+ * would; texels inside a face, most of them, skip the distance. */
+static void claim(const warp_job *J, int32_t f, int32_t row0, int32_t row1, bool inside_pass) {
+    const sc_texture *tex = J->tex;
+    const int32_t W = J->W, H = J->H, pad = J->pad;
+    float *best = J->best;
+    double t[3][2];
+    int64_t box[4];
+    if (!face_box(J->Unew, J->m->FU + 3 * f, W, H, pad, t, box)) return;
+    int64_t i0 = box[0], i1 = box[1], j0 = box[2], j1 = box[3];
+    if (tex->wrap_v == SC_WRAP_CLAMP) j0 = j0 > row0 ? j0 : row0, j1 = j1 < row1 - 1 ? j1 : row1 - 1;
+    for (int64_t j = j0; j <= j1; j++) {
+        int32_t jj = tex->wrap_v == SC_WRAP_CLAMP ? (int32_t)j : sc_seam_wrap(j, H, tex->wrap_v);
+        if (jj < row0 || jj >= row1 || J->reach_lo[jj] > J->reach_hi[jj]) continue;
+        const bool within = i0 >= 0 && i1 < W;   /* a box inside the texture: only the row's reached span */
+        int64_t from = within && i0 < J->reach_lo[jj] ? J->reach_lo[jj] : i0;
+        int64_t to = within && i1 > J->reach_hi[jj] ? J->reach_hi[jj] : i1;
+        for (int64_t i = from; i <= to; i++) {
+            int32_t ii;
+            if (within) {
+                ii = (int32_t)i;
+            } else if (tex->wrap_u == SC_WRAP_CLAMP) {
+                if (i < 0 || i >= W) continue;
+                ii = (int32_t)i;
+            } else {
+                ii = sc_seam_wrap(i, W, tex->wrap_u);
+            }
+            size_t id = (size_t)jj * W + ii;
+            if (!J->reach[id] || best[id] == 0) continue;   /* kept as it is, or held by an earlier face */
+            double d;
+            if (inside_pass) {
+                if (!triangle_holds(t, (double)i, (double)j)) continue;
+                d = 0;
+            } else {
+                d = triangle_distance(t, (double)i, (double)j);
+                if (d > pad || !((float)d < best[id])) continue;
+            }
+            best[id] = (float)d;
+            J->owner[id] = f;
+            J->lattice[2 * id] = (int32_t)i;
+            J->lattice[2 * id + 1] = (int32_t)j;
+        }
+    }
+}
 
 static int warp_band(void *ud, int32_t band) {
     const warp_job *J = ud;
     const sc_mesh *m = J->m;
     const double *Unew = J->Unew;
     const sc_texture *tex = J->tex;
-    const int32_t W = J->W, H = J->H, C = J->C, pad = J->pad;
+    const int32_t W = J->W, H = J->H, C = J->C;
     const int32_t row0 = band * J->rows, row1 = row0 + J->rows < H ? row0 + J->rows : H;
     float *best = J->best;
     int32_t *owner = J->owner, *lattice = J->lattice;
-    for (size_t i = (size_t)row0 * W; i < (size_t)row1 * W; i++) best[i] = FLT_MAX, owner[i] = -1;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (m->FM[f] != tex->material) continue;
-        const int32_t *fu = m->FU + 3 * f;
-        double t[3][2];
-        double lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
-        for (int k = 0; k < 3; k++) {
-            t[k][0] = Unew[2 * fu[k]] * W - 0.5;
-            t[k][1] = Unew[2 * fu[k] + 1] * H - 0.5;
-            for (int c = 0; c < 2; c++) lo[c] = fmin(lo[c], t[k][c]), hi[c] = fmax(hi[c], t[k][c]);
-        }
-        if (!(fabs(sc_orient2(t[0], t[1], t[2])) > 0)) continue;
-        if (hi[0] - lo[0] > 2.0 * W + 2 * pad || hi[1] - lo[1] > 2.0 * H + 2 * pad) continue;
-        int64_t i0 = (int64_t)ceil(lo[0] - pad), i1 = (int64_t)floor(hi[0] + pad);
-        int64_t j0 = (int64_t)ceil(lo[1] - pad), j1 = (int64_t)floor(hi[1] + pad);
-        if (tex->wrap_v == SC_WRAP_CLAMP) j0 = j0 > row0 ? j0 : row0, j1 = j1 < row1 - 1 ? j1 : row1 - 1;
-        for (int64_t j = j0; j <= j1; j++) {
-            int32_t jj = tex->wrap_v == SC_WRAP_CLAMP ? (int32_t)j : sc_seam_wrap(j, H, tex->wrap_v);
-            if (jj < row0 || jj >= row1) continue;
-            for (int64_t i = i0; i <= i1; i++) {
-                int32_t ii;
-                if (tex->wrap_u == SC_WRAP_CLAMP) {
-                    if (i < 0 || i >= W) continue;
-                    ii = (int32_t)i;
-                } else {
-                    ii = sc_seam_wrap(i, W, tex->wrap_u);
-                }
-                double d = triangle_distance(t, (double)i, (double)j);
-                if (d > pad) continue;
-                size_t id = (size_t)jj * W + ii;
-                if ((float)d < best[id]) {
-                    best[id] = (float)d;
-                    owner[id] = f;
-                    lattice[2 * id] = (int32_t)i;
-                    lattice[2 * id + 1] = (int32_t)j;
-                }
-            }
-        }
-    }
+    bool any = false;   /* only texels a moved face reaches are claimed, and only they touch the arrays */
+    for (size_t i = (size_t)row0 * W; i < (size_t)row1 * W; i++)
+        if (J->reach[i]) best[i] = FLT_MAX, owner[i] = -1, any = true;
+    for (int pass = 0; pass < 2 && any; pass++)
+        for (int32_t f = 0; f < m->nf; f++)
+            if (m->FM[f] == tex->material) claim(J, f, row0, row1, pass == 0);
     const sc_seam_grid grid = {W, H, tex->wrap_u, tex->wrap_v};
     double sample[4];
     for (size_t id = (size_t)row0 * W; id < (size_t)row1 * W; id++) {
+        if (!J->reach[id]) continue;
         int32_t f = owner[id];
         if (f < 0 || !J->face_moved[f]) continue;
         const int32_t *fu = m->FU + 3 * f;
@@ -886,17 +968,20 @@ static int warp_texture(const sc_mesh *m, const double *Unew, const bool *face_m
     float *best = sc_alloc_array(npx, sizeof(float));
     int32_t *owner = sc_alloc_array(npx, sizeof(int32_t));
     int32_t *lattice = sc_alloc_array(npx * 2, sizeof(int32_t));
+    uint8_t *reach = sc_calloc_array(npx, 1);
+    int32_t *reach_lo = sc_alloc_array((size_t)H * 2, sizeof(int32_t)), *reach_hi = reach_lo ? reach_lo + H : NULL;
     const sc_seam_reader as_stored = {0};
-    if (!dst || !best || !owner || !lattice) {
-        sc_image_free(dst), free(best), free(owner), free(lattice);
+    if (!dst || !best || !owner || !lattice || !reach || !reach_lo) {
+        sc_image_free(dst), free(best), free(owner), free(lattice), free(reach), free(reach_lo);
         return sc_fail(err, SC_ENOMEM, "straighten: out of memory for the %s texture", tex->name);
     }
+    mark_reach(m, Unew, face_moved, tex, W, H, pad, reach, reach_lo, reach_hi);
     warp_job J = {m, Unew, face_moved, tex, pad, W, H, C, WARP_BAND_ROWS, src, &as_stored, dst->pixels, best, owner,
-                  lattice};
+                  lattice, reach, reach_lo, reach_hi};
     int32_t bands = (H + WARP_BAND_ROWS - 1) / WARP_BAND_ROWS;
     if (sc_parallel(threads, bands, warp_band, &J) != SC_OK)
         for (int32_t b = 0; b < bands; b++) warp_band(&J, b);
-    free(best), free(owner), free(lattice);
+    free(best), free(owner), free(lattice), free(reach), free(reach_lo);
     *out = dst;
     return SC_OK;
 }

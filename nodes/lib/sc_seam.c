@@ -49,6 +49,11 @@ static int64_t cell_of(double x) {
 }
 
 static void cell_ids(const sc_seam_grid *g, int64_t cx, int64_t cy, int32_t id[4]) {
+    if (cx >= 0 && cy >= 0 && cx + 1 < g->width && cy + 1 < g->height) {   /* inside: no wrap to apply */
+        int32_t at = (int32_t)cy * g->width + (int32_t)cx;
+        id[0] = at, id[1] = at + 1, id[2] = at + g->width, id[3] = at + g->width + 1;
+        return;
+    }
     int32_t i0 = sc_seam_wrap(cx, g->width, g->wrap_u);
     int32_t i1 = sc_seam_wrap(cx + 1, g->width, g->wrap_u);
     int32_t j0 = sc_seam_wrap(cy, g->height, g->wrap_v);
@@ -1396,6 +1401,25 @@ void sc_seam_sample_read(const sc_seam_grid *g, const sc_image_data *img, const 
     int32_t id[4];
     double w[4];
     sc_seam_taps(g, u, v, id, w);
+    const size_t C = (size_t)img->channels;
+    if (!r->any && img->pixel == SC_PIXEL_U8) {   /* read as stored, the common case: sc_seam_texel's values */
+        const uint8_t *px = img->pixels;
+        for (size_t c = 0; c < C; c++) {
+            double s = 0;
+            for (int k = 0; k < 4; k++) s += w[k] * (double)(px[(size_t)id[k] * C + c] * (1.0f / 255.0f));
+            out[c] = s;
+        }
+        return;
+    }
+    if (!r->any && img->pixel == SC_PIXEL_F32) {
+        const float *px = img->pixels;
+        for (size_t c = 0; c < C; c++) {
+            double s = 0;
+            for (int k = 0; k < 4; k++) s += w[k] * (double)px[(size_t)id[k] * C + c];
+            out[c] = s;
+        }
+        return;
+    }
     for (int32_t c = 0; c < img->channels; c++) {
         double s = 0;
         for (int k = 0; k < 4; k++) s += w[k] * sc_seam_read(img, r, id[k], c);
