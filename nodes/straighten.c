@@ -899,13 +899,15 @@ static void claim(const warp_job *J, int32_t f, int32_t row0, int32_t row1, bool
                 ii = sc_seam_wrap(i, W, tex->wrap_u);
             }
             size_t id = (size_t)jj * W + ii;
-            if (!J->reach[id] || best[id] == 0) continue;   /* kept as it is, or held by an earlier face */
-            double d;
+            if (!J->reach[id]) continue;   /* kept as it is */
+            double d, p[2] = {(double)i, (double)j};
             if (inside_pass) {
-                if (!triangle_holds(t, (double)i, (double)j)) continue;
+                if (best[id] == 0 || !triangle_holds(t, p[0], p[1])) continue;   /* held by an earlier face */
                 d = 0;
+            } else if (best[id] == 0) {
+                continue;   /* held, or already at distance 0 */
             } else {
-                d = triangle_distance(t, (double)i, (double)j);
+                d = triangle_distance(t, p[0], p[1]);
                 if (d > pad || !((float)d < best[id])) continue;
             }
             best[id] = (float)d;
@@ -1462,7 +1464,7 @@ static const sc_kernel *const kernels[] = {&sc_kernel_erase, &sc_kernel_seam, &s
 
 const sc_node_desc sc_node_straighten = {
     .type = "straighten",
-    .version = 10,
+    .version = 11,
     .summary = "straighten seams and boundaries in uv (Liu et al. 2017 §6) and warp the textures to match",
     .inputs = inputs,
     .ninputs = SC_COUNT(inputs),

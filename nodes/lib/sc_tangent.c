@@ -212,19 +212,22 @@ void sc_tangent_texels_free(sc_tangent_texels *t) {
     *t = (sc_tangent_texels){0};
 }
 
+/* Whether triangle (x[k], y[k]) holds (px, py), and then its barycentrics. */
+static bool triangle_holds(const double x[3], const double y[3], double px, double py, double b[3]) {
+    double d = (y[1] - y[2]) * (x[0] - x[2]) + (x[2] - x[1]) * (y[0] - y[2]);
+    if (d == 0) return false;
+    double b0 = ((y[1] - y[2]) * (px - x[2]) + (x[2] - x[1]) * (py - y[2])) / d;
+    double b1 = ((y[2] - y[0]) * (px - x[2]) + (x[0] - x[2]) * (py - y[2])) / d;
+    double b2 = 1 - b0 - b1;
+    if (!(b0 >= 0 && b1 >= 0 && b2 >= 0)) return false;
+    b[0] = b0, b[1] = b1, b[2] = b2;
+    return true;
+}
+
 /* The nearest point of triangle (x[k], y[k]) to (px, py): its barycentrics
  * and squared distance. */
 static double nearest_on_triangle(const double x[3], const double y[3], double px, double py, double b[3]) {
-    double d = (y[1] - y[2]) * (x[0] - x[2]) + (x[2] - x[1]) * (y[0] - y[2]);
-    if (d != 0) {
-        double b0 = ((y[1] - y[2]) * (px - x[2]) + (x[2] - x[1]) * (py - y[2])) / d;
-        double b1 = ((y[2] - y[0]) * (px - x[2]) + (x[0] - x[2]) * (py - y[2])) / d;
-        double b2 = 1 - b0 - b1;
-        if (b0 >= 0 && b1 >= 0 && b2 >= 0) {
-            b[0] = b0, b[1] = b1, b[2] = b2;
-            return 0;
-        }
-    }
+    if (triangle_holds(x, y, px, py, b)) return 0;
     double best = INFINITY;
     for (int e = 0; e < 3; e++) {
         int i = e, j = (e + 1) % 3;
@@ -242,7 +245,10 @@ static double nearest_on_triangle(const double x[3], const double y[3], double p
 }
 
 /* sc_tangent_texels_build's work, in bands of rows side by side: a band
- * takes every face in order for its own texels, as one pass would. */
+ * takes every face in order for its own texels, as one pass would: first
+ * the texels each face holds (the first face among those holding one), then
+ * the nearest face within the band of the texels none holds (the first
+ * among equals), so a held texel skips the distance to every other face. */
 typedef struct texels_job {
     const sc_mesh *m;
     int32_t material;
@@ -254,40 +260,54 @@ typedef struct texels_job {
 
 #define TEXELS_BAND_ROWS 64
 
-static int texels_band(void *ud, int32_t chunk) {
-    const texels_job *J = ud;
+/* Face f's texels in rows [row0, row1): those it holds (inside pass), or
+ * those no face holds that it is the nearest to so far. */
+static void texels_face(const texels_job *J, int32_t f, int32_t row0, int32_t row1, bool inside_pass) {
     const sc_mesh *m = J->m;
     const sc_seam_grid *g = J->g;
     sc_tangent_texels *out = J->out;
     const int32_t W = g->width, H = g->height;
-    const int32_t row0 = chunk * TEXELS_BAND_ROWS, row1 = row0 + TEXELS_BAND_ROWS < H ? row0 + TEXELS_BAND_ROWS : H;
     const double band = J->band;
     float *dist = J->dist;
-    for (size_t i = (size_t)row0 * W; i < (size_t)row1 * W; i++) out->face[i] = -1, dist[i] = INFINITY;
-    for (int32_t f = 0; f < m->nf; f++) {
-        if (J->material >= 0 && m->FM[f] != J->material) continue;
-        double x[3], y[3];
-        for (int c = 0; c < 3; c++) {
-            const double *U = m->U + 2 * (size_t)m->FU[3 * f + c];
-            x[c] = U[0] * W - 0.5, y[c] = U[1] * H - 0.5;
-        }
-        double x0 = fmin(x[0], fmin(x[1], x[2])) - band, x1 = fmax(x[0], fmax(x[1], x[2])) + band;
-        double y0 = fmin(y[0], fmin(y[1], y[2])) - band, y1 = fmax(y[0], fmax(y[1], y[2])) + band;
-        if (!(x1 - x0 < 4.0 * W + 2 * band && y1 - y0 < 4.0 * H + 2 * band)) continue;   /* uv far beyond the tile */
-        for (int64_t j = (int64_t)ceil(y0); j <= (int64_t)floor(y1); j++) {
-            int32_t jj = sc_seam_wrap(j, H, g->wrap_v);
-            if (jj < row0 || jj >= row1) continue;
-            for (int64_t i = (int64_t)ceil(x0); i <= (int64_t)floor(x1); i++) {
-                double b[3] = {1, 0, 0};
-                double d2 = nearest_on_triangle(x, y, (double)i, (double)j, b);
-                if (d2 > band * band) continue;
-                size_t id = (size_t)jj * W + sc_seam_wrap(i, W, g->wrap_u);
-                if (!(d2 < dist[id])) continue;
-                dist[id] = (float)d2, out->face[id] = f;
-                out->bary[2 * id] = (float)b[1], out->bary[2 * id + 1] = (float)b[2];
+    double x[3], y[3];
+    for (int c = 0; c < 3; c++) {
+        const double *U = m->U + 2 * (size_t)m->FU[3 * f + c];
+        x[c] = U[0] * W - 0.5, y[c] = U[1] * H - 0.5;
+    }
+    double x0 = fmin(x[0], fmin(x[1], x[2])) - band, x1 = fmax(x[0], fmax(x[1], x[2])) + band;
+    double y0 = fmin(y[0], fmin(y[1], y[2])) - band, y1 = fmax(y[0], fmax(y[1], y[2])) + band;
+    if (!(x1 - x0 < 4.0 * W + 2 * band && y1 - y0 < 4.0 * H + 2 * band)) return;   /* uv far beyond the tile */
+    const int64_t i0 = (int64_t)ceil(x0), i1 = (int64_t)floor(x1);
+    const bool within = i0 >= 0 && i1 < W;   /* no column to wrap */
+    for (int64_t j = (int64_t)ceil(y0); j <= (int64_t)floor(y1); j++) {
+        int32_t jj = j >= 0 && j < H ? (int32_t)j : sc_seam_wrap(j, H, g->wrap_v);
+        if (jj < row0 || jj >= row1) continue;
+        for (int64_t i = i0; i <= i1; i++) {
+            size_t id = (size_t)jj * W + (within ? (int32_t)i : sc_seam_wrap(i, W, g->wrap_u));
+            double b[3] = {1, 0, 0}, d2 = 0;
+            if (inside_pass) {
+                if (dist[id] == 0 || !triangle_holds(x, y, (double)i, (double)j, b)) continue;   /* an earlier face's */
+            } else if (dist[id] == 0) {
+                continue;   /* held, or already at distance 0 */
+            } else {
+                d2 = nearest_on_triangle(x, y, (double)i, (double)j, b);
+                if (d2 > band * band || !(d2 < dist[id])) continue;
             }
+            dist[id] = (float)d2, out->face[id] = f;
+            out->bary[2 * id] = (float)b[1], out->bary[2 * id + 1] = (float)b[2];
         }
     }
+}
+
+static int texels_band(void *ud, int32_t chunk) {
+    const texels_job *J = ud;
+    const sc_mesh *m = J->m;
+    const int32_t W = J->g->width, H = J->g->height;
+    const int32_t row0 = chunk * TEXELS_BAND_ROWS, row1 = row0 + TEXELS_BAND_ROWS < H ? row0 + TEXELS_BAND_ROWS : H;
+    for (size_t i = (size_t)row0 * W; i < (size_t)row1 * W; i++) J->out->face[i] = -1, J->dist[i] = INFINITY;
+    for (int pass = 0; pass < 2; pass++)
+        for (int32_t f = 0; f < m->nf; f++)
+            if (J->material < 0 || m->FM[f] == J->material) texels_face(J, f, row0, row1, pass == 0);
     return SC_OK;
 }
 

@@ -43,7 +43,7 @@
 
 /* Bump whenever results of this library can change for the same inputs:
  * every node listing sc_kernel_tangent (or a kernel built on it) is re-keyed. */
-#define SC_TANGENT_VERSION 1
+#define SC_TANGENT_VERSION 2
 extern const sc_kernel sc_kernel_tangent;
 
 #define SC_TANGENT_SMOOTH_DEGREES 60.0
@@ -71,8 +71,9 @@ void sc_tangent_frame_at(const sc_tangent_frames *f, int32_t face, const double 
 
 /* The face each texel of a grid takes its frame from: the face of
  * `material` whose uv triangle holds the texel centre, else the nearest one
- * within `band` texels (the frame at the nearest point of the triangle);
- * face -1 for texels further from every face. Texels are taken through the
+ * within `band` texels (the frame at the nearest point of the triangle),
+ * the first in face order where several do; face -1 for texels further
+ * from every face. Texels are taken through the
  * grid's wrap modes, on `threads` threads (the result is the same). */
 typedef struct sc_tangent_texels {
     int32_t width, height;

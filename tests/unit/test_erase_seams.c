@@ -2172,3 +2172,96 @@ SC_TEST(corpus_duck_shared_texels) {
 }
 
 int main(void) { return sc_test_main(); }
+
+/* The rule sc_tangent_texels_build states, face by face in order: the
+ * first face whose triangle holds a texel centre takes it; a texel none
+ * holds takes the face strictly nearer than the one it has (the first
+ * among equals) within the band, with the nearest point's barycentrics. */
+static bool ref_holds(const double x[3], const double y[3], double px, double py, double b[3]) {
+    double d = (y[1] - y[2]) * (x[0] - x[2]) + (x[2] - x[1]) * (y[0] - y[2]);
+    if (d == 0) return false;
+    b[0] = ((y[1] - y[2]) * (px - x[2]) + (x[2] - x[1]) * (py - y[2])) / d;
+    b[1] = ((y[2] - y[0]) * (px - x[2]) + (x[0] - x[2]) * (py - y[2])) / d;
+    b[2] = 1 - b[0] - b[1];
+    return b[0] >= 0 && b[1] >= 0 && b[2] >= 0;
+}
+
+static double ref_edge_distance2(const double x[3], const double y[3], double px, double py, double b[3]) {
+    double best = INFINITY;
+    for (int e = 0; e < 3; e++) {
+        int i = e, j = (e + 1) % 3;
+        double dx = x[j] - x[i], dy = y[j] - y[i], l2 = dx * dx + dy * dy;
+        double s = l2 > 0 ? ((px - x[i]) * dx + (py - y[i]) * dy) / l2 : 0;
+        s = s < 0 ? 0 : s > 1 ? 1 : s;
+        double ex = x[i] + s * dx - px, ey = y[i] + s * dy - py, d2 = ex * ex + ey * ey;
+        if (d2 < best) {
+            best = d2;
+            b[0] = b[1] = b[2] = 0;
+            b[i] = 1 - s, b[j] = s;
+        }
+    }
+    return best;
+}
+
+SC_TEST(tangent_texels_take_the_nearest_face_first_in_order) {
+    /* faces on a lattice of texel centres (shared edges through texel
+     * centres, ties everywhere), overlapping ones, and random ones */
+    const int32_t W = 64, nf = 160;
+    sc_mesh *m = sc_mesh_alloc(3 * nf, 3 * nf, 0, nf, 1);
+    uint64_t seed = 99;
+    for (int32_t f = 0; f < nf; f++)
+        for (int k = 0; k < 3; k++) {
+            seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+            double r = (double)(seed >> 11) / 9007199254740992.0;
+            seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+            double q = (double)(seed >> 11) / 9007199254740992.0;
+            bool lattice = f < nf / 2;
+            double u = lattice ? (floor(r * 16) * 4 + 0.5) / W : r, v = lattice ? (floor(q * 16) * 4 + 0.5) / W : q;
+            m->U[2 * (3 * f + k)] = u, m->U[2 * (3 * f + k) + 1] = v;
+            m->V[3 * (3 * f + k)] = u, m->V[3 * (3 * f + k) + 1] = v, m->V[3 * (3 * f + k) + 2] = 0;
+            m->FV[3 * f + k] = m->FU[3 * f + k] = 3 * f + k;
+        }
+    for (int32_t f = 0; f < nf; f++) m->FM[f] = 0;
+    for (int w = 0; w < 2; w++) {
+        sc_seam_grid g = {W, W, w ? SC_WRAP_REPEAT : SC_WRAP_CLAMP, w ? SC_WRAP_MIRROR : SC_WRAP_CLAMP};
+        sc_tangent_texels tx;
+        sc_error err = {0};
+        SC_CHECK(sc_tangent_texels_build(m, 0, &g, 3.0, 2, &tx, &err) == SC_OK);
+        int32_t *face = malloc(sizeof(int32_t) * W * W);
+        float *dist = malloc(sizeof(float) * W * W), *bary = malloc(sizeof(float) * 2 * W * W);
+        for (int32_t i = 0; i < W * W; i++) face[i] = -1, dist[i] = INFINITY;
+        for (int32_t k = 0; k < 2 * nf; k++) {   /* every face for the texels it holds, then for the rest */
+            const int32_t f = k % nf;
+            const bool held_pass = k < nf;
+            double x[3], y[3];
+            for (int c = 0; c < 3; c++) {
+                const double *U = m->U + 2 * m->FU[3 * f + c];
+                x[c] = U[0] * W - 0.5, y[c] = U[1] * W - 0.5;
+            }
+            double x0 = fmin(x[0], fmin(x[1], x[2])) - 3, x1 = fmax(x[0], fmax(x[1], x[2])) + 3;
+            double y0 = fmin(y[0], fmin(y[1], y[2])) - 3, y1 = fmax(y[0], fmax(y[1], y[2])) + 3;
+            for (int64_t j = (int64_t)ceil(y0); j <= (int64_t)floor(y1); j++)
+                for (int64_t i = (int64_t)ceil(x0); i <= (int64_t)floor(x1); i++) {
+                    size_t id = (size_t)sc_seam_wrap(j, W, g.wrap_v) * W + sc_seam_wrap(i, W, g.wrap_u);
+                    double b[3] = {1, 0, 0}, d2 = 0;
+                    if (dist[id] == 0) continue;
+                    if (held_pass && !ref_holds(x, y, (double)i, (double)j, b)) continue;
+                    if (!held_pass && !ref_holds(x, y, (double)i, (double)j, b))
+                        d2 = ref_edge_distance2(x, y, (double)i, (double)j, b);
+                    if (d2 > 9 || !(d2 < dist[id])) continue;
+                    dist[id] = (float)d2, face[id] = f, bary[2 * id] = (float)b[1], bary[2 * id + 1] = (float)b[2];
+                }
+        }
+        int64_t differ = 0, held = 0;
+        for (int32_t i = 0; i < W * W; i++) {
+            held += face[i] >= 0;
+            differ += face[i] != tx.face[i] ||
+                      (face[i] >= 0 && memcmp(bary + 2 * i, tx.bary + 2 * i, 2 * sizeof(float)) != 0);
+        }
+        SC_CHECK_MSG(differ == 0 && held > W * W / 4, "wrap %d: %lld of %lld texels differ", w, (long long)differ,
+                     (long long)held);
+        free(face), free(dist), free(bary);
+        sc_tangent_texels_free(&tx);
+    }
+    sc_mesh_free(m);
+}
