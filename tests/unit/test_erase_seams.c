@@ -2176,7 +2176,10 @@ int main(void) { return sc_test_main(); }
 /* The rule sc_tangent_texels_build states, face by face in order: the
  * first face whose triangle holds a texel centre takes it; a texel none
  * holds takes the face strictly nearer than the one it has (the first
- * among equals) within the band, with the nearest point's barycentrics. */
+ * among equals) within the band, with the nearest point's barycentrics.
+ * The arithmetic is the library's on purpose: the test compares owners and
+ * barycentrics bit for bit, so it checks the order of the passes, not the
+ * geometry. */
 static bool ref_holds(const double x[3], const double y[3], double px, double py, double b[3]) {
     double d = (y[1] - y[2]) * (x[0] - x[2]) + (x[2] - x[1]) * (y[0] - y[2]);
     if (d == 0) return false;
