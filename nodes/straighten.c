@@ -791,9 +791,8 @@ static double triangle_distance(const double t[3][2], double px, double py) {
 }
 
 /* One texture's re-rendering, split into bands of rows that render side by
- * side: a band claims its own texels (every face in order, as one pass
- * would) and then samples them, so the result does not depend on the
- * split. */
+ * side: a band claims its own texels (every face in order, see claim) and
+ * then samples them, so the result does not depend on the split. */
 typedef struct warp_job {
     const sc_mesh *m;
     const double *Unew;
@@ -805,7 +804,7 @@ typedef struct warp_job {
     float *dp;                    /* the new one: its f32 copy, warped where a moved face claims */
     float *best;                  /* per texel: the claiming face's distance */
     int32_t *owner, *lattice;     /* per texel: the claiming face, and the lattice point it claimed */
-    const uint8_t *reach;         /* per texel: 1 where a moved face may claim it (within its box and pad) */
+    const uint8_t *reach;         /* per texel: 1 where a moved face may claim it (within pad of it) */
     const int32_t *reach_lo, *reach_hi;   /* per row: its first and last reached texel (none: lo > hi) */
 } warp_job;
 
@@ -870,9 +869,9 @@ static void mark_reach(const sc_mesh *m, const double *Unew, const bool *face_mo
 /* Face f's claims in the band's rows [row0, row1), on the texels a moved
  * face reaches. Inside pass: the texels f holds that no earlier face holds.
  * Outside pass: the texels no face holds, within pad of f and nearer it
- * than the faces before. Together they give each texel the nearest face,
- * the first in order among equals, as one pass over every face and texel
- * would; texels inside a face, most of them, skip the distance. */
+ * than the faces before. Together they give each texel the first face in
+ * order that holds it, else the nearest within pad (the first among
+ * equals); texels inside a face, most of them, skip the distance. */
 static void claim(const warp_job *J, int32_t f, int32_t row0, int32_t row1, bool inside_pass) {
     const sc_texture *tex = J->tex;
     const int32_t W = J->W, H = J->H, pad = J->pad;

@@ -245,10 +245,11 @@ static double nearest_on_triangle(const double x[3], const double y[3], double p
 }
 
 /* sc_tangent_texels_build's work, in bands of rows side by side: a band
- * takes every face in order for its own texels, as one pass would: first
- * the texels each face holds (the first face among those holding one), then
- * the nearest face within the band of the texels none holds (the first
- * among equals), so a held texel skips the distance to every other face. */
+ * takes every face in order for its own texels, so the result does not
+ * depend on the split: first the texels each face holds (the first face
+ * among those holding one), then the nearest face within the band of the
+ * texels none holds (the first among equals), so a held texel skips the
+ * distance to every other face. */
 typedef struct texels_job {
     const sc_mesh *m;
     int32_t material;
