@@ -825,13 +825,15 @@ static bool face_box(const double *Unew, const int32_t *fu, int32_t W, int32_t H
     return true;
 }
 
-/* The texels a lattice point (i, j) lands on, or -1 off a clamped side. */
-static int64_t lattice_texel(int64_t i, int64_t j, int32_t W, int32_t H, const sc_texture *tex) {
+/* The texel (*col, *row) a lattice point (i, j) lands on; false off a
+ * clamped side. */
+static bool lattice_texel(int64_t i, int64_t j, int32_t W, int32_t H, const sc_texture *tex, int32_t *col,
+                          int32_t *row) {
     if ((tex->wrap_u == SC_WRAP_CLAMP && (i < 0 || i >= W)) || (tex->wrap_v == SC_WRAP_CLAMP && (j < 0 || j >= H)))
-        return -1;
-    int32_t ii = tex->wrap_u == SC_WRAP_CLAMP ? (int32_t)i : sc_seam_wrap(i, W, tex->wrap_u);
-    int32_t jj = tex->wrap_v == SC_WRAP_CLAMP ? (int32_t)j : sc_seam_wrap(j, H, tex->wrap_v);
-    return (int64_t)jj * W + ii;
+        return false;
+    *col = tex->wrap_u == SC_WRAP_CLAMP ? (int32_t)i : sc_seam_wrap(i, W, tex->wrap_u);
+    *row = tex->wrap_v == SC_WRAP_CLAMP ? (int32_t)j : sc_seam_wrap(j, H, tex->wrap_v);
+    return true;
 }
 
 /* The texels a moved face may claim: only there can the claim change a
@@ -856,10 +858,9 @@ static void mark_reach(const sc_mesh *m, const double *Unew, const bool *face_mo
                 if (side * sc_orient2(t[0], t[1], p) < least[0] || side * sc_orient2(t[1], t[2], p) < least[1] ||
                     side * sc_orient2(t[2], t[0], p) < least[2])
                     continue;
-                int64_t id = lattice_texel(i, j, W, H, tex);
-                if (id < 0) continue;
-                int32_t row = (int32_t)(id / W), col = (int32_t)(id % W);
-                reach[id] = 1;
+                int32_t col, row;
+                if (!lattice_texel(i, j, W, H, tex, &col, &row)) continue;
+                reach[(size_t)row * W + col] = 1;
                 reach_lo[row] = col < reach_lo[row] ? col : reach_lo[row];
                 reach_hi[row] = col > reach_hi[row] ? col : reach_hi[row];
             }
